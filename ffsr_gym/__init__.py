@@ -1,0 +1,20 @@
+"""ffsr-gym: a dual-arm free-floating space robot, its predefined-time planner and a benchmark."""
+
+from __future__ import annotations
+
+from ffsr_gym.exceptions import FFSRError, InvalidInputError, RobotFileError, ScenarioError
+from ffsr_gym.robot import Robot, load_robot
+from ffsr_gym.scenario import Scenario, load_scenario
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "FFSRError",
+    "InvalidInputError",
+    "Robot",
+    "RobotFileError",
+    "Scenario",
+    "ScenarioError",
+    "load_robot",
+    "load_scenario",
+]

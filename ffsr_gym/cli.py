@@ -1,0 +1,63 @@
+"""The ``ffsr-gym`` command line."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+from ffsr_gym.exceptions import FFSRError
+
+
+def _info(args: argparse.Namespace) -> None:
+    from ffsr_gym.collision import CollisionModel
+    from ffsr_gym.robot import load_robot
+    from ffsr_gym.rollout import initial_configuration, obstacles_of
+    from ffsr_gym.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    robot = load_robot(scenario.robot)
+    q = initial_configuration(robot, scenario)
+    ee = robot.transform_ee_to_world(q, 0)
+    from ffsr_gym.quaternion import from_rotation
+
+    robot.update_kinematics(q)
+    mats = robot.momentum_matrices(q)
+    clearance = CollisionModel(robot).clearance(q, obstacles_of(scenario))
+    rows = [
+        ("scenario", f"{scenario.name} ({scenario.source})"),
+        ("scenario sha256", scenario.sha256()[:16]),
+        ("robot", f"{scenario.robot}, total mass {robot.total_mass:.1f} kg"),
+        ("base CoM [m]", np.round(q[:3], 4)),
+        ("system CoM [m]", np.round(robot.system_com(q), 4)),
+        ("mission EE position [m]", np.round(ee.translation, 4)),
+        ("mission EE attitude [w x y z]", np.round(from_rotation(ee.rotation), 4)),
+        ("target position [m]", np.round(scenario.target.position_m, 4)),
+        ("sigma(J_m mission)", np.round(np.linalg.svd(robot.arm_jacobian(0), compute_uv=False), 4)),
+        ("sigma(H_bm balance)", np.round(np.linalg.svd(mats.H_bm[1], compute_uv=False), 3)),
+        ("clearance [m]", f"{clearance.distance_m:.4f} ({clearance.pair[0]} - {clearance.pair[1]})"),
+    ]
+    width = max(len(k) for k, _ in rows)
+    for key, value in rows:
+        print(f"{key:<{width}}  {value}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``ffsr-gym`` console script."""
+    parser = argparse.ArgumentParser(prog="ffsr-gym", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    info = sub.add_parser("info", help="print the initial state of a scenario")
+    info.add_argument("--scenario", default="paper", help="scenario name or TOML path (default: paper)")
+    info.set_defaults(func=_info)
+    args = parser.parse_args(argv)
+    try:
+        args.func(args)
+    except FFSRError as exc:
+        print(f"ffsr-gym: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,27 @@
+"""Exceptions raised by ffsr-gym.
+
+Every error names what was wrong, the offending value and what is allowed, so a user can fix the
+input without reading a stack trace from deep inside numpy or Pinocchio.
+"""
+
+from __future__ import annotations
+
+
+class FFSRError(Exception):
+    """Base class of every error raised on purpose by ffsr-gym."""
+
+
+class ScenarioError(FFSRError, ValueError):
+    """A scenario file is missing, malformed, or holds a value outside its allowed range."""
+
+
+class RobotFileError(FFSRError, FileNotFoundError):
+    """A robot description (URDF or collision file) is missing or malformed."""
+
+
+class InvalidInputError(FFSRError, ValueError):
+    """A function argument (state, action, parameter) is non-finite, wrongly shaped or out of range."""
+
+
+class MissingDependencyError(FFSRError, ImportError):
+    """An optional dependency is needed for the requested feature but is not installed."""

@@ -1,0 +1,57 @@
+"""Scalar-first unit quaternions ``[w, x, y, z]`` (the paper's convention, SPEC §1).
+
+Pinocchio stores the free-flyer attitude as ``(x, y, z, w)``; the two conversions below are the
+only place where the orders meet.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from ffsr_gym.types import Array
+
+
+def wxyz_from_xyzw(quat_xyzw: Array) -> Array:
+    """Reorder a Pinocchio ``(x, y, z, w)`` quaternion to scalar-first ``[w, x, y, z]``."""
+    return np.array([quat_xyzw[3], quat_xyzw[0], quat_xyzw[1], quat_xyzw[2]])
+
+
+def xyzw_from_wxyz(quat_wxyz: Array) -> Array:
+    """Reorder a scalar-first ``[w, x, y, z]`` quaternion to Pinocchio's ``(x, y, z, w)``."""
+    return np.array([quat_wxyz[1], quat_wxyz[2], quat_wxyz[3], quat_wxyz[0]])
+
+
+def skew(a: Array) -> Array:
+    """Return the 3x3 matrix S(a) with S(a) b = a x b."""
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
+def multiply(a: Array, b: Array) -> Array:
+    """Hamilton product a ⊗ b of scalar-first quaternions."""
+    wa, va = a[0], a[1:]
+    wb, vb = b[0], b[1:]
+    return np.concatenate(([wa * wb - va @ vb], wa * vb + wb * va + np.cross(va, vb)))
+
+
+def conjugate(a: Array) -> Array:
+    """Return the conjugate (w, -x, -y, -z)."""
+    return np.array([a[0], -a[1], -a[2], -a[3]])
+
+
+def to_rotation(quat_wxyz: Array) -> Array:
+    """Rotation matrix R(σ) = (η² − εᵀε) I + 2 ε εᵀ + 2 η S(ε) of a unit quaternion."""
+    eta, eps = quat_wxyz[0], np.asarray(quat_wxyz[1:])
+    return (eta * eta - eps @ eps) * np.eye(3) + 2.0 * np.outer(eps, eps) + 2.0 * eta * skew(eps)
+
+
+def from_rotation(rotation: Array) -> Array:
+    """Scalar-first unit quaternion of a rotation matrix, with w >= 0."""
+    quat = pin.Quaternion(np.asarray(rotation))
+    out = np.array([quat.w, quat.x, quat.y, quat.z])
+    return out if out[0] >= 0.0 else -out
+
+
+def from_axis_angle(axis: Array, angle_rad: float) -> Array:
+    """Quaternion of a rotation by ``angle_rad`` [rad] about the unit ``axis``."""
+    return np.concatenate(([np.cos(angle_rad / 2.0)], np.sin(angle_rad / 2.0) * np.asarray(axis)))

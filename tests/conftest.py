@@ -1,0 +1,45 @@
+"""Shared fixtures: the shipped robot, its collision model and the paper's initial state."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ffsr_gym.collision import CollisionModel
+from ffsr_gym.robot import Robot, load_robot
+from ffsr_gym.scenario import Scenario, load_scenario
+
+
+@pytest.fixture(scope="session")
+def robot() -> Robot:
+    return load_robot("ffsr_dual_arm")
+
+
+@pytest.fixture(scope="session")
+def collision_model(robot: Robot) -> CollisionModel:
+    return CollisionModel(robot)
+
+
+@pytest.fixture(scope="session")
+def paper() -> Scenario:
+    return load_scenario("paper")
+
+
+@pytest.fixture()
+def q_paper(robot: Robot, paper: Scenario) -> np.ndarray:
+    joints = np.radians(paper.initial.mission_joints_deg + paper.initial.balance_joints_deg)
+    return robot.configuration(
+        base_position_m=np.array(paper.initial.base_position_m),
+        base_quaternion_wxyz=np.array(paper.initial.base_quaternion_wxyz),
+        joints_rad=joints,
+    )
+
+
+def random_configuration(robot: Robot, rng: np.random.Generator) -> np.ndarray:
+    """A configuration with a random base pose and joint angles in [-pi, pi]."""
+    quat = rng.normal(size=4)
+    return robot.configuration(
+        base_position_m=rng.uniform(-1, 1, 3),
+        base_quaternion_wxyz=quat / np.linalg.norm(quat),
+        joints_rad=rng.uniform(-np.pi, np.pi, 12),
+    )
