@@ -171,17 +171,16 @@ class CollisionModel:
             self.place(q)
         return self._pairs_proximity((i, 0) for i, p in enumerate(self._parts) if p.arm != "base")
 
+    def self_proximity(self, q: Array, *, place: bool = True) -> Proximity:
+        """The smaller of the arm-arm and arm-base proximities, signed [m]."""
+        if place:
+            self.place(q)
+        return _closer(self.arm_arm_proximity(q, place=False), self.arm_base_proximity(q, place=False))
+
     def clearance(self, q: Array, obstacles: Sequence[Obstacle]) -> Proximity:
         """The smallest of obstacle, arm-arm and arm-base proximities, signed [m]."""
         self.place(q)
-        return min(
-            (
-                self.obstacle_proximity(q, obstacles, place=False),
-                self.arm_arm_proximity(q, place=False),
-                self.arm_base_proximity(q, place=False),
-            ),
-            key=lambda p: p.distance_m,
-        )
+        return _closer(self.obstacle_proximity(q, obstacles, place=False), self.self_proximity(q, place=False))
 
 
 def _closer(a: Proximity, b: Proximity) -> Proximity:

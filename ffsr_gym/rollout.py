@@ -10,7 +10,7 @@ from tqdm.auto import tqdm
 from ffsr_gym.collision import CollisionModel, SphereObstacle
 from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.planner import Planner
-from ffsr_gym.robot import Robot, load_robot
+from ffsr_gym.robot import Robot, check_state, load_robot
 from ffsr_gym.scenario import Scenario, load_scenario
 from ffsr_gym.trajectory import Trajectory
 from ffsr_gym.types import Array
@@ -34,7 +34,8 @@ def obstacles_of(scenario: Scenario) -> list[SphereObstacle]:
 
 
 def simulate(scenario: Scenario | str, *, method: str = "predefined_time", m: float | None = None,
-             T_c: float | None = None, dt: float | None = None, progress: bool = False) -> Trajectory:
+             T_c: float | None = None, dt: float | None = None, q0: Array | None = None,
+             progress: bool = False) -> Trajectory:
     """Run the closed loop planner → robot for one scenario (the project's only closed loop).
 
     Args:
@@ -43,6 +44,9 @@ def simulate(scenario: Scenario | str, *, method: str = "predefined_time", m: fl
         m: predefined-time shape parameter in (0, 1); default: the scenario's.
         T_c: predefined time [s]; default: the scenario's.
         dt: time step [s]; default: the scenario's ``simulation.dt_s``.
+        q0: start from this configuration (19,) instead of the scenario's initial state. The
+            desired path and the base set-point still come from the scenario's initial state, so
+            this is how an initial pose error is imposed.
         progress: show a progress bar.
 
     Returns:
@@ -56,6 +60,9 @@ def simulate(scenario: Scenario | str, *, method: str = "predefined_time", m: fl
     obstacles = obstacles_of(scenario)
     q = initial_configuration(robot, scenario)
     planner = Planner(robot, scenario, method=method, m=m, T_c=T_c, initial_q=q)
+    if q0 is not None:
+        check_state(q0)
+        q = np.array(q0, dtype=float)
     h = np.array(scenario.initial.momentum)
     step_dt, n = scenario.simulation.dt_s, scenario.n_steps
     log: dict[str, list] = {key: [] for key in _LOGGED}
@@ -64,9 +71,9 @@ def simulate(scenario: Scenario | str, *, method: str = "predefined_time", m: fl
         if not np.all(np.isfinite(plan.dq_joints)):
             raise FFSRError(f"planner produced non-finite joint rates at t = {k * step_dt:.3f} s")
         v = robot.velocity(q, plan.dq_joints, h)
-        clear = collision.obstacle_proximity(q, obstacles).distance_m if obstacles else np.inf
-        self_clear = min(collision.arm_arm_proximity(q, place=False).distance_m,
-                         collision.arm_base_proximity(q, place=False).distance_m)
+        collision.place(q)
+        clear = collision.obstacle_proximity(q, obstacles, place=False).distance_m if obstacles else np.inf
+        self_clear = collision.self_proximity(q, place=False).distance_m
         for key, value in zip(_LOGGED, (q, v, plan.dq_joints, np.linalg.norm(plan.ee_error[:3]),
                                         np.linalg.norm(plan.ee_error[3:]), np.linalg.norm(plan.base_error[:3]),
                                         np.linalg.norm(plan.base_error[3:]), clear, self_clear, plan.mu,
