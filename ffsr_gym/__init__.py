@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from ffsr_gym.exceptions import FFSRError, InvalidInputError, RobotFileError, ScenarioError
 from ffsr_gym.robot import Robot, load_robot
+from ffsr_gym.rollout import simulate
 from ffsr_gym.scenario import Scenario, load_scenario
+from ffsr_gym.trajectory import Trajectory
 
 __version__ = "0.1.0"
 
@@ -15,6 +17,8 @@ __all__ = [
     "RobotFileError",
     "Scenario",
     "ScenarioError",
+    "Trajectory",
     "load_robot",
     "load_scenario",
+    "simulate",
 ]

@@ -12,6 +12,7 @@ from ffsr_gym.exceptions import FFSRError
 
 def _info(args: argparse.Namespace) -> None:
     from ffsr_gym.collision import CollisionModel
+    from ffsr_gym.quaternion import from_rotation
     from ffsr_gym.robot import load_robot
     from ffsr_gym.rollout import initial_configuration, obstacles_of
     from ffsr_gym.scenario import load_scenario
@@ -20,8 +21,6 @@ def _info(args: argparse.Namespace) -> None:
     robot = load_robot(scenario.robot)
     q = initial_configuration(robot, scenario)
     ee = robot.transform_ee_to_world(q, 0)
-    from ffsr_gym.quaternion import from_rotation
-
     robot.update_kinematics(q)
     mats = robot.momentum_matrices(q)
     clearance = CollisionModel(robot).clearance(q, obstacles_of(scenario))
@@ -43,6 +42,17 @@ def _info(args: argparse.Namespace) -> None:
         print(f"{key:<{width}}  {value}")
 
 
+def _reproduce(args: argparse.Namespace) -> None:
+    from ffsr_gym.reproduction import reproduce
+
+    command = " ".join(["ffsr-gym", *args.argv])
+    result = reproduce(args.out, duration_s=args.duration, progress=not args.no_progress, command=command)
+    width = max(len(c["claim"]) for c in result["claims"])
+    for claim in result["claims"]:
+        print(f"{'holds' if claim['holds'] else 'FAILS'}  {claim['claim']:<{width}}  ours: {claim['ours']}  paper: {claim['paper']}")
+    print(f"wrote figures, reproduction.json and reproduction.md to {args.out}")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``ffsr-gym`` console script."""
     parser = argparse.ArgumentParser(prog="ffsr-gym", description=__doc__)
@@ -50,7 +60,14 @@ def main(argv: list[str] | None = None) -> int:
     info = sub.add_parser("info", help="print the initial state of a scenario")
     info.add_argument("--scenario", default="paper", help="scenario name or TOML path (default: paper)")
     info.set_defaults(func=_info)
+    rep = sub.add_parser("reproduce", help="run the paper's Section 5 and write figures and a metrics table")
+    rep.add_argument("--out", required=True, help="output folder, e.g. runs/paper")
+    rep.add_argument("--duration", type=float, default=None, help="shorten every run to this many seconds")
+    rep.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    rep.set_defaults(func=_reproduce)
+    argv = sys.argv[1:] if argv is None else argv
     args = parser.parse_args(argv)
+    args.argv = argv
     try:
         args.func(args)
     except FFSRError as exc:

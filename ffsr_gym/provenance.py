@@ -1,0 +1,86 @@
+"""Provenance of every number that leaves the repository, and atomic result files."""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+from datetime import datetime, timezone
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+_PACKAGES = ("ffsr-gym", "numpy", "pin", "coal", "gymnasium", "matplotlib", "stable-baselines3", "torch")
+_SOURCE = Path(__file__).resolve().parent.parent
+
+
+def _git(*args: str) -> str | None:
+    try:
+        out = subprocess.run(["git", *args], cwd=_SOURCE, capture_output=True, text=True, timeout=10, check=True)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip()
+
+
+def package_versions() -> dict[str, str]:
+    """Installed versions of the packages that shape results (absent ones are skipped)."""
+    versions = {"python": platform.python_version()}
+    for name in _PACKAGES:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
+    return versions
+
+
+def provenance(*, scenarios: dict[str, str] | None = None, seeds: list[int] | None = None,
+               command: str | None = None, wall_time_s: float | None = None) -> dict[str, Any]:
+    """Describe where a result comes from.
+
+    Args:
+        scenarios: scenario name → sha256 (content and robot files).
+        seeds: the random seeds used, if any.
+        command: the command line; default: this process's ``sys.argv``.
+        wall_time_s: wall-clock time of the run [s].
+
+    Returns:
+        A JSON-ready dict: git commit and dirty flag (None outside a git checkout), package
+        versions, platform, command, seeds, scenario hashes, wall time and a UTC timestamp.
+    """
+    commit = _git("rev-parse", "HEAD") if (_SOURCE / ".git").exists() else None
+    dirty = None if commit is None else bool(_git("status", "--porcelain", "--untracked-files=no"))
+    return {
+        "git_commit": commit,
+        "git_dirty": dirty,
+        "versions": package_versions(),
+        "platform": f"{platform.platform()} ({platform.machine()}, {os.cpu_count()} CPUs)",
+        "command": command if command is not None else " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),
+        "seeds": seeds,
+        "scenario_sha256": scenarios or {},
+        "wall_time_s": wall_time_s,
+        "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+    }
+
+
+def write_text_atomic(path: str | Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file and an atomic rename."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write(text)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_json_atomic(path: str | Path, data: Any) -> None:
+    """Write ``data`` as indented JSON, atomically (see :func:`write_text_atomic`)."""
+    write_text_atomic(path, json.dumps(data, indent=2, sort_keys=False, allow_nan=False) + "\n")
