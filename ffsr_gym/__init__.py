@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import gymnasium
+
 from ffsr_gym.exceptions import FFSRError, InvalidInputError, RobotFileError, ScenarioError
 from ffsr_gym.robot import Robot, load_robot
 from ffsr_gym.rollout import simulate
@@ -9,6 +11,9 @@ from ffsr_gym.scenario import Scenario, load_scenario
 from ffsr_gym.trajectory import Trajectory
 
 __version__ = "0.1.0"
+
+gymnasium.register(id="FFSR-v0", entry_point="ffsr_gym.env:FFSREnv")
+gymnasium.register(id="FFSR-Residual-v0", entry_point="ffsr_gym.env:FFSRResidualEnv")
 
 __all__ = [
     "FFSRError",

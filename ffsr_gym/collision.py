@@ -100,8 +100,13 @@ class CollisionModel:
         except (KeyError, TypeError, ValueError, tomllib.TOMLDecodeError) as exc:
             raise RobotFileError(f"collision file {path} is malformed: {exc!r}") from exc
         self.robot = robot
+        self.spec_path = path
         self._request = coal.DistanceRequest()
         self._placements: list[coal.Transform3s] = []
+
+    def __reduce__(self) -> tuple:
+        """Pickle as (robot, collision file); the coal shapes are rebuilt on load."""
+        return (CollisionModel, (self.robot, self.spec_path))
 
     @staticmethod
     def _read_parts(robot: Robot, spec: dict) -> list[_Part]:

@@ -72,9 +72,7 @@ class Planner:
             raise InvalidInputError(f"method {method!r}; allowed: {list(METHODS)}")
         self.robot, self.scenario, self.method = robot, scenario, method
         self.settings = scenario.planner
-        self.m = self.settings.m if m is None else float(m)
-        self.T_c = self.settings.T_c_s if T_c is None else float(T_c)
-        ptsf._check(self.T_c, self.m, self.settings.phi_form)
+        self.set_parameters(self.settings.m if m is None else m, self.settings.T_c_s if T_c is None else T_c)
         self.centroidal_momentum = np.array(scenario.initial.momentum)
         self.base_target = robot.base_pose(initial_q)
         ee = robot.transform_ee_to_world(initial_q, 0)
@@ -84,6 +82,11 @@ class Planner:
             motion_time=scenario.trajectory.motion_time_s, accel_time=scenario.trajectory.accel_time_s,
         )
         self.obstacle = None if scenario.obstacle is None else np.array(scenario.obstacle.position_m)
+
+    def set_parameters(self, m: float, T_c: float) -> None:
+        """Change the predefined-time parameters m ∈ (0, 1) and T_c [s] > 0 from now on."""
+        ptsf._check(float(T_c), float(m), self.settings.phi_form)
+        self.m, self.T_c = float(m), float(T_c)
 
     def feedback(self, error: Array) -> Array:
         """The pose feedback φ(e) of this method (6,) [error units per s]."""

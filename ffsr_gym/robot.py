@@ -71,6 +71,10 @@ class Robot:
         self.ee_frame_ids = np.array([self._frame_id(f"{arm}_ee") for arm in ARMS])
         self.total_mass = float(sum(inertia.mass for inertia in self.model.inertias))
 
+    def __reduce__(self) -> tuple:
+        """Pickle as the URDF path; the model is rebuilt on load."""
+        return (Robot, (self.urdf_path,))
+
     def _joint_id(self, name: str) -> int:
         if not self.model.existJointName(name):
             raise RobotFileError(f"{self.urdf_path}: joint {name!r} is missing (need <arm>_joint1..6)")

@@ -1,15 +1,16 @@
-"""The closed loop: ``simulate`` runs a planner on the robot for one scenario."""
+"""The closed loop: a :class:`Rollout` advances planner and robot; ``simulate`` runs one to the end."""
 
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 from tqdm.auto import tqdm
 
-from ffsr_gym.collision import CollisionModel, SphereObstacle
+from ffsr_gym.collision import CollisionModel, Proximity, SphereObstacle
 from ffsr_gym.exceptions import FFSRError
-from ffsr_gym.planner import Planner
+from ffsr_gym.planner import Planner, PlanStep
 from ffsr_gym.robot import Robot, check_state, load_robot
 from ffsr_gym.scenario import Scenario, load_scenario
 from ffsr_gym.trajectory import Trajectory
@@ -33,10 +34,96 @@ def obstacles_of(scenario: Scenario) -> list[SphereObstacle]:
     return [SphereObstacle(np.array(scenario.obstacle.position_m), scenario.obstacle.radius_m)]
 
 
+class Rollout:
+    """A closed-loop run advanced step by step: ``simulate`` and the environments both drive it.
+
+    Each :meth:`step` plans at (t_k, q_k), records the sample, and integrates to q_{k+1}.
+    :meth:`finish` records the final sample at t_n (planned, never applied).
+
+    Args:
+        scenario: the scenario (validated).
+        method: planning method, one of :data:`ffsr_gym.planner.METHODS`.
+        m, T_c: initial predefined-time parameters (default: the scenario's).
+        q0: initial configuration (default: the scenario's initial state).
+    """
+
+    def __init__(self, scenario: Scenario, *, method: str = "predefined_time", m: float | None = None,
+                 T_c: float | None = None, q0: Array | None = None) -> None:
+        self.scenario = scenario
+        self.robot = load_robot(scenario.robot)
+        self.collision = CollisionModel(self.robot)
+        self.obstacles = obstacles_of(scenario)
+        q_nominal = initial_configuration(self.robot, scenario)
+        self.planner = Planner(self.robot, scenario, method=method, m=m, T_c=T_c, initial_q=q_nominal)
+        if q0 is not None:
+            check_state(q0)
+        self.q = q_nominal if q0 is None else np.array(q0, dtype=float)
+        self.momentum = np.array(scenario.initial.momentum)
+        self.dt, self.n_steps = scenario.simulation.dt_s, scenario.n_steps
+        self.k = 0
+        self.finished = False
+        self.last_plan: PlanStep | None = None
+        self.last_proximity: Proximity | None = None
+        self._log: dict[str, list] = {key: [] for key in _LOGGED}
+
+    @property
+    def t(self) -> float:
+        """Current time [s]."""
+        return self.k * self.dt
+
+    def _record(self, residual: Array | None) -> Array:
+        plan = self.planner(self.t, self.q)
+        dq = plan.dq_joints if residual is None else plan.dq_joints + residual
+        if not np.all(np.isfinite(dq)):
+            raise FFSRError(f"planner produced non-finite joint rates at t = {self.t:.3f} s")
+        v = self.robot.velocity(self.q, dq, self.momentum)
+        self.collision.place(self.q)
+        obstacle = self.collision.obstacle_proximity(self.q, self.obstacles, place=False) if self.obstacles else None
+        self_clear = self.collision.self_proximity(self.q, place=False).distance_m
+        e1, e0 = plan.ee_error, plan.base_error
+        row = (self.q, v, dq, np.linalg.norm(e1[:3]), np.linalg.norm(e1[3:]), np.linalg.norm(e0[:3]),
+               np.linalg.norm(e0[3:]), np.inf if obstacle is None else obstacle.distance_m, self_clear,
+               plan.mu, plan.cdf, plan.sigma_min)
+        for key, value in zip(_LOGGED, row):
+            self._log[key].append(value)
+        self.last_plan, self.last_proximity = plan, obstacle
+        return dq
+
+    def step(self, residual: Array | None = None) -> None:
+        """Plan, record and integrate one step of ``dt``; ``residual`` [rad/s] (12,) is added to the plan."""
+        if self.k >= self.n_steps:
+            raise FFSRError(f"the run is over: {self.n_steps} steps of {self.dt} s were taken")
+        dq = self._record(residual)
+        self.q, _ = self.robot.step(self.q, dq, self.dt, self.momentum)
+        self.k += 1
+
+    def finish(self) -> None:
+        """Record the final sample (at the current time; its rates are not applied)."""
+        if not self.finished:
+            self._record(None)
+            self.finished = True
+
+    def latest(self, key: str) -> Any:
+        """The last recorded value of ``key`` (a :class:`Trajectory` field name)."""
+        return self._log[key][-1]
+
+    def samples(self, start: int = 0) -> dict[str, Array]:
+        """Recorded samples from index ``start`` on, as arrays."""
+        return {key: np.array(val[start:]) for key, val in self._log.items()}
+
+    def trajectory(self) -> Trajectory:
+        """The :class:`Trajectory` recorded so far."""
+        n = len(self._log["q"])
+        info = {"scenario": self.scenario.name, "scenario_sha256": self.scenario.sha256(),
+                "method": self.planner.method, "m": self.planner.m, "T_c_s": self.planner.T_c,
+                "dt_s": self.dt, "duration_s": self.scenario.simulation.duration_s}
+        return Trajectory(t=np.arange(n) * self.dt, **self.samples(), info=info)
+
+
 def simulate(scenario: Scenario | str, *, method: str = "predefined_time", m: float | None = None,
              T_c: float | None = None, dt: float | None = None, q0: Array | None = None,
              progress: bool = False) -> Trajectory:
-    """Run the closed loop planner → robot for one scenario (the project's only closed loop).
+    """Run the closed loop planner → robot for one scenario.
 
     Args:
         scenario: a :class:`Scenario` or a scenario name/path.
@@ -55,35 +142,11 @@ def simulate(scenario: Scenario | str, *, method: str = "predefined_time", m: fl
     scenario = load_scenario(scenario)
     if dt is not None:
         scenario = scenario.replace(simulation=dataclasses.replace(scenario.simulation, dt_s=float(dt)))
-    robot = load_robot(scenario.robot)
-    collision = CollisionModel(robot)
-    obstacles = obstacles_of(scenario)
-    q = initial_configuration(robot, scenario)
-    planner = Planner(robot, scenario, method=method, m=m, T_c=T_c, initial_q=q)
-    if q0 is not None:
-        check_state(q0)
-        q = np.array(q0, dtype=float)
-    h = np.array(scenario.initial.momentum)
-    step_dt, n = scenario.simulation.dt_s, scenario.n_steps
-    log: dict[str, list] = {key: [] for key in _LOGGED}
-    for k in tqdm(range(n + 1), disable=not progress, desc=f"{scenario.name}/{method}", unit="step"):
-        plan = planner(k * step_dt, q)
-        if not np.all(np.isfinite(plan.dq_joints)):
-            raise FFSRError(f"planner produced non-finite joint rates at t = {k * step_dt:.3f} s")
-        v = robot.velocity(q, plan.dq_joints, h)
-        collision.place(q)
-        clear = collision.obstacle_proximity(q, obstacles, place=False).distance_m if obstacles else np.inf
-        self_clear = collision.self_proximity(q, place=False).distance_m
-        for key, value in zip(_LOGGED, (q, v, plan.dq_joints, np.linalg.norm(plan.ee_error[:3]),
-                                        np.linalg.norm(plan.ee_error[3:]), np.linalg.norm(plan.base_error[:3]),
-                                        np.linalg.norm(plan.base_error[3:]), clear, self_clear, plan.mu,
-                                        plan.cdf, plan.sigma_min)):
-            log[key].append(value)
-        if k < n:
-            q, _ = robot.step(q, plan.dq_joints, step_dt, h)
-    info = {"scenario": scenario.name, "scenario_sha256": scenario.sha256(), "method": method,
-            "m": planner.m, "T_c_s": planner.T_c, "dt_s": step_dt, "duration_s": scenario.simulation.duration_s}
-    return Trajectory(t=np.arange(n + 1) * step_dt, **{key: np.array(val) for key, val in log.items()}, info=info)
+    rollout = Rollout(scenario, method=method, m=m, T_c=T_c, q0=q0)
+    for _ in tqdm(range(rollout.n_steps), disable=not progress, desc=f"{scenario.name}/{method}", unit="step"):
+        rollout.step()
+    rollout.finish()
+    return rollout.trajectory()
 
 
 _LOGGED = ("q", "v", "dq_joints", "ee_position_error_m", "ee_attitude_error", "base_position_error_m",

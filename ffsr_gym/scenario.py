@@ -117,6 +117,58 @@ class PlannerSettings:
 
 
 @dataclass(frozen=True)
+class ObjectiveSettings:
+    """The benchmark objective B (paper eqs. 21-22; SPEC §9) and the feasibility tolerances.
+
+    Rates are compared in deg/s. ``rate_limit_scope``: ``"both_arms"`` (default) or the literal
+    eq. (22) reading ``"balance_arm"``.
+    """
+
+    alpha: float = field(default=0.35, metadata=_number(0.0, 1e6))
+    beta: float = field(default=0.65, metadata=_number(0.0, 1e6))
+    gamma: float = field(default=1e-4, metadata=_number(0.0, 1e6))
+    danger_rate_deg_s: float = field(default=150.0, metadata=_number(0.0, 1e5))
+    max_rate_deg_s: float = field(default=200.0, metadata=_number(0.0, 1e5, lo_open=True))
+    rate_limit_scope: str = field(default="both_arms", metadata=_choice("both_arms", "balance_arm"))
+    ee_position_tolerance_m: float = field(default=1e-6, metadata=_number(0.0, 10.0, lo_open=True))
+    ee_attitude_tolerance: float = field(default=1e-6, metadata=_number(0.0, 1.0, lo_open=True))
+
+
+@dataclass(frozen=True)
+class EnvSettings:
+    """Settings of the Gymnasium environments (bounds of the action mapping, decision interval)."""
+
+    m_bounds: Vec = field(default=(0.05, 0.95), metadata=_vector(2, 0.0, 1.0))
+    T_c_bounds_s: Vec = field(default=(0.5, 10.0), metadata=_vector(2, 1e-3, 1000.0))
+    decision_interval_s: float = field(default=0.1, metadata=_number(0.0, 3600.0, lo_open=True))
+    residual_rate_deg_s: float = field(default=20.0, metadata=_number(0.0, 1e4))
+    violation_penalty: float = field(default=1.0, metadata=_number(0.0, 1e9))
+    tolerance_penalty: float = field(default=1.0, metadata=_number(0.0, 1e9))
+
+
+@dataclass(frozen=True)
+class Randomization:
+    """Ranges of the randomised scenario family (used by ``scenario="random"``).
+
+    The target is the forward kinematics of the initial mission-arm angles plus offsets drawn
+    uniformly in ``±mission_joint_offsets_deg``; it is kept when the end-effector travels at least
+    ``min_travel_m`` and the target configuration has ``σ_min(J_m) >= min_sigma_target``. The
+    obstacle is put on the desired straight path at a fraction drawn in ``path_fraction`` plus a
+    lateral offset up to ``lateral_offset_m``; it is kept when both arms start at least the danger
+    radius away and the target configuration clears it by ``min_final_distance_m``.
+    """
+
+    mission_joint_offsets_deg: Vec = field(metadata=_vector(6, 0.0, 180.0))
+    min_travel_m: float = field(default=0.2, metadata=_number(0.0, 10.0))
+    min_sigma_target: float = field(default=0.05, metadata=_number(0.0, 10.0))
+    path_fraction: Vec = field(default=(0.4, 0.7), metadata=_vector(2, 0.0, 1.0))
+    lateral_offset_m: float = field(default=0.02, metadata=_number(0.0, 1.0))
+    min_final_distance_m: float = field(default=0.1, metadata=_number(0.0, 10.0))
+    min_self_clearance_m: float = field(default=0.02, metadata=_number(0.0, 10.0))
+    max_attempts: float = field(default=1000, metadata=_number(1, 1e6))
+
+
+@dataclass(frozen=True)
 class Scenario:
     """One experiment, loaded from a TOML file. See the module docstring for conventions."""
 
@@ -129,6 +181,9 @@ class Scenario:
     trajectory: ReferencePath
     planner: PlannerSettings
     obstacle: Obstacle | None = None
+    objective: ObjectiveSettings = ObjectiveSettings()
+    env: EnvSettings = EnvSettings()
+    randomization: Randomization | None = None
     deviations: tuple[str, ...] = field(default=(), metadata=_TEXTS)
     schema_version: int = field(default=SCHEMA_VERSION, metadata={"kind": "integer", "options": (1,)})
     source: str = field(default="", compare=False)
@@ -163,6 +218,9 @@ _SECTIONS = {
     "trajectory": ReferencePath,
     "planner": PlannerSettings,
     "obstacle": Obstacle,
+    "objective": ObjectiveSettings,
+    "env": EnvSettings,
+    "randomization": Randomization,
 }
 
 
@@ -170,8 +228,9 @@ def to_dict(scenario: Scenario) -> dict[str, Any]:
     """Return the scenario as plain data (the TOML layout), without its source path."""
     data = dataclasses.asdict(scenario)
     data.pop("source")
-    if data["obstacle"] is None:
-        data.pop("obstacle")
+    for optional in ("obstacle", "randomization"):
+        if data[optional] is None:
+            data.pop(optional)
     return data
 
 
@@ -298,6 +357,12 @@ def _check_cross_fields(s: Scenario, where: str) -> None:
                 f"{where}key {key!r} = {list(quat)} has norm {norm:.6f}; allowed: a unit "
                 "quaternion [w, x, y, z] within 1e-2 of norm 1 (it is normalised on load)"
             )
+    for key, (lo, hi) in (("env.m_bounds", s.env.m_bounds), ("env.T_c_bounds_s", s.env.T_c_bounds_s)):
+        if not lo < hi or (key == "env.m_bounds" and (lo <= 0.0 or hi >= 1.0)):
+            raise ScenarioError(f"{where}key {key!r} = {[lo, hi]} is invalid; allowed: [low, high] with low < high"
+                                + (" inside (0, 1)" if key == "env.m_bounds" else ""))
+    if s.randomization is not None and s.obstacle is None:
+        raise ScenarioError(f"{where}section 'randomization' needs an 'obstacle' section (its radii are used)")
     robot_dir(s.robot)
 
 
