@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gymnasium
 
+from ffsr_gym.evaluation import EvalReport, evaluate, objective_for_params
 from ffsr_gym.exceptions import FFSRError, InvalidInputError, RobotFileError, ScenarioError
 from ffsr_gym.robot import Robot, load_robot
 from ffsr_gym.rollout import simulate
@@ -16,6 +17,7 @@ gymnasium.register(id="FFSR-v0", entry_point="ffsr_gym.env:FFSREnv")
 gymnasium.register(id="FFSR-Residual-v0", entry_point="ffsr_gym.env:FFSRResidualEnv")
 
 __all__ = [
+    "EvalReport",
     "FFSRError",
     "InvalidInputError",
     "Robot",
@@ -23,7 +25,9 @@ __all__ = [
     "Scenario",
     "ScenarioError",
     "Trajectory",
+    "evaluate",
     "load_robot",
     "load_scenario",
+    "objective_for_params",
     "simulate",
 ]
