@@ -11,7 +11,7 @@ import numpy as np
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.objective import ObjectiveTerms, objective_terms, rate_terms, smooth_part
 from ffsr_gym.randomization import sample_scenario
-from ffsr_gym.rollout import Rollout
+from ffsr_gym.rollout import BACKENDS, Rollout, make_rollout
 from ffsr_gym.scenario import Scenario, load_scenario
 
 OBS_CLIP = {"rates": 20.0, "errors": 10.0, "relative": 10.0, "clearance": 10.0}
@@ -64,7 +64,8 @@ class FFSREnv(gym.Env):
     ## Arguments
     ``gymnasium.make("FFSR-v0", scenario="paper", render_mode=None)``: ``scenario`` is a shipped
     name (``paper``, ``paper_as_printed``, ``free_space``, ``random``), a TOML path, or a
-    :class:`~ffsr_gym.scenario.Scenario`.
+    :class:`~ffsr_gym.scenario.Scenario`; ``backend``: ``"auto"`` (compiled kernel when numba is
+    installed), ``"kernel"`` or ``"pinocchio"`` (reference implementation, same numbers to 1e-9).
 
     ## Version History
     * v0: initial release (scenario schema 1, robot ``ffsr_dual_arm``).
@@ -73,8 +74,11 @@ class FFSREnv(gym.Env):
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
     residual = False
 
-    def __init__(self, scenario: str | Scenario = "paper", render_mode: str | None = None) -> None:
+    def __init__(self, scenario: str | Scenario = "paper", render_mode: str | None = None, backend: str = "auto") -> None:
         self.family = load_scenario(scenario)
+        if backend not in BACKENDS:
+            raise InvalidInputError(f"backend {backend!r}; allowed: {list(BACKENDS)}")
+        self.backend = backend
         self.randomised = self.family.randomization is not None
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise InvalidInputError(f"render_mode {render_mode!r}; allowed: {self.metadata['render_modes']} or None")
@@ -113,13 +117,11 @@ class FFSREnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
         self.scenario = sample_scenario(self.family, self.np_random) if self.randomised else self.family
-        self.rollout = Rollout(self.scenario)
+        self.rollout = make_rollout(self.scenario, backend=self.backend)
         self.clipped_actions = 0
         self.last_rates = np.zeros(12)
-        self._observe_plan = self.rollout.planner(0.0, self.rollout.q)
-        info = {"clearance_m": self._clearance(),
-                "ee_position_error_m": float(np.linalg.norm(self._observe_plan.ee_error[:3]))}
-        return self._observation(), info
+        obs = self._observation()
+        return obs, {"clearance_m": self._clearance, "ee_position_error_m": self._ee_error}
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
         if self.rollout is None:
@@ -139,20 +141,11 @@ class FFSREnv(gym.Env):
     def _advance(self, parameters: tuple[float, float] | None, residual: np.ndarray | None):
         rollout, objective = self.rollout, self.scenario.objective
         if parameters is not None:
-            rollout.planner.set_parameters(*parameters)
-        start = rollout.k  # one sample is recorded per step
-        violation = collided = False
-        while rollout.k < rollout.n_steps and rollout.k - start < self.steps_per_decision:
-            rollout.step(residual)
-            violation = rate_terms(rollout.latest("dq_joints"), rollout.dt, objective)[2]
-            collided = rollout.latest("clearance_m") < 0.0 or rollout.latest("self_clearance_m") < 0.0
-            if violation or collided:
-                break
-        applied = rollout.samples(start)["dq_joints"]
-        mission, balance, _ = rate_terms(applied, rollout.dt, objective)
-        increment = smooth_part(mission, balance, objective)
+            rollout.set_parameters(*parameters)
+        applied, status = rollout.advance(self.steps_per_decision, residual, stop_on_violation=True)
+        increment = smooth_part(*rate_terms(applied, rollout.dt, objective)[:2], objective)
         self.last_rates = applied[-1]
-        terminated = bool(violation or collided)
+        terminated = status != "ok"
         truncated = not terminated and rollout.k >= rollout.n_steps
         penalty = self.scenario.env.violation_penalty if terminated else 0.0
         info: dict[str, Any] = {"objective_increment": increment, "cost": 1.0 if terminated else 0.0,
@@ -163,14 +156,11 @@ class FFSREnv(gym.Env):
             if truncated and not terms.final_errors_ok:
                 penalty += self.scenario.env.tolerance_penalty
             info.update(self._final_info(terms))
-            self._observe_plan = rollout.last_plan
-        else:
-            self._observe_plan = rollout.planner(rollout.t, rollout.q)
-        info.update({"penalty": penalty, "clearance_m": self._clearance(),
-                     "ee_position_error_m": float(np.linalg.norm(self._observe_plan.ee_error[:3]))})
+        obs = self._observation()
+        info.update({"penalty": penalty, "clearance_m": self._clearance, "ee_position_error_m": self._ee_error})
         if self.render_mode == "human":
             self.render()
-        return self._observation(), float(-increment - penalty), terminated, truncated, info
+        return obs, float(-increment - penalty), terminated, truncated, info
 
     @staticmethod
     def _final_info(terms: ObjectiveTerms) -> dict[str, Any]:
@@ -178,27 +168,17 @@ class FFSREnv(gym.Env):
                 "rate_violation": terms.rate_violation, "collided": terms.collided}
 
     # ------------------------------------------------------------------------ observation
-    def _clearance(self) -> float:
-        if not self.rollout.obstacles:
-            return math.inf
-        return self.rollout.collision.obstacle_proximity(self.rollout.q, self.rollout.obstacles).distance_m
-
     def _observation(self) -> np.ndarray:
-        rollout, plan = self.rollout, self._observe_plan
-        angles = rollout.robot.joint_angles(rollout.q)
-        relative = np.zeros(3)
-        clearance = OBS_CLIP["clearance"]
-        if rollout.obstacles:
-            prox = rollout.collision.obstacle_proximity(rollout.q, rollout.obstacles)
-            relative = prox.witness_points[1] - prox.witness_points[0]
-            clearance = prox.distance_m
+        angles, ee_error, base_error, relative, clearance = self.rollout.observation()
+        self._clearance = float(clearance)
+        self._ee_error = float(np.linalg.norm(ee_error[:3]))
         obs = np.concatenate([
             np.sin(angles), np.cos(angles),
             np.clip(self.last_rates, -OBS_CLIP["rates"], OBS_CLIP["rates"]),
-            np.clip(np.concatenate((plan.ee_error, plan.base_error)), -OBS_CLIP["errors"], OBS_CLIP["errors"]),
+            np.clip(np.concatenate((ee_error, base_error)), -OBS_CLIP["errors"], OBS_CLIP["errors"]),
             np.clip(relative, -OBS_CLIP["relative"], OBS_CLIP["relative"]),
             [np.clip(clearance, -OBS_CLIP["clearance"], OBS_CLIP["clearance"])],
-            [min(1.0, rollout.k / rollout.n_steps)],
+            [min(1.0, self.rollout.k / self.rollout.n_steps)],
         ])
         return obs.astype(np.float32)
 

@@ -61,7 +61,7 @@ class SceneRenderer:
     @staticmethod
     def _ee_trace(rollout: Rollout):
         robot = rollout.robot
-        qs = rollout.samples()["q"]
+        qs = rollout.trajectory().q
         for q in qs[:: max(1, len(qs) // 100)] if len(qs) else [rollout.q]:
             yield robot.transform_ee_to_world(q, 0).translation
 

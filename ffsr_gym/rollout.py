@@ -9,7 +9,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ffsr_gym.collision import CollisionModel, Proximity, SphereObstacle
-from ffsr_gym.exceptions import FFSRError
+from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.planner import Planner, PlanStep
 from ffsr_gym.robot import Robot, check_state, load_robot
 from ffsr_gym.scenario import Scenario, load_scenario
@@ -34,8 +34,15 @@ def obstacles_of(scenario: Scenario) -> list[SphereObstacle]:
     return [SphereObstacle(np.array(scenario.obstacle.position_m), scenario.obstacle.radius_m)]
 
 
+STATUS = ("ok", "rate_limit", "collision")
+BACKENDS = ("auto", "kernel", "pinocchio")
+
+
 class Rollout:
     """A closed-loop run advanced step by step: ``simulate`` and the environments both drive it.
+
+    This is the Pinocchio reference backend; :class:`ffsr_gym.kernel_rollout.KernelRollout` has
+    the same interface and numbers (to 1e-9) on the compiled kernel. Use :func:`make_rollout`.
 
     Each :meth:`step` plans at (t_k, q_k), records the sample, and integrates to q_{k+1}.
     :meth:`finish` records the final sample at t_n (planned, never applied).
@@ -46,6 +53,8 @@ class Rollout:
         m, T_c: initial predefined-time parameters (default: the scenario's).
         q0: initial configuration (default: the scenario's initial state).
     """
+
+    backend = "pinocchio"
 
     def __init__(self, scenario: Scenario, *, method: str = "predefined_time", m: float | None = None,
                  T_c: float | None = None, q0: Array | None = None) -> None:
@@ -103,6 +112,43 @@ class Rollout:
             self._record(None)
             self.finished = True
 
+    def set_parameters(self, m: float, T_c: float) -> None:
+        """Change (m, T_c [s]) from the next step on."""
+        self.planner.set_parameters(m, T_c)
+
+    def advance(self, n: int, residual: Array | None = None, *, stop_on_violation: bool = False) -> tuple[Array, str]:
+        """Take up to ``n`` steps (fewer at the end of the run).
+
+        With ``stop_on_violation``, stop after the first step whose applied rates exceed the
+        scenario's limit (``objective.max_rate_deg_s`` and ``rate_limit_scope``) or whose sample
+        has a negative clearance.
+
+        Returns:
+            ``(applied, status)``: the applied rates (steps, 12) [rad/s] and ``"ok"``,
+            ``"rate_limit"`` or ``"collision"``.
+        """
+        start = self.k
+        objective = self.scenario.objective
+        first = 6 if objective.rate_limit_scope == "balance_arm" else 0
+        while self.k < self.n_steps and self.k - start < n:
+            self.step(residual)
+            if not stop_on_violation:
+                continue
+            if np.any(np.degrees(np.abs(self.latest("dq_joints")[first:])) > objective.max_rate_deg_s):
+                return self.samples(start)["dq_joints"], STATUS[1]
+            if self.latest("clearance_m") < 0.0 or self.latest("self_clearance_m") < 0.0:
+                return self.samples(start)["dq_joints"], STATUS[2]
+        return self.samples(start)["dq_joints"], STATUS[0]
+
+    def observation(self) -> tuple[Array, Array, Array, Array, float]:
+        """Joint angles (12), EE error (6), base error (6), obstacle-relative vector (3), clearance [m]."""
+        plan = self.planner(self.t, self.q)
+        relative, clearance = np.zeros(3), np.inf
+        if self.obstacles:
+            prox = self.collision.obstacle_proximity(self.q, self.obstacles)
+            relative, clearance = prox.witness_points[1] - prox.witness_points[0], prox.distance_m
+        return self.robot.joint_angles(self.q), plan.ee_error, plan.base_error, relative, clearance
+
     def latest(self, key: str) -> Any:
         """The last recorded value of ``key`` (a :class:`Trajectory` field name)."""
         return self._log[key][-1]
@@ -116,13 +162,36 @@ class Rollout:
         n = len(self._log["q"])
         info = {"scenario": self.scenario.name, "scenario_sha256": self.scenario.sha256(),
                 "method": self.planner.method, "m": self.planner.m, "T_c_s": self.planner.T_c,
-                "dt_s": self.dt, "duration_s": self.scenario.simulation.duration_s}
+                "dt_s": self.dt, "duration_s": self.scenario.simulation.duration_s, "backend": "pinocchio"}
         return Trajectory(t=np.arange(n) * self.dt, **self.samples(), info=info)
+
+
+def kernel_available() -> bool:
+    """Whether the compiled kernel (numba) can be used."""
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def make_rollout(scenario: Scenario, *, backend: str = "auto", **kwargs: Any) -> Rollout:
+    """A rollout on the requested backend: ``"kernel"``, ``"pinocchio"`` or ``"auto"`` (kernel if numba imports).
+
+    Keyword arguments are those of :class:`Rollout` (``method``, ``m``, ``T_c``, ``q0``).
+    """
+    if backend not in BACKENDS:
+        raise InvalidInputError(f"backend {backend!r}; allowed: {list(BACKENDS)}")
+    if backend == "kernel" or (backend == "auto" and kernel_available()):
+        from ffsr_gym.kernel_rollout import KernelRollout
+
+        return KernelRollout(scenario, **kwargs)
+    return Rollout(scenario, **kwargs)
 
 
 def simulate(scenario: Scenario | str, *, method: str = "predefined_time", m: float | None = None,
              T_c: float | None = None, dt: float | None = None, q0: Array | None = None,
-             progress: bool = False) -> Trajectory:
+             backend: str = "auto", progress: bool = False) -> Trajectory:
     """Run the closed loop planner → robot for one scenario.
 
     Args:
@@ -134,6 +203,8 @@ def simulate(scenario: Scenario | str, *, method: str = "predefined_time", m: fl
         q0: start from this configuration (19,) instead of the scenario's initial state. The
             desired path and the base set-point still come from the scenario's initial state, so
             this is how an initial pose error is imposed.
+        backend: ``"auto"`` (the compiled kernel when numba is installed), ``"kernel"`` or
+            ``"pinocchio"`` (the reference implementation).
         progress: show a progress bar.
 
     Returns:
@@ -142,9 +213,11 @@ def simulate(scenario: Scenario | str, *, method: str = "predefined_time", m: fl
     scenario = load_scenario(scenario)
     if dt is not None:
         scenario = scenario.replace(simulation=dataclasses.replace(scenario.simulation, dt_s=float(dt)))
-    rollout = Rollout(scenario, method=method, m=m, T_c=T_c, q0=q0)
-    for _ in tqdm(range(rollout.n_steps), disable=not progress, desc=f"{scenario.name}/{method}", unit="step"):
-        rollout.step()
+    rollout = make_rollout(scenario, backend=backend, method=method, m=m, T_c=T_c, q0=q0)
+    chunk = max(1, rollout.n_steps // 100)
+    with tqdm(total=rollout.n_steps, disable=not progress, desc=f"{scenario.name}/{method}", unit="step") as bar:
+        while rollout.k < rollout.n_steps:
+            bar.update(len(rollout.advance(chunk)[0]))
     rollout.finish()
     return rollout.trajectory()
 

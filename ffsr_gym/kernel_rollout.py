@@ -1,0 +1,142 @@
+"""The compiled-kernel backend of :class:`ffsr_gym.rollout.Rollout` (same interface, same numbers)."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from ffsr_gym import kernel_planner as kp
+from ffsr_gym.collision import CollisionModel
+from ffsr_gym.exceptions import FFSRError
+from ffsr_gym.kernel_model import KernelModel, extract
+from ffsr_gym.planner import Planner
+from ffsr_gym.robot import check_state, load_robot
+from ffsr_gym.rollout import STATUS, initial_configuration
+from ffsr_gym.scenario import Scenario
+from ffsr_gym.trajectory import Trajectory
+from ffsr_gym.types import Array
+
+
+@lru_cache(maxsize=8)
+def kernel_model(robot_name: str) -> tuple[KernelModel, tuple]:
+    """Kernel arrays of a shipped robot (cached per process)."""
+    robot = load_robot(robot_name)
+    model = extract(robot, CollisionModel(robot))
+    return model, model.arrays()
+
+
+def settings_vectors(scenario: Scenario, planner: Planner) -> tuple[Array, Array]:
+    """The kernel's float and integer settings of a scenario and planner."""
+    s, fp, ip = scenario.planner, np.zeros(kp.N_FP), np.zeros(kp.N_IP, dtype=np.int64)
+    obstacle = scenario.obstacle
+    fp[[kp.F_M, kp.F_TC, kp.F_K]] = planner.m, planner.T_c, s.proportional_gain_per_s
+    fp[[kp.F_LAM1, kp.F_LAM2, kp.F_EPS1, kp.F_EPS2]] = s.lambda_max_mission, s.lambda_max_balance, s.epsilon_mission, s.epsilon_balance
+    fp[[kp.F_XI, kp.F_DELTA, kp.F_K1]] = s.cdf_xi, s.cdf_delta, s.cdf_k1
+    path = planner.path
+    fp[[kp.F_TF, kp.F_TA, kp.F_ANGLE, kp.F_DT, kp.F_RATE_MAX]] = (
+        path.motion_time, path.accel_time, path.angle, scenario.simulation.dt_s, scenario.objective.max_rate_deg_s)
+    fp[kp.F_P0:kp.F_P0 + 3], fp[kp.F_P1:kp.F_P1 + 3] = path.start_position, path.target_position
+    fp[kp.F_Q0:kp.F_Q0 + 4], fp[kp.F_AXIS:kp.F_AXIS + 3] = path.start_attitude, path.axis
+    fp[kp.F_R0D:kp.F_R0D + 3], fp[kp.F_SBD:kp.F_SBD + 4] = planner.base_target
+    fp[kp.F_H:kp.F_H + 6] = scenario.initial.momentum
+    if obstacle is not None:
+        fp[kp.F_OBS:kp.F_OBS + 3] = obstacle.position_m
+        fp[[kp.F_DANGER, kp.F_OBS_R]] = obstacle.danger_radius_m, obstacle.radius_m
+    ip[:] = (kp.METHOD_CODES[planner.method], s.phi_form == "printed", s.phi_split, s.attitude_error == "body",
+             s.mu_law == "distance", s.balance_avoids, obstacle is not None,
+             scenario.objective.rate_limit_scope == "balance_arm")
+    return fp, ip
+
+
+class KernelRollout:
+    """Closed loop on the compiled kernel; the interface of :class:`ffsr_gym.rollout.Rollout`."""
+
+    backend = "kernel"
+
+    def __init__(self, scenario: Scenario, *, method: str = "predefined_time", m: float | None = None,
+                 T_c: float | None = None, q0: Array | None = None) -> None:
+        self.scenario = scenario
+        self.robot = load_robot(scenario.robot)
+        self.model, self._mdl = kernel_model(scenario.robot)
+        q_nominal = initial_configuration(self.robot, scenario)
+        self.planner = Planner(self.robot, scenario, method=method, m=m, T_c=T_c, initial_q=q_nominal)
+        if q0 is not None:
+            check_state(q0)
+        q = q_nominal if q0 is None else np.array(q0, dtype=float)
+        self.x = np.concatenate((q[:7], q[self.model.q_index]))
+        self.fp, self.ip = settings_vectors(scenario, self.planner)
+        self.dt, self.n_steps = scenario.simulation.dt_s, scenario.n_steps
+        self.k, self.rows, self.finished = 0, 0, False
+        n = self.n_steps + 1
+        self._log = {"x": np.zeros((n, 19)), "v": np.zeros((n, 18)), "dq": np.zeros((n, 12)), "err": np.zeros((n, 4)),
+                     "clear": np.zeros(n), "self": np.zeros(n), "mu": np.zeros((n, 2)), "cdf": np.zeros((n, 2)),
+                     "smin": np.zeros((n, 2))}
+
+    @property
+    def t(self) -> float:
+        """Current time [s]."""
+        return self.k * self.dt
+
+    @property
+    def q(self) -> Array:
+        """Current configuration in Pinocchio order (19,)."""
+        q = np.empty(19)
+        q[:7] = self.x[:7]
+        q[self.model.q_index] = self.x[7:]
+        return q
+
+    def set_parameters(self, m: float, T_c: float) -> None:
+        """Change (m, T_c [s]) from the next step on (validated like the reference planner)."""
+        self.planner.set_parameters(m, T_c)
+        self.fp[kp.F_M], self.fp[kp.F_TC] = self.planner.m, self.planner.T_c
+
+    def _run(self, n: int, residual: Array | None, stop: bool, record_only: bool) -> int:
+        res = np.zeros(12) if residual is None else np.asarray(residual, dtype=float)
+        outs = [self._log[key][self.rows:] for key in ("x", "v", "dq", "err", "clear", "self", "mu", "cdf", "smin")]
+        x, rows, status = kp.run(self._mdl, self.x, self.k, self.n_steps, n, self.fp, self.ip, res, stop, record_only, *outs)
+        if status == 3:
+            raise FFSRError(f"planner produced non-finite joint rates at t = {(self.k + rows) * self.dt:.3f} s")
+        self.rows += rows
+        if not record_only:
+            self.x, self.k = x, self.k + rows
+        return status
+
+    def advance(self, n: int, residual: Array | None = None, *, stop_on_violation: bool = False) -> tuple[Array, str]:
+        """Take up to ``n`` steps; see :meth:`ffsr_gym.rollout.Rollout.advance`."""
+        if self.k >= self.n_steps:
+            raise FFSRError(f"the run is over: {self.n_steps} steps of {self.dt} s were taken")
+        start = self.rows
+        status = self._run(n, residual, stop_on_violation, False)
+        return self._log["dq"][start:self.rows].copy(), STATUS[status]
+
+    def finish(self) -> None:
+        """Record the final sample (its rates are not applied)."""
+        if not self.finished:
+            self._run(1, None, False, True)
+            self.finished = True
+
+    def observation(self) -> tuple[Array, Array, Array, Array, float]:
+        """Joint angles, EE error (6), base error (6), obstacle-relative vector (3), clearance [m]."""
+        e1, e0, rel, clear = kp.observe(self._mdl, self.x, self.t, self.fp, self.ip)
+        return self.x[7:19].copy(), e1, e0, rel, float(clear)
+
+    def trajectory(self) -> Trajectory:
+        """The :class:`Trajectory` recorded so far, in Pinocchio order."""
+        n, log, model = self.rows, self._log, self.model
+        q = np.zeros((n, 19))
+        q[:, :7] = log["x"][:n, :7]
+        q[:, model.q_index] = log["x"][:n, 7:]
+        v = np.zeros((n, 18))
+        v[:, :6] = log["v"][:n, :6]
+        v[:, model.v_index] = log["v"][:n, 6:]
+        err = log["err"][:n]
+        info: dict[str, Any] = {"scenario": self.scenario.name, "scenario_sha256": self.scenario.sha256(),
+                                "method": self.planner.method, "m": self.planner.m, "T_c_s": self.planner.T_c,
+                                "dt_s": self.dt, "duration_s": self.scenario.simulation.duration_s, "backend": "kernel"}
+        return Trajectory(t=np.arange(n) * self.dt, q=q, v=v, dq_joints=log["dq"][:n].copy(),
+                          ee_position_error_m=err[:, 0].copy(), ee_attitude_error=err[:, 1].copy(),
+                          base_position_error_m=err[:, 2].copy(), base_attitude_error=err[:, 3].copy(),
+                          clearance_m=log["clear"][:n].copy(), self_clearance_m=log["self"][:n].copy(),
+                          mu=log["mu"][:n].copy(), cdf=log["cdf"][:n].copy(), sigma_min=log["smin"][:n].copy(), info=info)
