@@ -117,6 +117,25 @@ class KernelRollout:
             self._run(1, None, False, True)
             self.finished = True
 
+    def replay_step(self, q: Array, k: int) -> tuple[dict[str, Array], Array]:
+        """One kernel step from an arbitrary state (validation): the sample at (t_k, q) and q_{k+1}.
+
+        Does not change this rollout. Returns the sample as a dict of :class:`Trajectory` field
+        names (one row each) and the next configuration in Pinocchio order.
+        """
+        x = np.concatenate((q[:7], q[self.model.q_index]))
+        outs = [np.zeros((1, *self._log[key].shape[1:])) for key in ("x", "v", "dq", "err", "clear", "self", "mu", "cdf", "smin")]
+        x_next, _, _ = kp.run(self._mdl, x, k, self.n_steps, 1, self.fp, self.ip, np.zeros(12), False, False, *outs)
+        _, v, dq, err, clear, self_c, mu, cdf, smin = (o[0] for o in outs)
+        v_pin = np.zeros(18)
+        v_pin[:6], v_pin[self.model.v_index] = v[:6], v[6:]
+        q_next = np.empty(19)
+        q_next[:7], q_next[self.model.q_index] = x_next[:7], x_next[7:]
+        sample = {"v": v_pin, "dq_joints": dq, "ee_position_error_m": err[0], "ee_attitude_error": err[1],
+                  "base_position_error_m": err[2], "base_attitude_error": err[3], "clearance_m": clear,
+                  "self_clearance_m": self_c, "mu": mu, "cdf": cdf, "sigma_min": smin}
+        return sample, q_next
+
     def observation(self) -> tuple[Array, Array, Array, Array, float]:
         """Joint angles, EE error (6), base error (6), obstacle-relative vector (3), clearance [m]."""
         e1, e0, rel, clear = kp.observe(self._mdl, self.x, self.t, self.fp, self.ip)
