@@ -53,6 +53,20 @@ def _reproduce(args: argparse.Namespace) -> None:
     print(f"wrote figures, reproduction.json and reproduction.md to {args.out}")
 
 
+def _ga(args: argparse.Namespace) -> None:
+    from ffsr_gym.ga import GAConfig
+    from ffsr_gym.ga_study import run_study
+
+    config = GAConfig(population=args.population, generations=args.generations, seed=args.seed,
+                      selection=args.selection, scenario=args.scenario)
+    results = run_study(args.out, modes=tuple(args.modes), config=config, executor=args.executor,
+                        workers=args.workers, leaderboard=args.leaderboard, progress=not args.no_progress)
+    for mode, summary in results.items():
+        o = summary["optimum"]
+        print(f"{mode}: m = {o['m']:.4f}, T_c = {o['T_c_s']:.3f} s, B = {o['score']} "
+              f"(non-optimised: {summary['baseline_score']}); {summary['wall_time_s']:.0f} s")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``ffsr-gym`` console script."""
     parser = argparse.ArgumentParser(prog="ffsr-gym", description=__doc__)
@@ -65,6 +79,19 @@ def main(argv: list[str] | None = None) -> int:
     rep.add_argument("--duration", type=float, default=None, help="shorten every run to this many seconds")
     rep.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     rep.set_defaults(func=_reproduce)
+    ga = sub.add_parser("ga", help="the paper's GA over (m, T_c): both modes, figures, table, leaderboard entries")
+    ga.add_argument("--out", required=True, help="output folder; checkpoints there make a killed run resume")
+    ga.add_argument("--modes", nargs="+", default=["reproduction", "full"], choices=["reproduction", "full"])
+    ga.add_argument("--population", type=int, default=100)
+    ga.add_argument("--generations", type=int, default=100)
+    ga.add_argument("--seed", type=int, default=0)
+    ga.add_argument("--selection", default="inverse", choices=["inverse", "literal"])
+    ga.add_argument("--scenario", default="paper")
+    ga.add_argument("--executor", default="process", choices=["process", "dask", "none"])
+    ga.add_argument("--workers", type=int, default=None)
+    ga.add_argument("--leaderboard", default=None, help="write leaderboard entries under this folder")
+    ga.add_argument("--no-progress", action="store_true")
+    ga.set_defaults(func=_ga)
     argv = sys.argv[1:] if argv is None else argv
     args = parser.parse_args(argv)
     args.argv = argv

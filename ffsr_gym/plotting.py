@@ -99,3 +99,21 @@ def plot_joint_rates(runs: dict[str, Trajectory], arm: int, out: Path, footer: s
         ax.grid(True, alpha=0.3)
     axes[0][0].legend(fontsize=7, ncol=2)
     return _save(fig, out, footer)
+
+
+def plot_ga_history(history: list[dict], out: Path, footer: str, title: str) -> Path:
+    """Fig. 7: best and mean (feasible individuals) objective B per generation, feasible fraction."""
+    plt = _pyplot()
+    gen = [h["generation"] for h in history]
+    best = [np.nan if h["best_score"] is None else h["best_score"] for h in history]
+    mean = [np.nan if h["mean_finite_score"] is None else h["mean_finite_score"] for h in history]
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 3.8))
+    ax1.plot(gen, best, label="best B")
+    ax1.plot(gen, mean, label="mean B of feasible individuals")
+    ax1.set(xlabel="generation", ylabel="objective B [-]", title=title)
+    ax1.legend(fontsize=8)
+    ax1.grid(True, alpha=0.3)
+    ax2.plot(gen, [h["feasible_fraction"] for h in history])
+    ax2.set(xlabel="generation", ylabel="feasible fraction [-]", ylim=(0, 1.05), title="Feasible individuals")
+    ax2.grid(True, alpha=0.3)
+    return _save(fig, out, footer)
