@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -67,6 +68,20 @@ def _ga(args: argparse.Namespace) -> None:
               f"(non-optimised: {summary['baseline_score']}); {summary['wall_time_s']:.0f} s")
 
 
+def _leaderboard(args: argparse.Namespace) -> int:
+    from ffsr_gym.leaderboard import render_readme, write_readme
+
+    if args.check:
+        current = (Path(args.root) / "README.md").read_text()
+        if render_readme(args.root) != current:
+            print(f"{args.root}/README.md is out of date: run ffsr-gym leaderboard render", file=sys.stderr)
+            return 1
+        print("leaderboard tables are up to date")
+        return 0
+    print("updated" if write_readme(args.root) else "already up to date", f"{args.root}/README.md")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``ffsr-gym`` console script."""
     parser = argparse.ArgumentParser(prog="ffsr-gym", description=__doc__)
@@ -92,15 +107,21 @@ def main(argv: list[str] | None = None) -> int:
     ga.add_argument("--leaderboard", default=None, help="write leaderboard entries under this folder")
     ga.add_argument("--no-progress", action="store_true")
     ga.set_defaults(func=_ga)
+    board = sub.add_parser("leaderboard", help="leaderboard tables")
+    board_sub = board.add_subparsers(dest="action", required=True)
+    render = board_sub.add_parser("render", help="regenerate the tables in <root>/README.md from the JSON entries")
+    render.add_argument("--root", default="leaderboards")
+    render.add_argument("--check", action="store_true", help="exit 1 if the tables are out of date, write nothing")
+    render.set_defaults(func=_leaderboard)
     argv = sys.argv[1:] if argv is None else argv
     args = parser.parse_args(argv)
     args.argv = argv
     try:
-        args.func(args)
+        code = args.func(args)
     except FFSRError as exc:
         print(f"ffsr-gym: error: {exc}", file=sys.stderr)
         return 2
-    return 0
+    return int(code or 0)
 
 
 if __name__ == "__main__":  # pragma: no cover

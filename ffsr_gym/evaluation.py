@@ -75,7 +75,8 @@ def aggregate(scores: Sequence[float], feasible: Sequence[bool]) -> dict[str, An
     return {
         "score_mean": float(np.mean(values)),
         "score_iqm": _iqm(values),
-        "score_ci95": [float(np.percentile(boots, 2.5)), float(np.percentile(boots, 97.5))],
+        "score_ci95": [float(np.percentile(boots, 2.5, method="inverted_cdf")),
+                       float(np.percentile(boots, 97.5, method="inverted_cdf"))],
         "feasible_rate": float(np.mean(np.asarray(feasible, dtype=float))),
         "episodes": len(values),
     }
