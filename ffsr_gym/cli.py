@@ -68,6 +68,16 @@ def _ga(args: argparse.Namespace) -> None:
               f"(non-optimised: {summary['baseline_score']}); {summary['wall_time_s']:.0f} s")
 
 
+def _train(args: argparse.Namespace) -> None:
+    from ffsr_gym.rl import train_and_evaluate
+
+    report = train_and_evaluate(args.algo, args.env_id, seeds=args.seeds, out=args.out, scenario=args.scenario,
+                                timesteps=args.timesteps, hyperparams=args.hyperparams, progress=not args.no_progress)
+    print(f"{report.name}: {report.metrics}")
+    if args.leaderboard:
+        print("wrote", report.save(Path(args.leaderboard) / args.env_id))
+
+
 def _leaderboard(args: argparse.Namespace) -> int:
     from ffsr_gym.leaderboard import render_readme, write_readme
 
@@ -107,6 +117,17 @@ def main(argv: list[str] | None = None) -> int:
     ga.add_argument("--leaderboard", default=None, help="write leaderboard entries under this folder")
     ga.add_argument("--no-progress", action="store_true")
     ga.set_defaults(func=_ga)
+    tr = sub.add_parser("train", help="train stable-baselines3 agents and score them with ffsr_gym.evaluate")
+    tr.add_argument("--algo", required=True, choices=["ppo", "sac", "td3"])
+    tr.add_argument("--env-id", default="FFSR-v0", choices=["FFSR-v0", "FFSR-Residual-v0"])
+    tr.add_argument("--scenario", default="paper")
+    tr.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
+    tr.add_argument("--timesteps", type=int, default=None, help="default: n_timesteps of the hyperparameter file")
+    tr.add_argument("--hyperparams", default=None, help="folder with <algo>.yml (default: baselines/hyperparams)")
+    tr.add_argument("--out", default="runs/rl")
+    tr.add_argument("--leaderboard", default=None, help="write the entry under this folder")
+    tr.add_argument("--no-progress", action="store_true")
+    tr.set_defaults(func=_train)
     board = sub.add_parser("leaderboard", help="leaderboard tables")
     board_sub = board.add_subparsers(dest="action", required=True)
     render = board_sub.add_parser("render", help="regenerate the tables in <root>/README.md from the JSON entries")
