@@ -33,20 +33,6 @@ def dot(a, b):
 
 
 @njit(cache=True)
-def mm(A, B):
-    """A @ B."""
-    n, k, m = A.shape[0], A.shape[1], B.shape[1]
-    out = np.zeros((n, m))
-    for i in range(n):
-        for p in range(k):
-            a = A[i, p]
-            if a != 0.0:
-                for j in range(m):
-                    out[i, j] += a * B[p, j]
-    return out
-
-
-@njit(cache=True)
 def mmt(A, B):
     """A @ B.T."""
     n, k, m = A.shape[0], A.shape[1], B.shape[0]

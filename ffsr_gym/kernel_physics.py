@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ffsr_gym.kernel_linalg import cross, dot, mm, mmt, mtv, mv, solve
+from ffsr_gym.kernel_linalg import cross, dot, mtv, mv, solve
 
 _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 
@@ -116,22 +116,6 @@ def kinematics_into(mdl, x, ws):
 
 
 @njit(cache=True)
-def forward_kinematics(mdl, x):
-    """World rotations (12, 3, 3) and origins (12, 3) of the joints, base rotation, EE poses."""
-    ws = workspace()
-    kinematics_into(mdl, x, ws)
-    return ws[0], ws[1], ws[2], ws[3], ws[4]
-
-
-@njit(cache=True)
-def world_axes(mdl, Rj):
-    z = np.empty((12, 3))
-    for k in range(12):
-        z[k] = mv(Rj[k], mdl[3][k])
-    return z
-
-
-@njit(cache=True)
 def momentum_into(mdl, x, ws):
     """H_b, H_bm (about the base CoM, world frame; SPEC §2.3) and the system CoM, into the workspace."""
     mass, lever, inertia, parent = mdl[4], mdl[5], mdl[6], mdl[0]
@@ -194,18 +178,6 @@ def momentum_into(mdl, x, ws):
 
 
 @njit(cache=True)
-def momentum_matrices(mdl, x, Rj, pj, R_b, z):
-    """H_b (6, 6), H_bm (2, 6, 6) about the base CoM, world frame (SPEC §2.3), and the system CoM."""
-    ws = workspace()
-    ws[0][:] = Rj
-    ws[1][:] = pj
-    ws[2][:] = R_b
-    ws[5][:] = z
-    momentum_into(mdl, x, ws)
-    return ws[6], ws[7], ws[8]
-
-
-@njit(cache=True)
 def momentum_about_base(h, rg, r0):
     C = h.copy()
     C[3:6] = h[3:6] + cross(rg - r0[0:3], h[0:3])
@@ -233,12 +205,6 @@ def velocity_from_workspace(x, dq, h, ws):
     out[0:3] = mtv(R_b, V0[0:3])
     out[3:6] = mtv(R_b, V0[3:6])
     return out
-
-
-@njit(cache=True)
-def base_velocity_local(mdl, x, dq, h):
-    """Pinocchio-layout base velocity (base frame) conserving the momentum ``h`` = [P; L_G]."""
-    return base_velocity_ws(mdl, x, dq, h, workspace())
 
 
 @njit(cache=True)

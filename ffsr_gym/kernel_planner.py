@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ffsr_gym.kernel_linalg import cross, dot, mm, mmt, mtv, mv, solve, svd
+from ffsr_gym.kernel_linalg import cross, dot, mmt, mv, solve, svd
 from ffsr_gym.kernel_physics import (
     R_to_quat_wxyz, capsule_ends, kinematics_into, midpoint_step, momentum_about_base, momentum_into,
     obstacle_clearance, self_clearance, skew, velocity_from_workspace, workspace,

@@ -15,7 +15,8 @@ def _quad_field(points, p_o):
     for a, b in zip(points[:-1], points[1:]):
         if np.linalg.norm(b - a) < 1e-12:
             continue
-        total += quad(lambda s: 1.0 / np.linalg.norm(p_o - (a + s * (b - a))), 0, 1, epsabs=1e-13, epsrel=1e-12, limit=200)[0]
+        total += quad(lambda s, a=a, b=b: 1.0 / np.linalg.norm(p_o - (a + s * (b - a))), 0, 1, epsabs=1e-13, epsrel=1e-12,
+                      limit=200)[0]
     return total
 
 
