@@ -8,6 +8,7 @@ several training seeds. stable-baselines3 and torch are optional (``pip install 
 from __future__ import annotations
 
 import ast
+import json
 import time
 from pathlib import Path
 from typing import Any
@@ -16,7 +17,7 @@ from tqdm.auto import tqdm
 
 from ffsr_gym.evaluation import EvalReport, aggregate, evaluate
 from ffsr_gym.exceptions import InvalidInputError, MissingDependencyError
-from ffsr_gym.provenance import provenance
+from ffsr_gym.provenance import provenance, write_json_atomic
 from ffsr_gym.scenario import load_scenario
 
 ALGOS = {"ppo": "PPO", "sac": "SAC", "td3": "TD3"}
@@ -82,8 +83,8 @@ def train(algo: str, env_id: str, *, seed: int, out: str | Path, scenario: str =
           hyperparams: str | Path | None = None, progress: bool = True) -> tuple[Any, dict[str, Any]]:
     """Train one agent; TensorBoard logs, checkpoints and ``model.zip`` go to ``out``.
 
-    A finished run (``model.zip`` present) is loaded instead of retrained, so an interrupted
-    multi-seed study resumes at the seed it stopped in.
+    A finished run (``model.zip`` and ``train_record.json`` present) is loaded instead of retrained,
+    so an interrupted multi-seed study resumes at the seed it stopped in.
 
     Returns:
         ``(model, record)`` with the hyperparameters, steps and wall time.
@@ -101,8 +102,8 @@ def train(algo: str, env_id: str, *, seed: int, out: str | Path, scenario: str =
     record = {"algo": algo, "env_id": env_id, "scenario": scenario, "seed": seed, "timesteps": steps, "n_envs": n_envs,
               "policy": policy, "hyperparams": params}
     cls = getattr(sb3, ALGOS[algo])
-    if (out / "model.zip").is_file():
-        return cls.load(out / "model.zip", device="cpu"), record | {"resumed": True}
+    if (out / "model.zip").is_file() and (out / "train_record.json").is_file():
+        return cls.load(out / "model.zip", device="cpu"), json.loads((out / "train_record.json").read_text())
     start = time.perf_counter()
     env = make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs={"scenario": scenario})
     model = cls(policy, env, seed=seed, device="cpu", verbose=0, tensorboard_log=str(out / "tensorboard"), **params)
@@ -110,7 +111,9 @@ def train(algo: str, env_id: str, *, seed: int, out: str | Path, scenario: str =
     model.learn(total_timesteps=steps, callback=[checkpoints, _Progress(steps, f"{algo} {env_id} seed {seed}", progress)])
     model.save(out / "model.zip")
     env.close()
-    return model, record | {"wall_time_s": time.perf_counter() - start}
+    record["wall_time_s"] = time.perf_counter() - start
+    write_json_atomic(out / "train_record.json", record)
+    return model, record
 
 
 def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | Path, scenario: str = "paper",
