@@ -351,22 +351,47 @@ def obstacle_clearance(mdl, A, B, R_b, p_b, p_o, r_o):
 
 @njit(cache=True)
 def self_clearance(mdl, A, B, R_b, p_b):
-    """Smallest signed distance arm-arm and arm-base (mounting links excluded) [m]."""
+    """Smallest signed distance arm-arm and arm-base (mounting links excluded) [m].
+
+    Candidate pairs are visited in order of a cheap lower bound (bounding spheres); exact
+    distances are computed only while a bound can still beat the best so far.
+    """
     radius, arm, vs_base, half = mdl[13], mdl[14], mdl[15], mdl[16]
-    best = 1e300
     n = len(radius)
+    mid = 0.5 * (A + B)
+    hl = np.empty(n)
     for i in range(n):
-        if arm[i] != 0:
-            continue
-        for j in range(n):
-            if arm[j] == 1:
-                best = min(best, segment_segment(A[i], B[i], A[j], B[j]) - radius[i] - radius[j])
+        dx, dy, dz = B[i, 0] - A[i, 0], B[i, 1] - A[i, 1], B[i, 2] - A[i, 2]
+        hl[i] = 0.5 * math.sqrt(dx * dx + dy * dy + dz * dz)
+    bound = np.empty(n * n + n)
+    first = np.empty(n * n + n, dtype=np.int64)
+    second = np.empty(n * n + n, dtype=np.int64)
+    count = 0
     for i in range(n):
-        if not vs_base[i]:
-            continue
-        mid = 0.5 * (A[i] + B[i])
-        half_len = 0.5 * math.sqrt(dot(B[i] - A[i], B[i] - A[i]))
-        if box_sdf(mid, R_b, p_b, half) - half_len - radius[i] >= best:
-            continue  # a lower bound already beats this capsule: skip the line search
-        best = min(best, segment_box(A[i], B[i], R_b, p_b, half) - radius[i])
+        if arm[i] == 0:
+            for j in range(n):
+                if arm[j] == 1:
+                    dx, dy, dz = mid[i, 0] - mid[j, 0], mid[i, 1] - mid[j, 1], mid[i, 2] - mid[j, 2]
+                    bound[count] = math.sqrt(dx * dx + dy * dy + dz * dz) - hl[i] - hl[j] - radius[i] - radius[j]
+                    first[count], second[count] = i, j
+                    count += 1
+        if vs_base[i]:
+            bound[count] = box_sdf(mid[i], R_b, p_b, half) - hl[i] - radius[i]
+            first[count], second[count] = i, -1
+            count += 1
+    best = 1e300
+    for _ in range(count):
+        k = 0
+        for c in range(1, count):
+            if bound[c] < bound[k]:
+                k = c
+        if bound[k] >= best:
+            break
+        bound[k] = 1e301  # visited
+        i, j = first[k], second[k]
+        if j >= 0:
+            value = segment_segment(A[i], B[i], A[j], B[j]) - radius[i] - radius[j]
+        else:
+            value = segment_box(A[i], B[i], R_b, p_b, half) - radius[i]
+        best = min(best, value)
     return best
