@@ -123,13 +123,13 @@ def _evaluate(state: GAState, fitness: Callable, executor: Executor | None) -> n
     params = [decode(ind, state.config) for ind in state.population]
     todo = sorted({_key(*p): p for p in params if _key(*p) not in state.cache}.items())
     if todo:
-        results = (executor.map if executor else map)(lambda_free_call, [fitness] * len(todo), [p for _, p in todo])
+        results = (executor.map if executor else map)(call_fitness, [fitness] * len(todo), [p for _, p in todo])
         for (key, _), score in zip(todo, results):
             state.cache[key] = float(score)
     return np.array([state.cache[_key(*p)] for p in params])
 
 
-def lambda_free_call(fitness: Callable, params: tuple[float, float]) -> float:
+def call_fitness(fitness: Callable, params: tuple[float, float]) -> float:
     """``fitness(m, T_c)``; a module-level function so that executors can pickle it."""
     return fitness(*params)
 

@@ -135,10 +135,10 @@ class Rollout:
             if not stop_on_violation:
                 continue
             if np.any(np.degrees(np.abs(self.latest("dq_joints")[first:])) > objective.max_rate_deg_s):
-                return self.samples(start)["dq_joints"], STATUS[1]
+                return np.array(self._log["dq_joints"][start:]), STATUS[1]
             if self.latest("clearance_m") < 0.0 or self.latest("self_clearance_m") < 0.0:
-                return self.samples(start)["dq_joints"], STATUS[2]
-        return self.samples(start)["dq_joints"], STATUS[0]
+                return np.array(self._log["dq_joints"][start:]), STATUS[2]
+        return np.array(self._log["dq_joints"][start:]), STATUS[0]
 
     def observation(self) -> tuple[Array, Array, Array, Array, float]:
         """Joint angles (12), EE error (6), base error (6), obstacle-relative vector (3), clearance [m]."""
