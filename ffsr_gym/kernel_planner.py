@@ -170,19 +170,15 @@ def _integrals(p_o, a, b):
 def avoidance(points, axes, p_o, fp, ip, arm):
     """μ, Θ̇_c (6), CDF and distance of one arm (``Planner._avoidance``)."""
     total, dist = 0.0, 1e300
-    grad = np.zeros(6)
+    I0s, I1s = np.zeros(6), np.zeros(6)
     for i in range(6):
         a, b = points[i], points[i + 1]
         d = b - a
         if math.sqrt(dot(d, d)) < 1e-12:
             continue
-        F, I0, I1, nearest = _integrals(p_o, a, b)
+        F, I0s[i], I1s[i], nearest = _integrals(p_o, a, b)
         total += F
         dist = min(dist, nearest)
-        for k in range(i + 1):
-            c0 = cross(a - points[k], p_o - a)
-            c1 = cross(b - a, p_o - points[k])
-            grad[k] += dot(axes[k], c0 * I0 + c1 * I1)
     cdf = fp[F_K1] * total
     if ip[I_MU] == 0:
         mu = 1.0 if cdf <= fp[F_DELTA] else fp[F_DELTA] / cdf
@@ -192,6 +188,15 @@ def avoidance(points, axes, p_o, fp, ip, arm):
         mu = 1.0
     if mu >= 1.0:
         return 1.0, np.zeros(6), cdf, dist
+    grad = np.zeros(6)  # only needed while the avoidance acts
+    for i in range(6):
+        a, b = points[i], points[i + 1]
+        if I0s[i] == 0.0 and I1s[i] == 0.0:
+            continue  # zero-length segment
+        for k in range(i + 1):
+            c0 = cross(a - points[k], p_o - a)
+            c1 = cross(b - a, p_o - points[k])
+            grad[k] += dot(axes[k], c0 * I0s[i] + c1 * I1s[i])
     return mu, -fp[F_XI] * fp[F_K1] * grad, cdf, dist
 
 
