@@ -240,9 +240,11 @@ def integrate(x, v_base, dq, dt):
 
 
 @njit(cache=True)
-def midpoint_step(mdl, x, dq, dt, h, ws):
-    """Explicit midpoint on SE(3) with momentum re-solved at the half step (``Robot.step``)."""
-    v0 = base_velocity_ws(mdl, x, dq, h, ws)
+def midpoint_step(mdl, x, v0, dq, dt, h, ws):
+    """Explicit midpoint on SE(3) with momentum re-solved at the half step (``Robot.step``).
+
+    ``v0`` is the base velocity at ``x`` (already known to the caller: it is logged).
+    """
     x_half = integrate(x, v0, dq, 0.5 * dt)
     v_mid = base_velocity_ws(mdl, x_half, dq, h, ws)
     return integrate(x, v_mid, dq, dt)

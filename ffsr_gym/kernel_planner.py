@@ -270,7 +270,8 @@ def run(mdl, x, k0, n_total, n_max, fp, ip, residual, stop_on_violation, record_
             clear = obstacle_clearance(mdl, A, B, R_b, x[0:3], fp[F_OBS:F_OBS + 3], fp[F_OBS_R])[0]
         self_c = self_clearance(mdl, A, B, R_b, x[0:3])
         out_x[i] = x
-        out_v[i, 0:6] = velocity_from_workspace(x, dq, h, ws)
+        v0 = velocity_from_workspace(x, dq, h, ws)
+        out_v[i, 0:6] = v0
         out_v[i, 6:18] = dq
         out_dq[i] = dq
         out_err[i, 0] = math.sqrt(dot(e1[0:3], e1[0:3]))
@@ -285,7 +286,7 @@ def run(mdl, x, k0, n_total, n_max, fp, ip, residual, stop_on_violation, record_
         rows += 1
         if record_only:
             return x, rows, 0
-        x = midpoint_step(mdl, x, dq, dt, h, ws)
+        x = midpoint_step(mdl, x, v0, dq, dt, h, ws)
         if stop_on_violation:
             for j in range(first, 12):
                 if abs(dq[j]) * to_deg > fp[F_RATE_MAX]:
