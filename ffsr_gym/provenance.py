@@ -51,7 +51,9 @@ def provenance(*, scenarios: dict[str, str] | None = None, seeds: list[int] | No
         versions, platform, command, seeds, scenario hashes, wall time and a UTC timestamp.
     """
     commit = _git("rev-parse", "HEAD") if (_SOURCE / ".git").exists() else None
-    dirty = None if commit is None else bool(_git("status", "--porcelain", "--untracked-files=no"))
+    # Generated results (leaderboard entries and tables) do not make the code dirty.
+    dirty = None if commit is None else bool(_git("status", "--porcelain", "--untracked-files=no", "--", ".",
+                                                 ":(exclude)leaderboards"))
     return {
         "git_commit": commit,
         "git_dirty": dirty,
