@@ -121,15 +121,16 @@ class EvalReport:
         return path
 
 
-def _actor(policy: Policy, env: gym.Env) -> Callable[[np.ndarray], Any]:
+def _stepper(policy: Policy, env: gym.Env) -> Callable[[np.ndarray], tuple]:
+    """One env step for ``policy`` given the last observation (fixed parameters bypass float32 actions)."""
     if isinstance(policy, tuple):
         if env.unwrapped.residual:
             raise InvalidInputError("a fixed (m, T_c) policy only applies to FFSR-v0")
-        return lambda _obs: policy
+        return lambda _obs: env.unwrapped.step_with_parameters(*policy)
     if isinstance(policy, PredictsActions):
-        return lambda obs: policy.predict(obs, deterministic=True)[0]
+        return lambda obs: env.step(policy.predict(obs, deterministic=True)[0])
     if callable(policy):
-        return policy
+        return lambda obs: env.step(policy(obs))
     raise InvalidInputError(f"policy must be callable, have .predict, or be a (m, T_c) tuple; got {type(policy).__name__}")
 
 
@@ -153,27 +154,25 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
     seeds = list(eval_seeds(env_id) if seeds is None else seeds)
     start = time.perf_counter()
     env = gym.make(env_id, **kwargs)
-    act = _actor(policy, env)
-    rows, hashes = [], {}
+    step = _stepper(policy, env)
+    rows, hashes = [], {"family": env.unwrapped.family.sha256()}
     for seed in tqdm(seeds, disable=not progress, desc=f"evaluate {env_id}", unit="episode"):
         obs, _ = env.reset(seed=seed)
         done = False
         while not done:
-            if isinstance(policy, tuple):
-                obs, _, terminated, truncated, _ = env.unwrapped.step_with_parameters(*policy)
-            else:
-                obs, _, terminated, truncated, _ = env.step(act(obs))
+            obs, _, terminated, truncated, _ = step(obs)
             done = terminated or truncated
         played = env.unwrapped.scenario
         traj = env.unwrapped.trajectory
         terms = objective_terms(traj, played.objective)
         metrics = traj.metrics()
-        hashes[played.name if played.randomization is None else f"{played.name}/seed={seed}"] = played.sha256()
+        key = played.name if played.randomization is None else f"{played.name}/seed={seed}"
+        if key not in hashes:  # a fixed scenario is hashed once, not once per episode
+            hashes[key] = played.sha256()
         rows.append({"seed": seed, **terms.as_dict(), "final_ee_position_error_m": metrics["final_ee_position_error_m"],
                      "max_joint_rate_deg_s": metrics["max_joint_rate_deg_s"], "min_clearance_m": metrics["min_clearance_m"],
                      "duration_s": float(traj.t[-1])})
     env.close()
     scores = [math.inf if row["score"] is None else row["score"] for row in rows]
-    family_hash = load_scenario(kwargs.get("scenario", "paper")).sha256()
-    prov = provenance(scenarios={"family": family_hash, **hashes}, seeds=seeds, wall_time_s=time.perf_counter() - start)
+    prov = provenance(scenarios=hashes, seeds=seeds, wall_time_s=time.perf_counter() - start)
     return EvalReport(env_id, kwargs, aggregate(scores, [row["feasible"] for row in rows]), rows, prov, name=name)

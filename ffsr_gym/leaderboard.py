@@ -50,8 +50,9 @@ def render_tables(entries: dict[str, list[dict[str, Any]]]) -> str:
     """Markdown tables, one per env id."""
     out = []
     for env_id, items in entries.items():
-        fresh = [e for e in items if not is_stale(e)]
-        stale = [e for e in items if is_stale(e)]
+        stale_flags = [is_stale(e) for e in items]  # loads and hashes each entry's scenario once
+        fresh = [e for e, flag in zip(items, stale_flags) if not flag]
+        stale = [e for e, flag in zip(items, stale_flags) if flag]
         fresh.sort(key=lambda e: (-e["metrics"]["feasible_rate"], _inf(e["metrics"]["score_iqm"]), e["name"]))
         out += [f"### {env_id}", "", "| rank | entry | method | feasible rate | score IQM [95% CI] | score mean | episodes | commit |",
                 "|---|---|---|---|---|---|---|---|"]
