@@ -1,82 +1,36 @@
-"""Small dense linear algebra for the compiled kernel, written as loops.
+"""Small dense linear algebra for the compiled kernel, written as loops into caller-owned buffers.
 
-numba sends ``@`` on 2-D arrays to BLAS, whose call overhead (~1 µs) dwarfs a 3x3 or 6x6 product;
-these loops are 10-50x faster at these sizes. ``svd`` is a one-sided Jacobi SVD (accurate to
-machine precision, relative accuracy for small singular values) replacing LAPACK's ~5 µs call.
+numba sends ``@`` on 2-D arrays to BLAS, whose call overhead (~1 µs) dwarfs a 3x3 or 6x6 product,
+and every small temporary array costs a heap allocation; these routines use neither. ``svd_into``
+is a one-sided Jacobi SVD (accurate to machine precision, relative accuracy for small singular
+values) replacing LAPACK's ~5 µs call.
 """
 
 from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 _EPS = 2.220446049250313e-16
 
 
 @njit(cache=True, inline="always")
-def cross(a, b):
-    out = np.empty(3)
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
-    return out
-
-
-@njit(cache=True, inline="always")
-def dot(a, b):
-    s = 0.0
-    for i in range(a.shape[0]):
-        s += a[i] * b[i]
-    return s
+def dot3(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 @njit(cache=True)
-def mmt(A, B):
-    """A @ B.T."""
-    n, k, m = A.shape[0], A.shape[1], B.shape[0]
-    out = np.zeros((n, m))
-    for i in range(n):
-        for j in range(m):
-            s = 0.0
-            for p in range(k):
-                s += A[i, p] * B[j, p]
-            out[i, j] = s
-    return out
+def solve_into(A, b, M, x):
+    """Solve A x = b (n x n, small n) by Gaussian elimination with partial pivoting.
 
-
-@njit(cache=True)
-def mv(A, v):
-    """A @ v."""
-    n, k = A.shape
-    out = np.zeros(n)
-    for i in range(n):
-        s = 0.0
-        for p in range(k):
-            s += A[i, p] * v[p]
-        out[i] = s
-    return out
-
-
-@njit(cache=True)
-def mtv(A, v):
-    """A.T @ v."""
-    k, n = A.shape
-    out = np.zeros(n)
-    for p in range(k):
-        vp = v[p]
-        for i in range(n):
-            out[i] += A[p, i] * vp
-    return out
-
-
-@njit(cache=True)
-def solve(A, b):
-    """Solve A x = b by Gaussian elimination with partial pivoting (small n)."""
+    ``M`` (n, n) is scratch; ``x`` (n,) receives the solution. ``A`` and ``b`` are not modified.
+    """
     n = A.shape[0]
-    M = A.copy()
-    x = b.copy()
+    for r in range(n):
+        x[r] = b[r]
+        for c in range(n):
+            M[r, c] = A[r, c]
     for c in range(n):
         piv = c
         best = abs(M[c, c])
@@ -98,15 +52,36 @@ def solve(A, b):
         for j in range(c + 1, n):
             s -= M[c, j] * x[j]
         x[c] = s / M[c, c]
-    return x
 
 
 @njit(cache=True)
-def svd(A):
-    """One-sided Jacobi SVD of a square matrix: (U, s, V) with A = U diag(s) V^T, s descending."""
+def solve3(A, b0, b1, b2):
+    """Solution of the 3x3 system A x = b by cofactors (A well conditioned): a 3-tuple."""
+    c00 = A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]
+    c01 = A[1, 2] * A[2, 0] - A[1, 0] * A[2, 2]
+    c02 = A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]
+    det = A[0, 0] * c00 + A[0, 1] * c01 + A[0, 2] * c02
+    c10 = A[0, 2] * A[2, 1] - A[0, 1] * A[2, 2]
+    c11 = A[0, 0] * A[2, 2] - A[0, 2] * A[2, 0]
+    c12 = A[0, 1] * A[2, 0] - A[0, 0] * A[2, 1]
+    c20 = A[0, 1] * A[1, 2] - A[0, 2] * A[1, 1]
+    c21 = A[0, 2] * A[1, 0] - A[0, 0] * A[1, 2]
+    c22 = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+    return ((c00 * b0 + c10 * b1 + c20 * b2) / det, (c01 * b0 + c11 * b1 + c21 * b2) / det,
+            (c02 * b0 + c12 * b1 + c22 * b2) / det)
+
+
+@njit(cache=True)
+def svd_into(A, U, s, V):
+    """One-sided Jacobi SVD of a square matrix: A = U diag(s) V^T (unsorted, s >= 0).
+
+    Writes ``U`` (columns of zero length where s = 0), ``s`` and ``V``; ``A`` is not modified.
+    """
     n = A.shape[0]
-    U = A.copy()
-    V = np.eye(n)
+    for r in range(n):
+        for c in range(n):
+            U[r, c] = A[r, c]
+            V[r, c] = 1.0 if r == c else 0.0
     for _sweep in range(60):
         rotated = False
         for i in range(n - 1):
@@ -122,23 +97,20 @@ def svd(A):
                 zeta = (beta - alpha) / (2.0 * gamma)
                 t = (1.0 if zeta >= 0.0 else -1.0) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
                 c = 1.0 / math.sqrt(1.0 + t * t)
-                s = c * t
+                sn = c * t
                 for r in range(n):
                     ui, uj = U[r, i], U[r, j]
-                    U[r, i], U[r, j] = c * ui - s * uj, s * ui + c * uj
+                    U[r, i], U[r, j] = c * ui - sn * uj, sn * ui + c * uj
                     vi, vj = V[r, i], V[r, j]
-                    V[r, i], V[r, j] = c * vi - s * vj, s * vi + c * vj
+                    V[r, i], V[r, j] = c * vi - sn * vj, sn * vi + c * vj
         if not rotated:
             break
-    sig = np.empty(n)
     for i in range(n):
-        sig[i] = math.sqrt(dot(U[:, i], U[:, i]))
-    order = np.argsort(-sig)
-    Us, Vs, ss = np.zeros((n, n)), np.zeros((n, n)), np.empty(n)
-    for k in range(n):
-        i = order[k]
-        ss[k] = sig[i]
+        norm = 0.0
         for r in range(n):
-            Vs[r, k] = V[r, i]
-            Us[r, k] = U[r, i] / sig[i] if sig[i] > 0.0 else 0.0
-    return Us, ss, Vs
+            norm += U[r, i] * U[r, i]
+        s[i] = math.sqrt(norm)
+        inv = 1.0 / s[i] if s[i] > 0.0 else 0.0
+        for r in range(n):
+            U[r, i] *= inv
+

@@ -1,69 +1,78 @@
-"""Compiled (numba) robot physics: kinematics, momentum, SE(3) integration, collision distances.
+"""Compiled (numba) robot physics: kinematics, momentum, momentum-conserving base velocity, SE(3) step.
 
-A re-implementation of ``ffsr_gym.robot`` and ``ffsr_gym.collision`` for the kernel, validated
-against them to 1e-9 (``tests/test_kernel.py``). State layout ``x`` (19): base position [m], base
-quaternion (x, y, z, w), 12 joint angles [rad] mission arm first. Model arrays come from
-:func:`ffsr_gym.kernel_model.extract`, passed as the tuple ``mdl`` in declaration order.
+A re-implementation of ``ffsr_gym.robot`` for the kernel, validated against it to 1e-9
+(``tests/test_kernel.py``). State layout ``x`` (19): base position [m], base quaternion
+(x, y, z, w), 12 joint angles [rad] mission arm first. Model arrays come from
+:func:`ffsr_gym.kernel_model.extract`, passed as the tuple ``mdl`` in declaration order. Every
+routine writes into a :data:`Workspace` made once per call of the kernel: nothing is allocated
+inside the time loop.
 """
 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
 
-from ffsr_gym.kernel_linalg import cross, dot, mtv, mv, solve
+from ffsr_gym.kernel_linalg import solve_into
 
-_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
+#: Buffers of one closed loop (kinematics, momentum, planner, collision, integrator).
+Workspace = namedtuple("Workspace", [
+    "Rj", "pj", "R_b", "Re", "pe", "z",  # joint frames, base rotation, EE frames, joint axes (world)
+    "H_b", "H_bm", "rg", "r", "Iw",  # momentum matrices, system CoM, body CoMs, body inertias (world)
+    "tmp", "rot", "M6", "b6", "x_half", "v_mid",  # scratch
+    "J", "U", "V", "s", "Jo", "Jo_d", "points", "I0", "I1", "dq_c",  # planner
+    "V0", "x1", "target", "p_d", "sigma_d", "V_ed",
+    "dq", "e1", "e0", "mu", "cdf", "smin", "v0",  # planner outputs
+    "cap_A", "cap_B", "cap_mid", "cap_hl", "bound", "first", "second", "rel", "cand",  # collision
+])
 
 
 @njit(cache=True)
-def skew(a):
-    out = np.zeros((3, 3))
-    out[0, 1], out[0, 2], out[1, 0] = -a[2], a[1], a[2]
-    out[1, 2], out[2, 0], out[2, 1] = -a[0], -a[1], a[0]
-    return out
+def workspace(n_capsules):
+    """A fresh :data:`Workspace` for a robot with ``n_capsules`` collision capsules."""
+    n_pairs = n_capsules * n_capsules + n_capsules
+    return Workspace(
+        np.empty((12, 3, 3)), np.empty((12, 3)), np.empty((3, 3)), np.empty((2, 3, 3)), np.empty((2, 3)),
+        np.empty((12, 3)), np.empty((6, 6)), np.empty((2, 6, 6)), np.empty(3), np.empty((12, 3)),
+        np.empty((12, 3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((6, 6)), np.empty(6), np.empty(19),
+        np.empty(6), np.empty((6, 6)), np.empty((6, 6)), np.empty((6, 6)), np.empty(6), np.empty((3, 3)),
+        np.empty((3, 3)), np.empty((7, 3)), np.empty(6), np.empty(6), np.empty(6), np.empty(6), np.empty(6),
+        np.empty(6), np.empty(3), np.empty(4), np.empty(6), np.empty(12), np.empty(6), np.empty(6), np.empty(2),
+        np.empty(2), np.empty(2), np.empty(6), np.empty((n_capsules, 3)), np.empty((n_capsules, 3)),
+        np.empty((n_capsules, 3)), np.empty(n_capsules), np.empty(n_pairs), np.empty(n_pairs, dtype=np.int64),
+        np.empty(n_pairs, dtype=np.int64), np.empty(3), np.empty(23),
+    )
 
 
 @njit(cache=True)
-def quat_xyzw_to_R(q):
-    x, y, z, w = q[0], q[1], q[2], q[3]
-    R = np.empty((3, 3))
-    R[0, 0], R[0, 1], R[0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
-    R[1, 0], R[1, 1], R[1, 2] = 2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)
-    R[2, 0], R[2, 1], R[2, 2] = 2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)
-    return R
+def quat_into(R, qx, qy, qz, qw):
+    """Rotation matrix of the unit quaternion (x, y, z, w)."""
+    R[0, 0], R[0, 1], R[0, 2] = 1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qz * qw), 2 * (qx * qz + qy * qw)
+    R[1, 0], R[1, 1], R[1, 2] = 2 * (qx * qy + qz * qw), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qx * qw)
+    R[2, 0], R[2, 1], R[2, 2] = 2 * (qx * qz - qy * qw), 2 * (qy * qz + qx * qw), 1 - 2 * (qx * qx + qy * qy)
 
 
 @njit(cache=True)
 def R_to_quat_wxyz(R):
-    """Scalar-first unit quaternion with w >= 0 (Shepperd's method)."""
+    """Scalar-first unit quaternion (w, x, y, z) with w >= 0 of a rotation matrix (Shepperd's method)."""
     t = R[0, 0] + R[1, 1] + R[2, 2]
-    q = np.empty(4)
     if t > 0.0:
         s = math.sqrt(t + 1.0) * 2.0
-        q[0], q[1], q[2], q[3] = 0.25 * s, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s
+        w, x, y, z = 0.25 * s, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s
     elif R[0, 0] > R[1, 1] and R[0, 0] > R[2, 2]:
         s = math.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2]) * 2.0
-        q[0], q[1], q[2], q[3] = (R[2, 1] - R[1, 2]) / s, 0.25 * s, (R[0, 1] + R[1, 0]) / s, (R[0, 2] + R[2, 0]) / s
+        w, x, y, z = (R[2, 1] - R[1, 2]) / s, 0.25 * s, (R[0, 1] + R[1, 0]) / s, (R[0, 2] + R[2, 0]) / s
     elif R[1, 1] > R[2, 2]:
         s = math.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2]) * 2.0
-        q[0], q[1], q[2], q[3] = (R[0, 2] - R[2, 0]) / s, (R[0, 1] + R[1, 0]) / s, 0.25 * s, (R[1, 2] + R[2, 1]) / s
+        w, x, y, z = (R[0, 2] - R[2, 0]) / s, (R[0, 1] + R[1, 0]) / s, 0.25 * s, (R[1, 2] + R[2, 1]) / s
     else:
         s = math.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1]) * 2.0
-        q[0], q[1], q[2], q[3] = (R[1, 0] - R[0, 1]) / s, (R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s, 0.25 * s
-    if q[0] < 0.0:
-        q = -q
-    return q / math.sqrt(dot(q, q))
-
-
-@njit(cache=True)
-def workspace():
-    """Buffers reused by the kinematics and momentum routines (no allocation in the inner loop)."""
-    return (np.empty((12, 3, 3)), np.empty((12, 3)), np.empty((3, 3)), np.empty((2, 3, 3)), np.empty((2, 3)),
-            np.empty((12, 3)), np.empty((6, 6)), np.empty((2, 6, 6)), np.empty(3), np.empty((12, 3)),
-            np.empty((12, 3, 3)), np.empty((3, 3)))
+        w, x, y, z = (R[1, 0] - R[0, 1]) / s, (R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s, 0.25 * s
+    norm = math.sqrt(w * w + x * x + y * y + z * z) * (-1.0 if w < 0.0 else 1.0)
+    return w / norm, x / norm, y / norm, z / norm
 
 
 @njit(cache=True)
@@ -76,27 +85,35 @@ def _rot_into(out, axis, angle):
     out[2, 0], out[2, 1], out[2, 2] = z * x * C - y * s, z * y * C + x * s, c + z * z * C
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _mm3_into(out, A, B):
     for i in range(3):
         for j in range(3):
             out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _mv3_add_into(out, base, A, v):
     for i in range(3):
         out[i] = base[i] + A[i, 0] * v[0] + A[i, 1] * v[1] + A[i, 2] * v[2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
+def _rotate_inertia_into(out, R, I, tmp):
+    """out = R I R^T."""
+    _mm3_into(tmp, R, I)
+    for a in range(3):
+        for b in range(3):
+            out[a, b] = tmp[a, 0] * R[b, 0] + tmp[a, 1] * R[b, 1] + tmp[a, 2] * R[b, 2]
+
+
+@njit(cache=True, inline="always")
 def kinematics_into(mdl, x, ws):
     """Forward kinematics into the workspace: joint rotations/origins, base rotation, EE poses, axes."""
     parent, pl_R, pl_p, axis = mdl[0], mdl[1], mdl[2], mdl[3]
     ee_parent, ee_R, ee_p = mdl[7], mdl[8], mdl[9]
-    Rj, pj, R_b, Re, pe, z, tmp = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[11]
-    R_b[:, :] = quat_xyzw_to_R(x[3:7])
-    rot = np.empty((3, 3))
+    Rj, pj, R_b, Re, pe, z, tmp, rot = ws.Rj, ws.pj, ws.R_b, ws.Re, ws.pe, ws.z, ws.tmp, ws.rot
+    quat_into(R_b, x[3], x[4], x[5], x[6])
     for k in range(12):
         if parent[k] < 0:
             _mm3_into(tmp, R_b, pl_R[k])
@@ -115,46 +132,39 @@ def kinematics_into(mdl, x, ws):
         _mv3_add_into(pe[a], pj[j], Rj[j], ee_p[a])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def momentum_into(mdl, x, ws):
     """H_b, H_bm (about the base CoM, world frame; SPEC §2.3) and the system CoM, into the workspace."""
     mass, lever, inertia, parent = mdl[4], mdl[5], mdl[6], mdl[0]
-    Rj, pj, R_b, z = ws[0], ws[1], ws[2], ws[5]
-    H_b, H_bm, rg, r, Iw, tmp = ws[6], ws[7], ws[8], ws[9], ws[10], ws[11]
-    r0 = x
+    Rj, pj, z, H_b, H_bm, rg, r, Iw = ws.Rj, ws.pj, ws.z, ws.H_b, ws.H_bm, ws.rg, ws.r, ws.Iw
     M = mass[0]
     for a in range(3):
-        rg[a] = mass[0] * r0[a]
-    _mm3_into(tmp, R_b, inertia[0])
-    H_w = np.empty((3, 3))
-    for a in range(3):
-        for b in range(3):
-            H_w[a, b] = tmp[a, 0] * R_b[b, 0] + tmp[a, 1] * R_b[b, 1] + tmp[a, 2] * R_b[b, 2]
-    d = np.empty(3)
+        rg[a] = mass[0] * x[a]
+    H_b[:, :] = 0.0
+    _rotate_inertia_into(ws.tmp, ws.R_b, inertia[0], ws.rot)
+    H_b[3:6, 3:6] = ws.tmp
     for i in range(12):
         m_i = mass[i + 1]
         _mv3_add_into(r[i], pj[i], Rj[i], lever[i + 1])
-        _mm3_into(tmp, Rj[i], inertia[i + 1])
-        for a in range(3):
-            for b in range(3):
-                Iw[i, a, b] = tmp[a, 0] * Rj[i, b, 0] + tmp[a, 1] * Rj[i, b, 1] + tmp[a, 2] * Rj[i, b, 2]
+        _rotate_inertia_into(Iw[i], Rj[i], inertia[i + 1], ws.tmp)
         M += m_i
-        for a in range(3):
-            rg[a] += m_i * r[i, a]
-            d[a] = r[i, a] - r0[a]
-        dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+        d0, d1, d2 = r[i, 0] - x[0], r[i, 1] - x[1], r[i, 2] - x[2]
+        rg[0] += m_i * r[i, 0]
+        rg[1] += m_i * r[i, 1]
+        rg[2] += m_i * r[i, 2]
+        dd = d0 * d0 + d1 * d1 + d2 * d2
         for a in range(3):  # S(d)^T S(d) = |d|^2 I - d d^T
+            da = d0 if a == 0 else (d1 if a == 1 else d2)
             for b in range(3):
-                H_w[a, b] += Iw[i, a, b] + m_i * ((dd if a == b else 0.0) - d[a] * d[b])
+                db = d0 if b == 0 else (d1 if b == 1 else d2)
+                H_b[3 + a, 3 + b] += Iw[i, a, b] + m_i * ((dd if a == b else 0.0) - da * db)
     for a in range(3):
         rg[a] /= M
-    H_b[:, :] = 0.0
-    w0, w1, w2 = M * (rg[0] - r0[0]), M * (rg[1] - r0[1]), M * (rg[2] - r0[2])
+    w0, w1, w2 = M * (rg[0] - x[0]), M * (rg[1] - x[1]), M * (rg[2] - x[2])
     for a in range(3):
         H_b[a, a] = M
     H_b[0, 4], H_b[0, 5], H_b[1, 3], H_b[1, 5], H_b[2, 3], H_b[2, 4] = w2, -w1, -w2, w0, w1, -w0
     H_b[4, 0], H_b[5, 0], H_b[3, 1], H_b[5, 1], H_b[3, 2], H_b[4, 2] = w2, -w1, -w2, w0, w1, -w0
-    H_b[3:6, 3:6] = H_w
     H_bm[:, :, :] = 0.0
     for k in range(12):
         arm, col = k // 6, k % 6
@@ -168,7 +178,7 @@ def momentum_into(mdl, x, ws):
             m_i = mass[i + 1]
             ex, ey, ez = r[i, 0] - pj[k, 0], r[i, 1] - pj[k, 1], r[i, 2] - pj[k, 2]
             vx, vy, vz = zk[1] * ez - zk[2] * ey, zk[2] * ex - zk[0] * ez, zk[0] * ey - zk[1] * ex
-            fx, fy, fz = r[i, 0] - r0[0], r[i, 1] - r0[1], r[i, 2] - r0[2]
+            fx, fy, fz = r[i, 0] - x[0], r[i, 1] - x[1], r[i, 2] - x[2]
             H_bm[arm, 0, col] += m_i * vx
             H_bm[arm, 1, col] += m_i * vy
             H_bm[arm, 2, col] += m_i * vz
@@ -177,42 +187,43 @@ def momentum_into(mdl, x, ws):
             H_bm[arm, 5, col] += Iw[i, 2, 0] * zk[0] + Iw[i, 2, 1] * zk[1] + Iw[i, 2, 2] * zk[2] + m_i * (fx * vy - fy * vx)
 
 
-@njit(cache=True)
-def momentum_about_base(h, rg, r0):
-    C = h.copy()
-    C[3:6] = h[3:6] + cross(rg - r0[0:3], h[0:3])
-    return C
+@njit(cache=True, inline="always")
+def momentum_about_base_into(out, h, rg, x):
+    """Momentum [P; L] about the base CoM from ``h`` = [P; L_G] about the system CoM."""
+    dx, dy, dz = rg[0] - x[0], rg[1] - x[1], rg[2] - x[2]
+    out[0], out[1], out[2] = h[0], h[1], h[2]
+    out[3] = h[3] + dy * h[2] - dz * h[1]
+    out[4] = h[4] + dz * h[0] - dx * h[2]
+    out[5] = h[5] + dx * h[1] - dy * h[0]
 
 
-@njit(cache=True)
-def base_velocity_ws(mdl, x, dq, h, ws):
-    """Base velocity (base frame, Pinocchio layout) conserving ``h`` = [P; L_G], with a workspace."""
-    kinematics_into(mdl, x, ws)
-    momentum_into(mdl, x, ws)
-    return velocity_from_workspace(x, dq, h, ws)
+@njit(cache=True, inline="always")
+def velocity_into(out, x, dq, h, ws):
+    """Base velocity (base frame, Pinocchio layout) conserving ``h`` = [P; L_G].
 
-
-@njit(cache=True)
-def velocity_from_workspace(x, dq, h, ws):
-    """Base velocity from the momentum matrices already in the workspace (computed at ``x``)."""
-    H_b, H_bm, rg, R_b = ws[6], ws[7], ws[8], ws[2]
-    rhs = momentum_about_base(h, rg, x)
+    Uses the momentum matrices already in the workspace (computed at ``x``).
+    """
+    H_bm, R_b, rhs = ws.H_bm, ws.R_b, ws.b6
+    momentum_about_base_into(rhs, h, ws.rg, x)
     for a in range(6):
         for c in range(6):
             rhs[a] -= H_bm[0, a, c] * dq[c] + H_bm[1, a, c] * dq[6 + c]
-    V0 = solve(H_b, rhs)
-    out = np.empty(6)
-    out[0:3] = mtv(R_b, V0[0:3])
-    out[3:6] = mtv(R_b, V0[3:6])
-    return out
+    V = ws.x1  # scratch 6-vector
+    solve_into(ws.H_b, rhs, ws.M6, V)
+    for a in range(3):
+        out[a] = R_b[0, a] * V[0] + R_b[1, a] * V[1] + R_b[2, a] * V[2]
+        out[3 + a] = R_b[0, a] * V[3] + R_b[1, a] * V[4] + R_b[2, a] * V[5]
 
 
 @njit(cache=True)
-def integrate(x, v_base, dq, dt):
-    """x ⊕ (v dt): base by the SE(3) exponential of the base-frame twist, joints additively."""
-    w = v_base[3:6] * dt
-    u = v_base[0:3] * dt
-    theta2 = dot(w, w)
+def integrate_into(out, x, v_base, dq, dt):
+    """out = x ⊕ (v dt): base by the SE(3) exponential of the base-frame twist, joints additively.
+
+    ``out`` may be ``x`` itself.
+    """
+    wx, wy, wz = v_base[3] * dt, v_base[4] * dt, v_base[5] * dt
+    ux, uy, uz = v_base[0] * dt, v_base[1] * dt, v_base[2] * dt
+    theta2 = wx * wx + wy * wy + wz * wz
     theta = math.sqrt(theta2)
     if theta < 1e-6:
         c1, c2 = 0.5, 1.0 / 6.0
@@ -222,178 +233,35 @@ def integrate(x, v_base, dq, dt):
         c1, c2 = (1.0 - math.cos(theta)) / theta2, (theta - math.sin(theta)) / (theta2 * theta)
         half = math.sin(0.5 * theta) / theta
         cos_half = math.cos(0.5 * theta)
-    wu = cross(w, u)
-    Vu = u + c1 * wu + c2 * cross(w, wu)
-    R = quat_xyzw_to_R(x[3:7])
-    out = x.copy()
-    out[0:3] = x[0:3] + mv(R, Vu)
+    ax, ay, az = wy * uz - wz * uy, wz * ux - wx * uz, wx * uy - wy * ux  # w x u
+    bx, by, bz = wy * az - wz * ay, wz * ax - wx * az, wx * ay - wy * ax  # w x (w x u)
+    vx, vy, vz = ux + c1 * ax + c2 * bx, uy + c1 * ay + c2 * by, uz + c1 * az + c2 * bz
     qx, qy, qz, qw = x[3], x[4], x[5], x[6]
-    dx, dy, dz, dw = half * w[0], half * w[1], half * w[2], cos_half
+    # position += R(q) v, with R(q) v = v + 2 w (q x v) + 2 q x (q x v) for q = (qx, qy, qz)
+    tx, ty, tz = 2.0 * (qy * vz - qz * vy), 2.0 * (qz * vx - qx * vz), 2.0 * (qx * vy - qy * vx)
+    out[0] = x[0] + vx + qw * tx + (qy * tz - qz * ty)
+    out[1] = x[1] + vy + qw * ty + (qz * tx - qx * tz)
+    out[2] = x[2] + vz + qw * tz + (qx * ty - qy * tx)
+    dx, dy, dz, dw = half * wx, half * wy, half * wz, cos_half
     nx = qw * dx + qx * dw + qy * dz - qz * dy
     ny = qw * dy - qx * dz + qy * dw + qz * dx
     nz = qw * dz + qx * dy - qy * dx + qz * dw
     nw = qw * dw - qx * dx - qy * dy - qz * dz
     norm = math.sqrt(nx * nx + ny * ny + nz * nz + nw * nw)
     out[3], out[4], out[5], out[6] = nx / norm, ny / norm, nz / norm, nw / norm
-    out[7:19] = x[7:19] + dq * dt
-    return out
-
-
-@njit(cache=True)
-def midpoint_step(mdl, x, v0, dq, dt, h, ws):
-    """Explicit midpoint on SE(3) with momentum re-solved at the half step (``Robot.step``).
-
-    ``v0`` is the base velocity at ``x`` (already known to the caller: it is logged).
-    """
-    x_half = integrate(x, v0, dq, 0.5 * dt)
-    v_mid = base_velocity_ws(mdl, x_half, dq, h, ws)
-    return integrate(x, v_mid, dq, dt)
-
-
-# --------------------------------------------------------------------------- collision
-@njit(cache=True)
-def point_segment(p, a, b):
-    """Closest point on segment [a, b] to p."""
-    d = b - a
-    t = dot(p - a, d) / dot(d, d)
-    t = min(1.0, max(0.0, t))
-    return a + t * d
-
-
-@njit(cache=True)
-def segment_segment(a0, a1, b0, b1):
-    """Distance between two segments (clamped closed form)."""
-    d1, d2, r = a1 - a0, b1 - b0, a0 - b0
-    a, e, f = dot(d1, d1), dot(d2, d2), dot(d2, r)
-    c, b = dot(d1, r), dot(d1, d2)
-    denom = a * e - b * b
-    s = min(1.0, max(0.0, (b * f - c * e) / denom)) if denom > 1e-14 * a * e else 0.0
-    t = (b * s + f) / e
-    if t < 0.0:
-        t = 0.0
-        s = min(1.0, max(0.0, -c / a))
-    elif t > 1.0:
-        t = 1.0
-        s = min(1.0, max(0.0, (b - c) / a))
-    dx = a0[0] + s * d1[0] - b0[0] - t * d2[0]
-    dy = a0[1] + s * d1[1] - b0[1] - t * d2[1]
-    dz = a0[2] + s * d1[2] - b0[2] - t * d2[2]
-    return math.sqrt(dx * dx + dy * dy + dz * dz)
+    for j in range(12):
+        out[7 + j] = x[7 + j] + dq[j] * dt
 
 
 @njit(cache=True, inline="always")
-def _sdf_local(x, y, z, half):
-    dx, dy, dz = abs(x) - half[0], abs(y) - half[1], abs(z) - half[2]
-    ox, oy, oz = max(dx, 0.0), max(dy, 0.0), max(dz, 0.0)
-    outside = ox * ox + oy * oy + oz * oz
-    return math.sqrt(outside) if outside > 0.0 else max(dx, max(dy, dz))
+def midpoint_into(out, mdl, x, v0, dq, dt, h, ws):
+    """Explicit midpoint on SE(3) with momentum re-solved at the half step (``Robot.step``).
 
-
-@njit(cache=True)
-def box_sdf(p, R_b, c_b, half):
-    local = mtv(R_b, p - c_b)
-    return _sdf_local(local[0], local[1], local[2], half)
-
-
-@njit(cache=True)
-def segment_box(a, b, R_b, c_b, half):
-    """Signed distance segment-box: min of the (convex) box SDF along the segment (golden section)."""
-    la, lb = mtv(R_b, a - c_b), mtv(R_b, b - c_b)
-    dx, dy, dz = lb[0] - la[0], lb[1] - la[1], lb[2] - la[2]
-    lo, hi = 0.0, 1.0
-    for _ in range(64):
-        m1 = hi - _GOLDEN * (hi - lo)
-        m2 = lo + _GOLDEN * (hi - lo)
-        f1 = _sdf_local(la[0] + m1 * dx, la[1] + m1 * dy, la[2] + m1 * dz, half)
-        f2 = _sdf_local(la[0] + m2 * dx, la[1] + m2 * dy, la[2] + m2 * dz, half)
-        if f1 < f2:
-            hi = m2
-        else:
-            lo = m1
-    m = 0.5 * (lo + hi)
-    best = _sdf_local(la[0] + m * dx, la[1] + m * dy, la[2] + m * dz, half)
-    best = min(best, _sdf_local(la[0], la[1], la[2], half))
-    return min(best, _sdf_local(lb[0], lb[1], lb[2], half))
-
-
-@njit(cache=True)
-def capsule_ends(mdl, Rj, pj, R_b, p_b):
-    cap_parent, cap_a, cap_b = mdl[10], mdl[11], mdl[12]
-    n = len(cap_parent)
-    A = np.empty((n, 3))
-    B = np.empty((n, 3))
-    for i in range(n):
-        j = cap_parent[i]
-        R, p = (R_b, p_b) if j < 0 else (Rj[j], pj[j])
-        A[i] = p + mv(R, cap_a[i])
-        B[i] = p + mv(R, cap_b[i])
-    return A, B
-
-
-@njit(cache=True)
-def obstacle_clearance(mdl, A, B, R_b, p_b, p_o, r_o):
-    """Signed distance robot-obstacle sphere [m] and the vector robot point → obstacle point."""
-    radius, half = mdl[13], mdl[16]
-    best = box_sdf(p_o, R_b, p_b, half) - r_o
-    local = mtv(R_b, p_o - p_b)
-    clamped = np.minimum(np.maximum(local, -half), half)
-    rel = p_o - (p_b + mv(R_b, clamped))
-    n = math.sqrt(dot(rel, rel))
-    if n > 0.0:
-        rel = rel - r_o * rel / n
-    for i in range(len(radius)):
-        d = p_o - point_segment(p_o, A[i], B[i])
-        dist = math.sqrt(dot(d, d))
-        value = dist - radius[i] - r_o
-        if value < best:
-            best = value
-            rel = d * (1.0 - (radius[i] + r_o) / dist) if dist > 0.0 else np.zeros(3)
-    return best, rel
-
-
-@njit(cache=True)
-def self_clearance(mdl, A, B, R_b, p_b):
-    """Smallest signed distance arm-arm and arm-base (mounting links excluded) [m].
-
-    Candidate pairs are visited in order of a cheap lower bound (bounding spheres); exact
-    distances are computed only while a bound can still beat the best so far.
+    ``v0`` is the base velocity at ``x`` (already known to the caller: it is logged). Leaves the
+    workspace's kinematics at the half step. ``out`` may be ``x`` itself.
     """
-    radius, arm, vs_base, half = mdl[13], mdl[14], mdl[15], mdl[16]
-    n = len(radius)
-    mid = 0.5 * (A + B)
-    hl = np.empty(n)
-    for i in range(n):
-        dx, dy, dz = B[i, 0] - A[i, 0], B[i, 1] - A[i, 1], B[i, 2] - A[i, 2]
-        hl[i] = 0.5 * math.sqrt(dx * dx + dy * dy + dz * dz)
-    bound = np.empty(n * n + n)
-    first = np.empty(n * n + n, dtype=np.int64)
-    second = np.empty(n * n + n, dtype=np.int64)
-    count = 0
-    for i in range(n):
-        if arm[i] == 0:
-            for j in range(n):
-                if arm[j] == 1:
-                    dx, dy, dz = mid[i, 0] - mid[j, 0], mid[i, 1] - mid[j, 1], mid[i, 2] - mid[j, 2]
-                    bound[count] = math.sqrt(dx * dx + dy * dy + dz * dz) - hl[i] - hl[j] - radius[i] - radius[j]
-                    first[count], second[count] = i, j
-                    count += 1
-        if vs_base[i]:
-            bound[count] = box_sdf(mid[i], R_b, p_b, half) - hl[i] - radius[i]
-            first[count], second[count] = i, -1
-            count += 1
-    best = 1e300
-    for _ in range(count):
-        k = 0
-        for c in range(1, count):
-            if bound[c] < bound[k]:
-                k = c
-        if bound[k] >= best:
-            break
-        bound[k] = 1e301  # visited
-        i, j = first[k], second[k]
-        if j >= 0:
-            value = segment_segment(A[i], B[i], A[j], B[j]) - radius[i] - radius[j]
-        else:
-            value = segment_box(A[i], B[i], R_b, p_b, half) - radius[i]
-        best = min(best, value)
-    return best
+    integrate_into(ws.x_half, x, v0, dq, 0.5 * dt)
+    kinematics_into(mdl, ws.x_half, ws)
+    momentum_into(mdl, ws.x_half, ws)
+    velocity_into(ws.v_mid, ws.x_half, dq, h, ws)
+    integrate_into(out, x, ws.v_mid, dq, dt)

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ffsr_gym import kernel_planner as kp
+from ffsr_gym import kernel_cache, kernel_loop, kernel_planner as kp
 from ffsr_gym.collision import CollisionModel
 from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.kernel_model import KernelModel, extract
@@ -17,6 +17,8 @@ from ffsr_gym.rollout import STATUS, initial_configuration
 from ffsr_gym.scenario import Scenario
 from ffsr_gym.trajectory import Trajectory
 from ffsr_gym.types import Array
+
+kernel_cache.refresh()
 
 
 @lru_cache(maxsize=8)
@@ -95,7 +97,7 @@ class KernelRollout:
     def _run(self, n: int, residual: Array | None, stop: bool, record_only: bool) -> int:
         res = np.zeros(12) if residual is None else np.asarray(residual, dtype=float)
         outs = [self._log[key][self.rows:] for key in ("x", "v", "dq", "err", "clear", "self", "mu", "cdf", "smin")]
-        x, rows, status = kp.run(self._mdl, self.x, self.k, self.n_steps, n, self.fp, self.ip, res, stop, record_only, *outs)
+        x, rows, status = kernel_loop.run(self._mdl, self.x, self.k, self.n_steps, n, self.fp, self.ip, res, stop, record_only, *outs)
         if status == 3:
             raise FFSRError(f"planner produced non-finite joint rates at t = {(self.k + rows) * self.dt:.3f} s")
         self.rows += rows
@@ -125,7 +127,7 @@ class KernelRollout:
         """
         x = np.concatenate((q[:7], q[self.model.q_index]))
         outs = [np.zeros((1, *self._log[key].shape[1:])) for key in ("x", "v", "dq", "err", "clear", "self", "mu", "cdf", "smin")]
-        x_next, _, _ = kp.run(self._mdl, x, k, self.n_steps, 1, self.fp, self.ip, np.zeros(12), False, False, *outs)
+        x_next, _, _ = kernel_loop.run(self._mdl, x, k, self.n_steps, 1, self.fp, self.ip, np.zeros(12), False, False, *outs)
         _, v, dq, err, clear, self_c, mu, cdf, smin = (o[0] for o in outs)
         v_pin = np.zeros(18)
         v_pin[:6], v_pin[self.model.v_index] = v[:6], v[6:]
@@ -138,7 +140,7 @@ class KernelRollout:
 
     def observation(self) -> tuple[Array, Array, Array, Array, float]:
         """Joint angles, EE error (6), base error (6), obstacle-relative vector (3), clearance [m]."""
-        e1, e0, rel, clear = kp.observe(self._mdl, self.x, self.t, self.fp, self.ip)
+        e1, e0, rel, clear = kernel_loop.observe(self._mdl, self.x, self.t, self.fp, self.ip)
         return self.x[7:19].copy(), e1, e0, rel, float(clear)
 
     def trajectory(self) -> Trajectory:

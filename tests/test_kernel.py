@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ffsr_gym.evaluation import scenario_for_seed
-from ffsr_gym.kernel_physics import segment_box
+from ffsr_gym.kernel_collision import segment_box
 from ffsr_gym.kernel_rollout import KernelRollout
 from ffsr_gym.planner import METHODS
 from ffsr_gym.rollout import simulate
@@ -82,3 +82,19 @@ def test_segment_box_matches_dense_sampling():
         sdf = np.where(np.all(d <= 0, axis=1), d.max(axis=1), np.linalg.norm(np.maximum(d, 0), axis=1))
         assert segment_box(a, b, R, center, half) == pytest.approx(sdf.min(), abs=2e-4 * np.linalg.norm(b - a))
         assert segment_box(a, b, R, center, half) <= sdf.min() + 1e-12
+
+
+def test_segment_box_starting_on_an_edge():
+    """A segment that starts on a box edge (two candidate cuts 1e-16 apart) and dips toward the box.
+
+    Found in a random-family state: a shortcut that trusted the best cut's neighbours missed the
+    interior minimum (0.10 instead of 0.071).
+    """
+    half = np.full(3, 0.4)
+    a = np.array([0.4, 0.1, 0.5])
+    b = a + np.array([0.3532342687244006, 0.04649291033568555, -0.35080473298867554])
+    s = np.linspace(0, 1, 200001)[:, None]
+    d = np.abs(a + s * (b - a)) - half
+    sampled = np.linalg.norm(np.maximum(d, 0), axis=1).min()
+    assert segment_box(a, b, np.eye(3), np.zeros(3), half) == pytest.approx(sampled, abs=1e-9)
+    assert sampled < 0.072
