@@ -47,12 +47,15 @@ def objective_for_params(m: float, T_c: float, *, scenario: str | Scenario = "pa
 
     Picklable (a module-level function) for process pools. Returns B if the episode is feasible,
     else +inf; never NaN. ``seed`` selects the task of a randomised scenario (as ``reset(seed=...)``).
+    The run stops at the first rate-limit violation or collision, whose score is +inf whatever
+    follows (GA populations are mostly such settings).
     """
     for name, value in (("m", m), ("T_c", T_c)):
         if not isinstance(value, (int, float, np.floating)) or not math.isfinite(value):
             raise InvalidInputError(f"{name} must be a finite number, got {value!r}")
     played = scenario_for_seed(scenario, seed)
-    return objective_terms(simulate(played, m=float(m), T_c=float(T_c)), played.objective).score
+    trajectory = simulate(played, m=float(m), T_c=float(T_c), stop_on_violation=True)
+    return objective_terms(trajectory, played.objective).score
 
 
 def _iqm(values: np.ndarray) -> float:

@@ -191,7 +191,7 @@ def make_rollout(scenario: Scenario, *, backend: str = "auto", **kwargs: Any) ->
 
 def simulate(scenario: Scenario | str, *, method: str = "predefined_time", m: float | None = None,
              T_c: float | None = None, dt: float | None = None, q0: Array | None = None,
-             backend: str = "auto", progress: bool = False) -> Trajectory:
+             backend: str = "auto", progress: bool = False, stop_on_violation: bool = False) -> Trajectory:
     """Run the closed loop planner → robot for one scenario.
 
     Args:
@@ -206,6 +206,8 @@ def simulate(scenario: Scenario | str, *, method: str = "predefined_time", m: fl
         backend: ``"auto"`` (the compiled kernel when numba is installed), ``"kernel"`` or
             ``"pinocchio"`` (the reference implementation).
         progress: show a progress bar.
+        stop_on_violation: end the run after the first step that exceeds the rate limit or
+            collides (the trajectory then ends one sample after it; its score is +inf either way).
 
     Returns:
         The :class:`Trajectory`, sampled at every step.
@@ -217,7 +219,10 @@ def simulate(scenario: Scenario | str, *, method: str = "predefined_time", m: fl
     chunk = max(1, rollout.n_steps // 100)
     with tqdm(total=rollout.n_steps, disable=not progress, desc=f"{scenario.name}/{method}", unit="step") as bar:
         while rollout.k < rollout.n_steps:
-            bar.update(len(rollout.advance(chunk)[0]))
+            applied, status = rollout.advance(chunk, stop_on_violation=stop_on_violation)
+            bar.update(len(applied))
+            if status != "ok":
+                break
     rollout.finish()
     return rollout.trajectory()
 

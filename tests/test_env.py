@@ -144,6 +144,13 @@ def test_evaluate_equals_objective_for_params_equals_simulate():
 
 def test_objective_for_params_is_inf_when_infeasible_and_picklable():
     assert ffsr_gym.objective_for_params(0.1, 2.19) == math.inf  # balance arm exceeds 200 deg/s
+    scenario = ffsr_gym.load_scenario("paper")
+    full = ffsr_gym.simulate(scenario, m=0.1, T_c=2.19)
+    stopped = ffsr_gym.simulate(scenario, m=0.1, T_c=2.19, stop_on_violation=True)
+    assert objective_terms(full, scenario.objective).score == math.inf
+    first = int(np.argmax(np.abs(np.degrees(full.dq_joints)) > scenario.objective.max_rate_deg_s) // 12)
+    assert len(stopped.t) == first + 2  # the violating step and the sample after it
+    np.testing.assert_array_equal(stopped.q, full.q[:first + 2])
     assert pickle.loads(pickle.dumps(ffsr_gym.objective_for_params)) is ffsr_gym.objective_for_params
 
 
