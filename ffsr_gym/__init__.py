@@ -13,8 +13,10 @@ from ffsr_gym.trajectory import Trajectory
 
 __version__ = "0.1.0"
 
-gymnasium.register(id="FFSR-v0", entry_point="ffsr_gym.env:FFSREnv")
-gymnasium.register(id="FFSR-Residual-v0", entry_point="ffsr_gym.env:FFSRResidualEnv")
+gymnasium.register(id="FFSR-v0", entry_point="ffsr_gym.env:FFSREnv",
+                   vector_entry_point="ffsr_gym.vector_env:FFSRVectorEnv")
+gymnasium.register(id="FFSR-Residual-v0", entry_point="ffsr_gym.env:FFSRResidualEnv",
+                   vector_entry_point="ffsr_gym.vector_env:FFSRResidualVectorEnv")
 
 __all__ = [
     "EvalReport",

@@ -16,6 +16,25 @@ from ffsr_gym.scenario import Scenario, load_scenario
 OBS_CLIP = {"rates": 20.0, "errors": 10.0, "relative": 10.0, "clearance": 10.0}
 
 
+def assemble_observation(angles: np.ndarray, last_rates: np.ndarray, ee_error: np.ndarray, base_error: np.ndarray,
+                         relative: np.ndarray, clearance: Any, time_fraction: Any) -> np.ndarray:
+    """The 53-dim float32 observation from its parts (see :class:`FFSREnv`); leading batch axes allowed.
+
+    Args:
+        angles: joint angles [rad] (..., 12). last_rates: joint rates applied last [rad/s] (..., 12).
+        ee_error, base_error: pose errors (..., 6). relative: obstacle relative to the nearest robot
+        point [m] (..., 3). clearance: robot–obstacle clearance [m] (...). time_fraction: t / duration (...).
+    """
+    return np.concatenate([
+        np.sin(angles), np.cos(angles),
+        np.clip(last_rates, -OBS_CLIP["rates"], OBS_CLIP["rates"]),
+        np.clip(np.concatenate((ee_error, base_error), axis=-1), -OBS_CLIP["errors"], OBS_CLIP["errors"]),
+        np.clip(relative, -OBS_CLIP["relative"], OBS_CLIP["relative"]),
+        np.clip(np.asarray(clearance, dtype=float), -OBS_CLIP["clearance"], OBS_CLIP["clearance"])[..., None],
+        np.minimum(1.0, np.asarray(time_fraction, dtype=float))[..., None],
+    ], axis=-1).astype(np.float32)
+
+
 class FFSREnv(gym.Env):
     """Dual-arm free-floating space robot reaching a target past an obstacle.
 
@@ -171,15 +190,8 @@ class FFSREnv(gym.Env):
         angles, ee_error, base_error, relative, clearance = self.rollout.observation()
         self._clearance = float(clearance)
         self._ee_error = float(np.linalg.norm(ee_error[:3]))
-        obs = np.concatenate([
-            np.sin(angles), np.cos(angles),
-            np.clip(self.last_rates, -OBS_CLIP["rates"], OBS_CLIP["rates"]),
-            np.clip(np.concatenate((ee_error, base_error)), -OBS_CLIP["errors"], OBS_CLIP["errors"]),
-            np.clip(relative, -OBS_CLIP["relative"], OBS_CLIP["relative"]),
-            [np.clip(clearance, -OBS_CLIP["clearance"], OBS_CLIP["clearance"])],
-            [min(1.0, self.rollout.k / self.rollout.n_steps)],
-        ])
-        return obs.astype(np.float32)
+        return assemble_observation(angles, self.last_rates, ee_error, base_error, relative, clearance,
+                                    self.rollout.k / self.rollout.n_steps)
 
     # ----------------------------------------------------------------------------- extras
     @property

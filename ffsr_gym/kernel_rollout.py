@@ -52,13 +52,22 @@ def settings_vectors(scenario: Scenario, planner: Planner) -> tuple[Array, Array
     return fp, ip
 
 
+LOG_FIELDS = {"x": (19,), "v": (18,), "dq": (12,), "err": (4,), "clear": (), "self": (), "mu": (2,), "cdf": (2,),
+              "smin": (2,)}
+
+
+def new_log(rows: int, *batch: int) -> dict[str, Array]:
+    """Zeroed trajectory buffers of the kernel (``LOG_FIELDS``), ``rows`` samples each, optional leading batch axes."""
+    return {key: np.zeros((*batch, rows, *shape)) for key, shape in LOG_FIELDS.items()}
+
+
 class KernelRollout:
     """Closed loop on the compiled kernel; the interface of :class:`ffsr_gym.rollout.Rollout`."""
 
     backend = "kernel"
 
     def __init__(self, scenario: Scenario, *, method: str = "predefined_time", m: float | None = None,
-                 T_c: float | None = None, q0: Array | None = None) -> None:
+                 T_c: float | None = None, q0: Array | None = None, log: dict[str, Array] | None = None) -> None:
         self.scenario = scenario
         self.robot = load_robot(scenario.robot)
         self.model, self._mdl = kernel_model(scenario.robot)
@@ -71,10 +80,7 @@ class KernelRollout:
         self.fp, self.ip = settings_vectors(scenario, self.planner)
         self.dt, self.n_steps = scenario.simulation.dt_s, scenario.n_steps
         self.k, self.rows, self.finished = 0, 0, False
-        n = self.n_steps + 1
-        self._log = {"x": np.zeros((n, 19)), "v": np.zeros((n, 18)), "dq": np.zeros((n, 12)), "err": np.zeros((n, 4)),
-                     "clear": np.zeros(n), "self": np.zeros(n), "mu": np.zeros((n, 2)), "cdf": np.zeros((n, 2)),
-                     "smin": np.zeros((n, 2))}
+        self._log = new_log(self.n_steps + 1) if log is None else log
 
     @property
     def t(self) -> float:
@@ -96,7 +102,7 @@ class KernelRollout:
 
     def _run(self, n: int, residual: Array | None, stop: bool, record_only: bool) -> int:
         res = np.zeros(12) if residual is None else np.asarray(residual, dtype=float)
-        outs = [self._log[key][self.rows:] for key in ("x", "v", "dq", "err", "clear", "self", "mu", "cdf", "smin")]
+        outs = [self._log[key][self.rows:] for key in LOG_FIELDS]
         x, rows, status = kernel_loop.run(self._mdl, self.x, self.k, self.n_steps, n, self.fp, self.ip, res, stop, record_only, *outs)
         if status == 3:
             raise FFSRError(f"planner produced non-finite joint rates at t = {(self.k + rows) * self.dt:.3f} s")
@@ -126,7 +132,7 @@ class KernelRollout:
         names (one row each) and the next configuration in Pinocchio order.
         """
         x = np.concatenate((q[:7], q[self.model.q_index]))
-        outs = [np.zeros((1, *self._log[key].shape[1:])) for key in ("x", "v", "dq", "err", "clear", "self", "mu", "cdf", "smin")]
+        outs = list(new_log(1).values())
         x_next, _, _ = kernel_loop.run(self._mdl, x, k, self.n_steps, 1, self.fp, self.ip, np.zeros(12), False, False, *outs)
         _, v, dq, err, clear, self_c, mu, cdf, smin = (o[0] for o in outs)
         v_pin = np.zeros(18)

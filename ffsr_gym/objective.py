@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -56,21 +57,29 @@ class ObjectiveTerms:
         return {k: (None if isinstance(v, float) and math.isinf(v) else v) for k, v in asdict(self).items()}
 
 
-def rate_terms(dq_joints: Array, dt: float, settings: ObjectiveSettings) -> tuple[float, float, bool]:
+def rate_terms(dq_joints: Array, dt: float, settings: ObjectiveSettings) -> tuple[Any, Any, Any]:
     """Ψ-integrals [deg] of both arms and the rate-limit flag for applied rates ``dq_joints`` [rad/s].
 
     Args:
-        dq_joints: (n, 12) rates held over each step, mission arm first.
+        dq_joints: (n, 12) rates held over each step, mission arm first; or (batch, n, 12) for
+            several episodes at once (rows of zeros add nothing).
         dt: step [s].
         settings: the scenario's objective settings.
+
+    Returns:
+        Floats and a bool for one episode, arrays of shape (batch,) for a batch.
     """
-    rates = np.degrees(np.atleast_2d(dq_joints))
+    rates = np.degrees(np.asarray(dq_joints, dtype=float))
+    single = rates.ndim < 3
+    rates = rates.reshape((1, -1, 12)) if single else rates
     integrals = []
     for arm in range(2):
-        norms = np.linalg.norm(rates[:, 6 * arm:6 * arm + 6], axis=1)
-        integrals.append(float(np.sum(np.where(norms > settings.danger_rate_deg_s, norms, 0.0)) * dt))
-    checked = rates if settings.rate_limit_scope == "both_arms" else rates[:, 6:]
-    violation = bool(np.any(np.abs(checked) > settings.max_rate_deg_s))
+        norms = np.linalg.norm(rates[..., 6 * arm:6 * arm + 6], axis=-1)
+        integrals.append(np.sum(np.where(norms > settings.danger_rate_deg_s, norms, 0.0), axis=-1) * dt)
+    checked = rates if settings.rate_limit_scope == "both_arms" else rates[..., 6:]
+    violation = np.any(np.abs(checked) > settings.max_rate_deg_s, axis=(-2, -1))
+    if single:
+        return float(integrals[0][0]), float(integrals[1][0]), bool(violation[0])
     return integrals[0], integrals[1], violation
 
 

@@ -1,0 +1,72 @@
+"""The batched environments against the single ones: same episodes, step by step, bit for bit."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import ffsr_gym  # noqa: F401  (registers the ids)
+from ffsr_gym.exceptions import InvalidInputError
+
+
+def make_vec(env_id, num_envs, **kwargs):
+    return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs)
+
+
+@pytest.mark.parametrize(("env_id", "scenario", "steps"), [("FFSR-Residual-v0", "random", 250), ("FFSR-v0", "paper", 120)])
+def test_vector_env_equals_single_envs(env_id, scenario, steps):
+    """N copies seeded s, s+1, ... reproduce N single envs, autoresets (next-step mode) included."""
+    n = 3
+    venv = make_vec(env_id, n, scenario=scenario)
+    singles = [gym.make(env_id, scenario=scenario) for _ in range(n)]
+    obs, _ = venv.reset(seed=7)
+    np.testing.assert_array_equal(obs, np.stack([env.reset(seed=7 + i)[0] for i, env in enumerate(singles)]))
+    rng = np.random.default_rng(0)
+    pending, ends = [False] * n, 0
+    for t in range(steps):
+        actions = rng.uniform(-1.2, 1.2, venv.action_space.shape).astype(np.float32)  # some clipped
+        obs, rewards, terminated, truncated, info = venv.step(actions)
+        assert venv.observation_space.contains(obs)
+        for i, env in enumerate(singles):
+            if pending[i]:
+                expected, reward, term, trunc = env.reset()[0], 0.0, False, False
+                pending[i] = False
+            else:
+                expected, reward, term, trunc, single_info = env.step(actions[i])
+                if term or trunc:
+                    pending[i], ends = True, ends + 1
+                    assert info["_score"][i] and info["score"][i] == single_info["score"]
+                    assert info["feasible"][i] == single_info["feasible"]
+            np.testing.assert_array_equal(obs[i], expected, err_msg=f"step {t}, copy {i}")
+            assert rewards[i] == pytest.approx(reward, rel=1e-12, abs=1e-15)
+            assert (terminated[i], truncated[i]) == (term, trunc)
+    assert ends >= 3  # the comparison covered episode ends and resets
+
+
+def test_vector_env_bad_input_names_the_field():
+    venv = make_vec("FFSR-Residual-v0", 2)
+    with pytest.raises(InvalidInputError, match="reset"):
+        venv.step(np.zeros((2, 12)))
+    venv.reset(seed=0)
+    actions = np.zeros((2, 12))
+    actions[1, 3] = np.nan
+    with pytest.raises(InvalidInputError, match=r"copies \[1\] are not finite.*\[-1, 1\]"):
+        venv.step(actions)
+    with pytest.raises(InvalidInputError, match="shape"):
+        venv.step(np.zeros((3, 12)))
+    with pytest.raises(InvalidInputError, match="num_envs"):
+        make_vec("FFSR-Residual-v0", 0)
+    with pytest.raises(InvalidInputError, match="threads"):
+        make_vec("FFSR-Residual-v0", 2, threads=10_000)
+
+
+def test_vector_env_episode_trajectory_scores_like_simulate():
+    """A zero residual is the reference planner: the copy's trajectory equals ``simulate``'s."""
+    venv = make_vec("FFSR-Residual-v0", 2, scenario="free_space")
+    venv.reset(seed=0)
+    for _ in range(5):
+        venv.step(np.zeros((2, 12), dtype=np.float32))
+    reference = ffsr_gym.simulate("free_space")
+    trajectory = venv.unwrapped.trajectory(1) if hasattr(venv, "unwrapped") else venv.trajectory(1)
+    np.testing.assert_allclose(trajectory.q, reference.q[:len(trajectory.t)], rtol=0, atol=1e-12)
