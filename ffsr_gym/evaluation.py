@@ -6,6 +6,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
@@ -35,6 +36,18 @@ Policy = Callable[[np.ndarray], np.ndarray] | PredictsActions | tuple[float, flo
 
 def scenario_for_seed(scenario: str | Scenario, seed: int | None) -> Scenario:
     """The scenario an env with ``scenario`` plays after ``reset(seed=seed)``."""
+    if isinstance(scenario, str):
+        return _named_scenario_for_seed(scenario, seed)
+    return _scenario_for_seed(scenario, seed)
+
+
+@lru_cache(maxsize=256)
+def _named_scenario_for_seed(scenario: str, seed: int | None) -> Scenario:
+    """Cached per process: GA and CMA-ES evaluate one scenario thousands of times (TOML parsing, hashing)."""
+    return _scenario_for_seed(scenario, seed)
+
+
+def _scenario_for_seed(scenario: str | Scenario, seed: int | None) -> Scenario:
     family = load_scenario(scenario)
     if family.randomization is None:
         return family

@@ -13,13 +13,13 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def capsule_ends_into(mdl, ws, p_b):
     """World end points of every capsule axis into ``ws.cap_A`` / ``ws.cap_B`` (kinematics in ``ws``)."""
     _capsule_ends(mdl[10], mdl[11], mdl[12], ws.R_b, ws.Rj, ws.pj, p_b, ws.cap_A, ws.cap_B)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _capsule_ends(cap_parent, cap_a, cap_b, R_b, Rj, pj, p_b, A, B):
     for i in range(len(cap_parent)):
         j = cap_parent[i]
@@ -32,7 +32,7 @@ def _capsule_ends(cap_parent, cap_a, cap_b, R_b, Rj, pj, p_b, A, B):
             B[i, a] = origin + r0 * cap_b[i, 0] + r1 * cap_b[i, 1] + r2 * cap_b[i, 2]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _sdf_local(x, y, z, half):
     dx, dy, dz = abs(x) - half[0], abs(y) - half[1], abs(z) - half[2]
     ox, oy, oz = max(dx, 0.0), max(dy, 0.0), max(dz, 0.0)
@@ -40,19 +40,19 @@ def _sdf_local(x, y, z, half):
     return math.sqrt(outside) if outside > 0.0 else max(dx, max(dy, dz))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _to_box(R_b, c_b, p, i):
     """Coordinate i of p in the box frame (rotation R_b, centre c_b)."""
     return R_b[0, i] * (p[0] - c_b[0]) + R_b[1, i] * (p[1] - c_b[1]) + R_b[2, i] * (p[2] - c_b[2])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _row_to_box(R_b, c_b, P, k, i):
     """Coordinate i of row k of P in the box frame."""
     return R_b[0, i] * (P[k, 0] - c_b[0]) + R_b[1, i] * (P[k, 1] - c_b[1]) + R_b[2, i] * (P[k, 2] - c_b[2])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def box_sdf(p, R_b, c_b, half):
     """Signed distance of point p to the box [m] (negative inside)."""
     return _sdf_local(_to_box(R_b, c_b, p, 0), _to_box(R_b, c_b, p, 1), _to_box(R_b, c_b, p, 2), half)
@@ -62,7 +62,7 @@ _PAIRS = ((0, 1), (0, 2), (1, 2))
 N_OUTSIDE, N_CANDIDATES = 11, 23
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _candidate(la, d, half, k):
     """Candidate k (0..22) of the parameters where the box SDF along la + t d changes formula.
 
@@ -87,12 +87,12 @@ def _candidate(la, d, half, k):
     return t if 0.0 <= t <= 1.0 else -1.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _sdf_at(la, d, half, t):
     return _sdf_local(la[0] + t * d[0], la[1] + t * d[1], la[2] + t * d[2], half)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _piece_minimum(la, d, half, lo, hi):
     """Minimum of the SDF on [lo, hi], a piece where it has one formula.
 
@@ -112,7 +112,7 @@ def _piece_minimum(la, d, half, lo, hi):
     return _sdf_at(la, d, half, min(hi, max(lo, num / den)))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def segment_box(a, b, R_b, c_b, half):
     """Signed distance segment–box [m], exact: the convex SDF minimised piece by piece.
 
@@ -124,7 +124,7 @@ def segment_box(a, b, R_b, c_b, half):
     return _segment_box_local(la, (lb[0] - la[0], lb[1] - la[1], lb[2] - la[2]), half, np.empty(N_CANDIDATES))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _capsule_box(A, B, k, R_b, c_b, half, scratch):
     """:func:`segment_box` for the axis of capsule k (rows of ``A``, ``B``); ``scratch`` has 23 entries."""
     la = (_row_to_box(R_b, c_b, A, k, 0), _row_to_box(R_b, c_b, A, k, 1), _row_to_box(R_b, c_b, A, k, 2))
@@ -132,7 +132,7 @@ def _capsule_box(A, B, k, R_b, c_b, half, scratch):
     return _segment_box_local(la, (lb[0] - la[0], lb[1] - la[1], lb[2] - la[2]), half, scratch)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _segment_box_local(la, d, half, ts):
     """Minimum over t in [0, 1] of the box SDF at la + t d (box-frame coordinates).
 
@@ -160,7 +160,7 @@ def _segment_box_local(la, d, half, ts):
     return best
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _point_capsule_axis(p, A, B, k):
     """Distance [m] from p to the axis of capsule k and the vector axis point → p."""
     dx, dy, dz = B[k, 0] - A[k, 0], B[k, 1] - A[k, 1], B[k, 2] - A[k, 2]
@@ -170,7 +170,7 @@ def _point_capsule_axis(p, A, B, k):
     return math.sqrt(ex * ex + ey * ey + ez * ez), ex, ey, ez
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _axis_axis(A, B, i, j):
     """Distance [m] between the axes of capsules i and j (clamped closed form)."""
     d1 = (B[i, 0] - A[i, 0], B[i, 1] - A[i, 1], B[i, 2] - A[i, 2])
@@ -196,7 +196,7 @@ def _axis_axis(A, B, i, j):
     return math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def obstacle_clearance(mdl, ws, p_b, p_o, r_o):
     """Signed distance robot–obstacle sphere [m]; ``ws.rel`` gets the vector robot point → obstacle point.
 
@@ -205,7 +205,7 @@ def obstacle_clearance(mdl, ws, p_b, p_o, r_o):
     return _obstacle_clearance(mdl[13], mdl[16], ws.R_b, p_b, ws.cap_A, ws.cap_B, p_o, r_o, ws.rel)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _obstacle_clearance(radius, half, R_b, p_b, A, B, p_o, r_o, rel):
     best = box_sdf(p_o, R_b, p_b, half) - r_o
     l0 = min(half[0], max(-half[0], _to_box(R_b, p_b, p_o, 0)))  # nearest box point (box frame)
@@ -227,7 +227,7 @@ def _obstacle_clearance(radius, half, R_b, p_b, A, B, p_o, r_o, rel):
     return best
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def self_clearance(mdl, ws, p_b):
     """Smallest signed distance arm–arm and arm–base (mounting links excluded) [m].
 
@@ -239,7 +239,7 @@ def self_clearance(mdl, ws, p_b):
                            ws.bound, ws.first, ws.second, ws.cand)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _self_clearance(radius, arm, vs_base, half, R_b, p_b, A, B, mid, hl, bound, first, second, scratch):
     n = len(radius)
     for i in range(n):

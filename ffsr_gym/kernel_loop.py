@@ -14,7 +14,7 @@ from ffsr_gym.kernel_planner import F_DT, F_H, F_OBS, F_OBS_R, F_RATE_MAX, I_HAS
 STATUS_OK, STATUS_RATE, STATUS_COLLISION, STATUS_NONFINITE = 0, 1, 2, 3
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _clearances(mdl, x, fp, ip, ws):
     """Robot–obstacle clearance (inf without obstacle) and self clearance [m] at the workspace's state."""
     capsule_ends_into(mdl, ws, x)
@@ -24,7 +24,7 @@ def _clearances(mdl, x, fp, ip, ws):
     return clear, self_clearance(mdl, ws, x)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _violation(dq, clear, self_c, fp, ip):
     """Status of a step: a joint rate above the limit (in the scored scope) or a collision."""
     to_deg = 180.0 / math.pi
@@ -36,7 +36,7 @@ def _violation(dq, clear, self_c, fp, ip):
     return STATUS_OK
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def run(mdl, x_start, k0, n_total, n_max, fp, ip, residual, stop_on_violation, record_only, out_x, out_v, out_dq,
         out_err, out_clear, out_self, out_mu, out_cdf, out_smin):
     """Advance up to ``n_max`` steps from step ``k0`` (or only record when ``record_only``).
@@ -84,7 +84,7 @@ def run(mdl, x_start, k0, n_total, n_max, fp, ip, residual, stop_on_violation, r
     return x, rows, STATUS_OK
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def observe(mdl, x, t, fp, ip):
     """EE error (6), base error (6), obstacle-relative vector (3) and clearance [m] at (t, x)."""
     ws = workspace(len(mdl[13]))

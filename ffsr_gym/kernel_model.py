@@ -35,6 +35,8 @@ class KernelModel:
             parent joint frame [m], radius [m], arm 0/1, whether checked against the base).
         box_half: (3,) base box half extents [m], centred on the base frame.
         q_index, v_index: (12,) Pinocchio ``q`` / ``v`` index of each kernel joint.
+        axis_code: (12,) 0, 1, 2 for a joint about the frame's x, y, z axis (a cheaper rotation in
+            the kernel), -1 for any other axis.
     """
 
     parent: np.ndarray
@@ -56,6 +58,7 @@ class KernelModel:
     box_half: np.ndarray
     q_index: np.ndarray
     v_index: np.ndarray
+    axis_code: np.ndarray
 
     def arrays(self) -> tuple:
         """The arrays in declaration order (the kernel's positional arguments)."""
@@ -110,4 +113,13 @@ def extract(robot: Robot, collision: CollisionModel) -> KernelModel:
         cap_vs_base=np.array([frozenset(("base", part.name)) not in ignored for part in parts]),
         box_half=np.array(collision._parts[0].shape.halfSide),
         q_index=robot.joint_q_index.astype(np.int64), v_index=robot.joint_v_index.astype(np.int64),
+        axis_code=np.array([_axis_code(a) for a in axis], dtype=np.int64),
     )
+
+
+def _axis_code(axis: tuple[float, ...]) -> int:
+    """0, 1, 2 when ``axis`` is the unit x, y or z axis, else -1."""
+    for code in range(3):
+        if tuple(axis) == tuple(1.0 if i == code else 0.0 for i in range(3)):
+            return code
+    return -1

@@ -30,7 +30,7 @@ Workspace = namedtuple("Workspace", [
 ])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def workspace(n_capsules):
     """A fresh :data:`Workspace` for a robot with ``n_capsules`` collision capsules."""
     n_pairs = n_capsules * n_capsules + n_capsules
@@ -47,7 +47,7 @@ def workspace(n_capsules):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def quat_into(R, qx, qy, qz, qw):
     """Rotation matrix of the unit quaternion (x, y, z, w)."""
     R[0, 0], R[0, 1], R[0, 2] = 1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qz * qw), 2 * (qx * qz + qy * qw)
@@ -55,7 +55,7 @@ def quat_into(R, qx, qy, qz, qw):
     R[2, 0], R[2, 1], R[2, 2] = 2 * (qx * qz - qy * qw), 2 * (qy * qz + qx * qw), 1 - 2 * (qx * qx + qy * qy)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def R_to_quat_wxyz(R):
     """Scalar-first unit quaternion (w, x, y, z) with w >= 0 of a rotation matrix (Shepperd's method)."""
     t = R[0, 0] + R[1, 1] + R[2, 2]
@@ -75,7 +75,7 @@ def R_to_quat_wxyz(R):
     return w / norm, x / norm, y / norm, z / norm
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _rot_into(out, axis, angle):
     c, s = math.cos(angle), math.sin(angle)
     x, y, z = axis[0], axis[1], axis[2]
@@ -85,20 +85,20 @@ def _rot_into(out, axis, angle):
     out[2, 0], out[2, 1], out[2, 2] = z * x * C - y * s, z * y * C + x * s, c + z * z * C
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _mm3_into(out, A, B):
     for i in range(3):
         for j in range(3):
             out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _mv3_add_into(out, base, A, v):
     for i in range(3):
         out[i] = base[i] + A[i, 0] * v[0] + A[i, 1] * v[1] + A[i, 2] * v[2]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _rotate_inertia_into(out, R, I, tmp):
     """out = R I R^T."""
     _mm3_into(tmp, R, I)
@@ -107,11 +107,11 @@ def _rotate_inertia_into(out, R, I, tmp):
             out[a, b] = tmp[a, 0] * R[b, 0] + tmp[a, 1] * R[b, 1] + tmp[a, 2] * R[b, 2]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def kinematics_into(mdl, x, ws):
     """Forward kinematics into the workspace: joint rotations/origins, base rotation, EE poses, axes."""
     parent, pl_R, pl_p, axis = mdl[0], mdl[1], mdl[2], mdl[3]
-    ee_parent, ee_R, ee_p = mdl[7], mdl[8], mdl[9]
+    ee_parent, ee_R, ee_p, axis_code = mdl[7], mdl[8], mdl[9], mdl[19]
     Rj, pj, R_b, Re, pe, z, tmp, rot = ws.Rj, ws.pj, ws.R_b, ws.Re, ws.pe, ws.z, ws.tmp, ws.rot
     quat_into(R_b, x[3], x[4], x[5], x[6])
     for k in range(12):
@@ -122,17 +122,27 @@ def kinematics_into(mdl, x, ws):
             q = parent[k]
             _mm3_into(tmp, Rj[q], pl_R[k])
             _mv3_add_into(pj[k], pj[q], Rj[q], pl_p[k])
-        _rot_into(rot, axis[k], x[7 + k])
-        _mm3_into(Rj[k], tmp, rot)
-        for a in range(3):
-            z[k, a] = Rj[k, a, 0] * axis[k, 0] + Rj[k, a, 1] * axis[k, 1] + Rj[k, a, 2] * axis[k, 2]
+        a = axis_code[k]
+        if a >= 0:  # rotation about frame axis a: column a kept, the other two mixed
+            b, d = (a + 1) % 3, (a + 2) % 3
+            c, s = math.cos(x[7 + k]), math.sin(x[7 + k])
+            for r in range(3):
+                Rj[k, r, a] = tmp[r, a]
+                Rj[k, r, b] = c * tmp[r, b] + s * tmp[r, d]
+                Rj[k, r, d] = c * tmp[r, d] - s * tmp[r, b]
+                z[k, r] = tmp[r, a]
+        else:
+            _rot_into(rot, axis[k], x[7 + k])
+            _mm3_into(Rj[k], tmp, rot)
+            for r in range(3):
+                z[k, r] = Rj[k, r, 0] * axis[k, 0] + Rj[k, r, 1] * axis[k, 1] + Rj[k, r, 2] * axis[k, 2]
     for a in range(2):
         j = ee_parent[a]
         _mm3_into(Re[a], Rj[j], ee_R[a])
         _mv3_add_into(pe[a], pj[j], Rj[j], ee_p[a])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def momentum_into(mdl, x, ws):
     """H_b, H_bm (about the base CoM, world frame; SPEC §2.3) and the system CoM, into the workspace."""
     mass, lever, inertia, parent = mdl[4], mdl[5], mdl[6], mdl[0]
@@ -187,7 +197,7 @@ def momentum_into(mdl, x, ws):
             H_bm[arm, 5, col] += Iw[i, 2, 0] * zk[0] + Iw[i, 2, 1] * zk[1] + Iw[i, 2, 2] * zk[2] + m_i * (fx * vy - fy * vx)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def momentum_about_base_into(out, h, rg, x):
     """Momentum [P; L] about the base CoM from ``h`` = [P; L_G] about the system CoM."""
     dx, dy, dz = rg[0] - x[0], rg[1] - x[1], rg[2] - x[2]
@@ -197,7 +207,7 @@ def momentum_about_base_into(out, h, rg, x):
     out[5] = h[5] + dx * h[1] - dy * h[0]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def velocity_into(out, x, dq, h, ws):
     """Base velocity (base frame, Pinocchio layout) conserving ``h`` = [P; L_G].
 
@@ -215,7 +225,7 @@ def velocity_into(out, x, dq, h, ws):
         out[3 + a] = R_b[0, a] * V[3] + R_b[1, a] * V[4] + R_b[2, a] * V[5]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def integrate_into(out, x, v_base, dq, dt):
     """out = x ⊕ (v dt): base by the SE(3) exponential of the base-frame twist, joints additively.
 
@@ -253,7 +263,7 @@ def integrate_into(out, x, v_base, dq, dt):
         out[7 + j] = x[7 + j] + dq[j] * dt
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def midpoint_into(out, mdl, x, v0, dq, dt, h, ws):
     """Explicit midpoint on SE(3) with momentum re-solved at the half step (``Robot.step``).
 

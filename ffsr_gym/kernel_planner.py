@@ -26,7 +26,7 @@ METHOD_CODES = {"no_avoidance": 0, "no_feedback": 1, "proportional": 2, "predefi
 _CAP = 700.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):
     """Hamilton product of scalar-first quaternions a ⊗ b (4-tuple)."""
     return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
@@ -35,7 +35,7 @@ def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):
             a0 * b3 + b0 * a3 + a1 * b2 - a2 * b1)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _phi_scale(r, T_c, m, printed):
     """φ(x) = (x / r) · scale with r = |x| (``ffsr_gym.ptsf.phi``, log-space, capped at e^700)."""
     if r == 0.0:
@@ -47,7 +47,7 @@ def _phi_scale(r, T_c, m, printed):
     return math.exp(min(log_mag, _CAP))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def feedback_into(out, e, fp, ip):
     """Feedback term of the planner for the pose error ``e`` (6): 0, K e, or φ(e) (whole or split)."""
     method = ip[I_METHOD]
@@ -70,7 +70,7 @@ def feedback_into(out, e, fp, ip):
             out[i] = (e[i] / r) * scale if r > 0.0 else 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def pose_error_into(e, Jo, Jo_d, p, sigma, p_d, sigma_d, body):
     """Pose error e = [p − p_d; e_o] (6) and the attitude blocks J_o, J_od of ``ffsr_gym.pose_error``.
 
@@ -103,7 +103,7 @@ def pose_error_into(e, Jo, Jo_d, p, sigma, p_d, sigma_d, body):
     e[3], e[4], e[5] = e0, e1, e2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def desired_into(p_d, sigma_d, V_ed, t, fp):
     """Desired EE pose and world twist at t [s] (``ffsr_gym.desired_path``: trapezoid + SLERP)."""
     t_f, t_a = fp[F_TF], fp[F_TA]
@@ -129,7 +129,7 @@ def desired_into(p_d, sigma_d, V_ed, t, fp):
         ch, sh * fp[F_AXIS], sh * fp[F_AXIS + 1], sh * fp[F_AXIS + 2], q[0], q[1], q[2], q[3])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _integrals(fp, points, i):
     """Line integrals along segment i (points i → i+1) seen from the obstacle: (F, I0, I1, nearest distance)."""
     Lx, Ly, Lz = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1], points[i + 1, 2] - points[i, 2]
@@ -156,7 +156,7 @@ def _integrals(fp, points, i):
     return inv1 / length, I0, (1.0 / rho1 - 1.0 / rho2) / (length * length) + (t0 / length) * I0, nearest
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def avoidance_into(ws, fp, ip, arm):
     """μ and CDF of one arm (``Planner._avoidance``); Θ̇_c (6) into ``ws.dq_c``."""
     points, z, I0s, I1s, dq_c, pj, pe = ws.points, ws.z, ws.I0, ws.I1, ws.dq_c, ws.pj, ws.pe
@@ -204,15 +204,15 @@ def avoidance_into(ws, fp, ip, arm):
     return mu, cdf
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def filtered_solve_into(out, ws, target, lam_max, eps, mu, avoiding):
     """out = μ J♯ target + (Θ̇_c − μ P Θ̇_c) for J = ``ws.J`` (``ffsr_gym.inverse``); returns σ_min.
 
     J♯ damps each singular value below ε (λ²(1 − (σ/ε)²)); P projects onto J's row space. The
     projection term is skipped when the avoidance is idle (Θ̇_c = 0).
     """
-    U, s, V, dq_c = ws.U, ws.s, ws.V, ws.dq_c
-    svd_into(ws.J, U, s, V)
+    Ut, s, Vt, dq_c = ws.U, ws.s, ws.V, ws.dq_c  # singular vectors as rows
+    svd_into(ws.J, Ut, s, Vt)
     s_max, s_min = 0.0, 1e300
     for i in range(6):
         s_max, s_min = max(s_max, s[i]), min(s_min, s[i])
@@ -223,12 +223,12 @@ def filtered_solve_into(out, ws, target, lam_max, eps, mu, avoiding):
         gain = s[i] / denom if denom > 0.0 else 0.0
         acc = 0.0
         for r in range(6):
-            acc += U[r, i] * target[r]
+            acc += Ut[i, r] * target[r]
         y[i] = gain * acc
     for r in range(6):
         acc = 0.0
         for i in range(6):
-            acc += V[r, i] * y[i]
+            acc += Vt[i, r] * y[i]
         out[r] = mu * acc
     if avoiding:
         tol = s_max * 6.0 * 2.220446049250313e-16
@@ -236,17 +236,17 @@ def filtered_solve_into(out, ws, target, lam_max, eps, mu, avoiding):
             acc = 0.0
             if s[i] > tol:
                 for r in range(6):
-                    acc += V[r, i] * dq_c[r]
+                    acc += Vt[i, r] * dq_c[r]
             y[i] = acc
         for r in range(6):
             acc = 0.0
             for i in range(6):
-                acc += V[r, i] * y[i]
+                acc += Vt[i, r] * y[i]
             out[r] += dq_c[r] - mu * acc
     return s_min
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _base_command_into(x, fp, ip, ws):
     """Commanded base twist V0 = −J_b⁻¹ f(e₀) into ``ws.V0`` (base pose error in ``ws.e0``)."""
     pose_error_into(ws.e0, ws.Jo, ws.Jo_d, x, (x[6], x[3], x[4], x[5]), fp[F_R0D:F_R0D + 3], fp[F_SBD:F_SBD + 4],
@@ -258,7 +258,7 @@ def _base_command_into(x, fp, ip, ws):
     ws.V0[3], ws.V0[4], ws.V0[5] = -w0, -w1, -w2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _mission_task_into(x, t, fp, ip, ws):
     """Mission-arm task rate x₁ = J_e⁻¹(J_ed V_ed − f(e₁)) − J₀ V0 into ``ws.x1`` (EE error in ``ws.e1``)."""
     desired_into(ws.p_d, ws.sigma_d, ws.V_ed, t, fp)
@@ -277,7 +277,7 @@ def _mission_task_into(x, t, fp, ip, ws):
     x1[3], x1[4], x1[5] = w0 - V0[3], w1 - V0[4], w2 - V0[5]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def plan(mdl, x, t, fp, ip, ws):
     """Joint rates and diagnostics at (t, x): SPEC §7 steps 1-8 (fills the workspace at x).
 

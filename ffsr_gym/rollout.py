@@ -216,7 +216,7 @@ def simulate(scenario: Scenario | str, *, method: str = "predefined_time", m: fl
     if dt is not None:
         scenario = scenario.replace(simulation=dataclasses.replace(scenario.simulation, dt_s=float(dt)))
     rollout = make_rollout(scenario, backend=backend, method=method, m=m, T_c=T_c, q0=q0)
-    chunk = max(1, rollout.n_steps // 100)
+    chunk = max(1, rollout.n_steps // 100) if progress else rollout.n_steps
     with tqdm(total=rollout.n_steps, disable=not progress, desc=f"{scenario.name}/{method}", unit="step") as bar:
         while rollout.k < rollout.n_steps:
             applied, status = rollout.advance(chunk, stop_on_violation=stop_on_violation)

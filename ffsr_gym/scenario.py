@@ -202,13 +202,20 @@ class Scenario:
         return _from_dict(data, source=self.source)
 
     def sha256(self) -> str:
-        """Hash of the scenario's content and of its robot's files (provenance, staleness)."""
-        digest = hashlib.sha256(json.dumps(to_dict(self), sort_keys=True).encode())
-        for path in sorted(robot_dir(self.robot).iterdir()):
-            if path.is_file():
-                digest.update(path.name.encode())
-                digest.update(path.read_bytes())
-        return digest.hexdigest()
+        """Hash of the scenario's content and of its robot's files (provenance, staleness).
+
+        Computed once per instance (the scenario is immutable; the robot files are read then).
+        """
+        cached = self.__dict__.get("_sha256")
+        if cached is None:
+            digest = hashlib.sha256(json.dumps(to_dict(self), sort_keys=True).encode())
+            for path in sorted(robot_dir(self.robot).iterdir()):
+                if path.is_file():
+                    digest.update(path.name.encode())
+                    digest.update(path.read_bytes())
+            cached = digest.hexdigest()
+            object.__setattr__(self, "_sha256", cached)
+        return cached
 
 
 _SECTIONS = {
