@@ -19,7 +19,7 @@ def capsule_ends_into(mdl, ws, p_b):
     _capsule_ends(mdl[10], mdl[11], mdl[12], ws.R_b, ws.Rj, ws.pj, p_b, ws.cap_A, ws.cap_B)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _capsule_ends(cap_parent, cap_a, cap_b, R_b, Rj, pj, p_b, A, B):
     for i in range(len(cap_parent)):
         j = cap_parent[i]
@@ -205,7 +205,7 @@ def obstacle_clearance(mdl, ws, p_b, p_o, r_o):
     return _obstacle_clearance(mdl[13], mdl[16], ws.R_b, p_b, ws.cap_A, ws.cap_B, p_o, r_o, ws.rel)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _obstacle_clearance(radius, half, R_b, p_b, A, B, p_o, r_o, rel):
     best = box_sdf(p_o, R_b, p_b, half) - r_o
     l0 = min(half[0], max(-half[0], _to_box(R_b, p_b, p_o, 0)))  # nearest box point (box frame)
@@ -239,7 +239,7 @@ def self_clearance(mdl, ws, p_b):
                            ws.bound, ws.first, ws.second, ws.cand)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _self_clearance(radius, arm, vs_base, half, R_b, p_b, A, B, mid, hl, bound, first, second, scratch):
     n = len(radius)
     for i in range(n):

@@ -71,39 +71,53 @@ def solve3(A, b0, b1, b2):
             (c02 * b0 + c12 * b1 + c22 * b2) / det)
 
 
+def _round_robin(n: int) -> tuple:
+    """Column pairs of one Jacobi sweep in round-robin order: n - 1 rounds of n / 2 disjoint pairs."""
+    players, pairs = list(range(n)), []
+    for _ in range(n - 1):
+        pairs += [(min(players[i], players[n - 1 - i]), max(players[i], players[n - 1 - i])) for i in range(n // 2)]
+        players = [players[0], players[-1], *players[1:-1]]
+    return tuple(pairs)
+
+
+_PAIRS_6 = _round_robin(6)
+
+
 @njit(cache=True, error_model="numpy")
-def svd_into(A, Ut, s, Vt):
-    """One-sided Jacobi SVD of a square matrix: A = U diag(s) V^T (unsorted, s >= 0).
+def svd_into(A, Ut, s, Vt, vectors=True):
+    """One-sided Jacobi SVD of a 6x6 matrix: A = U diag(s) V^T (unsorted, s >= 0).
 
     Writes the singular vectors as rows, ``Ut`` = Uᵀ (zero rows where s = 0) and ``Vt`` = Vᵀ, and
-    ``s``; ``A`` is not modified. Rows keep each vector contiguous, which makes the rotations ~20%
-    faster than on columns.
+    ``s``; ``A`` is not modified. Rows keep each vector contiguous (~20% faster than columns), and
+    the sweep visits disjoint pairs one after the other (round-robin order, ~10% faster than the
+    cyclic order, whose consecutive rotations share a column). With ``vectors=False`` only ``s``
+    is meaningful (the same values: the rotations are the same).
     """
-    n = A.shape[0]
+    n = 6
     for r in range(n):
         for c in range(n):
             Ut[c, r] = A[r, c]
             Vt[c, r] = 1.0 if r == c else 0.0
     for _sweep in range(60):
         rotated = False
-        for i in range(n - 1):
-            for j in range(i + 1, n):
-                alpha = beta = gamma = 0.0
-                for r in range(n):
-                    alpha += Ut[i, r] * Ut[i, r]
-                    beta += Ut[j, r] * Ut[j, r]
-                    gamma += Ut[i, r] * Ut[j, r]
-                if gamma * gamma <= _EPS * _EPS * alpha * beta:  # columns orthogonal to working precision
-                    continue
-                rotated = True
-                zeta = (beta - alpha) / (2.0 * gamma)
-                t = (1.0 if zeta >= 0.0 else -1.0) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
-                c = 1.0 / math.sqrt(1.0 + t * t)
-                sn = c * t
-                for r in range(n):
-                    ui, uj = Ut[i, r], Ut[j, r]
-                    Ut[i, r] = c * ui - sn * uj
-                    Ut[j, r] = sn * ui + c * uj
+        for i, j in _PAIRS_6:
+            alpha = beta = gamma = 0.0
+            for r in range(n):
+                alpha += Ut[i, r] * Ut[i, r]
+                beta += Ut[j, r] * Ut[j, r]
+                gamma += Ut[i, r] * Ut[j, r]
+            if gamma * gamma <= _EPS * _EPS * alpha * beta:  # columns orthogonal to working precision
+                continue
+            rotated = True
+            zeta = (beta - alpha) / (2.0 * gamma)
+            t = (1.0 if zeta >= 0.0 else -1.0) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
+            c = 1.0 / math.sqrt(1.0 + t * t)
+            sn = c * t
+            for r in range(n):
+                ui, uj = Ut[i, r], Ut[j, r]
+                Ut[i, r] = c * ui - sn * uj
+                Ut[j, r] = sn * ui + c * uj
+            if vectors:
                 for r in range(n):
                     vi, vj = Vt[i, r], Vt[j, r]
                     Vt[i, r] = c * vi - sn * vj
@@ -115,6 +129,7 @@ def svd_into(A, Ut, s, Vt):
         for r in range(n):
             norm += Ut[i, r] * Ut[i, r]
         s[i] = math.sqrt(norm)
-        inv = 1.0 / s[i] if s[i] > 0.0 else 0.0
-        for r in range(n):
-            Ut[i, r] *= inv
+        if vectors:
+            inv = 1.0 / s[i] if s[i] > 0.0 else 0.0
+            for r in range(n):
+                Ut[i, r] *= inv
