@@ -13,9 +13,9 @@ from pathlib import Path
 
 from numba.core.registry import CPUDispatcher
 
-from ffsr_gym import kernel_collision, kernel_linalg, kernel_loop, kernel_physics, kernel_planner
+from ffsr_gym import kernel_batch, kernel_collision, kernel_linalg, kernel_loop, kernel_physics, kernel_planner
 
-MODULES = (kernel_linalg, kernel_physics, kernel_collision, kernel_planner, kernel_loop)
+MODULES = (kernel_linalg, kernel_physics, kernel_collision, kernel_planner, kernel_loop, kernel_batch)
 
 
 def sources_digest() -> str:

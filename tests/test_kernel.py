@@ -98,3 +98,21 @@ def test_segment_box_starting_on_an_edge():
     sampled = np.linalg.norm(np.maximum(d, 0), axis=1).min()
     assert segment_box(a, b, np.eye(3), np.zeros(3), half) == pytest.approx(sampled, abs=1e-9)
     assert sampled < 0.072
+
+
+def test_cache_guard_covers_every_compiled_module():
+    """numba caches per file; a compiled module missing from ``kernel_cache.MODULES`` could run stale code."""
+    import importlib
+    from pathlib import Path
+
+    from numba.core.registry import CPUDispatcher
+
+    from ffsr_gym import kernel_cache
+
+    package = Path(kernel_cache.__file__).parent
+    compiled = set()
+    for path in package.glob("*.py"):
+        module = importlib.import_module(f"ffsr_gym.{path.stem}")
+        if any(isinstance(obj, CPUDispatcher) and obj.__module__ == module.__name__ for obj in vars(module).values()):
+            compiled.add(module.__name__)
+    assert compiled == {module.__name__ for module in kernel_cache.MODULES}
