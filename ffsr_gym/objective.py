@@ -71,16 +71,14 @@ def rate_terms(dq_joints: Array, dt: float, settings: ObjectiveSettings) -> tupl
     """
     rates = np.degrees(np.asarray(dq_joints, dtype=float))
     single = rates.ndim < 3
-    rates = rates.reshape((1, -1, 12)) if single else rates
-    integrals = []
-    for arm in range(2):
-        norms = np.linalg.norm(rates[..., 6 * arm:6 * arm + 6], axis=-1)
-        integrals.append(np.sum(np.where(norms > settings.danger_rate_deg_s, norms, 0.0), axis=-1) * dt)
-    checked = rates if settings.rate_limit_scope == "both_arms" else rates[..., 6:]
-    violation = np.any(np.abs(checked) > settings.max_rate_deg_s, axis=(-2, -1))
+    arms = rates.reshape((1, -1, 2, 6) if single else (*rates.shape[:-1], 2, 6))  # (batch, n, arm, joint)
+    norms = np.sqrt(np.add.reduce(arms * arms, axis=-1))
+    integrals = np.add.reduce(np.where(norms > settings.danger_rate_deg_s, norms, 0.0), axis=-2) * dt
+    checked = arms if settings.rate_limit_scope == "both_arms" else arms[..., 1, :]
+    violation = (np.abs(checked) > settings.max_rate_deg_s).reshape(len(arms), -1).any(axis=1)
     if single:
-        return float(integrals[0][0]), float(integrals[1][0]), bool(violation[0])
-    return integrals[0], integrals[1], violation
+        return float(integrals[0, 0]), float(integrals[0, 1]), bool(violation[0])
+    return integrals[:, 0], integrals[:, 1], violation
 
 
 def smooth_part(mission_integral: float, balance_integral: float, settings: ObjectiveSettings) -> float:
