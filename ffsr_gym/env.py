@@ -11,7 +11,7 @@ from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.objective import ObjectiveTerms, objective_terms, rate_terms, smooth_part
 from ffsr_gym.randomization import sample_scenario
 from ffsr_gym.rollout import BACKENDS, Rollout, make_rollout
-from ffsr_gym.scenario import Scenario, load_scenario
+from ffsr_gym.scenario import EnvSettings, Scenario, load_scenario
 
 OBS_CLIP = {"rates": 20.0, "errors": 10.0, "relative": 10.0, "clearance": 10.0}
 
@@ -33,6 +33,11 @@ def assemble_observation(angles: np.ndarray, last_rates: np.ndarray, ee_error: n
         np.clip(np.asarray(clearance, dtype=float), -OBS_CLIP["clearance"], OBS_CLIP["clearance"])[..., None],
         np.minimum(1.0, np.asarray(time_fraction, dtype=float))[..., None],
     ], axis=-1).astype(np.float32)
+
+
+def residual_rates(action: np.ndarray, settings: EnvSettings) -> np.ndarray:
+    """Joint rates [rad/s] of a (clipped) ``FFSR-Residual-v0`` action: ± ``residual_rate_deg_s`` per unit."""
+    return np.radians(settings.residual_rate_deg_s) * np.asarray(action, dtype=np.float64)
 
 
 class FFSREnv(gym.Env):
@@ -146,8 +151,7 @@ class FFSREnv(gym.Env):
             raise InvalidInputError("call reset() before step()")
         a = self._checked_action(action)
         if self.residual:
-            residual = np.radians(self.scenario.env.residual_rate_deg_s) * a.astype(np.float64)
-            return self._advance(None, residual)
+            return self._advance(None, residual_rates(a, self.scenario.env))
         return self._advance(self.action_to_parameters(a), None)
 
     def step_with_parameters(self, m: float, T_c: float) -> tuple[np.ndarray, float, bool, bool, dict]:

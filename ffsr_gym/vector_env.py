@@ -19,12 +19,13 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from ffsr_gym import kernel_batch, kernel_planner as kp
-from ffsr_gym.env import FFSREnv, FFSRResidualEnv, assemble_observation
+from ffsr_gym.env import FFSREnv, FFSRResidualEnv, assemble_observation, residual_rates
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.kernel_rollout import LOG_FIELDS, KernelRollout, new_log
 from ffsr_gym.objective import objective_terms, rate_terms, smooth_part
 from ffsr_gym.randomization import sample_scenario
 from ffsr_gym.scenario import Scenario, load_scenario
+from ffsr_gym.trajectory import Trajectory
 
 
 class FFSRVectorEnv(gym.vector.VectorEnv):
@@ -40,10 +41,16 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
     single_env_class: type[FFSREnv] = FFSREnv
 
-    def __init__(self, num_envs: int, scenario: str | Scenario = "paper", threads: int | None = None,
-                 **_ignored: Any) -> None:
+    def __init__(self, num_envs: int, scenario: str | Scenario = "paper", *, threads: int | None = None,
+                 backend: str = "kernel", render_mode: str | None = None, max_episode_steps: int | None = None) -> None:
         if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise InvalidInputError(f"num_envs must be a positive integer, got {num_envs!r}")
+        if backend not in ("auto", "kernel"):
+            raise InvalidInputError(f"backend {backend!r}; the batched environments run on the kernel: 'auto' or 'kernel'")
+        if render_mode is not None:
+            raise InvalidInputError(f"render_mode {render_mode!r}: the batched environments do not render; use None")
+        if max_episode_steps is not None:
+            raise InvalidInputError("max_episode_steps: episodes end at the scenario's simulation.duration_s; use None")
         if threads is not None:
             if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
                 raise InvalidInputError(f"threads = {threads}; allowed: 1 to {numba.config.NUMBA_NUM_THREADS}")
@@ -111,31 +118,42 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         if self._mdl is None:
             raise InvalidInputError("call reset() before step()")
         a = self._checked_actions(actions)
-        restarting = self._needs_reset.copy()
-        for i in np.flatnonzero(restarting):
+        active = ~self._needs_reset
+        for i in np.flatnonzero(self._needs_reset):
             self._reset_one(i)
-        active = ~restarting
-        residuals = np.zeros((self.num_envs, 12))
-        if self._template.residual:
-            residuals = np.radians(self.family.env.residual_rate_deg_s) * a
-        else:
-            for i in np.flatnonzero(active):  # float64 parameters exactly as the single env maps them
-                m, T_c = self._template.action_to_parameters(a[i])
-                self._rollouts[i].set_parameters(m, T_c)
-                self._FP[i, kp.F_M], self._FP[i, kp.F_TC] = self._rollouts[i].fp[kp.F_M], self._rollouts[i].fp[kp.F_TC]
+        residuals = self._apply_actions(a, active)
         logs = tuple(self._logs[key] for key in LOG_FIELDS)
         kernel_batch.run_batch(self._mdl, self._X, self._K, active, self.n_steps, self.steps_per_decision, self._FP,
                                self._IP, residuals, logs, self._rows, self._status, self._applied)
         if np.any(self._status == 3):
             raise FFSRError(f"planner produced non-finite joint rates in copies {np.flatnonzero(self._status == 3).tolist()}")
+        for i in np.flatnonzero(active):
+            self._last_rates[i] = self._applied[i, self._rows[i] - 1]
         objective = self.family.objective
         increments = np.where(active, smooth_part(*rate_terms(self._applied, self.dt, objective)[:2], objective), 0.0)
         terminated = active & (self._status != 0)
         truncated = active & ~terminated & (self._K >= self.n_steps)
         penalties = np.where(terminated, self.family.env.violation_penalty, 0.0)
+        infos = self._end_episodes(terminated, truncated, penalties)
+        self._needs_reset = terminated | truncated
+        obs, clearance, ee_error = self._observe()
+        infos.update({"objective_increment": increments, "penalty": penalties, "cost": terminated.astype(float),
+                      "clearance_m": clearance, "ee_position_error_m": ee_error, "clipped_actions": self._clipped.copy()})
+        return obs, np.where(active, -increments - penalties, 0.0), terminated, truncated, infos
+
+    def _apply_actions(self, a: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """Residual joint rates [rad/s] (N, 12) for ``FFSR-Residual-v0``; sets (m, T_c) for ``FFSR-v0``."""
+        if self._template.residual:
+            return residual_rates(a, self.family.env)
+        for i in np.flatnonzero(active):  # float64 parameters exactly as the single env maps them
+            rollout = self._rollouts[i]
+            rollout.set_parameters(*self._template.action_to_parameters(a[i]))
+            self._FP[i, kp.F_M], self._FP[i, kp.F_TC] = rollout.fp[kp.F_M], rollout.fp[kp.F_TC]
+        return np.zeros((self.num_envs, 12))
+
+    def _end_episodes(self, terminated: np.ndarray, truncated: np.ndarray, penalties: np.ndarray) -> dict[str, Any]:
+        """Objective of every finished episode's whole trajectory; adds the tolerance penalty in place."""
         ended = {key: np.zeros(self.num_envs, dtype=dtype) for key, dtype in _END_KEYS.items()}
-        for i in np.flatnonzero(active):
-            self._last_rates[i] = self._applied[i, self._rows[i] - 1]
         for i in np.flatnonzero(terminated | truncated):
             rollout = self._rollouts[i]
             rollout.x, rollout.k, rollout.rows = self._X[i].copy(), int(self._K[i]), int(self._K[i])
@@ -144,17 +162,12 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
             if truncated[i] and not terms.final_errors_ok:
                 penalties[i] += self.family.env.tolerance_penalty
             for key in _END_KEYS:
-                ended[key][i] = getattr(terms, "score" if key == "score" else key)
-        self._needs_reset = terminated | truncated
-        obs, clearance, ee_error = self._observe()
-        infos: dict[str, Any] = {"objective_increment": increments, "penalty": np.where(active, penalties, 0.0),
-                                 "cost": terminated.astype(float), "clearance_m": clearance,
-                                 "ee_position_error_m": ee_error, "clipped_actions": self._clipped.copy()}
+                ended[key][i] = getattr(terms, key)
         mask = terminated | truncated
+        infos: dict[str, Any] = {}
         for key, values in ended.items():
             infos[key], infos[f"_{key}"] = values, mask.copy()
-        rewards = np.where(active, -increments - penalties, 0.0)
-        return obs, rewards, terminated, truncated, infos
+        return infos
 
     def _observe(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         N = self.num_envs
@@ -163,8 +176,10 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         obs = assemble_observation(self._X[:, 7:19], self._last_rates, E1, E0, REL, CLEAR, self._K / self.n_steps)
         return obs, CLEAR, np.linalg.norm(E1[:, :3], axis=1)
 
-    def trajectory(self, i: int):
+    def trajectory(self, i: int) -> Trajectory:
         """The :class:`~ffsr_gym.trajectory.Trajectory` of copy ``i``'s current episode (samples so far)."""
+        if not 0 <= i < self.num_envs:
+            raise InvalidInputError(f"copy {i}; allowed: 0 to {self.num_envs - 1}")
         rollout = self._rollouts[i]
         if rollout is None:
             raise InvalidInputError("no episode yet: call reset()")

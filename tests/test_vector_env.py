@@ -59,6 +59,10 @@ def test_vector_env_bad_input_names_the_field():
         make_vec("FFSR-Residual-v0", 0)
     with pytest.raises(InvalidInputError, match="threads"):
         make_vec("FFSR-Residual-v0", 2, threads=10_000)
+    with pytest.raises(InvalidInputError, match="backend"):
+        make_vec("FFSR-Residual-v0", 2, backend="pinocchio")
+    with pytest.raises(TypeError, match="scenrio"):
+        make_vec("FFSR-Residual-v0", 2, scenrio="paper")  # a typo is not silently ignored
 
 
 def test_vector_env_episode_trajectory_scores_like_simulate():
