@@ -7,7 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from ffsr_gym import kernel_cache, kernel_loop, kernel_planner as kp
+from ffsr_gym import kernel_cache, kernel_loop
+from ffsr_gym import kernel_planner as kp
 from ffsr_gym.collision import CollisionModel
 from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.kernel_model import KernelModel, extract

@@ -18,7 +18,8 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from ffsr_gym import kernel_batch, kernel_planner as kp
+from ffsr_gym import kernel_batch
+from ffsr_gym import kernel_planner as kp
 from ffsr_gym.env import FFSREnv, FFSRResidualEnv, assemble_observation, residual_rates
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.kernel_rollout import LOG_FIELDS, KernelRollout, new_log

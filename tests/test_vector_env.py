@@ -6,7 +6,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import ffsr_gym  # noqa: F401  (registers the ids)
+import ffsr_gym
 from ffsr_gym.exceptions import InvalidInputError
 
 
