@@ -63,7 +63,11 @@ def new_log(rows: int, *batch: int) -> dict[str, Array]:
 
 
 class KernelRollout:
-    """Closed loop on the compiled kernel; the interface of :class:`ffsr_gym.rollout.Rollout`."""
+    """Closed loop on the compiled kernel; the interface of :class:`ffsr_gym.rollout.Rollout`.
+
+    ``log`` (optional): trajectory buffers of :func:`new_log` to write into instead of new ones
+    (the batched environments hand each copy a slice of one stacked buffer).
+    """
 
     backend = "kernel"
 
