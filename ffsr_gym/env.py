@@ -35,6 +35,26 @@ def assemble_observation(angles: np.ndarray, last_rates: np.ndarray, ee_error: n
     ], axis=-1).astype(np.float32)
 
 
+def check_action(action: Any, shape: tuple[int, ...]) -> tuple[np.ndarray, Any]:
+    """An action of ``shape`` (a batch of them: leading axis = copies) clipped to [-1, 1] as float32.
+
+    Returns the clipped action and whether it (each row of a batch) was clipped.
+
+    Raises:
+        InvalidInputError: wrong shape, or a NaN/inf entry (naming the copies of a batch).
+    """
+    a = np.asarray(action, dtype=np.float64)
+    if a.shape != shape:
+        raise InvalidInputError(f"action must have shape {shape}, got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        if a.ndim == 2:
+            bad = sorted({int(i) for i in np.argwhere(~np.isfinite(a))[:, 0]})
+            raise InvalidInputError(f"actions of copies {bad} are not finite; allowed range [-1, 1] per entry")
+        raise InvalidInputError(f"action must be finite, got {a}; allowed range [-1, 1] per entry")
+    clipped = np.clip(a, -1.0, 1.0)
+    return clipped.astype(np.float32), np.any(clipped != a, axis=-1)
+
+
 def residual_rates(action: np.ndarray, settings: EnvSettings) -> np.ndarray:
     """Joint rates [rad/s] of a (clipped) ``FFSR-Residual-v0`` action: ± ``residual_rate_deg_s`` per unit."""
     return np.radians(settings.residual_rate_deg_s) * np.asarray(action, dtype=np.float64)
@@ -127,14 +147,9 @@ class FFSREnv(gym.Env):
         return m_lo + 0.5 * (a[0] + 1.0) * (m_hi - m_lo), t_lo + 0.5 * (a[1] + 1.0) * (t_hi - t_lo)
 
     def _checked_action(self, action: Any) -> np.ndarray:
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != self.action_space.shape:
-            raise InvalidInputError(f"action must have shape {self.action_space.shape}, got {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise InvalidInputError(f"action must be finite, got {a}; allowed range [-1, 1] per entry")
-        clipped = np.clip(a, -1.0, 1.0)
-        self.clipped_actions += int(np.any(clipped != a))
-        return clipped.astype(np.float32)
+        clipped, was_clipped = check_action(action, self.action_space.shape)
+        self.clipped_actions += int(was_clipped)
+        return clipped
 
     # -------------------------------------------------------------------------- gym API
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:

@@ -20,7 +20,7 @@ from gymnasium.vector.utils import batch_space
 
 from ffsr_gym import kernel_batch
 from ffsr_gym import kernel_planner as kp
-from ffsr_gym.env import FFSREnv, FFSRResidualEnv, assemble_observation, residual_rates
+from ffsr_gym.env import FFSREnv, FFSRResidualEnv, assemble_observation, check_action, residual_rates
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.kernel_rollout import LOG_FIELDS, KernelRollout, new_log
 from ffsr_gym.objective import objective_terms, rate_terms, smooth_part
@@ -104,21 +104,11 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         self._needs_reset[:] = False
         return self._observe()[0], {}
 
-    def _checked_actions(self, actions: Any) -> np.ndarray:
-        a = np.asarray(actions, dtype=np.float64)
-        if a.shape != self.action_space.shape:
-            raise InvalidInputError(f"actions must have shape {self.action_space.shape}, got {a.shape}")
-        if not np.all(np.isfinite(a)):
-            bad = sorted({int(i) for i in np.argwhere(~np.isfinite(a))[:, 0]})
-            raise InvalidInputError(f"actions of copies {bad} are not finite; allowed range [-1, 1] per entry")
-        clipped = np.clip(a, -1.0, 1.0)
-        self._clipped += np.any(clipped != a, axis=1)
-        return clipped.astype(np.float32).astype(np.float64)
-
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         if self._mdl is None:
             raise InvalidInputError("call reset() before step()")
-        a = self._checked_actions(actions)
+        a, was_clipped = check_action(actions, self.action_space.shape)
+        self._clipped += was_clipped
         active = ~self._needs_reset
         for i in np.flatnonzero(self._needs_reset):
             self._reset_one(i)
@@ -156,8 +146,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         """Objective of every finished episode's whole trajectory; adds the tolerance penalty in place."""
         ended = {key: np.zeros(self.num_envs, dtype=dtype) for key, dtype in _END_KEYS.items()}
         for i in np.flatnonzero(terminated | truncated):
-            rollout = self._rollouts[i]
-            rollout.x, rollout.k, rollout.rows = self._X[i].copy(), int(self._K[i]), int(self._K[i])
+            rollout = self._synced_rollout(i)
             rollout.finish()
             terms = objective_terms(rollout.trajectory(), rollout.scenario.objective)
             if truncated[i] and not terms.final_errors_ok:
@@ -181,12 +170,16 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         """The :class:`~ffsr_gym.trajectory.Trajectory` of copy ``i``'s current episode (samples so far)."""
         if not 0 <= i < self.num_envs:
             raise InvalidInputError(f"copy {i}; allowed: 0 to {self.num_envs - 1}")
-        rollout = self._rollouts[i]
-        if rollout is None:
+        if self._rollouts[i] is None:
             raise InvalidInputError("no episode yet: call reset()")
+        return self._synced_rollout(i).trajectory()
+
+    def _synced_rollout(self, i: int) -> KernelRollout:
+        """Copy ``i``'s rollout with the batch's state (an unfinished episode: one logged row per step)."""
+        rollout = self._rollouts[i]
         if not rollout.finished:
             rollout.x, rollout.k, rollout.rows = self._X[i].copy(), int(self._K[i]), int(self._K[i])
-        return rollout.trajectory()
+        return rollout
 
 
 _END_KEYS = {"objective": float, "feasible": bool, "score": float, "rate_violation": bool, "collided": bool}
