@@ -13,15 +13,19 @@ from pathlib import Path
 
 from numba.core.registry import CPUDispatcher
 
-from ffsr_gym import kernel_batch, kernel_collision, kernel_linalg, kernel_loop, kernel_physics, kernel_planner
+from ffsr_gym import (kernel_batch, kernel_borrow, kernel_collision, kernel_linalg, kernel_loop, kernel_physics,
+                      kernel_planner)
 
+#: Modules with compiled functions (their caches are flushed together).
 MODULES = (kernel_linalg, kernel_physics, kernel_collision, kernel_planner, kernel_loop, kernel_batch)
+#: Everything compiled into those functions: the modules and the intrinsics they use.
+SOURCES = (kernel_borrow, *MODULES)
 
 
 def sources_digest() -> str:
     """SHA-256 of the kernel modules' sources."""
     digest = hashlib.sha256()
-    for module in MODULES:
+    for module in SOURCES:
         digest.update(Path(module.__file__).read_bytes())
     return digest.hexdigest()
 

@@ -7,6 +7,7 @@ import math
 import numpy as np
 from numba import njit
 
+from ffsr_gym.kernel_borrow import borrowed
 from ffsr_gym.kernel_collision import capsule_ends_into, obstacle_clearance, self_clearance
 from ffsr_gym.kernel_physics import midpoint_into, velocity_into, workspace
 from ffsr_gym.kernel_planner import F_DT, F_H, F_OBS, F_OBS_R, F_RATE_MAX, I_HAS_OBS, I_SCOPE, plan
@@ -44,9 +45,16 @@ def run(mdl, x_start, k0, n_total, n_max, fp, ip, residual, stop_on_violation, r
     Writes one sample per step into the ``out_*`` arrays (from row 0) and returns
     ``(x_next, rows, status)``: status 0 ok, 1 rate-limit violation, 2 collision, 3 non-finite rates.
     """
+    return _run(mdl, workspace(len(mdl[13])), x_start.copy(), k0, n_total, n_max, fp, ip, residual, stop_on_violation,
+                record_only, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf, out_smin)
+
+
+@njit(cache=True, error_model="numpy")
+def _run(mdl_owner, ws_owner, x_owner, k0, n_total, n_max, fp_owner, ip_owner, residual, stop_on_violation, record_only,
+         out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf, out_smin):
+    """:func:`run` on borrowed arrays (``ffsr_gym.kernel_borrow``; ``run`` owns them for the call); advances ``x_owner``."""
+    mdl, ws, x, fp, ip = borrowed(mdl_owner), borrowed(ws_owner), borrowed(x_owner), borrowed(fp_owner), borrowed(ip_owner)
     dt, h = fp[F_DT], fp[F_H:F_H + 6]
-    ws = workspace(len(mdl[13]))
-    x = x_start.copy()
     rows = 0
     steps = 1 if record_only else min(n_max, n_total - k0)
     dq, v0, e1, e0, mu, cdf, smin = ws.dq, ws.v0, ws.e1, ws.e0, ws.mu, ws.cdf, ws.smin
@@ -55,7 +63,7 @@ def run(mdl, x_start, k0, n_total, n_max, fp, ip, residual, stop_on_violation, r
         for j in range(12):
             dq[j] += residual[j]
             if not math.isfinite(dq[j]):
-                return x, rows, STATUS_NONFINITE
+                return x_owner, rows, STATUS_NONFINITE
         clear, self_c = _clearances(mdl, x, fp, ip, ws)
         velocity_into(v0, x, dq, h, ws)
         for j in range(19):
@@ -75,24 +83,31 @@ def run(mdl, x_start, k0, n_total, n_max, fp, ip, residual, stop_on_violation, r
             out_mu[i, arm], out_cdf[i, arm], out_smin[i, arm] = mu[arm], cdf[arm], smin[arm]
         rows += 1
         if record_only:
-            return x, rows, STATUS_OK
+            return x_owner, rows, STATUS_OK
         midpoint_into(x, mdl, x, v0, dq, dt, h, ws)
         if stop_on_violation:
             status = _violation(dq, clear, self_c, fp, ip)
             if status != STATUS_OK:
-                return x, rows, status
-    return x, rows, STATUS_OK
+                return x_owner, rows, status
+    return x_owner, rows, STATUS_OK
 
 
 @njit(cache=True, error_model="numpy")
 def observe(mdl, x, t, fp, ip):
     """EE error (6), base error (6), obstacle-relative vector (3) and clearance [m] at (t, x)."""
-    ws = workspace(len(mdl[13]))
+    ws, rel = workspace(len(mdl[13])), np.zeros(3)
+    clear = _observe_into(mdl, ws, x, t, fp, ip, rel)
+    return ws.e1, ws.e0, rel, clear
+
+
+@njit(cache=True, error_model="numpy")
+def _observe_into(mdl_owner, ws_owner, x_owner, t, fp_owner, ip_owner, rel):
+    """:func:`observe` on borrowed arrays: fills the workspace and ``rel``, returns the clearance."""
+    mdl, ws, x, fp, ip = borrowed(mdl_owner), borrowed(ws_owner), borrowed(x_owner), borrowed(fp_owner), borrowed(ip_owner)
     plan(mdl, x, t, fp, ip, ws)
-    rel = np.zeros(3)
     clear = np.inf
     if ip[I_HAS_OBS] == 1:
         capsule_ends_into(mdl, ws, x)
         clear = obstacle_clearance(mdl, ws, x, fp[F_OBS:F_OBS + 3], fp[F_OBS_R])
         rel[:] = ws.rel
-    return ws.e1, ws.e0, rel, clear
+    return clear

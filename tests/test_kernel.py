@@ -105,14 +105,20 @@ def test_cache_guard_covers_every_compiled_module():
     import importlib
     from pathlib import Path
 
+    from numba.core.extending import _Intrinsic
     from numba.core.registry import CPUDispatcher
 
     from ffsr_gym import kernel_cache
 
     package = Path(kernel_cache.__file__).parent
-    compiled = set()
+    compiled, intrinsics = set(), set()
     for path in (p for p in package.glob("*.py") if not p.stem.startswith("_")):
         module = importlib.import_module(f"ffsr_gym.{path.stem}")
-        if any(isinstance(obj, CPUDispatcher) and obj.__module__ == module.__name__ for obj in vars(module).values()):
+        own = [obj for obj in vars(module).values() if getattr(obj, "__module__", None) == module.__name__]
+        if any(isinstance(obj, CPUDispatcher) for obj in own):
             compiled.add(module.__name__)
+        if any(isinstance(obj, _Intrinsic) and obj._defn.__module__ == module.__name__ for obj in vars(module).values()):
+            intrinsics.add(module.__name__)
     assert compiled == {module.__name__ for module in kernel_cache.MODULES}
+    assert intrinsics == {"ffsr_gym.kernel_borrow"}
+    assert compiled | intrinsics == {module.__name__ for module in kernel_cache.SOURCES}
