@@ -7,6 +7,7 @@ import pytest
 
 from ffsr_gym.evaluation import scenario_for_seed
 from ffsr_gym.kernel_collision import segment_box
+from ffsr_gym.kernel_linalg import smallest_singular_value, svd_into
 from ffsr_gym.kernel_rollout import KernelRollout
 from ffsr_gym.planner import METHODS
 from ffsr_gym.rollout import simulate
@@ -98,6 +99,36 @@ def test_segment_box_starting_on_an_edge():
     sampled = np.linalg.norm(np.maximum(d, 0), axis=1).min()
     assert segment_box(a, b, np.eye(3), np.zeros(3), half) == pytest.approx(sampled, abs=1e-9)
     assert sampled < 0.072
+
+
+@pytest.mark.parametrize("condition", [2.0, 30.0, 1e3])
+def test_smallest_singular_value_matches_lapack(condition):
+    """Newton on the tridiagonalised AᵀA vs LAPACK, for matrices with prescribed singular values."""
+    rng = np.random.default_rng(7)
+    G, tri = np.empty((6, 6)), np.empty((2, 6))
+    for _ in range(300):
+        U, _ = np.linalg.qr(rng.normal(size=(6, 6)))
+        V, _ = np.linalg.qr(rng.normal(size=(6, 6)))
+        sigma = np.exp(rng.uniform(0.0, np.log(condition), 6)) * rng.uniform(0.05, 100.0)
+        sigma[-1] = sigma.max() / condition
+        sigma[-2] = sigma[-1] * rng.choice([1.0, 1.0 + 1e-9, 1.5])  # double, nearly double, separated
+        A = U @ np.diag(sigma) @ V.T
+        expected = np.linalg.svd(A, compute_uv=False)[-1]
+        assert smallest_singular_value(A, G, tri) == pytest.approx(expected, rel=0, abs=1e-12 * sigma.max())
+
+
+def test_smallest_singular_value_declines_what_it_cannot_certify():
+    """-1 (the caller then uses the Jacobi SVD) for a singular matrix and a six-fold σ_min."""
+    G, tri = np.empty((6, 6)), np.empty((2, 6))
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(6, 6))
+    A[:, 5] = A[:, 0] - 2.0 * A[:, 3]  # rank 5
+    assert smallest_singular_value(A, G, tri) == -1.0
+    s = np.empty(6)
+    svd_into(A, np.empty((6, 6)), s, np.empty((6, 6)), False)
+    assert s.min() < 1e-14 * s.max()
+    Q, _ = np.linalg.qr(rng.normal(size=(6, 6)))
+    assert smallest_singular_value(3.0 * Q, G, tri) == -1.0  # Newton crawls towards a root of multiplicity 6
 
 
 def test_cache_guard_covers_every_compiled_module():
