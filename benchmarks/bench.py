@@ -79,7 +79,7 @@ def main() -> None:
           f"Pinocchio {reference * 1e3:.0f} ms, speed-up {reference / kernel:.1f}x (target >= 10x and <= 20 ms)")
 
     ours = per_step(gym.make("FFSR-Residual-v0", scenario="paper"), 400)
-    _, vector_step = vector_throughput(64, 20, workers)
+    _, vector_step = vector_throughput(64, 200, workers)
     try:
         pusher = per_step(gym.make("Pusher-v5"), 2000)
         print(f"[2] one env step: FFSR-Residual-v0 {ours * 1e6:.0f} us (10 physics steps of 0.01 s), Pusher-v5 "
@@ -107,8 +107,8 @@ def main() -> None:
                   f"{len(state.cache)} distinct evaluations, optimum m = {m:.4f}, T_c = {T_c:.3f} s, B = {score:.3g}; "
                   f"Pinocchio (no cache) {serial:.0f} s (target <= 60 s)")
 
-    single, _ = vector_throughput(64, 10, 1)
-    steps_per_s, _ = vector_throughput(64, 20, workers)
+    single, _ = vector_throughput(64, 200, 1)  # 200 decisions: whole episodes, with their ends and resets
+    steps_per_s, _ = vector_throughput(64, 200, workers)
     print(f"[4] batched FFSR-Residual-v0 (64 copies, vector_entry_point): {steps_per_s:,.0f} physics steps of dt per "
           f"second on {workers} threads, {single:,.0f} on 1 ({steps_per_s / single:.2f}x) (target >= 300,000)")
 

@@ -45,14 +45,18 @@ def run(mdl, x_start, k0, n_total, n_max, fp, ip, residual, stop_on_violation, r
     Writes one sample per step into the ``out_*`` arrays (from row 0) and returns
     ``(x_next, rows, status)``: status 0 ok, 1 rate-limit violation, 2 collision, 3 non-finite rates.
     """
-    return _run(mdl, workspace(len(mdl[13])), x_start.copy(), k0, n_total, n_max, fp, ip, residual, stop_on_violation,
-                record_only, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf, out_smin)
+    return run_into(mdl, workspace(len(mdl[13])), x_start.copy(), k0, n_total, n_max, fp, ip, residual,
+                    stop_on_violation, record_only, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf,
+                    out_smin)
 
 
 @njit(cache=True, error_model="numpy")
-def _run(mdl_owner, ws_owner, x_owner, k0, n_total, n_max, fp_owner, ip_owner, residual, stop_on_violation, record_only,
-         out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf, out_smin):
-    """:func:`run` on borrowed arrays (``ffsr_gym.kernel_borrow``; ``run`` owns them for the call); advances ``x_owner``."""
+def run_into(mdl_owner, ws_owner, x_owner, k0, n_total, n_max, fp_owner, ip_owner, residual, stop_on_violation,
+             record_only, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf, out_smin):
+    """:func:`run` in the caller's workspace, advancing the state ``x_owner`` in place (and returning it).
+
+    Works on borrowed arrays (``ffsr_gym.kernel_borrow``): the caller owns every argument for the call.
+    """
     mdl, ws, x, fp, ip = borrowed(mdl_owner), borrowed(ws_owner), borrowed(x_owner), borrowed(fp_owner), borrowed(ip_owner)
     dt, h = fp[F_DT], fp[F_H:F_H + 6]
     rows = 0
@@ -96,13 +100,13 @@ def _run(mdl_owner, ws_owner, x_owner, k0, n_total, n_max, fp_owner, ip_owner, r
 def observe(mdl, x, t, fp, ip):
     """EE error (6), base error (6), obstacle-relative vector (3) and clearance [m] at (t, x)."""
     ws, rel = workspace(len(mdl[13])), np.zeros(3)
-    clear = _observe_into(mdl, ws, x, t, fp, ip, rel)
+    clear = observe_into(mdl, ws, x, t, fp, ip, rel)
     return ws.e1, ws.e0, rel, clear
 
 
 @njit(cache=True, error_model="numpy")
-def _observe_into(mdl_owner, ws_owner, x_owner, t, fp_owner, ip_owner, rel):
-    """:func:`observe` on borrowed arrays: fills the workspace and ``rel``, returns the clearance."""
+def observe_into(mdl_owner, ws_owner, x_owner, t, fp_owner, ip_owner, rel):
+    """:func:`observe` in the caller's workspace (errors in ``ws.e1``, ``ws.e0``; ``rel`` filled); returns the clearance."""
     mdl, ws, x, fp, ip = borrowed(mdl_owner), borrowed(ws_owner), borrowed(x_owner), borrowed(fp_owner), borrowed(ip_owner)
     plan(mdl, x, t, fp, ip, ws)
     clear = np.inf

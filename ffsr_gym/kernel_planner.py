@@ -211,9 +211,10 @@ def filtered_solve_into(out, ws, target, lam_max, eps, mu, avoiding):
     J♯ damps each singular value below ε (λ²(1 − (σ/ε)²)); P projects onto J's row space. When
     σ_min ≥ ε (nothing damped) and J is well conditioned (σ_min ≥ 1e-3 ‖J‖_F), J♯ = J⁻¹ and
     P = I: σ_min comes from ``smallest_singular_value`` and an LU solve gives the rates (96% of
-    mission-arm steps and every balance-arm step on ``paper``). Otherwise the singular values come
-    from the Jacobi SVD, and its singular vectors when something is damped. The result depends on
-    the current J only (no state between steps).
+    mission-arm steps and every balance-arm step on ``paper``). Otherwise the Jacobi SVD decides
+    (its singular values alone when that estimate was not certified) and its singular vectors
+    give J♯ when something is damped. The result depends on the current J only (no state between
+    steps).
     """
     Ut, s, Vt, dq_c, J = ws.U, ws.s, ws.V, ws.dq_c, ws.J  # singular vectors as rows
     frobenius = 0.0
@@ -221,14 +222,14 @@ def filtered_solve_into(out, ws, target, lam_max, eps, mu, avoiding):
         for c in range(6):
             frobenius += J[r, c] * J[r, c]
     s_min = smallest_singular_value(J, ws.G, ws.tri)
-    if s_min < eps or s_min < 1e-3 * math.sqrt(frobenius):
+    certified = s_min >= 1e-3 * math.sqrt(frobenius)
+    undamped = certified and s_min >= eps
+    if not certified:
         svd_into(J, Ut, s, Vt, False)
         s_max, s_min = 0.0, 1e300
         for i in range(6):
             s_max, s_min = max(s_max, s[i]), min(s_min, s[i])
         undamped = s_min >= eps and s_min > s_max * 6.0 * 2.220446049250313e-16
-    else:
-        undamped = True
     if undamped:
         y = ws.b6
         solve_into(J, target, ws.M6, y)

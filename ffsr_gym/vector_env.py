@@ -115,11 +115,12 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         residuals = self._apply_actions(a, active)
         logs = tuple(self._logs[key] for key in LOG_FIELDS)
         kernel_batch.run_batch(self._mdl, self._X, self._K, active, self.n_steps, self.steps_per_decision, self._FP,
-                               self._IP, residuals, logs, self._rows, self._status, self._applied)
+                               self._IP, residuals, logs, self._rows, self._status, self._applied,
+                               kernel_batch.groups(self.num_envs))
         if np.any(self._status == 3):
             raise FFSRError(f"planner produced non-finite joint rates in copies {np.flatnonzero(self._status == 3).tolist()}")
-        for i in np.flatnonzero(active):
-            self._last_rates[i] = self._applied[i, self._rows[i] - 1]
+        moved = np.flatnonzero(active)
+        self._last_rates[moved] = self._applied[moved, self._rows[moved] - 1]
         objective = self.family.objective
         increments = np.where(active, smooth_part(*rate_terms(self._applied, self.dt, objective)[:2], objective), 0.0)
         terminated = active & (self._status != 0)
@@ -162,7 +163,8 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
     def _observe(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         N = self.num_envs
         E1, E0, REL, CLEAR = np.zeros((N, 6)), np.zeros((N, 6)), np.zeros((N, 3)), np.zeros(N)
-        kernel_batch.observe_batch(self._mdl, self._X, self._K, self._FP, self._IP, E1, E0, REL, CLEAR)
+        kernel_batch.observe_batch(self._mdl, self._X, self._K, self._FP, self._IP, E1, E0, REL, CLEAR,
+                                   kernel_batch.groups(N))
         obs = assemble_observation(self._X[:, 7:19], self._last_rates, E1, E0, REL, CLEAR, self._K / self.n_steps)
         return obs, CLEAR, np.linalg.norm(E1[:, :3], axis=1)
 
