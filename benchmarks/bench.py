@@ -109,8 +109,10 @@ def main() -> None:
 
     single, _ = vector_throughput(64, 200, 1)  # 200 decisions: whole episodes, with their ends and resets
     steps_per_s, _ = vector_throughput(64, 200, workers)
+    wide, _ = vector_throughput(128, 200, workers)
     print(f"[4] batched FFSR-Residual-v0 (64 copies, vector_entry_point): {steps_per_s:,.0f} physics steps of dt per "
-          f"second on {workers} threads, {single:,.0f} on 1 ({steps_per_s / single:.2f}x) (target >= 300,000)")
+          f"second on {workers} threads, {single:,.0f} on 1 ({steps_per_s / single:.2f}x); 128 copies: {wide:,.0f} "
+          f"(target >= 300,000)")
 
 
 def _evaluate(params: tuple[float, float]) -> float:

@@ -37,6 +37,7 @@ class KernelModel:
         q_index, v_index: (12,) Pinocchio ``q`` / ``v`` index of each kernel joint.
         axis_code: (12,) 0, 1, 2 for a joint about the frame's x, y, z axis (a cheaper rotation in
             the kernel), -1 for any other axis.
+        subtree: (12, 12) ``subtree[k, i]``: body i moves with joint k (i is k or a descendant).
     """
 
     parent: np.ndarray
@@ -59,6 +60,7 @@ class KernelModel:
     q_index: np.ndarray
     v_index: np.ndarray
     axis_code: np.ndarray
+    subtree: np.ndarray
 
     def arrays(self) -> tuple:
         """The arrays in declaration order (the kernel's positional arguments)."""
@@ -114,7 +116,19 @@ def extract(robot: Robot, collision: CollisionModel) -> KernelModel:
         box_half=np.array(collision._parts[0].shape.halfSide),
         q_index=robot.joint_q_index.astype(np.int64), v_index=robot.joint_v_index.astype(np.int64),
         axis_code=np.array([_axis_code(a) for a in axis], dtype=np.int64),
+        subtree=_subtree(parent),
     )
+
+
+def _subtree(parent: list[int]) -> np.ndarray:
+    """``out[k, i]`` is True when joint k is body i's own joint or one of its ancestors."""
+    out = np.zeros((len(parent), len(parent)), dtype=np.bool_)
+    for i in range(len(parent)):
+        k = i
+        while k >= 0:
+            out[k, i] = True
+            k = parent[k]
+    return out
 
 
 def _axis_code(axis: tuple[float, ...]) -> int:

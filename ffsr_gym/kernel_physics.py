@@ -146,7 +146,7 @@ def kinematics_into(mdl, x, ws):
 @njit(cache=True, error_model="numpy", inline="always")
 def momentum_into(mdl, x, ws):
     """H_b, H_bm (about the base CoM, world frame; SPEC §2.3) and the system CoM, into the workspace."""
-    mass, lever, inertia, parent = mdl[4], mdl[5], mdl[6], mdl[0]
+    mass, lever, inertia, subtree = mdl[4], mdl[5], mdl[6], mdl[20]
     Rj, pj, z, H_b, H_bm, rg, r, Iw = ws.Rj, ws.pj, ws.z, ws.H_b, ws.H_bm, ws.rg, ws.r, ws.Iw
     M = mass[0]
     for a in range(3):
@@ -180,11 +180,8 @@ def momentum_into(mdl, x, ws):
     for k in range(12):
         arm, col = k // 6, k % 6
         zk = z[k]
-        for i in range(k, 6 * arm + 6):  # bodies at and after joint k on the same serial arm
-            ancestor = i
-            while ancestor > k and parent[ancestor] >= 0:
-                ancestor = parent[ancestor]
-            if ancestor != k:
+        for i in range(k, 6 * arm + 6):  # bodies moved by joint k (on its own arm)
+            if not subtree[k, i]:
                 continue
             m_i = mass[i + 1]
             ex, ey, ez = r[i, 0] - pj[k, 0], r[i, 1] - pj[k, 1], r[i, 2] - pj[k, 2]
