@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 import ffsr_gym
-from ffsr_gym import ga
+from ffsr_gym.optim import ga
 
 
 def best_of(fn, repeats: int) -> float:

@@ -4,19 +4,19 @@ from __future__ import annotations
 
 import gymnasium
 
-from ffsr_gym.evaluation import EvalReport, evaluate, objective_for_params
+from ffsr_gym.bench.evaluation import EvalReport, evaluate, objective_for_params
 from ffsr_gym.exceptions import FFSRError, InvalidInputError, RobotFileError, ScenarioError
-from ffsr_gym.robot import Robot, load_robot
-from ffsr_gym.rollout import simulate
-from ffsr_gym.scenario import Scenario, load_scenario
-from ffsr_gym.trajectory import Trajectory
+from ffsr_gym.model.robot import Robot, load_robot
+from ffsr_gym.model.scenario import Scenario, load_scenario
+from ffsr_gym.sim.simulate import simulate
+from ffsr_gym.sim.trajectory import Trajectory
 
 __version__ = "0.1.0"
 
-gymnasium.register(id="FFSR-v0", entry_point="ffsr_gym.env:FFSREnv",
-                   vector_entry_point="ffsr_gym.vector_env:FFSRVectorEnv")
-gymnasium.register(id="FFSR-Residual-v0", entry_point="ffsr_gym.env:FFSRResidualEnv",
-                   vector_entry_point="ffsr_gym.vector_env:FFSRResidualVectorEnv")
+gymnasium.register(id="FFSR-v0", entry_point="ffsr_gym.environments.env:FFSREnv",
+                   vector_entry_point="ffsr_gym.environments.vector_env:FFSRVectorEnv")
+gymnasium.register(id="FFSR-Residual-v0", entry_point="ffsr_gym.environments.env:FFSRResidualEnv",
+                   vector_entry_point="ffsr_gym.environments.vector_env:FFSRResidualVectorEnv")
 
 __all__ = [
     "EvalReport",

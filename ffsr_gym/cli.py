@@ -12,19 +12,17 @@ from ffsr_gym.exceptions import FFSRError
 
 
 def _info(args: argparse.Namespace) -> None:
-    from ffsr_gym.collision import CollisionModel
-    from ffsr_gym.quaternion import from_rotation
-    from ffsr_gym.robot import load_robot
-    from ffsr_gym.rollout import initial_configuration, obstacles_of
-    from ffsr_gym.scenario import load_scenario
+    from ffsr_gym.model.quaternion import from_rotation
+    from ffsr_gym.model.scenario import load_scenario
+    from ffsr_gym.sim.setup import prepare
 
     scenario = load_scenario(args.scenario)
-    robot = load_robot(scenario.robot)
-    q = initial_configuration(robot, scenario)
+    setup = prepare(scenario)
+    robot, q = setup.robot, setup.q0
     ee = robot.transform_ee_to_world(q, 0)
     robot.update_kinematics(q)
     mats = robot.momentum_matrices(q)
-    clearance = CollisionModel(robot).clearance(q, obstacles_of(scenario))
+    clearance = setup.assets.collision.clearance(q, list(setup.obstacles))
     rows = [
         ("scenario", f"{scenario.name} ({scenario.source})"),
         ("scenario sha256", scenario.sha256()[:16]),
@@ -44,7 +42,7 @@ def _info(args: argparse.Namespace) -> None:
 
 
 def _reproduce(args: argparse.Namespace) -> None:
-    from ffsr_gym.reproduction import reproduce
+    from ffsr_gym.report.reproduction import reproduce
 
     command = " ".join(["ffsr-gym", *args.argv])
     result = reproduce(args.out, duration_s=args.duration, progress=not args.no_progress, command=command)
@@ -55,8 +53,8 @@ def _reproduce(args: argparse.Namespace) -> None:
 
 
 def _ga(args: argparse.Namespace) -> None:
-    from ffsr_gym.ga import GAConfig
-    from ffsr_gym.ga_study import run_study
+    from ffsr_gym.optim.ga import GAConfig
+    from ffsr_gym.optim.ga_study import run_study
 
     config = GAConfig(population=args.population, generations=args.generations, seed=args.seed,
                       selection=args.selection, scenario=args.scenario)
@@ -69,7 +67,7 @@ def _ga(args: argparse.Namespace) -> None:
 
 
 def _train(args: argparse.Namespace) -> None:
-    from ffsr_gym.rl import train_and_evaluate
+    from ffsr_gym.optim.rl import train_and_evaluate
 
     report = train_and_evaluate(args.algo, args.env_id, seeds=args.seeds, out=args.out, scenario=args.scenario,
                                 timesteps=args.timesteps, hyperparams=args.hyperparams, progress=not args.no_progress)
@@ -79,7 +77,7 @@ def _train(args: argparse.Namespace) -> None:
 
 
 def _leaderboard(args: argparse.Namespace) -> int:
-    from ffsr_gym.leaderboard import render_readme, write_readme
+    from ffsr_gym.bench.leaderboard import render_readme, write_readme
 
     if args.check:
         current = (Path(args.root) / "README.md").read_text()

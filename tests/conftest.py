@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ffsr_gym.collision import CollisionModel
-from ffsr_gym.robot import Robot, load_robot
-from ffsr_gym.scenario import Scenario, load_scenario
+from ffsr_gym.model.collision import CollisionModel
+from ffsr_gym.model.robot import Robot, load_robot
+from ffsr_gym.model.scenario import Scenario, load_scenario
 
 
 @pytest.fixture(scope="session")

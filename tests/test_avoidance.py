@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from ffsr_gym.avoidance import blend_factor, danger_field, danger_field_gradient
-from ffsr_gym.inverse import filtered_inverse
+from ffsr_gym.planning.avoidance import blend_factor, danger_field, danger_field_gradient
+from ffsr_gym.planning.inverse import filtered_inverse
 
 
 def _quad_field(points, p_o):

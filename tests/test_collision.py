@@ -6,8 +6,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from ffsr_gym.collision import BoxObstacle, CollisionModel, SphereObstacle
 from ffsr_gym.exceptions import RobotFileError
+from ffsr_gym.model.collision import BoxObstacle, CollisionModel, SphereObstacle
 
 CAPSULE_RADIUS = 0.02  # envs/robots/ffsr_dual_arm/collision.toml
 BASE_HALF = 0.4

@@ -14,7 +14,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 
 import ffsr_gym
-from ffsr_gym.objective import objective_terms
+from ffsr_gym.scoring.objective import objective_terms
 
 IDS = ["FFSR-v0", "FFSR-Residual-v0"]
 CASES = [(env_id, scenario) for env_id in IDS for scenario in ("paper", "random")]

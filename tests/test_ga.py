@@ -9,9 +9,9 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 import pytest
 
-from ffsr_gym import ga
-from ffsr_gym.evaluation import objective_for_params
-from ffsr_gym.scenario import load_scenario
+from ffsr_gym.bench.evaluation import objective_for_params
+from ffsr_gym.model.scenario import load_scenario
+from ffsr_gym.optim import ga
 
 
 @pytest.fixture(scope="module")

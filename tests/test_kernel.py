@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ffsr_gym.evaluation import scenario_for_seed
-from ffsr_gym.kernel_collision import segment_box
-from ffsr_gym.kernel_linalg import smallest_singular_value, svd_into
-from ffsr_gym.kernel_rollout import KernelRollout
-from ffsr_gym.planner import METHODS
-from ffsr_gym.rollout import simulate
+from ffsr_gym.bench.evaluation import scenario_for_seed
+from ffsr_gym.kernel.collision import segment_box
+from ffsr_gym.kernel.linalg import smallest_singular_value, svd_into
+from ffsr_gym.planning.planner import METHODS
+from ffsr_gym.sim.compiled import KernelRollout
+from ffsr_gym.sim.simulate import simulate
 
 ARRAYS = ("q", "v", "dq_joints", "ee_position_error_m", "ee_attitude_error", "base_position_error_m",
           "base_attitude_error", "clearance_m", "self_clearance_m", "mu", "cdf", "sigma_min")
@@ -139,17 +139,17 @@ def test_cache_guard_covers_every_compiled_module():
     from numba.core.extending import _Intrinsic
     from numba.core.registry import CPUDispatcher
 
-    from ffsr_gym import kernel_cache
+    from ffsr_gym.kernel import cache as kernel_cache
 
     package = Path(kernel_cache.__file__).parent
     compiled, intrinsics = set(), set()
     for path in (p for p in package.glob("*.py") if not p.stem.startswith("_")):
-        module = importlib.import_module(f"ffsr_gym.{path.stem}")
+        module = importlib.import_module(f"ffsr_gym.kernel.{path.stem}")
         own = [obj for obj in vars(module).values() if getattr(obj, "__module__", None) == module.__name__]
         if any(isinstance(obj, CPUDispatcher) for obj in own):
             compiled.add(module.__name__)
         if any(isinstance(obj, _Intrinsic) and obj._defn.__module__ == module.__name__ for obj in vars(module).values()):
             intrinsics.add(module.__name__)
     assert compiled == {module.__name__ for module in kernel_cache.MODULES}
-    assert intrinsics == {"ffsr_gym.kernel_borrow"}
+    assert intrinsics == {"ffsr_gym.kernel.borrow"}
     assert compiled | intrinsics == {module.__name__ for module in kernel_cache.SOURCES}

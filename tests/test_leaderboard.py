@@ -11,7 +11,7 @@ import jsonschema
 import pytest
 
 import ffsr_gym
-from ffsr_gym import leaderboard
+from ffsr_gym.bench import leaderboard
 
 ROOT = Path(__file__).resolve().parent.parent / "leaderboards"
 ENTRIES = sorted(ROOT.glob("*/*.json")) + []

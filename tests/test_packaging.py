@@ -7,7 +7,7 @@ import sys
 import zipfile
 from pathlib import Path
 
-from ffsr_gym.resources import envs_dir
+from ffsr_gym.model.resources import envs_dir
 
 ROOT = Path(__file__).resolve().parent.parent
 

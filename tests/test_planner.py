@@ -7,11 +7,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ffsr_gym import quaternion as quat
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.planner import METHODS
-from ffsr_gym.rollout import initial_configuration, simulate
-from ffsr_gym.scenario import load_scenario
+from ffsr_gym.model import quaternion as quat
+from ffsr_gym.model.scenario import load_scenario
+from ffsr_gym.planning.planner import METHODS
+from ffsr_gym.sim.setup import initial_configuration
+from ffsr_gym.sim.simulate import simulate
 
 NON_SINGULAR_JOINTS_DEG = (0.0, 30.0, -60.0, 0.0, -40.0, 0.0)
 

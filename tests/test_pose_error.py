@@ -6,9 +6,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from ffsr_gym import quaternion as quat
-from ffsr_gym.desired_path import DesiredPath, trapezoid
-from ffsr_gym.pose_error import attitude_error
+from ffsr_gym.model import quaternion as quat
+from ffsr_gym.planning.desired_path import DesiredPath, trapezoid
+from ffsr_gym.planning.pose_error import attitude_error
 
 
 def _random_quaternion(rng):

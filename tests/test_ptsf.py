@@ -9,7 +9,7 @@ import pytest
 from scipy.integrate import quad, solve_ivp
 
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.ptsf import phi, settling_time
+from ffsr_gym.planning.ptsf import phi, settling_time
 
 T_C = 3.0
 

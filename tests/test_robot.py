@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
-
 from conftest import random_configuration
+
 from ffsr_gym.exceptions import RobotFileError
-from ffsr_gym.quaternion import from_rotation, skew
-from ffsr_gym.robot import Robot
+from ffsr_gym.model.quaternion import from_rotation, skew
+from ffsr_gym.model.robot import Robot
 
 PAPER_SIGMA_E0 = np.array([0.0, 0.8191, 0.0, 0.5736])  # printed in the paper, scalar first
 

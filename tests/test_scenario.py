@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from ffsr_gym.exceptions import RobotFileError, ScenarioError
-from ffsr_gym.resources import scenario_path
-from ffsr_gym.scenario import load_scenario
+from ffsr_gym.model.resources import scenario_path
+from ffsr_gym.model.scenario import load_scenario
 
 
 @pytest.mark.parametrize("name", ["paper", "paper_as_printed", "free_space"])

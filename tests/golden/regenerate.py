@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 
 import ffsr_gym
-from ffsr_gym.objective import objective_terms
+from ffsr_gym.scoring.objective import objective_terms
 
 RUNS = {"predefined_time_m0.1_Tc3": ("predefined_time", 0.1, 3.0), "predefined_time_m0.2167_Tc2.19": ("predefined_time", 0.2167, 2.19),
         "proportional_m0.1_Tc3": ("proportional", 0.1, 3.0), "no_avoidance_m0.1_Tc3": ("no_avoidance", 0.1, 3.0)}

@@ -1,0 +1,117 @@
+"""Compiled (numba) closed loop: plan, check, log and integrate, step after step (``Rollout.step``)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ffsr_gym.kernel.borrow import borrowed
+from ffsr_gym.kernel.collision import capsule_ends_into, obstacle_clearance, self_clearance
+from ffsr_gym.kernel.physics import midpoint_into, velocity_into, workspace
+from ffsr_gym.kernel.planner import F_DT, F_H, F_OBS, F_OBS_R, F_RATE_MAX, I_HAS_OBS, I_SCOPE, plan
+
+STATUS_OK, STATUS_RATE, STATUS_COLLISION, STATUS_NONFINITE = 0, 1, 2, 3
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _clearances(mdl, x, fp, ip, ws):
+    """Robot–obstacle clearance (inf without obstacle) and self clearance [m] at the workspace's state."""
+    capsule_ends_into(mdl, ws, x)
+    clear = np.inf
+    if ip[I_HAS_OBS] == 1:
+        clear = obstacle_clearance(mdl, ws, x, fp[F_OBS:F_OBS + 3], fp[F_OBS_R])
+    return clear, self_clearance(mdl, ws, x)
+
+
+@njit(cache=True, error_model="numpy")
+def _violation(dq, clear, self_c, fp, ip):
+    """Status of a step: a joint rate above the limit (in the scored scope) or a collision."""
+    to_deg = 180.0 / math.pi
+    for j in range(6 if ip[I_SCOPE] == 1 else 0, 12):
+        if abs(dq[j]) * to_deg > fp[F_RATE_MAX]:
+            return STATUS_RATE
+    if clear < 0.0 or self_c < 0.0:
+        return STATUS_COLLISION
+    return STATUS_OK
+
+
+@njit(cache=True, error_model="numpy")
+def run(mdl, x_start, k0, n_total, n_max, fp, ip, residual, stop_on_violation, record_only, out_x, out_v, out_dq,
+        out_err, out_clear, out_self, out_mu, out_cdf, out_smin):
+    """Advance up to ``n_max`` steps from step ``k0`` (or only record when ``record_only``).
+
+    Writes one sample per step into the ``out_*`` arrays (from row 0) and returns
+    ``(x_next, rows, status)``: status 0 ok, 1 rate-limit violation, 2 collision, 3 non-finite rates.
+    """
+    return run_into(mdl, workspace(len(mdl[13])), x_start.copy(), k0, n_total, n_max, fp, ip, residual,
+                    stop_on_violation, record_only, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf,
+                    out_smin)
+
+
+@njit(cache=True, error_model="numpy")
+def run_into(mdl_owner, ws_owner, x_owner, k0, n_total, n_max, fp_owner, ip_owner, residual, stop_on_violation,
+             record_only, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf, out_smin):
+    """:func:`run` in the caller's workspace, advancing the state ``x_owner`` in place (and returning it).
+
+    Works on borrowed arrays (``ffsr_gym.kernel.borrow``): the caller owns every argument for the call.
+    """
+    mdl, ws, x, fp, ip = borrowed(mdl_owner), borrowed(ws_owner), borrowed(x_owner), borrowed(fp_owner), borrowed(ip_owner)
+    dt, h = fp[F_DT], fp[F_H:F_H + 6]
+    rows = 0
+    steps = 1 if record_only else min(n_max, n_total - k0)
+    dq, v0, e1, e0, mu, cdf, smin = ws.dq, ws.v0, ws.e1, ws.e0, ws.mu, ws.cdf, ws.smin
+    for i in range(steps):
+        plan(mdl, x, (k0 + i) * dt, fp, ip, ws)
+        for j in range(12):
+            dq[j] += residual[j]
+            if not math.isfinite(dq[j]):
+                return x_owner, rows, STATUS_NONFINITE
+        clear, self_c = _clearances(mdl, x, fp, ip, ws)
+        velocity_into(v0, x, dq, h, ws)
+        for j in range(19):
+            out_x[i, j] = x[j]
+        for j in range(6):
+            out_v[i, j] = v0[j]
+        for j in range(12):
+            out_v[i, 6 + j] = dq[j]
+            out_dq[i, j] = dq[j]
+        out_err[i, 0] = math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
+        out_err[i, 1] = math.sqrt(e1[3] * e1[3] + e1[4] * e1[4] + e1[5] * e1[5])
+        out_err[i, 2] = math.sqrt(e0[0] * e0[0] + e0[1] * e0[1] + e0[2] * e0[2])
+        out_err[i, 3] = math.sqrt(e0[3] * e0[3] + e0[4] * e0[4] + e0[5] * e0[5])
+        out_clear[i] = clear
+        out_self[i] = self_c
+        for arm in range(2):
+            out_mu[i, arm], out_cdf[i, arm], out_smin[i, arm] = mu[arm], cdf[arm], smin[arm]
+        rows += 1
+        if record_only:
+            return x_owner, rows, STATUS_OK
+        midpoint_into(x, mdl, x, v0, dq, dt, h, ws)
+        if stop_on_violation:
+            status = _violation(dq, clear, self_c, fp, ip)
+            if status != STATUS_OK:
+                return x_owner, rows, status
+    return x_owner, rows, STATUS_OK
+
+
+@njit(cache=True, error_model="numpy")
+def observe(mdl, x, t, fp, ip):
+    """EE error (6), base error (6), obstacle-relative vector (3) and clearance [m] at (t, x)."""
+    ws, rel = workspace(len(mdl[13])), np.zeros(3)
+    clear = observe_into(mdl, ws, x, t, fp, ip, rel)
+    return ws.e1, ws.e0, rel, clear
+
+
+@njit(cache=True, error_model="numpy")
+def observe_into(mdl_owner, ws_owner, x_owner, t, fp_owner, ip_owner, rel):
+    """:func:`observe` in the caller's workspace (errors in ``ws.e1``, ``ws.e0``; ``rel`` filled); returns the clearance."""
+    mdl, ws, x, fp, ip = borrowed(mdl_owner), borrowed(ws_owner), borrowed(x_owner), borrowed(fp_owner), borrowed(ip_owner)
+    plan(mdl, x, t, fp, ip, ws)
+    clear = np.inf
+    if ip[I_HAS_OBS] == 1:
+        capsule_ends_into(mdl, ws, x)
+        clear = obstacle_clearance(mdl, ws, x, fp[F_OBS:F_OBS + 3], fp[F_OBS_R])
+        rel[:] = ws.rel
+    return clear

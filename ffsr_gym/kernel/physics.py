@@ -1,0 +1,275 @@
+"""Compiled (numba) robot physics: kinematics, momentum, momentum-conserving base velocity, SE(3) step.
+
+A re-implementation of ``ffsr_gym.model.robot`` for the kernel, validated against it to 1e-9
+(``tests/test_kernel.py``). State layout ``x`` (19): base position [m], base quaternion
+(x, y, z, w), 12 joint angles [rad] mission arm first. Model arrays come from
+:func:`ffsr_gym.kernel.arrays.extract`, passed as the tuple ``mdl`` in declaration order. Every
+routine writes into a :data:`Workspace` made once per call of the kernel: nothing is allocated
+inside the time loop.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+
+from ffsr_gym.kernel.linalg import solve_into
+
+#: Buffers of one closed loop (kinematics, momentum, planner, collision, integrator).
+Workspace = namedtuple("Workspace", [
+    "Rj", "pj", "R_b", "Re", "pe", "z",  # joint frames, base rotation, EE frames, joint axes (world)
+    "H_b", "H_bm", "rg", "r", "Iw",  # momentum matrices, system CoM, body CoMs, body inertias (world)
+    "tmp", "rot", "M6", "b6", "x_half", "v_mid",  # scratch
+    "J", "U", "V", "s", "G", "tri", "Jo", "Jo_d", "points", "I0", "I1", "dq_c",  # planner
+    "V0", "x1", "target", "p_d", "sigma_d", "V_ed",
+    "dq", "e1", "e0", "mu", "cdf", "smin", "v0",  # planner outputs
+    "cap_A", "cap_B", "cap_mid", "cap_hl", "bound", "first", "second", "rel", "cand",  # collision
+])
+
+
+@njit(cache=True, error_model="numpy")
+def workspace(n_capsules):
+    """A fresh :data:`Workspace` for a robot with ``n_capsules`` collision capsules."""
+    n_pairs = n_capsules * n_capsules + n_capsules
+    return Workspace(
+        np.empty((12, 3, 3)), np.empty((12, 3)), np.empty((3, 3)), np.empty((2, 3, 3)), np.empty((2, 3)),
+        np.empty((12, 3)), np.empty((6, 6)), np.empty((2, 6, 6)), np.empty(3), np.empty((12, 3)),
+        np.empty((12, 3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((6, 6)), np.empty(6), np.empty(19),
+        np.empty(6), np.empty((6, 6)), np.empty((6, 6)), np.empty((6, 6)), np.empty(6), np.empty((6, 6)),
+        np.empty((2, 6)), np.empty((3, 3)),
+        np.empty((3, 3)), np.empty((7, 3)), np.empty(6), np.empty(6), np.empty(6), np.empty(6), np.empty(6),
+        np.empty(6), np.empty(3), np.empty(4), np.empty(6), np.empty(12), np.empty(6), np.empty(6), np.empty(2),
+        np.empty(2), np.empty(2), np.empty(6), np.empty((n_capsules, 3)), np.empty((n_capsules, 3)),
+        np.empty((n_capsules, 3)), np.empty(n_capsules), np.empty(n_pairs), np.empty(n_pairs, dtype=np.int64),
+        np.empty(n_pairs, dtype=np.int64), np.empty(3), np.empty(23),
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def quat_into(R, qx, qy, qz, qw):
+    """Rotation matrix of the unit quaternion (x, y, z, w)."""
+    R[0, 0], R[0, 1], R[0, 2] = 1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qz * qw), 2 * (qx * qz + qy * qw)
+    R[1, 0], R[1, 1], R[1, 2] = 2 * (qx * qy + qz * qw), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qx * qw)
+    R[2, 0], R[2, 1], R[2, 2] = 2 * (qx * qz - qy * qw), 2 * (qy * qz + qx * qw), 1 - 2 * (qx * qx + qy * qy)
+
+
+@njit(cache=True, error_model="numpy")
+def R_to_quat_wxyz(R):
+    """Scalar-first unit quaternion (w, x, y, z) with w >= 0 of a rotation matrix (Shepperd's method)."""
+    t = R[0, 0] + R[1, 1] + R[2, 2]
+    if t > 0.0:
+        s = math.sqrt(t + 1.0) * 2.0
+        w, x, y, z = 0.25 * s, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s
+    elif R[0, 0] > R[1, 1] and R[0, 0] > R[2, 2]:
+        s = math.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2]) * 2.0
+        w, x, y, z = (R[2, 1] - R[1, 2]) / s, 0.25 * s, (R[0, 1] + R[1, 0]) / s, (R[0, 2] + R[2, 0]) / s
+    elif R[1, 1] > R[2, 2]:
+        s = math.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2]) * 2.0
+        w, x, y, z = (R[0, 2] - R[2, 0]) / s, (R[0, 1] + R[1, 0]) / s, 0.25 * s, (R[1, 2] + R[2, 1]) / s
+    else:
+        s = math.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1]) * 2.0
+        w, x, y, z = (R[1, 0] - R[0, 1]) / s, (R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s, 0.25 * s
+    norm = math.sqrt(w * w + x * x + y * y + z * z) * (-1.0 if w < 0.0 else 1.0)
+    return w / norm, x / norm, y / norm, z / norm
+
+
+@njit(cache=True, error_model="numpy")
+def _rot_into(out, axis, angle):
+    c, s = math.cos(angle), math.sin(angle)
+    x, y, z = axis[0], axis[1], axis[2]
+    C = 1.0 - c
+    out[0, 0], out[0, 1], out[0, 2] = c + x * x * C, x * y * C - z * s, x * z * C + y * s
+    out[1, 0], out[1, 1], out[1, 2] = y * x * C + z * s, c + y * y * C, y * z * C - x * s
+    out[2, 0], out[2, 1], out[2, 2] = z * x * C - y * s, z * y * C + x * s, c + z * z * C
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _mm3_into(out, A, B):
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _mv3_add_into(out, base, A, v):
+    for i in range(3):
+        out[i] = base[i] + A[i, 0] * v[0] + A[i, 1] * v[1] + A[i, 2] * v[2]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _rotate_inertia_into(out, R, I, tmp):
+    """out = R I R^T."""
+    _mm3_into(tmp, R, I)
+    for a in range(3):
+        for b in range(3):
+            out[a, b] = tmp[a, 0] * R[b, 0] + tmp[a, 1] * R[b, 1] + tmp[a, 2] * R[b, 2]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def kinematics_into(mdl, x, ws):
+    """Forward kinematics into the workspace: joint rotations/origins, base rotation, EE poses, axes."""
+    parent, pl_R, pl_p, axis = mdl[0], mdl[1], mdl[2], mdl[3]
+    ee_parent, ee_R, ee_p, axis_code = mdl[7], mdl[8], mdl[9], mdl[19]
+    Rj, pj, R_b, Re, pe, z, tmp, rot = ws.Rj, ws.pj, ws.R_b, ws.Re, ws.pe, ws.z, ws.tmp, ws.rot
+    quat_into(R_b, x[3], x[4], x[5], x[6])
+    for k in range(12):
+        if parent[k] < 0:
+            _mm3_into(tmp, R_b, pl_R[k])
+            _mv3_add_into(pj[k], x, R_b, pl_p[k])
+        else:
+            q = parent[k]
+            _mm3_into(tmp, Rj[q], pl_R[k])
+            _mv3_add_into(pj[k], pj[q], Rj[q], pl_p[k])
+        a = axis_code[k]
+        if a >= 0:  # rotation about frame axis a: column a kept, the other two mixed
+            b, d = (a + 1) % 3, (a + 2) % 3
+            c, s = math.cos(x[7 + k]), math.sin(x[7 + k])
+            for r in range(3):
+                Rj[k, r, a] = tmp[r, a]
+                Rj[k, r, b] = c * tmp[r, b] + s * tmp[r, d]
+                Rj[k, r, d] = c * tmp[r, d] - s * tmp[r, b]
+                z[k, r] = tmp[r, a]
+        else:
+            _rot_into(rot, axis[k], x[7 + k])
+            _mm3_into(Rj[k], tmp, rot)
+            for r in range(3):
+                z[k, r] = Rj[k, r, 0] * axis[k, 0] + Rj[k, r, 1] * axis[k, 1] + Rj[k, r, 2] * axis[k, 2]
+    for a in range(2):
+        j = ee_parent[a]
+        _mm3_into(Re[a], Rj[j], ee_R[a])
+        _mv3_add_into(pe[a], pj[j], Rj[j], ee_p[a])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def momentum_into(mdl, x, ws):
+    """H_b, H_bm (about the base CoM, world frame; SPEC §2.3) and the system CoM, into the workspace."""
+    mass, lever, inertia, subtree = mdl[4], mdl[5], mdl[6], mdl[20]
+    Rj, pj, z, H_b, H_bm, rg, r, Iw = ws.Rj, ws.pj, ws.z, ws.H_b, ws.H_bm, ws.rg, ws.r, ws.Iw
+    M = mass[0]
+    for a in range(3):
+        rg[a] = mass[0] * x[a]
+    H_b[:, :] = 0.0
+    _rotate_inertia_into(ws.tmp, ws.R_b, inertia[0], ws.rot)
+    H_b[3:6, 3:6] = ws.tmp
+    for i in range(12):
+        m_i = mass[i + 1]
+        _mv3_add_into(r[i], pj[i], Rj[i], lever[i + 1])
+        _rotate_inertia_into(Iw[i], Rj[i], inertia[i + 1], ws.tmp)
+        M += m_i
+        d0, d1, d2 = r[i, 0] - x[0], r[i, 1] - x[1], r[i, 2] - x[2]
+        rg[0] += m_i * r[i, 0]
+        rg[1] += m_i * r[i, 1]
+        rg[2] += m_i * r[i, 2]
+        dd = d0 * d0 + d1 * d1 + d2 * d2
+        for a in range(3):  # S(d)^T S(d) = |d|^2 I - d d^T
+            da = d0 if a == 0 else (d1 if a == 1 else d2)
+            for b in range(3):
+                db = d0 if b == 0 else (d1 if b == 1 else d2)
+                H_b[3 + a, 3 + b] += Iw[i, a, b] + m_i * ((dd if a == b else 0.0) - da * db)
+    for a in range(3):
+        rg[a] /= M
+    w0, w1, w2 = M * (rg[0] - x[0]), M * (rg[1] - x[1]), M * (rg[2] - x[2])
+    for a in range(3):
+        H_b[a, a] = M
+    H_b[0, 4], H_b[0, 5], H_b[1, 3], H_b[1, 5], H_b[2, 3], H_b[2, 4] = w2, -w1, -w2, w0, w1, -w0
+    H_b[4, 0], H_b[5, 0], H_b[3, 1], H_b[5, 1], H_b[3, 2], H_b[4, 2] = w2, -w1, -w2, w0, w1, -w0
+    H_bm[:, :, :] = 0.0
+    for k in range(12):
+        arm, col = k // 6, k % 6
+        zk = z[k]
+        for i in range(k, 6 * arm + 6):  # bodies moved by joint k (on its own arm)
+            if not subtree[k, i]:
+                continue
+            m_i = mass[i + 1]
+            ex, ey, ez = r[i, 0] - pj[k, 0], r[i, 1] - pj[k, 1], r[i, 2] - pj[k, 2]
+            vx, vy, vz = zk[1] * ez - zk[2] * ey, zk[2] * ex - zk[0] * ez, zk[0] * ey - zk[1] * ex
+            fx, fy, fz = r[i, 0] - x[0], r[i, 1] - x[1], r[i, 2] - x[2]
+            H_bm[arm, 0, col] += m_i * vx
+            H_bm[arm, 1, col] += m_i * vy
+            H_bm[arm, 2, col] += m_i * vz
+            H_bm[arm, 3, col] += Iw[i, 0, 0] * zk[0] + Iw[i, 0, 1] * zk[1] + Iw[i, 0, 2] * zk[2] + m_i * (fy * vz - fz * vy)
+            H_bm[arm, 4, col] += Iw[i, 1, 0] * zk[0] + Iw[i, 1, 1] * zk[1] + Iw[i, 1, 2] * zk[2] + m_i * (fz * vx - fx * vz)
+            H_bm[arm, 5, col] += Iw[i, 2, 0] * zk[0] + Iw[i, 2, 1] * zk[1] + Iw[i, 2, 2] * zk[2] + m_i * (fx * vy - fy * vx)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def momentum_about_base_into(out, h, rg, x):
+    """Momentum [P; L] about the base CoM from ``h`` = [P; L_G] about the system CoM."""
+    dx, dy, dz = rg[0] - x[0], rg[1] - x[1], rg[2] - x[2]
+    out[0], out[1], out[2] = h[0], h[1], h[2]
+    out[3] = h[3] + dy * h[2] - dz * h[1]
+    out[4] = h[4] + dz * h[0] - dx * h[2]
+    out[5] = h[5] + dx * h[1] - dy * h[0]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def velocity_into(out, x, dq, h, ws):
+    """Base velocity (base frame, Pinocchio layout) conserving ``h`` = [P; L_G].
+
+    Uses the momentum matrices already in the workspace (computed at ``x``).
+    """
+    H_bm, R_b, rhs = ws.H_bm, ws.R_b, ws.b6
+    momentum_about_base_into(rhs, h, ws.rg, x)
+    for a in range(6):
+        for c in range(6):
+            rhs[a] -= H_bm[0, a, c] * dq[c] + H_bm[1, a, c] * dq[6 + c]
+    V = ws.x1  # scratch 6-vector
+    solve_into(ws.H_b, rhs, ws.M6, V)
+    for a in range(3):
+        out[a] = R_b[0, a] * V[0] + R_b[1, a] * V[1] + R_b[2, a] * V[2]
+        out[3 + a] = R_b[0, a] * V[3] + R_b[1, a] * V[4] + R_b[2, a] * V[5]
+
+
+@njit(cache=True, error_model="numpy")
+def integrate_into(out, x, v_base, dq, dt):
+    """out = x ⊕ (v dt): base by the SE(3) exponential of the base-frame twist, joints additively.
+
+    ``out`` may be ``x`` itself.
+    """
+    wx, wy, wz = v_base[3] * dt, v_base[4] * dt, v_base[5] * dt
+    ux, uy, uz = v_base[0] * dt, v_base[1] * dt, v_base[2] * dt
+    theta2 = wx * wx + wy * wy + wz * wz
+    theta = math.sqrt(theta2)
+    if theta < 1e-6:
+        c1, c2 = 0.5, 1.0 / 6.0
+        half = 0.5 - theta2 / 48.0
+        cos_half = 1.0 - theta2 / 8.0
+    else:
+        c1, c2 = (1.0 - math.cos(theta)) / theta2, (theta - math.sin(theta)) / (theta2 * theta)
+        half = math.sin(0.5 * theta) / theta
+        cos_half = math.cos(0.5 * theta)
+    ax, ay, az = wy * uz - wz * uy, wz * ux - wx * uz, wx * uy - wy * ux  # w x u
+    bx, by, bz = wy * az - wz * ay, wz * ax - wx * az, wx * ay - wy * ax  # w x (w x u)
+    vx, vy, vz = ux + c1 * ax + c2 * bx, uy + c1 * ay + c2 * by, uz + c1 * az + c2 * bz
+    qx, qy, qz, qw = x[3], x[4], x[5], x[6]
+    # position += R(q) v, with R(q) v = v + 2 w (q x v) + 2 q x (q x v) for q = (qx, qy, qz)
+    tx, ty, tz = 2.0 * (qy * vz - qz * vy), 2.0 * (qz * vx - qx * vz), 2.0 * (qx * vy - qy * vx)
+    out[0] = x[0] + vx + qw * tx + (qy * tz - qz * ty)
+    out[1] = x[1] + vy + qw * ty + (qz * tx - qx * tz)
+    out[2] = x[2] + vz + qw * tz + (qx * ty - qy * tx)
+    dx, dy, dz, dw = half * wx, half * wy, half * wz, cos_half
+    nx = qw * dx + qx * dw + qy * dz - qz * dy
+    ny = qw * dy - qx * dz + qy * dw + qz * dx
+    nz = qw * dz + qx * dy - qy * dx + qz * dw
+    nw = qw * dw - qx * dx - qy * dy - qz * dz
+    norm = math.sqrt(nx * nx + ny * ny + nz * nz + nw * nw)
+    out[3], out[4], out[5], out[6] = nx / norm, ny / norm, nz / norm, nw / norm
+    for j in range(12):
+        out[7 + j] = x[7 + j] + dq[j] * dt
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def midpoint_into(out, mdl, x, v0, dq, dt, h, ws):
+    """Explicit midpoint on SE(3) with momentum re-solved at the half step (``Robot.step``).
+
+    ``v0`` is the base velocity at ``x`` (already known to the caller: it is logged). Leaves the
+    workspace's kinematics at the half step. ``out`` may be ``x`` itself.
+    """
+    integrate_into(ws.x_half, x, v0, dq, 0.5 * dt)
+    kinematics_into(mdl, ws.x_half, ws)
+    momentum_into(mdl, ws.x_half, ws)
+    velocity_into(ws.v_mid, ws.x_half, dq, h, ws)
+    integrate_into(out, x, ws.v_mid, dq, dt)

@@ -1,0 +1,336 @@
+"""Compiled (numba) planner step: ``ffsr_gym.planning.planner`` (with its pose errors, path, φ, danger field) in one kernel.
+
+Same equations as the Pinocchio reference (docs/model.md §3-8), validated against it to 1e-9 on
+every trajectory array (``tests/test_kernel.py``). Settings travel in two vectors built by
+:mod:`ffsr_gym.sim.compiled`: ``fp`` (floats, indices ``F_*``) and ``ip`` (integers, ``I_*``).
+Results and intermediates live in the :data:`~ffsr_gym.kernel.physics.Workspace`; 3-vectors are
+scalars, so a planner step allocates nothing.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from ffsr_gym.kernel.linalg import smallest_singular_value, solve3, solve_into, svd_into
+from ffsr_gym.kernel.physics import R_to_quat_wxyz, kinematics_into, momentum_about_base_into, momentum_into
+
+F_M, F_TC, F_K, F_LAM1, F_LAM2, F_EPS1, F_EPS2, F_XI, F_DELTA, F_K1, F_DANGER, F_OBS_R = range(12)
+F_TF, F_TA, F_ANGLE, F_DT, F_RATE_MAX = 12, 13, 14, 15, 16
+F_P0, F_P1, F_Q0, F_AXIS, F_OBS, F_R0D, F_SBD, F_H = 17, 20, 23, 27, 30, 33, 36, 40
+N_FP = 46
+I_METHOD, I_PHI, I_SPLIT, I_ATT, I_MU, I_BAL_AVOID, I_HAS_OBS, I_SCOPE = range(8)
+N_IP = 8
+METHOD_CODES = {"no_avoidance": 0, "no_feedback": 1, "proportional": 2, "predefined_time": 3}
+_CAP = 700.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):
+    """Hamilton product of scalar-first quaternions a ⊗ b (4-tuple)."""
+    return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
+            a0 * b1 + b0 * a1 + a2 * b3 - a3 * b2,
+            a0 * b2 + b0 * a2 + a3 * b1 - a1 * b3,
+            a0 * b3 + b0 * a3 + a1 * b2 - a2 * b1)
+
+
+@njit(cache=True, error_model="numpy")
+def _phi_scale(r, T_c, m, printed):
+    """φ(x) = (x / r) · scale with r = |x| (``ffsr_gym.planning.ptsf.phi``, log-space, capped at e^700)."""
+    if r == 0.0:
+        return 0.0
+    log_r = math.log(r)
+    log_mag = min(math.exp(m * log_r), _CAP) - math.log(m * T_c)
+    if not printed:
+        log_mag += (1.0 - m) * log_r
+    return math.exp(min(log_mag, _CAP))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def feedback_into(out, e, fp, ip):
+    """Feedback term of the planner for the pose error ``e`` (6): 0, K e, or φ(e) (whole or split)."""
+    method = ip[I_METHOD]
+    if method == 1:
+        out[:] = 0.0
+        return
+    if method == 2:
+        for i in range(6):
+            out[i] = fp[F_K] * e[i]
+        return
+    printed = ip[I_PHI] == 1
+    for part in range(2 if ip[I_SPLIT] == 1 else 1):
+        lo, hi = (3 * part, 3 * part + 3) if ip[I_SPLIT] == 1 else (0, 6)
+        norm = 0.0
+        for i in range(lo, hi):
+            norm += e[i] * e[i]
+        r = math.sqrt(norm)
+        scale = _phi_scale(r, fp[F_TC], fp[F_M], printed)
+        for i in range(lo, hi):
+            out[i] = (e[i] / r) * scale if r > 0.0 else 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def pose_error_into(e, Jo, Jo_d, p, sigma, p_d, sigma_d, body):
+    """Pose error e = [p − p_d; e_o] (6) and the attitude blocks J_o, J_od of ``ffsr_gym.planning.pose_error``.
+
+    ``sigma`` is a scalar-first 4-tuple; J = blkdiag(I, J_o), J_d = blkdiag(I, J_od).
+    """
+    sw, sx, sy, sz = sigma
+    if sw * sigma_d[0] + sx * sigma_d[1] + sy * sigma_d[2] + sz * sigma_d[3] < 0.0:
+        sw, sx, sy, sz = -sw, -sx, -sy, -sz
+    for a in range(3):
+        e[a] = p[a] - p_d[a]
+    if body:
+        eta, e0, e1, e2 = _qmul(sigma_d[0], -sigma_d[1], -sigma_d[2], -sigma_d[3], sw, sx, sy, sz)
+        A = ((eta, -e2, e1), (e2, eta, -e0), (-e1, e0, eta))  # eta I + S(eps)
+        vv = sx * sx + sy * sy + sz * sz
+        Rs = ((sw * sw - vv + 2 * sx * sx, 2 * (sx * sy - sw * sz), 2 * (sx * sz + sw * sy)),
+              (2 * (sx * sy + sw * sz), sw * sw - vv + 2 * sy * sy, 2 * (sy * sz - sw * sx)),
+              (2 * (sx * sz - sw * sy), 2 * (sy * sz + sw * sx), sw * sw - vv + 2 * sz * sz))
+        for r in range(3):
+            for c in range(3):
+                Jo[r, c] = 0.5 * (A[r][0] * Rs[c][0] + A[r][1] * Rs[c][1] + A[r][2] * Rs[c][2])
+                Jo_d[r, c] = Jo[r, c]
+    else:
+        eta, e0, e1, e2 = _qmul(sw, sx, sy, sz, sigma_d[0], -sigma_d[1], -sigma_d[2], -sigma_d[3])
+        S = ((0.0, -e2, e1), (e2, 0.0, -e0), (-e1, e0, 0.0))
+        for r in range(3):
+            for c in range(3):
+                diagonal = eta if r == c else 0.0
+                Jo[r, c] = 0.5 * (diagonal - S[r][c])
+                Jo_d[r, c] = 0.5 * (diagonal + S[r][c])
+    e[3], e[4], e[5] = e0, e1, e2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def desired_into(p_d, sigma_d, V_ed, t, fp):
+    """Desired EE pose and world twist at t [s] (``ffsr_gym.planning.desired_path``: trapezoid + SLERP)."""
+    t_f, t_a = fp[F_TF], fp[F_TA]
+    speed = 1.0 / (t_f - t_a)
+    acc = speed / t_a
+    if t <= 0.0:
+        s, sd = 0.0, 0.0
+    elif t < t_a:
+        s, sd = 0.5 * acc * t * t, acc * t
+    elif t <= t_f - t_a:
+        s, sd = 0.5 * acc * t_a * t_a + speed * (t - t_a), speed
+    elif t < t_f:
+        s, sd = 1.0 - 0.5 * acc * (t_f - t) ** 2, acc * (t_f - t)
+    else:
+        s, sd = 1.0, 0.0
+    angle, ch, sh = fp[F_ANGLE], math.cos(0.5 * s * fp[F_ANGLE]), math.sin(0.5 * s * fp[F_ANGLE])
+    for a in range(3):
+        p_d[a] = fp[F_P0 + a] + s * (fp[F_P1 + a] - fp[F_P0 + a])
+        V_ed[a] = sd * (fp[F_P1 + a] - fp[F_P0 + a])
+        V_ed[3 + a] = sd * angle * fp[F_AXIS + a]
+    q = fp[F_Q0:F_Q0 + 4]
+    sigma_d[0], sigma_d[1], sigma_d[2], sigma_d[3] = _qmul(
+        ch, sh * fp[F_AXIS], sh * fp[F_AXIS + 1], sh * fp[F_AXIS + 2], q[0], q[1], q[2], q[3])
+
+
+@njit(cache=True, error_model="numpy")
+def _integrals(fp, points, i):
+    """Line integrals along segment i (points i → i+1) seen from the obstacle: (F, I0, I1, nearest distance)."""
+    Lx, Ly, Lz = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1], points[i + 1, 2] - points[i, 2]
+    length = math.sqrt(Lx * Lx + Ly * Ly + Lz * Lz)
+    wx, wy, wz = fp[F_OBS] - points[i, 0], fp[F_OBS + 1] - points[i, 1], fp[F_OBS + 2] - points[i, 2]
+    t0 = (wx * Lx + wy * Ly + wz * Lz) / length
+    cx, cy, cz = Ly * wz - Lz * wy, Lz * wx - Lx * wz, Lx * wy - Ly * wx
+    h = max(math.sqrt(cx * cx + cy * cy + cz * cz) / length, 1e-12)
+    tau1, tau2 = -t0, length - t0
+    rho1, rho2 = math.hypot(tau1, h), math.hypot(tau2, h)
+    if tau2 > 0.0:
+        lo, hi, r_lo, r_hi = tau1, tau2, rho1, rho2
+    else:
+        lo, hi, r_lo, r_hi = -tau2, -tau1, rho2, rho1
+    if lo >= 0.0:
+        inv1 = math.log((hi + r_hi) / (lo + r_lo))
+        inv3 = (hi * hi - lo * lo) / (r_lo * r_hi * (hi * r_lo + lo * r_hi))
+        nearest = r_lo
+    else:
+        inv1 = math.asinh(hi / h) + math.asinh(-lo / h)
+        inv3 = (hi / r_hi - lo / r_lo) / (h * h)
+        nearest = h
+    I0 = inv3 / length
+    return inv1 / length, I0, (1.0 / rho1 - 1.0 / rho2) / (length * length) + (t0 / length) * I0, nearest
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def avoidance_into(ws, fp, ip, arm):
+    """μ and CDF of one arm (``Planner._avoidance``); Θ̇_c (6) into ``ws.dq_c``."""
+    points, z, I0s, I1s, dq_c, pj, pe = ws.points, ws.z, ws.I0, ws.I1, ws.dq_c, ws.pj, ws.pe
+    for a in range(3):
+        for i in range(6):
+            points[i, a] = pj[6 * arm + i, a]
+        points[6, a] = pe[arm, a]
+    total, dist = 0.0, 1e300
+    for i in range(6):
+        I0s[i], I1s[i] = 0.0, 0.0
+        dx, dy, dz = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1], points[i + 1, 2] - points[i, 2]
+        if math.sqrt(dx * dx + dy * dy + dz * dz) < 1e-12:
+            continue
+        F, I0s[i], I1s[i], nearest = _integrals(fp, points, i)
+        total += F
+        dist = min(dist, nearest)
+    cdf = fp[F_K1] * total
+    if ip[I_MU] == 0:
+        mu = 1.0 if cdf <= fp[F_DELTA] else fp[F_DELTA] / cdf
+    else:
+        mu = min(1.0, dist / fp[F_DANGER]) ** 2
+    if ip[I_METHOD] == 0 or (arm == 1 and ip[I_BAL_AVOID] == 0):
+        mu = 1.0
+    dq_c[:] = 0.0
+    if mu >= 1.0:
+        return 1.0, cdf
+    scale = -fp[F_XI] * fp[F_K1]  # Θ̇_c = −ξ k₁ ∂CDF/∂Θ, only needed while the avoidance acts
+    ox, oy, oz = fp[F_OBS], fp[F_OBS + 1], fp[F_OBS + 2]
+    for i in range(6):
+        if I0s[i] == 0.0 and I1s[i] == 0.0:
+            continue  # zero-length segment
+        ax, ay, az = points[i, 0], points[i, 1], points[i, 2]
+        bx, by, bz = points[i + 1, 0], points[i + 1, 1], points[i + 1, 2]
+        for k in range(i + 1):
+            px, py, pz = points[k, 0], points[k, 1], points[k, 2]
+            ux, uy, uz = ax - px, ay - py, az - pz  # c0 = (a - p_k) x (p_o - a)
+            wx, wy, wz = ox - ax, oy - ay, oz - az
+            c0x, c0y, c0z = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+            ux, uy, uz = bx - ax, by - ay, bz - az  # c1 = (b - a) x (p_o - p_k)
+            wx, wy, wz = ox - px, oy - py, oz - pz
+            c1x, c1y, c1z = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+            j = 6 * arm + k
+            dq_c[k] += scale * (z[j, 0] * (c0x * I0s[i] + c1x * I1s[i]) + z[j, 1] * (c0y * I0s[i] + c1y * I1s[i])
+                                + z[j, 2] * (c0z * I0s[i] + c1z * I1s[i]))
+    return mu, cdf
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def filtered_solve_into(out, ws, target, lam_max, eps, mu, avoiding):
+    """out = μ J♯ target + (Θ̇_c − μ P Θ̇_c) for J = ``ws.J`` (``ffsr_gym.planning.inverse``); returns σ_min.
+
+    J♯ damps each singular value below ε (λ²(1 − (σ/ε)²)); P projects onto J's row space. When
+    σ_min ≥ ε (nothing damped) and J is well conditioned (σ_min ≥ 1e-3 ‖J‖_F), J♯ = J⁻¹ and
+    P = I: σ_min comes from ``smallest_singular_value`` and an LU solve gives the rates (96% of
+    mission-arm steps and every balance-arm step on ``paper``). Otherwise the Jacobi SVD decides
+    (its singular values alone when that estimate was not certified) and its singular vectors
+    give J♯ when something is damped. The result depends on the current J only (no state between
+    steps).
+    """
+    Ut, s, Vt, dq_c, J = ws.U, ws.s, ws.V, ws.dq_c, ws.J  # singular vectors as rows
+    frobenius = 0.0
+    for r in range(6):
+        for c in range(6):
+            frobenius += J[r, c] * J[r, c]
+    s_min = smallest_singular_value(J, ws.G, ws.tri)
+    certified = s_min >= 1e-3 * math.sqrt(frobenius)
+    undamped = certified and s_min >= eps
+    if not certified:
+        svd_into(J, Ut, s, Vt, False)
+        s_max, s_min = 0.0, 1e300
+        for i in range(6):
+            s_max, s_min = max(s_max, s[i]), min(s_min, s[i])
+        undamped = s_min >= eps and s_min > s_max * 6.0 * 2.220446049250313e-16
+    if undamped:
+        y = ws.b6
+        solve_into(J, target, ws.M6, y)
+        for r in range(6):
+            out[r] = mu * y[r] + (dq_c[r] - mu * dq_c[r])
+        return s_min
+    svd_into(J, Ut, s, Vt)
+    s_max, s_min = 0.0, 1e300
+    for i in range(6):
+        s_max, s_min = max(s_max, s[i]), min(s_min, s[i])
+    y = ws.b6
+    for i in range(6):
+        damping = lam_max * lam_max * (1.0 - (s[i] / eps) ** 2) if (eps > 0.0 and s[i] < eps) else 0.0
+        denom = s[i] * s[i] + damping
+        gain = s[i] / denom if denom > 0.0 else 0.0
+        acc = 0.0
+        for r in range(6):
+            acc += Ut[i, r] * target[r]
+        y[i] = gain * acc
+    for r in range(6):
+        acc = 0.0
+        for i in range(6):
+            acc += Vt[i, r] * y[i]
+        out[r] = mu * acc
+    if avoiding:
+        tol = s_max * 6.0 * 2.220446049250313e-16
+        for i in range(6):
+            acc = 0.0
+            if s[i] > tol:
+                for r in range(6):
+                    acc += Vt[i, r] * dq_c[r]
+            y[i] = acc
+        for r in range(6):
+            acc = 0.0
+            for i in range(6):
+                acc += Vt[i, r] * y[i]
+            out[r] += dq_c[r] - mu * acc
+    return s_min
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _base_command_into(x, fp, ip, ws):
+    """Commanded base twist V0 = −J_b⁻¹ f(e₀) into ``ws.V0`` (base pose error in ``ws.e0``)."""
+    pose_error_into(ws.e0, ws.Jo, ws.Jo_d, x, (x[6], x[3], x[4], x[5]), fp[F_R0D:F_R0D + 3], fp[F_SBD:F_SBD + 4],
+                    ip[I_ATT] == 1)
+    f = ws.target
+    feedback_into(f, ws.e0, fp, ip)
+    ws.V0[0], ws.V0[1], ws.V0[2] = -f[0], -f[1], -f[2]
+    w0, w1, w2 = solve3(ws.Jo, f[3], f[4], f[5])
+    ws.V0[3], ws.V0[4], ws.V0[5] = -w0, -w1, -w2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _mission_task_into(x, t, fp, ip, ws):
+    """Mission-arm task rate x₁ = J_e⁻¹(J_ed V_ed − f(e₁)) − J₀ V0 into ``ws.x1`` (EE error in ``ws.e1``)."""
+    desired_into(ws.p_d, ws.sigma_d, ws.V_ed, t, fp)
+    pe = ws.pe[0]
+    pose_error_into(ws.e1, ws.Jo, ws.Jo_d, pe, R_to_quat_wxyz(ws.Re[0]), ws.p_d, ws.sigma_d, ip[I_ATT] == 1)
+    f, V_ed, V0, x1, Jd = ws.target, ws.V_ed, ws.V0, ws.x1, ws.Jo_d
+    feedback_into(f, ws.e1, fp, ip)
+    r0 = Jd[0, 0] * V_ed[3] + Jd[0, 1] * V_ed[4] + Jd[0, 2] * V_ed[5] - f[3]
+    r1 = Jd[1, 0] * V_ed[3] + Jd[1, 1] * V_ed[4] + Jd[1, 2] * V_ed[5] - f[4]
+    r2 = Jd[2, 0] * V_ed[3] + Jd[2, 1] * V_ed[4] + Jd[2, 2] * V_ed[5] - f[5]
+    w0, w1, w2 = solve3(ws.Jo, r0, r1, r2)
+    dx, dy, dz = pe[0] - x[0], pe[1] - x[1], pe[2] - x[2]  # J₀ V0 = [v − d × ω; ω]
+    x1[0] = V_ed[0] - f[0] - (V0[0] - (dy * V0[5] - dz * V0[4]))
+    x1[1] = V_ed[1] - f[1] - (V0[1] - (dz * V0[3] - dx * V0[5]))
+    x1[2] = V_ed[2] - f[2] - (V0[2] - (dx * V0[4] - dy * V0[3]))
+    x1[3], x1[4], x1[5] = w0 - V0[3], w1 - V0[4], w2 - V0[5]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def plan(mdl, x, t, fp, ip, ws):
+    """Joint rates and diagnostics at (t, x): SPEC §7 steps 1-8 (fills the workspace at x).
+
+    Writes ``ws.dq`` (12, mission first), ``ws.e1``, ``ws.e0``, ``ws.mu``, ``ws.cdf``, ``ws.smin``.
+    """
+    kinematics_into(mdl, x, ws)
+    momentum_into(mdl, x, ws)
+    _base_command_into(x, fp, ip, ws)
+    _mission_task_into(x, t, fp, ip, ws)
+    J, dq, pj, pe, z, H_b, H_bm, V0 = ws.J, ws.dq, ws.pj, ws.pe, ws.z, ws.H_b, ws.H_bm, ws.V0
+    for arm in range(2):
+        mu, cdf = 1.0, 0.0
+        ws.dq_c[:] = 0.0
+        if ip[I_HAS_OBS] == 1:
+            mu, cdf = avoidance_into(ws, fp, ip, arm)
+        if arm == 0:
+            for k in range(6):  # geometric Jacobian of the mission arm (world)
+                dx, dy, dz = pe[0, 0] - pj[k, 0], pe[0, 1] - pj[k, 1], pe[0, 2] - pj[k, 2]
+                J[0, k], J[1, k], J[2, k] = z[k, 1] * dz - z[k, 2] * dy, z[k, 2] * dx - z[k, 0] * dz, z[k, 0] * dy - z[k, 1] * dx
+                J[3, k], J[4, k], J[5, k] = z[k, 0], z[k, 1], z[k, 2]
+            target, lam, eps = ws.x1, fp[F_LAM1], fp[F_EPS1]
+        else:
+            target, lam, eps = ws.target, fp[F_LAM2], fp[F_EPS2]
+            momentum_about_base_into(target, fp[F_H:F_H + 6], ws.rg, x)  # x₂ = H_bm1 Θ̇₁ + H_b V0 − C
+            for r in range(6):
+                acc = -target[r]
+                for c in range(6):
+                    acc += H_bm[0, r, c] * dq[c] + H_b[r, c] * V0[c]
+                    J[r, c] = -H_bm[1, r, c]
+                target[r] = acc
+        ws.mu[arm], ws.cdf[arm] = mu, cdf
+        ws.smin[arm] = filtered_solve_into(dq[6 * arm:6 * arm + 6], ws, target, lam, eps, mu, mu < 1.0)

@@ -1,0 +1,383 @@
+"""Scenario files: TOML in ``envs/scenarios/`` loaded into frozen, validated dataclasses.
+
+A scenario holds every number of one experiment: robot, initial state, target, desired path,
+obstacle, planner settings and time step. Keys carry their units (``dt_s``, ``joints_deg``).
+Quaternions are scalar-first ``[w, x, y, z]``, as the paper prints them. Validation happens on
+load: a wrong type, a missing or unknown key, or an out-of-range value raises
+:class:`~ffsr_gym.exceptions.ScenarioError` naming the key, the value and what is allowed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ffsr_gym.exceptions import ScenarioError
+from ffsr_gym.model.resources import robot_dir, scenario_path
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+Vec = tuple[float, ...]
+SCHEMA_VERSION = 1
+
+
+def _number(lo: float, hi: float, *, lo_open: bool = False, hi_open: bool = False) -> dict:
+    return {"kind": "number", "lo": lo, "hi": hi, "lo_open": lo_open, "hi_open": hi_open}
+
+
+def _vector(size: int, lo: float = -math.inf, hi: float = math.inf) -> dict:
+    return {"kind": "vector", "size": size, "lo": lo, "hi": hi}
+
+
+def _choice(*options: str) -> dict:
+    return {"kind": "choice", "options": options}
+
+
+_BOOL = {"kind": "bool"}
+_TEXT = {"kind": "text"}
+_TEXTS = {"kind": "texts"}
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """Time settings. ``duration_s`` [s] is the episode length, ``dt_s`` [s] the planner step."""
+
+    duration_s: float = field(metadata=_number(0.0, 3600.0, lo_open=True))
+    dt_s: float = field(metadata=_number(1e-5, 0.1))
+
+
+@dataclass(frozen=True)
+class InitialState:
+    """Initial base pose [m, wxyz], joint angles [deg] and centroidal momentum.
+
+    ``momentum`` is ``[P; L_G]``: linear momentum [kg m/s] and angular momentum about the
+    system centre of mass [kg m^2/s], both in the inertial frame. The paper sets it to zero.
+    """
+
+    base_position_m: Vec = field(metadata=_vector(3, -100.0, 100.0))
+    base_quaternion_wxyz: Vec = field(metadata=_vector(4, -1.01, 1.01))
+    mission_joints_deg: Vec = field(metadata=_vector(6, -360.0, 360.0))
+    balance_joints_deg: Vec = field(metadata=_vector(6, -360.0, 360.0))
+    momentum: Vec = field(default=(0.0,) * 6, metadata=_vector(6, -1e3, 1e3))
+
+
+@dataclass(frozen=True)
+class Target:
+    """Target end-effector pose: position [m] and scalar-first attitude (normalised on load)."""
+
+    position_m: Vec = field(metadata=_vector(3, -100.0, 100.0))
+    quaternion_wxyz: Vec = field(metadata=_vector(4, -1.01, 1.01))
+
+
+@dataclass(frozen=True)
+class ReferencePath:
+    """Trapezoidal-velocity desired path (SPEC §8): motion time t_f [s], acceleration time t_a [s]."""
+
+    motion_time_s: float = field(metadata=_number(0.0, 3600.0, lo_open=True))
+    accel_time_s: float = field(metadata=_number(0.0, 1800.0, lo_open=True))
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A point obstacle: position [m], physical radius [m] (0 = a point) and danger radius [m]."""
+
+    position_m: Vec = field(metadata=_vector(3, -100.0, 100.0))
+    radius_m: float = field(default=0.0, metadata=_number(0.0, 2.0))
+    danger_radius_m: float = field(default=0.2, metadata=_number(0.0, 5.0, lo_open=True))
+
+
+@dataclass(frozen=True)
+class PlannerSettings:
+    """Planner parameters (SPEC §3-6). Symbols follow the paper; see docs/model.md."""
+
+    m: float = field(metadata=_number(0.0, 1.0, lo_open=True, hi_open=True))
+    T_c_s: float = field(metadata=_number(0.0, 1000.0, lo_open=True))
+    phi_form: str = field(default="sanchez_torres", metadata=_choice("sanchez_torres", "printed"))
+    phi_split: bool = field(default=False, metadata=_BOOL)
+    attitude_error: str = field(default="world", metadata=_choice("world", "body"))
+    lambda_max_mission: float = field(default=0.08, metadata=_number(0.0, 10.0))
+    lambda_max_balance: float = field(default=0.08, metadata=_number(0.0, 10.0))
+    epsilon_mission: float = field(default=0.02, metadata=_number(0.0, 10.0))
+    epsilon_balance: float = field(default=0.02, metadata=_number(0.0, 10.0))
+    proportional_gain_per_s: float = field(default=1.0, metadata=_number(0.0, 1e3, lo_open=True))
+    cdf_xi: float = field(default=0.1, metadata=_number(0.0, 1e3))
+    cdf_delta: float = field(default=17.25, metadata=_number(0.0, 1e6, lo_open=True))
+    cdf_k1: float = field(default=1.0, metadata=_number(0.0, 1e3, lo_open=True))
+    mu_law: str = field(default="cdf", metadata=_choice("cdf", "distance"))
+    balance_avoids: bool = field(default=True, metadata=_BOOL)
+
+
+@dataclass(frozen=True)
+class ObjectiveSettings:
+    """The benchmark objective B (paper eqs. 21-22; SPEC §9) and the feasibility tolerances.
+
+    Rates are compared in deg/s. ``rate_limit_scope``: ``"both_arms"`` (default) or the literal
+    eq. (22) reading ``"balance_arm"``.
+    """
+
+    alpha: float = field(default=0.35, metadata=_number(0.0, 1e6))
+    beta: float = field(default=0.65, metadata=_number(0.0, 1e6))
+    gamma: float = field(default=1e-4, metadata=_number(0.0, 1e6))
+    danger_rate_deg_s: float = field(default=150.0, metadata=_number(0.0, 1e5))
+    max_rate_deg_s: float = field(default=200.0, metadata=_number(0.0, 1e5, lo_open=True))
+    rate_limit_scope: str = field(default="both_arms", metadata=_choice("both_arms", "balance_arm"))
+    ee_position_tolerance_m: float = field(default=1e-6, metadata=_number(0.0, 10.0, lo_open=True))
+    ee_attitude_tolerance: float = field(default=1e-6, metadata=_number(0.0, 1.0, lo_open=True))
+
+
+@dataclass(frozen=True)
+class EnvSettings:
+    """Settings of the Gymnasium environments (bounds of the action mapping, decision interval)."""
+
+    m_bounds: Vec = field(default=(0.05, 0.95), metadata=_vector(2, 0.0, 1.0))
+    T_c_bounds_s: Vec = field(default=(0.5, 10.0), metadata=_vector(2, 1e-3, 1000.0))
+    decision_interval_s: float = field(default=0.1, metadata=_number(0.0, 3600.0, lo_open=True))
+    residual_rate_deg_s: float = field(default=20.0, metadata=_number(0.0, 1e4))
+    violation_penalty: float = field(default=1.0, metadata=_number(0.0, 1e9))
+    tolerance_penalty: float = field(default=1.0, metadata=_number(0.0, 1e9))
+
+
+@dataclass(frozen=True)
+class Randomization:
+    """Ranges of the randomised scenario family (used by ``scenario="random"``).
+
+    The target is the forward kinematics of the initial mission-arm angles plus offsets drawn
+    uniformly in ``±mission_joint_offsets_deg``; it is kept when the end-effector travels at least
+    ``min_travel_m`` and the target configuration has ``σ_min(J_m) >= min_sigma_target``. The
+    obstacle is put on the desired straight path at a fraction drawn in ``path_fraction`` plus a
+    lateral offset up to ``lateral_offset_m``; it is kept when both arms start at least the danger
+    radius away and the target configuration clears it by ``min_final_distance_m``.
+    """
+
+    mission_joint_offsets_deg: Vec = field(metadata=_vector(6, 0.0, 180.0))
+    min_travel_m: float = field(default=0.2, metadata=_number(0.0, 10.0))
+    min_sigma_target: float = field(default=0.05, metadata=_number(0.0, 10.0))
+    path_fraction: Vec = field(default=(0.4, 0.7), metadata=_vector(2, 0.0, 1.0))
+    lateral_offset_m: float = field(default=0.02, metadata=_number(0.0, 1.0))
+    min_final_distance_m: float = field(default=0.1, metadata=_number(0.0, 10.0))
+    min_self_clearance_m: float = field(default=0.02, metadata=_number(0.0, 10.0))
+    max_attempts: float = field(default=1000, metadata=_number(1, 1e6))
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One experiment, loaded from a TOML file. See the module docstring for conventions."""
+
+    name: str = field(metadata=_TEXT)
+    description: str = field(metadata=_TEXT)
+    robot: str = field(metadata=_TEXT)
+    simulation: Simulation
+    initial: InitialState
+    target: Target
+    trajectory: ReferencePath
+    planner: PlannerSettings
+    obstacle: Obstacle | None = None
+    objective: ObjectiveSettings = ObjectiveSettings()
+    env: EnvSettings = EnvSettings()
+    randomization: Randomization | None = None
+    deviations: tuple[str, ...] = field(default=(), metadata=_TEXTS)
+    schema_version: int = field(default=SCHEMA_VERSION, metadata={"kind": "integer", "options": (1,)})
+    source: str = field(default="", compare=False)
+
+    @property
+    def n_steps(self) -> int:
+        """Number of planner steps of one episode, ``round(duration_s / dt_s)``."""
+        return int(round(self.simulation.duration_s / self.simulation.dt_s))
+
+    def replace(self, **sections: Any) -> Scenario:
+        """Return a copy with whole sections replaced, validated like a loaded file.
+
+        Example: ``scenario.replace(planner=dataclasses.replace(scenario.planner, m=0.2))``.
+        """
+        data = to_dict(dataclasses.replace(self, **sections))
+        return _from_dict(data, source=self.source)
+
+    def sha256(self) -> str:
+        """Hash of the scenario's content and of its robot's files (provenance, staleness).
+
+        Computed once per instance (the scenario is immutable; the robot files are read then).
+        """
+        cached = self.__dict__.get("_sha256")
+        if cached is None:
+            digest = hashlib.sha256(json.dumps(to_dict(self), sort_keys=True).encode())
+            for path in sorted(robot_dir(self.robot).iterdir()):
+                if path.is_file():
+                    digest.update(path.name.encode())
+                    digest.update(path.read_bytes())
+            cached = digest.hexdigest()
+            object.__setattr__(self, "_sha256", cached)
+        return cached
+
+
+_SECTIONS = {
+    "simulation": Simulation,
+    "initial": InitialState,
+    "target": Target,
+    "trajectory": ReferencePath,
+    "planner": PlannerSettings,
+    "obstacle": Obstacle,
+    "objective": ObjectiveSettings,
+    "env": EnvSettings,
+    "randomization": Randomization,
+}
+
+
+def to_dict(scenario: Scenario) -> dict[str, Any]:
+    """Return the scenario as plain data (the TOML layout), without its source path."""
+    data = dataclasses.asdict(scenario)
+    data.pop("source")
+    for optional in ("obstacle", "randomization"):
+        if data[optional] is None:
+            data.pop(optional)
+    return data
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Load and validate a scenario.
+
+    Args:
+        name_or_path: a shipped scenario name (``"paper"``, ``"paper_as_printed"``,
+            ``"free_space"``) or a path to a TOML file.
+
+    Returns:
+        The frozen, validated :class:`Scenario`. Quaternions are normalised.
+
+    Raises:
+        ScenarioError: unknown name, unreadable TOML, or any invalid key (the message names the
+            key, the value and the allowed values).
+    """
+    if isinstance(name_or_path, Scenario):
+        return name_or_path
+    path = scenario_path(name_or_path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{path}: not valid TOML ({exc})") from exc
+    return _from_dict(data, source=str(path))
+
+
+def _from_dict(data: dict[str, Any], *, source: str) -> Scenario:
+    where = f"{source}: " if source else ""
+    try:
+        scenario = _build(Scenario, data, prefix="")
+    except ScenarioError as exc:
+        raise ScenarioError(where + str(exc)) from None
+    scenario = dataclasses.replace(scenario, source=source)
+    _check_cross_fields(scenario, where)
+    return _normalised(scenario)
+
+
+def _build(cls: type, table: Any, *, prefix: str) -> Any:
+    if not isinstance(table, dict):
+        raise ScenarioError(f"key {prefix.rstrip('.') or '<root>'!r} must be a table, got {table!r}")
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.name != "source"}
+    unknown = sorted(set(table) - set(fields))
+    if unknown:
+        raise ScenarioError(
+            f"unknown key {prefix + unknown[0]!r}; allowed keys here: {sorted(fields)}"
+        )
+    values = {}
+    for name, spec in fields.items():
+        key = prefix + name
+        if name not in table:
+            if spec.default is dataclasses.MISSING:
+                raise ScenarioError(f"missing key {key!r} (required)")
+            continue
+        if name in _SECTIONS:
+            values[name] = _build(_SECTIONS[name], table[name], prefix=key + ".")
+        else:
+            values[name] = _convert(key, table[name], spec.metadata)
+    return cls(**values)
+
+
+def _convert(key: str, value: Any, meta: Any) -> Any:
+    kind = meta["kind"]
+    if kind == "text":
+        if not isinstance(value, str):
+            raise ScenarioError(f"key {key!r} must be a string, got {value!r}")
+        return value
+    if kind == "texts":
+        if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+            raise ScenarioError(f"key {key!r} must be a list of strings, got {value!r}")
+        return tuple(value)
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise ScenarioError(f"key {key!r} must be true or false, got {value!r}")
+        return value
+    if kind == "choice":
+        if value not in meta["options"]:
+            raise ScenarioError(f"key {key!r} is {value!r}; allowed: {list(meta['options'])}")
+        return value
+    if kind == "number":
+        return _check_number(key, value, meta)
+    if kind == "integer":
+        if isinstance(value, bool) or value not in meta["options"]:
+            raise ScenarioError(f"key {key!r} is {value!r}; allowed: {list(meta['options'])}")
+        return int(value)
+    size = meta["size"]
+    if not isinstance(value, (list, tuple)) or len(value) != size:
+        raise ScenarioError(f"key {key!r} must be a list of {size} numbers, got {value!r}")
+    return tuple(_check_number(f"{key}[{i}]", v, meta) for i, v in enumerate(value))
+
+
+def _check_number(key: str, value: Any, meta: dict) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ScenarioError(f"key {key!r} must be a number, got {value!r} ({type(value).__name__})")
+    lo, hi = meta["lo"], meta["hi"]
+    below = value <= lo if meta.get("lo_open") else value < lo
+    above = value >= hi if meta.get("hi_open") else value > hi
+    if not math.isfinite(value) or below or above:
+        left = "(" if meta.get("lo_open") else "["
+        right = ")" if meta.get("hi_open") else "]"
+        raise ScenarioError(f"key {key!r} = {value!r} is out of range; allowed: {left}{lo}, {hi}{right}")
+    return float(value)
+
+
+def _check_cross_fields(s: Scenario, where: str) -> None:
+    path = s.trajectory
+    if path.accel_time_s > path.motion_time_s / 2:
+        raise ScenarioError(
+            f"{where}key 'trajectory.accel_time_s' = {path.accel_time_s} is out of range; "
+            f"allowed: (0, motion_time_s / 2] = (0, {path.motion_time_s / 2}]"
+        )
+    if s.simulation.dt_s > s.simulation.duration_s:
+        raise ScenarioError(
+            f"{where}key 'simulation.dt_s' = {s.simulation.dt_s} is out of range; "
+            f"allowed: (0, duration_s] = (0, {s.simulation.duration_s}]"
+        )
+    for key, quat in (
+        ("initial.base_quaternion_wxyz", s.initial.base_quaternion_wxyz),
+        ("target.quaternion_wxyz", s.target.quaternion_wxyz),
+    ):
+        norm = math.sqrt(sum(c * c for c in quat))
+        if abs(norm - 1.0) > 1e-2:
+            raise ScenarioError(
+                f"{where}key {key!r} = {list(quat)} has norm {norm:.6f}; allowed: a unit "
+                "quaternion [w, x, y, z] within 1e-2 of norm 1 (it is normalised on load)"
+            )
+    for key, (lo, hi) in (("env.m_bounds", s.env.m_bounds), ("env.T_c_bounds_s", s.env.T_c_bounds_s)):
+        if not lo < hi or (key == "env.m_bounds" and (lo <= 0.0 or hi >= 1.0)):
+            raise ScenarioError(f"{where}key {key!r} = {[lo, hi]} is invalid; allowed: [low, high] with low < high"
+                                + (" inside (0, 1)" if key == "env.m_bounds" else ""))
+    if s.randomization is not None and s.obstacle is None:
+        raise ScenarioError(f"{where}section 'randomization' needs an 'obstacle' section (its radii are used)")
+    robot_dir(s.robot)
+
+
+def _normalised(s: Scenario) -> Scenario:
+    def unit(q: Vec) -> Vec:
+        norm = math.sqrt(sum(c * c for c in q))
+        return tuple(c / norm for c in q)
+
+    initial = dataclasses.replace(s.initial, base_quaternion_wxyz=unit(s.initial.base_quaternion_wxyz))
+    target = dataclasses.replace(s.target, quaternion_wxyz=unit(s.target.quaternion_wxyz))
+    return dataclasses.replace(s, initial=initial, target=target)

@@ -1,0 +1,160 @@
+"""The four planning methods of the paper's Section 5 behind one interface (SPEC §6-7).
+
+At each step the planner maps the time and the state to the joint rates of both arms:
+
+* mission arm (19c): Θ̇¹ = μ₁ (J_m¹)^# x₁ + [E − μ₁ (J_m¹)⁺ J_m¹] Θ̇_c¹,
+  x₁ = J_e⁻¹ (J_ed V_ed − φ(e₁)) − J₀ V₀*, V₀* = −J_b⁻¹ φ(e₀);
+* balance arm (20c): Θ̇² = μ₂ (J_c²)^# x₂ + [E − μ₂ (J_c²)⁺ J_c²] Θ̇_c²,
+  x₂ = J_c¹ Θ̇¹ − H₀ J_b⁻¹ φ(e₀) − C, with J_c¹ = H_bm1, J_c² = −H_bm2, H₀ = H_b.
+
+Methods: ``predefined_time`` (φ the predefined-time function, CDF avoidance),
+``proportional`` (φ(x) = K x), ``no_feedback`` (φ ≡ 0) and ``no_avoidance`` (predefined-time φ,
+μ ≡ 1: the planner ignores the obstacle).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.model.quaternion import from_rotation, skew
+from ffsr_gym.model.robot import Robot
+from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.planning import ptsf
+from ffsr_gym.planning.avoidance import blend_factor, danger_field, danger_field_gradient
+from ffsr_gym.planning.desired_path import DesiredPath
+from ffsr_gym.planning.inverse import filtered_inverse
+from ffsr_gym.planning.pose_error import pose_error
+from ffsr_gym.types import Array
+
+METHODS = ("no_avoidance", "no_feedback", "proportional", "predefined_time")
+
+
+@dataclass(frozen=True)
+class PlanStep:
+    """What the planner decided at one instant, with the quantities it used.
+
+    Attributes:
+        dq_joints: (12,) joint rates [rad/s], mission arm first.
+        ee_error: (6,) e₁ = [p_e − p_d [m]; e_o].
+        base_error: (6,) e₀ = [r₀ − r₀d [m]; e_o].
+        mu: (2,) blend factors (mission, balance).
+        cdf: (2,) danger field of each arm at the obstacle (0 without obstacle).
+        arm_distance_m: (2,) distance from the obstacle point to each arm's segments [m].
+        sigma_min: (2,) smallest singular values of J_m¹ and J_c².
+    """
+
+    dq_joints: Array
+    ee_error: Array
+    base_error: Array
+    mu: Array
+    cdf: Array
+    arm_distance_m: Array
+    sigma_min: Array
+
+
+def reference_targets(robot: Robot, scenario: Scenario, initial_q: Array) -> tuple[DesiredPath, tuple[Array, Array]]:
+    """The desired end-effector path and the base set-point of a scenario (SPEC §8; base set-point: its initial pose).
+
+    Args:
+        robot: the robot model.
+        scenario: the scenario (target pose and timing of the path).
+        initial_q: the nominal initial configuration (19,); the path starts at its end-effector
+            pose and the base set-point is its base pose.
+
+    Returns:
+        ``(path, (r0d [m], sigma_bd (4,) wxyz))``.
+    """
+    ee = robot.transform_ee_to_world(initial_q, 0)
+    path = DesiredPath.between(
+        ee.translation, from_rotation(ee.rotation), np.array(scenario.target.position_m),
+        np.array(scenario.target.quaternion_wxyz),
+        motion_time=scenario.trajectory.motion_time_s, accel_time=scenario.trajectory.accel_time_s,
+    )
+    return path, robot.base_pose(initial_q)
+
+
+class Planner:
+    """Joint-rate planner for one scenario and method.
+
+    Args:
+        robot: the robot model.
+        scenario: scenario (target, obstacle and planner settings).
+        method: one of :data:`METHODS`.
+        m: predefined-time shape parameter, overrides the scenario's.
+        T_c: predefined time [s], overrides the scenario's.
+        path: the desired end-effector path (:func:`reference_targets`).
+        base_target: the base set-point ``(r0d [m], sigma_bd wxyz)`` (:func:`reference_targets`).
+    """
+
+    def __init__(self, robot: Robot, scenario: Scenario, *, method: str = "predefined_time",
+                 m: float | None = None, T_c: float | None = None, path: DesiredPath,
+                 base_target: tuple[Array, Array]) -> None:
+        if method not in METHODS:
+            raise InvalidInputError(f"method {method!r}; allowed: {list(METHODS)}")
+        self.robot, self.scenario, self.method = robot, scenario, method
+        self.settings = scenario.planner
+        self.set_parameters(self.settings.m if m is None else m, self.settings.T_c_s if T_c is None else T_c)
+        self.centroidal_momentum = np.array(scenario.initial.momentum)
+        self.path, self.base_target = path, base_target
+        self.obstacle = None if scenario.obstacle is None else np.array(scenario.obstacle.position_m)
+
+    def set_parameters(self, m: float, T_c: float) -> None:
+        """Change the predefined-time parameters m ∈ (0, 1) and T_c [s] > 0 from now on."""
+        ptsf.check_parameters(float(T_c), float(m), self.settings.phi_form)
+        self.m, self.T_c = float(m), float(T_c)
+
+    def feedback(self, error: Array) -> Array:
+        """The pose feedback φ(e) of this method (6,) [error units per s]."""
+        if self.method == "no_feedback":
+            return np.zeros(6)
+        if self.method == "proportional":
+            return self.settings.proportional_gain_per_s * error
+        form = self.settings.phi_form
+        if self.settings.phi_split:
+            return np.concatenate([ptsf.phi(part, self.T_c, self.m, form=form) for part in (error[:3], error[3:])])
+        return ptsf.phi(error, self.T_c, self.m, form=form)
+
+    def _avoidance(self, arm: int) -> tuple[float, Array, float, float]:
+        """μ, Θ̇_c [rad/s], CDF and distance [m] for ``arm`` (R16-R18)."""
+        if self.obstacle is None:
+            return 1.0, np.zeros(6), 0.0, np.inf
+        points, axes = self.robot.joint_points(arm)
+        s = self.settings
+        cdf, distance = danger_field(points, self.obstacle, s.cdf_k1)
+        mu = blend_factor(cdf, distance, law=s.mu_law, delta=s.cdf_delta, danger_radius=self.scenario.obstacle.danger_radius_m)
+        if self.method == "no_avoidance" or (arm == 1 and not s.balance_avoids):
+            mu = 1.0
+        if mu >= 1.0:
+            return 1.0, np.zeros(6), cdf, distance
+        return mu, -s.cdf_xi * danger_field_gradient(points, axes, self.obstacle, s.cdf_k1), cdf, distance
+
+    def __call__(self, t: float, q: Array) -> PlanStep:
+        """Joint rates at time ``t`` [s] and configuration ``q`` (SPEC §7 steps 1-8)."""
+        robot, s = self.robot, self.settings
+        robot.update_kinematics(q)
+        mats = robot.momentum_matrices(q)
+        r0, sigma_b = robot.base_pose(q)
+        e0, J_b, _ = pose_error(r0, sigma_b, *self.base_target, s.attitude_error)
+        V0_cmd = -np.linalg.solve(J_b, self.feedback(e0))
+
+        ee = robot.data.oMf[int(robot.ee_frame_ids[0])]
+        p_d, sigma_d, V_ed = self.path.at(t)
+        e1, J_e, J_ed = pose_error(ee.translation, from_rotation(ee.rotation), p_d, sigma_d, s.attitude_error)
+        J_0 = np.eye(6)
+        J_0[:3, 3:] = -skew(ee.translation - r0)
+        x1 = np.linalg.solve(J_e, J_ed @ V_ed - self.feedback(e1)) - J_0 @ V0_cmd
+
+        mu1, dq_c1, cdf1, d1 = self._avoidance(0)
+        J_sharp, P, smin1 = filtered_inverse(robot.arm_jacobian(0), lambda_max=s.lambda_max_mission, epsilon=s.epsilon_mission)
+        dq1 = mu1 * J_sharp @ x1 + (dq_c1 - mu1 * P @ dq_c1)
+
+        C = robot.momentum_about_base(q, self.centroidal_momentum)
+        x2 = mats.H_bm[0] @ dq1 + mats.H_b @ V0_cmd - C
+        mu2, dq_c2, cdf2, d2 = self._avoidance(1)
+        J_sharp, P, smin2 = filtered_inverse(-mats.H_bm[1], lambda_max=s.lambda_max_balance, epsilon=s.epsilon_balance)
+        dq2 = mu2 * J_sharp @ x2 + (dq_c2 - mu2 * P @ dq_c2)
+        return PlanStep(np.concatenate((dq1, dq2)), e1, e0, np.array([mu1, mu2]), np.array([cdf1, cdf2]),
+                        np.array([d1, d2]), np.array([smin1, smin2]))

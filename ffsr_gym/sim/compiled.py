@@ -1,0 +1,186 @@
+"""The compiled-kernel backend of :class:`ffsr_gym.sim.rollout.Rollout` (same interface, same numbers)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ffsr_gym.exceptions import FFSRError, InvalidInputError
+from ffsr_gym.kernel import cache as kernel_cache
+from ffsr_gym.kernel import loop as kernel_loop
+from ffsr_gym.kernel import planner as kp
+from ffsr_gym.model.robot import check_state
+from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.planning import ptsf
+from ffsr_gym.planning.planner import METHODS
+from ffsr_gym.sim.rollout import STATUS
+from ffsr_gym.sim.setup import ScenarioSetup, prepare
+from ffsr_gym.sim.trajectory import Trajectory
+from ffsr_gym.types import Array
+
+kernel_cache.refresh()
+
+
+def settings_vectors(setup: ScenarioSetup, *, method: str, m: float, T_c: float) -> tuple[Array, Array]:
+    """The kernel's float and integer settings of a scenario, a method and (m, T_c [s])."""
+    scenario = setup.scenario
+    s, fp, ip = scenario.planner, np.zeros(kp.N_FP), np.zeros(kp.N_IP, dtype=np.int64)
+    obstacle = scenario.obstacle
+    fp[[kp.F_M, kp.F_TC, kp.F_K]] = m, T_c, s.proportional_gain_per_s
+    fp[[kp.F_LAM1, kp.F_LAM2, kp.F_EPS1, kp.F_EPS2]] = s.lambda_max_mission, s.lambda_max_balance, s.epsilon_mission, s.epsilon_balance
+    fp[[kp.F_XI, kp.F_DELTA, kp.F_K1]] = s.cdf_xi, s.cdf_delta, s.cdf_k1
+    path = setup.path
+    fp[[kp.F_TF, kp.F_TA, kp.F_ANGLE, kp.F_DT, kp.F_RATE_MAX]] = (
+        path.motion_time, path.accel_time, path.angle, scenario.simulation.dt_s, scenario.objective.max_rate_deg_s)
+    fp[kp.F_P0:kp.F_P0 + 3], fp[kp.F_P1:kp.F_P1 + 3] = path.start_position, path.target_position
+    fp[kp.F_Q0:kp.F_Q0 + 4], fp[kp.F_AXIS:kp.F_AXIS + 3] = path.start_attitude, path.axis
+    fp[kp.F_R0D:kp.F_R0D + 3], fp[kp.F_SBD:kp.F_SBD + 4] = setup.base_target
+    fp[kp.F_H:kp.F_H + 6] = scenario.initial.momentum
+    if obstacle is not None:
+        fp[kp.F_OBS:kp.F_OBS + 3] = obstacle.position_m
+        fp[[kp.F_DANGER, kp.F_OBS_R]] = obstacle.danger_radius_m, obstacle.radius_m
+    ip[:] = (kp.METHOD_CODES[method], s.phi_form == "printed", s.phi_split, s.attitude_error == "body",
+             s.mu_law == "distance", s.balance_avoids, obstacle is not None,
+             scenario.objective.rate_limit_scope == "balance_arm")
+    return fp, ip
+
+
+LOG_FIELDS = {"x": (19,), "v": (18,), "dq": (12,), "err": (4,), "clear": (), "self": (), "mu": (2,), "cdf": (2,),
+              "smin": (2,)}
+
+
+def new_log(rows: int, *batch: int) -> dict[str, Array]:
+    """Zeroed trajectory buffers of the kernel (``LOG_FIELDS``), ``rows`` samples each, optional leading batch axes."""
+    return {key: np.zeros((*batch, rows, *shape)) for key, shape in LOG_FIELDS.items()}
+
+
+class KernelRollout:
+    """Closed loop on the compiled kernel; the interface of :class:`ffsr_gym.sim.rollout.Rollout`.
+
+    ``log`` (optional): trajectory buffers of :func:`new_log` to write into instead of new ones
+    (the batched environments hand each copy a slice of one stacked buffer).
+    """
+
+    backend = "kernel"
+
+    def __init__(self, scenario: Scenario, *, method: str = "predefined_time", m: float | None = None,
+                 T_c: float | None = None, q0: Array | None = None, log: dict[str, Array] | None = None) -> None:
+        if method not in METHODS:
+            raise InvalidInputError(f"method {method!r}; allowed: {list(METHODS)}")
+        self.scenario, self._method = scenario, method
+        self.setup = setup = prepare(scenario)
+        self.robot = setup.robot
+        self.model, self._mdl = setup.assets.kernel, setup.assets.kernel_arrays
+        m = scenario.planner.m if m is None else m
+        T_c = scenario.planner.T_c_s if T_c is None else T_c
+        ptsf.check_parameters(float(T_c), float(m), scenario.planner.phi_form)
+        if q0 is not None:
+            check_state(q0)
+        q = setup.q0 if q0 is None else np.array(q0, dtype=float)
+        self.x = np.concatenate((q[:7], q[self.model.q_index]))
+        self.fp, self.ip = settings_vectors(setup, method=method, m=float(m), T_c=float(T_c))
+        self.dt, self.n_steps = scenario.simulation.dt_s, scenario.n_steps
+        self.k, self.rows, self.finished = 0, 0, False
+        self._log = new_log(self.n_steps + 1) if log is None else log
+
+    @property
+    def t(self) -> float:
+        """Current time [s]."""
+        return self.k * self.dt
+
+    @property
+    def q(self) -> Array:
+        """Current configuration in Pinocchio order (19,)."""
+        q = np.empty(19)
+        q[:7] = self.x[:7]
+        q[self.model.q_index] = self.x[7:]
+        return q
+
+    @property
+    def method(self) -> str:
+        """Planning method."""
+        return self._method
+
+    @property
+    def m(self) -> float:
+        """Current predefined-time shape parameter."""
+        return float(self.fp[kp.F_M])
+
+    @property
+    def T_c(self) -> float:
+        """Current predefined time [s]."""
+        return float(self.fp[kp.F_TC])
+
+    def set_parameters(self, m: float, T_c: float) -> None:
+        """Change (m, T_c [s]) from the next step on (validated like the reference planner)."""
+        ptsf.check_parameters(float(T_c), float(m), self.scenario.planner.phi_form)
+        self.fp[kp.F_M], self.fp[kp.F_TC] = float(m), float(T_c)
+
+    def _run(self, n: int, residual: Array | None, stop: bool, record_only: bool) -> int:
+        res = np.zeros(12) if residual is None else np.asarray(residual, dtype=float)
+        outs = [self._log[key][self.rows:] for key in LOG_FIELDS]
+        x, rows, status = kernel_loop.run(self._mdl, self.x, self.k, self.n_steps, n, self.fp, self.ip, res, stop, record_only, *outs)
+        if status == 3:
+            raise FFSRError(f"planner produced non-finite joint rates at t = {(self.k + rows) * self.dt:.3f} s")
+        self.rows += rows
+        if not record_only:
+            self.x, self.k = x, self.k + rows
+        return status
+
+    def advance(self, n: int, residual: Array | None = None, *, stop_on_violation: bool = False) -> tuple[Array, str]:
+        """Take up to ``n`` steps; see :meth:`ffsr_gym.sim.rollout.Rollout.advance`."""
+        if self.k >= self.n_steps:
+            raise FFSRError(f"the run is over: {self.n_steps} steps of {self.dt} s were taken")
+        start = self.rows
+        status = self._run(n, residual, stop_on_violation, False)
+        return self._log["dq"][start:self.rows].copy(), STATUS[status]
+
+    def finish(self) -> None:
+        """Record the final sample (its rates are not applied)."""
+        if not self.finished:
+            self._run(1, None, False, True)
+            self.finished = True
+
+    def replay_step(self, q: Array, k: int) -> tuple[dict[str, Array], Array]:
+        """One kernel step from an arbitrary state (validation): the sample at (t_k, q) and q_{k+1}.
+
+        Does not change this rollout. Returns the sample as a dict of :class:`Trajectory` field
+        names (one row each) and the next configuration in Pinocchio order.
+        """
+        x = np.concatenate((q[:7], q[self.model.q_index]))
+        outs = list(new_log(1).values())
+        x_next, _, _ = kernel_loop.run(self._mdl, x, k, self.n_steps, 1, self.fp, self.ip, np.zeros(12), False, False, *outs)
+        _, v, dq, err, clear, self_c, mu, cdf, smin = (o[0] for o in outs)
+        v_pin = np.zeros(18)
+        v_pin[:6], v_pin[self.model.v_index] = v[:6], v[6:]
+        q_next = np.empty(19)
+        q_next[:7], q_next[self.model.q_index] = x_next[:7], x_next[7:]
+        sample = {"v": v_pin, "dq_joints": dq, "ee_position_error_m": err[0], "ee_attitude_error": err[1],
+                  "base_position_error_m": err[2], "base_attitude_error": err[3], "clearance_m": clear,
+                  "self_clearance_m": self_c, "mu": mu, "cdf": cdf, "sigma_min": smin}
+        return sample, q_next
+
+    def observation(self) -> tuple[Array, Array, Array, Array, float]:
+        """Joint angles, EE error (6), base error (6), obstacle-relative vector (3), clearance [m]."""
+        e1, e0, rel, clear = kernel_loop.observe(self._mdl, self.x, self.t, self.fp, self.ip)
+        return self.x[7:19].copy(), e1, e0, rel, float(clear)
+
+    def trajectory(self) -> Trajectory:
+        """The :class:`Trajectory` recorded so far, in Pinocchio order."""
+        n, log, model = self.rows, self._log, self.model
+        q = np.zeros((n, 19))
+        q[:, :7] = log["x"][:n, :7]
+        q[:, model.q_index] = log["x"][:n, 7:]
+        v = np.zeros((n, 18))
+        v[:, :6] = log["v"][:n, :6]
+        v[:, model.v_index] = log["v"][:n, 6:]
+        err = log["err"][:n]
+        info: dict[str, Any] = {"scenario": self.scenario.name, "scenario_sha256": self.scenario.sha256(),
+                                "method": self.method, "m": self.m, "T_c_s": self.T_c,
+                                "dt_s": self.dt, "duration_s": self.scenario.simulation.duration_s, "backend": "kernel"}
+        return Trajectory(t=np.arange(n) * self.dt, q=q, v=v, dq_joints=log["dq"][:n].copy(),
+                          ee_position_error_m=err[:, 0].copy(), ee_attitude_error=err[:, 1].copy(),
+                          base_position_error_m=err[:, 2].copy(), base_attitude_error=err[:, 3].copy(),
+                          clearance_m=log["clear"][:n].copy(), self_clearance_m=log["self"][:n].copy(),
+                          mu=log["mu"][:n].copy(), cdf=log["cdf"][:n].copy(), sigma_min=log["smin"][:n].copy(), info=info)

@@ -1,0 +1,106 @@
+"""What a closed loop needs from a robot and a scenario, built once and shared by both backends.
+
+A :class:`RobotAssets` (Pinocchio model, collision model, kernel arrays) is built once per robot
+and process; a :class:`ScenarioSetup` (initial configuration, obstacles, desired path, base
+set-point) once per scenario. The reference rollout, the kernel rollout, the task generator and
+the report all take them from here instead of rebuilding them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property, lru_cache
+
+import numpy as np
+
+from ffsr_gym.kernel.arrays import KernelModel, extract
+from ffsr_gym.model.collision import CollisionModel, SphereObstacle
+from ffsr_gym.model.robot import Robot, load_robot
+from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.planning.desired_path import DesiredPath
+from ffsr_gym.planning.planner import reference_targets
+from ffsr_gym.types import Array
+
+
+class RobotAssets:
+    """One robot's models, shared by every rollout of this process (see :func:`robot_assets`).
+
+    Attributes:
+        robot: the Pinocchio model (its ``data`` is scratch space, overwritten by every call).
+        collision: the collision model (placed per query, so also scratch space).
+    """
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.robot: Robot = load_robot(name)
+        self.collision = CollisionModel(self.robot)
+
+    @cached_property
+    def kernel(self) -> KernelModel:
+        """The kernel's arrays, extracted on first use."""
+        return extract(self.robot, self.collision)
+
+    @cached_property
+    def kernel_arrays(self) -> tuple:
+        """``kernel.arrays()``, the kernel's positional model arguments."""
+        return self.kernel.arrays()
+
+
+@lru_cache(maxsize=8)
+def robot_assets(name: str) -> RobotAssets:
+    """The shared :class:`RobotAssets` of a shipped robot (cached per process)."""
+    return RobotAssets(name)
+
+
+def initial_configuration(robot: Robot, scenario: Scenario) -> Array:
+    """Pinocchio configuration ``q`` (19,) of the scenario's initial state."""
+    initial = scenario.initial
+    return robot.configuration(
+        base_position_m=np.array(initial.base_position_m),
+        base_quaternion_wxyz=np.array(initial.base_quaternion_wxyz),
+        joints_rad=np.radians(np.array(initial.mission_joints_deg + initial.balance_joints_deg)),
+    )
+
+
+def obstacles_of(scenario: Scenario) -> list[SphereObstacle]:
+    """The scenario's obstacle as a collision sphere (empty list in free space)."""
+    if scenario.obstacle is None:
+        return []
+    return [SphereObstacle(np.array(scenario.obstacle.position_m), scenario.obstacle.radius_m)]
+
+
+@dataclass(frozen=True)
+class ScenarioSetup:
+    """A scenario with everything derived from it that both backends use.
+
+    Attributes:
+        scenario: the scenario.
+        assets: its robot's shared models.
+        q0: the nominal initial configuration (19,), Pinocchio order.
+        obstacles: the obstacle as collision spheres (empty in free space).
+        path: the desired end-effector path.
+        base_target: the base set-point ``(r0d [m], sigma_bd (4,) wxyz)``.
+    """
+
+    scenario: Scenario
+    assets: RobotAssets
+    q0: Array
+    obstacles: tuple[SphereObstacle, ...]
+    path: DesiredPath
+    base_target: tuple[Array, Array]
+
+    @property
+    def robot(self) -> Robot:
+        """The scenario's robot model."""
+        return self.assets.robot
+
+
+@lru_cache(maxsize=64)
+def prepare(scenario: Scenario) -> ScenarioSetup:
+    """The :class:`ScenarioSetup` of a scenario (cached per process; scenarios are frozen)."""
+    assets = robot_assets(scenario.robot)
+    q0 = initial_configuration(assets.robot, scenario)
+    q0.flags.writeable = False  # shared by every rollout of this scenario
+    path, base_target = reference_targets(assets.robot, scenario, q0)
+    return ScenarioSetup(scenario=scenario, assets=assets, q0=q0, obstacles=tuple(obstacles_of(scenario)),
+                         path=path, base_target=base_target)

@@ -1,0 +1,69 @@
+"""The randomised scenario family: target pose and obstacle drawn from a seeded generator."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ffsr_gym.exceptions import ScenarioError
+from ffsr_gym.model.collision import SphereObstacle
+from ffsr_gym.model.quaternion import from_rotation
+from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.planning.desired_path import DesiredPath
+from ffsr_gym.sim.setup import prepare
+
+
+def sample_scenario(family: Scenario, rng: np.random.Generator) -> Scenario:
+    """Draw one member of a randomised family.
+
+    The target is reachable by construction (forward kinematics of perturbed mission-arm angles,
+    kept only if the end-effector travels far enough and the target configuration is well
+    conditioned); the obstacle is on the desired straight path, both arms start at least the
+    danger radius away from it, and the target configuration clears it by ``min_final_distance_m``
+    (so the avoidance releases and the error can converge) and its own parts by
+    ``min_self_clearance_m``. See :class:`ffsr_gym.model.scenario.Randomization` for the ranges.
+
+    Args:
+        family: a scenario with a ``randomization`` section.
+        rng: the generator (an env's ``self.np_random``); the only source of randomness.
+
+    Raises:
+        ScenarioError: no admissible draw within ``max_attempts``.
+    """
+    spec = family.randomization
+    if spec is None:
+        raise ScenarioError(f"scenario {family.name!r} has no 'randomization' section")
+    setup = prepare(family)
+    robot, collision, q_start = setup.robot, setup.assets.collision, setup.q0
+    start = robot.transform_ee_to_world(q_start, 0)
+    danger, radius = family.obstacle.danger_radius_m, family.obstacle.radius_m
+
+    def clearance(q: np.ndarray, point: np.ndarray) -> float:
+        return collision.obstacle_proximity(q, [SphereObstacle(point, radius)]).distance_m
+
+    for _ in range(int(spec.max_attempts)):
+        q_target = q_start.copy()
+        offsets = rng.uniform(-1.0, 1.0, 6) * np.radians(spec.mission_joint_offsets_deg)
+        q_target[robot.arm_q_index[0]] += offsets
+        robot.update_kinematics(q_target)
+        target = robot.data.oMf[int(robot.ee_frame_ids[0])].copy()
+        if np.linalg.norm(target.translation - start.translation) < spec.min_travel_m:
+            continue
+        if np.linalg.svd(robot.arm_jacobian(0), compute_uv=False)[-1] < spec.min_sigma_target:
+            continue
+        path = DesiredPath.between(start.translation, from_rotation(start.rotation), target.translation,
+                                   from_rotation(target.rotation), motion_time=1.0, accel_time=0.25)
+        lateral = rng.normal(size=3)
+        obstacle = path.at(rng.uniform(*spec.path_fraction))[0] + spec.lateral_offset_m * rng.uniform() * lateral / np.linalg.norm(lateral)
+        if clearance(q_target, obstacle) < spec.min_final_distance_m or clearance(q_start, obstacle) < danger:
+            continue
+        if collision.self_proximity(q_target).distance_m < spec.min_self_clearance_m:
+            continue
+        return family.replace(
+            target=dataclasses.replace(family.target, position_m=tuple(target.translation),
+                                       quaternion_wxyz=tuple(from_rotation(target.rotation))),
+            obstacle=dataclasses.replace(family.obstacle, position_m=tuple(obstacle)),
+        )
+    raise ScenarioError(f"scenario {family.name!r}: no admissible target/obstacle in {int(spec.max_attempts)} draws; "
+                        "widen the 'randomization' ranges")
