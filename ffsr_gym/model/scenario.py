@@ -42,6 +42,10 @@ def _choice(*options: str) -> dict:
     return {"kind": "choice", "options": options}
 
 
+def _section(cls: type) -> dict:
+    return {"kind": "section", "cls": cls}
+
+
 _BOOL = {"kind": "bool"}
 _TEXT = {"kind": "text"}
 _TEXTS = {"kind": "texts"}
@@ -276,6 +280,15 @@ def _from_dict(data: dict[str, Any], *, source: str) -> Scenario:
     return _normalised(scenario)
 
 
+def build_table(cls: type, table: Any, *, prefix: str = "") -> Any:
+    """A validated frozen dataclass ``cls`` from a TOML table (fields declare their allowed values).
+
+    Raises:
+        ScenarioError: unknown, missing, mistyped or out-of-range key (named with ``prefix``).
+    """
+    return _build(cls, table, prefix=prefix)
+
+
 def _build(cls: type, table: Any, *, prefix: str) -> Any:
     if not isinstance(table, dict):
         raise ScenarioError(f"key {prefix.rstrip('.') or '<root>'!r} must be a table, got {table!r}")
@@ -292,8 +305,9 @@ def _build(cls: type, table: Any, *, prefix: str) -> Any:
             if spec.default is dataclasses.MISSING:
                 raise ScenarioError(f"missing key {key!r} (required)")
             continue
-        if name in _SECTIONS:
-            values[name] = _build(_SECTIONS[name], table[name], prefix=key + ".")
+        if name in _SECTIONS or spec.metadata.get("kind") == "section":
+            section = _SECTIONS[name] if name in _SECTIONS else spec.metadata["cls"]
+            values[name] = _build(section, table[name], prefix=key + ".")
         else:
             values[name] = _convert(key, table[name], spec.metadata)
     return cls(**values)

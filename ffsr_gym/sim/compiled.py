@@ -166,6 +166,11 @@ class KernelRollout:
         e1, e0, rel, clear = kernel_loop.observe(self._mdl, self.x, self.t, self.fp, self.ip)
         return self.x[7:19].copy(), e1, e0, rel, float(clear)
 
+    def min_clearance(self, last: int) -> float:
+        """Smallest clearance [m] (obstacle, arm-arm, arm-base) over the last ``last`` recorded samples."""
+        window = slice(self.rows - last, self.rows)
+        return float(min(np.min(self._log["clear"][window]), np.min(self._log["self"][window])))
+
     def trajectory(self) -> Trajectory:
         """The :class:`Trajectory` recorded so far, in Pinocchio order."""
         n, log, model = self.rows, self._log, self.model

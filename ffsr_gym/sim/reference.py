@@ -145,6 +145,11 @@ class ReferenceRollout:
         """Recorded samples from index ``start`` on, as arrays."""
         return {key: np.array(val[start:]) for key, val in self._log.items()}
 
+    def min_clearance(self, last: int) -> float:
+        """Smallest clearance [m] (obstacle, arm-arm, arm-base) over the last ``last`` recorded samples."""
+        window = slice(len(self._log["clearance_m"]) - last, None)
+        return float(min(np.min(self._log["clearance_m"][window]), np.min(self._log["self_clearance_m"][window])))
+
     def trajectory(self) -> Trajectory:
         """The :class:`Trajectory` recorded so far."""
         n = len(self._log["q"])

@@ -1,0 +1,154 @@
+"""Benchmark-v1 environments ``FFSR-v1`` and ``FFSR-Residual-v1`` (v0 stays as it is, frozen)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ffsr_gym.environments.env import FFSREnv, residual_rates
+from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.model.benchmark import Benchmark, load_benchmark
+from ffsr_gym.model.scenario import Scenario, load_scenario
+from ffsr_gym.scoring.score import EpisodeScore, score_episode, smoothness_cost, smoothness_terms
+
+#: Tasks of benchmark v1 (``task=``); a :class:`Scenario` is accepted as a custom, unranked task.
+TASKS = ("paper",)
+SPLITS = ("train", "test")
+
+
+def v1_task(task: str | Scenario, benchmark: Benchmark) -> Scenario:
+    """The scenario of a v1 task name (or a custom scenario) with v1's settings applied."""
+    if isinstance(task, Scenario):
+        return benchmark.task(task)
+    if task not in TASKS:
+        raise InvalidInputError(f"task {task!r}; allowed: {list(TASKS)} or a Scenario")
+    return benchmark.task(load_scenario(task))
+
+
+class FFSRV1Env(FFSREnv):
+    """Dual-arm free-floating space robot reaching a target past an obstacle: benchmark v1.
+
+    ## Description
+    The robot, physics and planner of ``FFSR-v0``. What v1 changes: the episode score
+    (``ffsr_gym.scoring.score``: 1 / (1 + C) on success, 0 on failure, C a smoothness cost of
+    both arms' rates without dead zone that also sees chatter), a 1 mm / 1e-3 success tolerance,
+    the action box, and a residual that fades to zero by the end of the motion. All numbers are
+    in ``envs/benchmark/v1.toml``.
+
+    ## Action Space
+    ``FFSR-v1``: ``Box(-1, 1, (2,), float32)`` → m ∈ [0.05, 0.6], T_c ∈ [1, 10] s, per decision.
+    ``FFSR-Residual-v1``: ``Box(-1, 1, (12,), float32)`` → ± 20 deg/s per joint (mission arm
+    first), times the fade f(t) (1 until 2 s before the end of the desired motion, a half-cosine
+    to 0 at its end, 0 after; evaluated at the start of each decision), added to the reference
+    planner at v1's (m, T_c) = (0.3, 4 s). A zero action is exactly the reference planner.
+    Out-of-range actions are clipped and counted; NaN, inf or a wrong shape raise ``ValueError``.
+
+    ## Observation Space
+    As ``FFSR-v0``: ``Box(float32, (53,))``.
+
+    ## Rewards
+    Minus the increment of the smoothness cost C over each decision, so an episode's rewards sum
+    to −C; ``-violation_penalty`` on a rate-limit violation or collision, ``-tolerance_penalty``
+    at the horizon if the final errors miss the tolerances. With ``dense_shaping=True`` the
+    potential difference Φ(s') − Φ(s), Φ = −‖p_e − p_d‖ / 0.01 m, is added (off by default). The
+    leaderboard score never comes from the rewards: it is computed from the trajectory.
+    ``info``: ``smoothness_increment``, ``penalty``, ``shaping``, ``cost`` (0 when nothing is
+    violated, else penetration depth / 0.01 m + relative excess of the peak rate over the limit),
+    ``clearance_m``, ``ee_position_error_m``, ``clipped_actions``; at the end of an episode
+    ``score``, ``success``, ``failure``, ``smoothness_cost``, ``paper_B``.
+
+    ## Starting State
+    The task's initial state (``task="paper"``: the paper's scenario; ``split`` is accepted and
+    both splits hold that one task).
+
+    ## Episode End
+    Terminated on a rate above 200 deg/s or a negative clearance (unless
+    ``terminate_on_violation=False``: the episode then runs to the horizon, ``info["cost"]`` grades
+    each violation and the episode fails); truncated after ``simulation.duration_s`` (200 decisions,
+    ``max_episode_steps`` in the registration).
+
+    ## Arguments
+    ``gymnasium.make("FFSR-v1", task="paper", split="train", render_mode=None, backend="auto",
+    terminate_on_violation=True, dense_shaping=False)``.
+
+    ## Version History
+    * v1: bounded score that ranks, 1 mm tolerance, v1 action box, fading residual.
+    * v0: initial release (``FFSR-v0``, frozen).
+    """
+
+    def __init__(self, task: str | Scenario = "paper", split: str = "train", render_mode: str | None = None,
+                 backend: str = "auto", terminate_on_violation: bool = True, dense_shaping: bool = False) -> None:
+        if split not in SPLITS:
+            raise InvalidInputError(f"split {split!r}; allowed: {list(SPLITS)}")
+        for name, flag in (("terminate_on_violation", terminate_on_violation), ("dense_shaping", dense_shaping)):
+            if not isinstance(flag, bool):
+                raise InvalidInputError(f"{name} must be True or False, got {flag!r}")
+        self.benchmark = load_benchmark("v1")
+        self.task_name = task if isinstance(task, str) else task.name
+        self.split = split
+        self.terminate_on_violation, self.dense_shaping = terminate_on_violation, dense_shaping
+        super().__init__(v1_task(task, self.benchmark), render_mode=render_mode, backend=backend)
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        obs, info = super().reset(seed=seed, options=options)
+        self._potential = self._shaping_potential()
+        return obs, info
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
+        if self.rollout is None:
+            raise InvalidInputError("call reset() before step()")
+        a = self._checked_action(action)
+        if self.residual:
+            fade = self.benchmark.residual_fade(self.rollout.t, self.scenario.trajectory.motion_time_s)
+            return self._advance(None, fade * residual_rates(a, self.scenario.env))
+        return self._advance(self.action_to_parameters(a), None)
+
+    def _advance(self, parameters: tuple[float, float] | None, residual: np.ndarray | None):
+        rollout, settings = self.rollout, self.benchmark
+        if parameters is not None:
+            rollout.set_parameters(*parameters)
+        applied, status = rollout.advance(self.steps_per_decision, residual, stop_on_violation=self.terminate_on_violation)
+        increment = smoothness_cost(*smoothness_terms(applied, rollout.dt, self.last_rates), settings.score)
+        self.last_rates = applied[-1]
+        cost = self._violation_cost(applied, rollout.min_clearance(len(applied)))
+        terminated = status != "ok"
+        truncated = not terminated and rollout.k >= rollout.n_steps
+        penalty = settings.action.violation_penalty if terminated else 0.0
+        info: dict[str, Any] = {"smoothness_increment": increment, "cost": cost, "clipped_actions": self.clipped_actions}
+        if terminated or truncated:
+            rollout.finish()
+            result = score_episode(rollout.trajectory(), self.scenario, settings)
+            if truncated and result.failure is not None:
+                penalty += settings.action.tolerance_penalty if result.failure == "final_error" else settings.action.violation_penalty
+            info.update(self._final_info_v1(result))
+        obs = self._observation()
+        shaping = 0.0
+        if self.dense_shaping:
+            potential = self._shaping_potential()
+            shaping, self._potential = potential - self._potential, potential
+        info.update({"penalty": penalty, "shaping": shaping, "clearance_m": self._clearance,
+                     "ee_position_error_m": self._ee_error})
+        if self.render_mode == "human":
+            self.render()
+        return obs, float(-increment - penalty + shaping), terminated, truncated, info
+
+    def _violation_cost(self, applied: np.ndarray, min_clearance: float) -> float:
+        """0 without violation; penetration depth / scale + relative excess of the peak rate."""
+        limit = self.benchmark.score.max_rate_deg_s
+        peak = float(np.degrees(np.max(np.abs(applied)))) if len(applied) else 0.0
+        depth = max(0.0, -min_clearance) / self.benchmark.action.cost_clearance_scale_m
+        return depth + max(0.0, peak / limit - 1.0)
+
+    def _shaping_potential(self) -> float:
+        return -self._ee_error / self.benchmark.action.shaping_position_scale_m
+
+    @staticmethod
+    def _final_info_v1(result: EpisodeScore) -> dict[str, Any]:
+        return {"score": result.score, "success": result.success, "failure": result.failure,
+                "smoothness_cost": result.smoothness_cost, "paper_B": result.paper_B}
+
+
+class FFSRResidualV1Env(FFSRV1Env):
+    __doc__ = FFSRV1Env.__doc__
+    residual = True

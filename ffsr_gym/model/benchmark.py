@@ -1,0 +1,123 @@
+"""The benchmark definition files (``envs/benchmark/<version>.toml``) as frozen, validated dataclasses.
+
+A benchmark version fixes what the scenario files leave to it: the episode score, the action
+boxes of the environments and the residual fade. v0 is the scenario's own ``[objective]`` and
+``[env]`` sections (frozen); v1 is ``envs/benchmark/v1.toml``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any
+
+from ffsr_gym.exceptions import ScenarioError
+from ffsr_gym.model.resources import envs_dir
+from ffsr_gym.model.scenario import Scenario, _choice, _number, _section, _vector, build_table
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+VERSIONS = ("v1",)
+
+
+@dataclass(frozen=True)
+class ScoreSettings:
+    """The smoothness cost, its references and the success test (see ``v1.toml``)."""
+
+    alpha: float = field(metadata=_number(0.0, 1e6))
+    beta: float = field(metadata=_number(0.0, 1e6))
+    rate_energy_ref_rad2_s: float = field(metadata=_number(0.0, 1e9, lo_open=True))
+    rate_variation_ref_rad_s: float = field(metadata=_number(0.0, 1e9, lo_open=True))
+    max_rate_deg_s: float = field(metadata=_number(0.0, 1e5, lo_open=True))
+    ee_position_tolerance_m: float = field(metadata=_number(0.0, 10.0, lo_open=True))
+    ee_attitude_tolerance: float = field(metadata=_number(0.0, 1.0, lo_open=True))
+
+
+@dataclass(frozen=True)
+class PlannerDefaults:
+    """The reference planner's (m, T_c [s]) in this version."""
+
+    m: float = field(metadata=_number(0.0, 1.0, lo_open=True, hi_open=True))
+    T_c_s: float = field(metadata=_number(0.0, 1e4, lo_open=True))
+
+
+@dataclass(frozen=True)
+class ActionSettings:
+    """Action boxes, the residual fade and the optional reward terms of the v1 environments."""
+
+    m_bounds: tuple[float, ...] = field(metadata=_vector(2, 0.0, 1.0))
+    T_c_bounds_s: tuple[float, ...] = field(metadata=_vector(2, 1e-3, 1000.0))
+    residual_rate_deg_s: float = field(metadata=_number(0.0, 1e4))
+    residual_fade_s: float = field(metadata=_number(0.0, 3600.0, lo_open=True))
+    violation_penalty: float = field(metadata=_number(0.0, 1e9))
+    tolerance_penalty: float = field(metadata=_number(0.0, 1e9))
+    shaping_position_scale_m: float = field(metadata=_number(0.0, 1e3, lo_open=True))
+    cost_clearance_scale_m: float = field(metadata=_number(0.0, 1e3, lo_open=True))
+
+
+@dataclass(frozen=True)
+class Benchmark:
+    """One benchmark version's definition."""
+
+    schema_version: int = field(metadata={"kind": "integer", "options": (1,)})
+    version: str = field(metadata=_choice(*VERSIONS))
+    score: ScoreSettings = field(metadata=_section(ScoreSettings))
+    planner: PlannerDefaults = field(metadata=_section(PlannerDefaults))
+    action: ActionSettings = field(metadata=_section(ActionSettings))
+
+    def task(self, scenario: Scenario) -> Scenario:
+        """``scenario`` with this version's planner defaults, tolerances, rate limit and action box.
+
+        The v0 code paths (B, feasibility, the action mapping) then apply v1's numbers, and the
+        task's hash differs from the v0 scenario's.
+        """
+        s, a = self.score, self.action
+        objective = dataclasses.replace(scenario.objective, max_rate_deg_s=s.max_rate_deg_s, rate_limit_scope="both_arms",
+                                        ee_position_tolerance_m=s.ee_position_tolerance_m,
+                                        ee_attitude_tolerance=s.ee_attitude_tolerance)
+        env = dataclasses.replace(scenario.env, m_bounds=a.m_bounds, T_c_bounds_s=a.T_c_bounds_s,
+                                  residual_rate_deg_s=a.residual_rate_deg_s, violation_penalty=a.violation_penalty,
+                                  tolerance_penalty=a.tolerance_penalty)
+        planner = dataclasses.replace(scenario.planner, m=self.planner.m, T_c_s=self.planner.T_c_s)
+        return scenario.replace(planner=planner, objective=objective, env=env)
+
+    def residual_fade(self, t: float, motion_time_s: float) -> float:
+        """The residual's weight f(t) ∈ [0, 1] at time ``t`` [s]: 1, a half-cosine over ``residual_fade_s``, then 0."""
+        fade = self.action.residual_fade_s
+        start = motion_time_s - fade
+        if t <= start:
+            return 1.0
+        if t >= motion_time_s:
+            return 0.0
+        return 0.5 * (1.0 + math.cos(math.pi * (t - start) / fade))
+
+
+@lru_cache(maxsize=4)
+def load_benchmark(version: str = "v1") -> Benchmark:
+    """The definition of benchmark ``version`` (shipped in ``envs/benchmark``).
+
+    Raises:
+        ScenarioError: unknown version, unreadable file or an invalid key (named).
+    """
+    if version not in VERSIONS:
+        raise ScenarioError(f"benchmark version {version!r}; allowed: {list(VERSIONS)}")
+    path = envs_dir() / "benchmark" / f"{version}.toml"
+    try:
+        data: dict[str, Any] = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise ScenarioError(f"{path}: not a readable TOML file ({exc})") from exc
+    try:
+        bench = build_table(Benchmark, data)
+    except ScenarioError as exc:
+        raise ScenarioError(f"{path}: {exc}") from None
+    for key, (lo, hi) in (("action.m_bounds", bench.action.m_bounds), ("action.T_c_bounds_s", bench.action.T_c_bounds_s)):
+        if not lo < hi or (key == "action.m_bounds" and (lo <= 0.0 or hi >= 1.0)):
+            raise ScenarioError(f"{path}: key {key!r} = {[lo, hi]} is invalid; allowed: [low, high] with low < high"
+                                + (" inside (0, 1)" if key == "action.m_bounds" else ""))
+    return bench

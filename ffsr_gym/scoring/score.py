@@ -1,0 +1,127 @@
+"""The benchmark-v1 episode score: success, a smoothness cost without dead zone, and one bounded number.
+
+For the applied joint rates Θ̇_k of each arm (held over [t_k, t_k + dt)):
+
+.. math:: E = \\sum_k \\|\\dot\\Theta_k\\|^2 dt \\;[\\mathrm{rad^2/s}], \\qquad
+          V = \\|\\dot\\Theta_0\\| + \\sum_k \\|\\dot\\Theta_{k+1} - \\dot\\Theta_k\\| \\;[\\mathrm{rad/s}]
+
+          C = \\alpha\\,(E_1/E_{ref} + V_1/V_{ref}) + \\beta\\,(E_2/E_{ref} + V_2/V_{ref}),
+          \\qquad s = \\frac{1}{1 + C} \\text{ on success, } 0 \\text{ otherwise.}
+
+E is the size of the rates (the paper's ∫Ψ with its 150 deg/s dead zone removed and squared);
+V is their total variation, which is ∫‖Θ̈‖ dt for smooth rates and grows by twice the amplitude
+at every sign flip of a chatter. Success: no joint of either arm above the rate limit, no
+collision (obstacle, arm-arm, arm-base), final end-effector errors within the tolerances. The
+paper's B is reported next to it (``ffsr_gym.scoring.objective``). This module is the only place
+the v1 score is computed: the v1 env reward, the optimisers and the leaderboards all use it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ffsr_gym.model.benchmark import Benchmark, ScoreSettings
+from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.scoring.objective import objective_terms
+from ffsr_gym.sim.trajectory import Trajectory
+from ffsr_gym.types import Array
+
+#: Why an episode failed, in the order they are checked.
+FAILURES = ("rate_limit", "collision", "final_error")
+
+
+def smoothness_terms(dq_joints: Array, dt: float, previous: Array | None = None) -> tuple[Array, Array]:
+    """Rate energy E [rad²/s] and rate variation V [rad/s] of each arm for applied rates.
+
+    Args:
+        dq_joints: (n, 12) rates held over consecutive steps [rad/s], mission arm first.
+        dt: step [s].
+        previous: (12,) the rates applied just before (zeros: the robot starts at rest). Chunks
+            of an episode, each with the previous chunk's last row, sum to the whole episode's terms.
+
+    Returns:
+        ``(E, V)``, each (2,) for (mission, balance).
+    """
+    rates = np.asarray(dq_joints, dtype=float).reshape(-1, 2, 6)
+    before = np.zeros((1, 2, 6)) if previous is None else np.asarray(previous, dtype=float).reshape(1, 2, 6)
+    energy = np.einsum("kaj,kaj->a", rates, rates) * dt
+    steps = np.diff(np.concatenate((before, rates)), axis=0)
+    variation = np.sqrt(np.einsum("kaj,kaj->ka", steps, steps)).sum(axis=0)
+    return energy, variation
+
+
+def smoothness_cost(energy: Array, variation: Array, settings: ScoreSettings) -> float:
+    """C = α (E₁/E_ref + V₁/V_ref) + β (E₂/E_ref + V₂/V_ref) (dimensionless, ≥ 0)."""
+    per_arm = np.asarray(energy) / settings.rate_energy_ref_rad2_s + np.asarray(variation) / settings.rate_variation_ref_rad_s
+    return float(settings.alpha * per_arm[0] + settings.beta * per_arm[1])
+
+
+def bounded_score(success: bool, cost: float) -> float:
+    """The episode score: 1 / (1 + C) ∈ (0, 1] on success, 0 on failure (and for an infinite C)."""
+    if not success or not math.isfinite(cost):
+        return 0.0
+    return 1.0 / (1.0 + cost)
+
+
+@dataclass(frozen=True)
+class EpisodeScore:
+    """Everything the v1 leaderboards report of one episode.
+
+    Attributes:
+        score: 1 / (1 + C) on success, else 0.
+        success: no rate violation, no collision, final errors within tolerance.
+        failure: the first failed check of :data:`FAILURES`, or None.
+        smoothness_cost: C.
+        rate_energy: (mission, balance) E [rad²/s].
+        rate_variation: (mission, balance) V [rad/s].
+        paper_B: the paper's objective B (inf when a rate exceeds the limit).
+        peak_rate_deg_s: (mission, balance) largest |Θ̇| of any joint [deg/s].
+        final_ee_position_error_m, final_ee_attitude_error: at the last sample.
+        min_clearance_m: smallest clearance to the obstacle (inf without one) and
+            ``min_self_clearance_m`` arm-arm / arm-base [m].
+        convergence_time_s: first time after which the EE position error stays below the
+            position tolerance (None if it never does).
+    """
+
+    score: float
+    success: bool
+    failure: str | None
+    smoothness_cost: float
+    rate_energy: tuple[float, float]
+    rate_variation: tuple[float, float]
+    paper_B: float
+    peak_rate_deg_s: tuple[float, float]
+    final_ee_position_error_m: float
+    final_ee_attitude_error: float
+    min_clearance_m: float
+    min_self_clearance_m: float
+    convergence_time_s: float | None
+
+    def as_dict(self) -> dict:
+        """JSON-ready dict; infinite values become ``None``."""
+        return {k: (None if isinstance(v, float) and math.isinf(v) else v) for k, v in asdict(self).items()}
+
+
+def score_episode(traj: Trajectory, task: Scenario, benchmark: Benchmark) -> EpisodeScore:
+    """Score a complete trajectory of ``task`` under ``benchmark`` (the rates of the last sample are not applied)."""
+    settings = benchmark.score
+    applied = traj.dq_joints[:-1]
+    energy, variation = smoothness_terms(applied, traj.dt)
+    cost = smoothness_cost(energy, variation, settings)
+    peak = np.degrees(np.abs(applied)).reshape(-1, 2, 6).max(axis=(0, 2)) if len(applied) else np.zeros(2)
+    min_clear, min_self = float(np.min(traj.clearance_m)), float(np.min(traj.self_clearance_m))
+    final_p, final_o = float(traj.ee_position_error_m[-1]), float(traj.ee_attitude_error[-1])
+    checks = (bool(np.any(peak > settings.max_rate_deg_s)), min_clear < 0.0 or min_self < 0.0,
+              not (final_p <= settings.ee_position_tolerance_m and final_o <= settings.ee_attitude_tolerance))
+    failure = next((name for name, failed in zip(FAILURES, checks) if failed), None)
+    return EpisodeScore(
+        score=bounded_score(failure is None, cost), success=failure is None, failure=failure, smoothness_cost=cost,
+        rate_energy=(float(energy[0]), float(energy[1])), rate_variation=(float(variation[0]), float(variation[1])),
+        paper_B=objective_terms(traj, task.objective).objective,
+        peak_rate_deg_s=(float(peak[0]), float(peak[1])), final_ee_position_error_m=final_p,
+        final_ee_attitude_error=final_o, min_clearance_m=min_clear, min_self_clearance_m=min_self,
+        convergence_time_s=traj.convergence_time(settings.ee_position_tolerance_m),
+    )
