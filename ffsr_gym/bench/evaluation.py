@@ -16,9 +16,9 @@ from gymnasium.utils import seeding
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.protocol import BOOTSTRAP_SAMPLES, BOOTSTRAP_SEED, eval_seeds
-from ffsr_gym.provenance import provenance, write_json_atomic
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.scenario import Scenario, load_scenario
+from ffsr_gym.provenance import provenance, write_json_atomic
 from ffsr_gym.scoring.objective import objective_terms
 from ffsr_gym.sim.simulate import simulate
 from ffsr_gym.tasks.random_family import sample_scenario

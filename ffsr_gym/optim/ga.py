@@ -31,8 +31,8 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.evaluation import objective_for_params
-from ffsr_gym.provenance import write_json_atomic
 from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.provenance import write_json_atomic
 
 BITS = 16
 

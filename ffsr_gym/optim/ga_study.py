@@ -10,9 +10,9 @@ from pathlib import Path
 from typing import Any
 
 from ffsr_gym.bench.evaluation import evaluate
-from ffsr_gym.provenance import provenance, write_json_atomic, write_text_atomic
 from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.optim import ga
+from ffsr_gym.provenance import provenance, write_json_atomic, write_text_atomic
 from ffsr_gym.report import plotting
 from ffsr_gym.sim.simulate import simulate
 

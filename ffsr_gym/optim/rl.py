@@ -16,9 +16,9 @@ from typing import Any
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.evaluation import EvalReport, aggregate, evaluate
-from ffsr_gym.provenance import provenance, write_json_atomic
 from ffsr_gym.exceptions import InvalidInputError, MissingDependencyError
 from ffsr_gym.model.scenario import load_scenario
+from ffsr_gym.provenance import provenance, write_json_atomic
 
 ALGOS = {"ppo": "PPO", "sac": "SAC", "td3": "TD3"}
 DEFAULT_HYPERPARAMS = Path(__file__).resolve().parents[2] / "baselines" / "hyperparams"

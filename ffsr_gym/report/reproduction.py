@@ -10,9 +10,9 @@ from typing import Any, Callable
 
 from tqdm.auto import tqdm
 
-from ffsr_gym.provenance import provenance, write_json_atomic, write_text_atomic
 from ffsr_gym.model.scenario import Scenario, load_scenario
 from ffsr_gym.planning.planner import METHODS
+from ffsr_gym.provenance import provenance, write_json_atomic, write_text_atomic
 from ffsr_gym.report import plotting
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.sim.simulate import simulate

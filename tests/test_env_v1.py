@@ -1,0 +1,148 @@
+"""FFSR-v1 / FFSR-Residual-v1: API checks, the zero residual is the planner, rewards sum to −C, the residual can succeed."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import ffsr_gym
+from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.scoring.score import score_episode
+
+IDS = ("FFSR-v1", "FFSR-Residual-v1")
+BENCH = load_benchmark("v1")
+
+
+def run(env, policy, seed=0):
+    obs, _ = env.reset(seed=seed)
+    rewards, infos = [], []
+    while True:
+        obs, reward, terminated, truncated, info = env.step(policy(obs))
+        rewards.append(reward)
+        infos.append(info)
+        if terminated or truncated:
+            return np.array(rewards), infos, env.unwrapped.trajectory
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_check_env_gymnasium_and_sb3(env_id):
+    sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
+    env = gym.make(env_id, task="paper", split="test")
+    check_env(env.unwrapped, skip_render_check=True)
+    sb3_checker.check_env(env.unwrapped, warn=True)
+    assert env.spec.max_episode_steps == 200
+
+
+def test_arguments_are_checked():
+    with pytest.raises(InvalidInputError, match="split"):
+        gym.make("FFSR-v1", split="validation")
+    with pytest.raises(InvalidInputError, match="task"):
+        gym.make("FFSR-v1", task="impossible")
+    with pytest.raises(InvalidInputError, match="terminate_on_violation"):
+        gym.make("FFSR-v1", terminate_on_violation="no")
+
+
+def test_zero_residual_is_exactly_the_reference_planner():
+    env = gym.make("FFSR-Residual-v1", task="paper")
+    rewards, infos, traj = run(env, lambda obs: np.zeros(12, dtype=np.float32))
+    reference = ffsr_gym.simulate(env.unwrapped.scenario)
+    for field in ("q", "dq_joints", "ee_position_error_m", "clearance_m"):
+        assert np.array_equal(getattr(traj, field), getattr(reference, field)), field
+    assert (reference.info["m"], reference.info["T_c_s"]) == (BENCH.planner.m, BENCH.planner.T_c_s)
+    assert infos[-1]["success"]
+
+
+def test_rewards_sum_to_minus_cost_and_info_matches_the_trajectory():
+    env = gym.make("FFSR-v1", task="paper")
+    rng = np.random.default_rng(1)
+    actions = np.clip(rng.normal([0.0, -0.2], 0.05, (200, 2)), -1, 1).astype(np.float32)
+    it = iter(actions)
+    rewards, infos, traj = run(env, lambda obs: next(it))
+    result = score_episode(traj, env.unwrapped.scenario, BENCH)
+    assert infos[-1]["score"] == result.score and infos[-1]["success"] == result.success
+    penalties = sum(i["penalty"] for i in infos)
+    assert -(rewards.sum() + penalties) == pytest.approx(result.smoothness_cost, rel=1e-12)
+
+
+def test_fading_residual_leaves_no_steady_state_error():
+    """v0 failed with a constant residual of 0.002 deg/s (final error 1.2e-6 m); the fade removes it."""
+    env = gym.make("FFSR-Residual-v1", task="paper")
+    outcomes = []
+    for size in (0.002 / 20, 0.01, 0.1, 0.5, 1.0):
+        _, infos, traj = run(env, lambda obs, size=size: np.full(12, size, dtype=np.float32))
+        outcomes.append(infos[-1]["failure"])
+        if infos[-1]["failure"] is None:
+            assert traj.ee_position_error_m[-1] < 1e-6
+    assert "final_error" not in outcomes and outcomes[0] is None
+
+
+def test_fade_law():
+    t_m, fade = 10.0, BENCH.action.residual_fade_s
+    assert BENCH.residual_fade(0.0, t_m) == BENCH.residual_fade(t_m - fade, t_m) == 1.0
+    assert BENCH.residual_fade(t_m - fade / 2, t_m) == pytest.approx(0.5, abs=1e-15)
+    assert BENCH.residual_fade(t_m, t_m) == BENCH.residual_fade(15.0, t_m) == 0.0
+    values = [BENCH.residual_fade(t, t_m) for t in np.linspace(t_m - fade, t_m, 50)]
+    assert all(a >= b for a, b in zip(values, values[1:]))
+
+
+def test_uniform_random_residual_succeeds_unless_it_breaks_a_limit():
+    """Random residuals: every episode that neither exceeds the rate limit nor collides reaches the tolerance."""
+    env = gym.make("FFSR-Residual-v1", task="paper")
+    env.action_space.seed(0)
+    failures = [run(env, lambda obs: env.action_space.sample(), seed=s)[1][-1]["failure"] for s in range(6)]
+    assert "final_error" not in failures
+    assert failures.count(None) >= 4
+
+
+def test_violations_graded_when_not_terminating():
+    env = gym.make("FFSR-v1", task="paper", terminate_on_violation=False)
+    lo = np.array([-1.0, -1.0], dtype=np.float32)  # m = 0.05, T_c = 1 s: far over the rate limit
+    rewards, infos, traj = run(env, lambda obs: lo)
+    assert len(infos) == 200 and not any(i.get("success") for i in infos)
+    costs = np.array([i["cost"] for i in infos])
+    assert costs.max() > 1.0 and infos[-1]["failure"] == "rate_limit"
+    rates = np.degrees(np.abs(traj.dq_joints[:-1])).reshape(200, -1).max(axis=1)
+    clear = np.minimum(traj.clearance_m[:-1], traj.self_clearance_m[:-1]).reshape(200, -1).min(axis=1)
+    expected = np.maximum(0, -clear) / BENCH.action.cost_clearance_scale_m + np.maximum(0, rates / 200.0 - 1)
+    assert costs == pytest.approx(expected, rel=1e-12, abs=1e-15)
+    stopped = gym.make("FFSR-v1", task="paper")
+    assert len(run(stopped, lambda obs: lo)[1]) < 200
+
+
+def test_dense_shaping_telescopes_and_leaves_the_score():
+    plain, shaped = gym.make("FFSR-v1", task="paper"), gym.make("FFSR-v1", task="paper", dense_shaping=True)
+    action = np.array([0.0, -0.3], dtype=np.float32)
+    r0, i0, _ = run(plain, lambda obs: action)
+    r1, i1, _ = run(shaped, lambda obs: action)
+    shaping = np.array([i["shaping"] for i in i1])
+    assert r1 - r0 == pytest.approx(shaping, abs=1e-12)
+    scale = BENCH.action.shaping_position_scale_m
+    first = shaped.unwrapped.trajectory.ee_position_error_m[0]
+    assert shaping.sum() == pytest.approx((first - i1[-1]["ee_position_error_m"]) / scale, rel=1e-9)
+    assert i0[-1]["score"] == i1[-1]["score"]
+
+
+SCRIPT = """
+import hashlib, numpy as np, gymnasium as gym, ffsr_gym
+env = gym.make("FFSR-Residual-v1", task="paper")
+obs, _ = env.reset(seed=5)
+env.action_space.seed(5)
+h = hashlib.sha256(obs.tobytes())
+for _ in range(40):
+    obs, r, *_ = env.step(env.action_space.sample())
+    h.update(obs.tobytes()); h.update(np.float64(r).tobytes())
+h.update(env.unwrapped.trajectory.q.tobytes())
+print(h.hexdigest())
+"""
+
+
+def test_same_seed_bit_identical_across_processes():
+    digests = {subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, check=True).stdout
+               for _ in range(2)}
+    assert len(digests) == 1
