@@ -146,3 +146,8 @@ def test_same_seed_bit_identical_across_processes():
     digests = {subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, check=True).stdout
                for _ in range(2)}
     assert len(digests) == 1
+
+
+def test_evaluate_refuses_v1_ids_instead_of_scoring_them_with_v0():
+    with pytest.raises(InvalidInputError, match="v0 ids"):
+        ffsr_gym.evaluate((0.3, 4.0), "FFSR-v1")

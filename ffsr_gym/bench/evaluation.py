@@ -32,6 +32,8 @@ class PredictsActions(Protocol):
 
 
 Policy = Callable[[np.ndarray], np.ndarray] | PredictsActions | tuple[float, float]
+#: The ids :func:`evaluate` scores (with the v0 objective).
+V0_IDS = ("FFSR-v0", "FFSR-Residual-v0")
 
 
 def scenario_for_seed(scenario: str | Scenario, seed: int | None) -> Scenario:
@@ -166,6 +168,10 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
         name: entry name (file name of :meth:`EvalReport.save`).
         progress: show a progress bar.
     """
+    if env_id not in V0_IDS:
+        raise InvalidInputError(f"env_id {env_id!r}: evaluate() scores the v0 ids {list(V0_IDS)}; v1 episodes are "
+                                "scored by ffsr_gym.scoring.score.score_episode (v1 evaluation and leaderboards come "
+                                "with the v1 task pools)")
     kwargs = dict(env_kwargs or {"scenario": "paper"})
     seeds = list(eval_seeds(env_id) if seeds is None else seeds)
     start = time.perf_counter()
