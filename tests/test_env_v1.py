@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import warnings
 
 import gymnasium as gym
 import numpy as np
@@ -33,9 +34,12 @@ def run(env, policy, seed=0):
 @pytest.mark.parametrize("env_id", IDS)
 def test_check_env_gymnasium_and_sb3(env_id):
     sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
-    env = gym.make(env_id, task="paper", split="test")
-    check_env(env.unwrapped, skip_render_check=True)
-    sb3_checker.check_env(env.unwrapped, warn=True)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        env = gym.make(env_id, task="paper", split="test")
+        check_env(env.unwrapped, skip_render_check=True)
+        sb3_checker.check_env(env.unwrapped, warn=True)
+    assert not caught, [str(w.message) for w in caught]
     assert env.spec.max_episode_steps == 200
 
 
