@@ -167,8 +167,12 @@ class FFSREnv(gym.Env):
             raise InvalidInputError("call reset() before step()")
         a = self._checked_action(action)
         if self.residual:
-            return self._advance(None, residual_rates(a, self.scenario.env))
+            return self._advance(None, self._residual(a))
         return self._advance(self.action_to_parameters(a), None)
+
+    def _residual(self, action: np.ndarray) -> np.ndarray:
+        """Residual joint rates [rad/s] of a (clipped) residual action at the current time."""
+        return residual_rates(action, self.scenario.env)
 
     def step_with_parameters(self, m: float, T_c: float) -> tuple[np.ndarray, float, bool, bool, dict]:
         """``FFSR-v0`` step with physical parameters m ∈ (0, 1) and T_c [s] > 0 (no float32 rounding)."""

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from ffsr_gym.environments.env import FFSREnv, residual_rates
+from ffsr_gym.environments.env import FFSREnv
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.benchmark import Benchmark, load_benchmark
 from ffsr_gym.model.scenario import Scenario, load_scenario
@@ -95,14 +95,10 @@ class FFSRV1Env(FFSREnv):
         self._potential = self._shaping_potential()
         return obs, info
 
-    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
-        if self.rollout is None:
-            raise InvalidInputError("call reset() before step()")
-        a = self._checked_action(action)
-        if self.residual:
-            fade = self.benchmark.residual_fade(self.rollout.t, self.scenario.trajectory.motion_time_s)
-            return self._advance(None, fade * residual_rates(a, self.scenario.env))
-        return self._advance(self.action_to_parameters(a), None)
+    def _residual(self, action: np.ndarray) -> np.ndarray:
+        """The v0 residual times the fade f(t) at the start of this decision."""
+        fade = self.benchmark.residual_fade(self.rollout.t, self.scenario.trajectory.motion_time_s)
+        return fade * super()._residual(action)
 
     def _advance(self, parameters: tuple[float, float] | None, residual: np.ndarray | None):
         rollout, settings = self.rollout, self.benchmark

@@ -16,7 +16,7 @@ from typing import Any
 
 from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model.resources import envs_dir
-from ffsr_gym.model.scenario import Scenario, _choice, _number, _section, _vector, build_table
+from ffsr_gym.model.scenario import Scenario, _choice, _number, _section, _vector, build_table, check_action_bounds
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -116,8 +116,5 @@ def load_benchmark(version: str = "v1") -> Benchmark:
         bench = build_table(Benchmark, data)
     except ScenarioError as exc:
         raise ScenarioError(f"{path}: {exc}") from None
-    for key, (lo, hi) in (("action.m_bounds", bench.action.m_bounds), ("action.T_c_bounds_s", bench.action.T_c_bounds_s)):
-        if not lo < hi or (key == "action.m_bounds" and (lo <= 0.0 or hi >= 1.0)):
-            raise ScenarioError(f"{path}: key {key!r} = {[lo, hi]} is invalid; allowed: [low, high] with low < high"
-                                + (" inside (0, 1)" if key == "action.m_bounds" else ""))
+    check_action_bounds(bench.action.m_bounds, bench.action.T_c_bounds_s, section="action", where=f"{path}: ")
     return bench

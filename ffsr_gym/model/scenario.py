@@ -378,13 +378,19 @@ def _check_cross_fields(s: Scenario, where: str) -> None:
                 f"{where}key {key!r} = {list(quat)} has norm {norm:.6f}; allowed: a unit "
                 "quaternion [w, x, y, z] within 1e-2 of norm 1 (it is normalised on load)"
             )
-    for key, (lo, hi) in (("env.m_bounds", s.env.m_bounds), ("env.T_c_bounds_s", s.env.T_c_bounds_s)):
-        if not lo < hi or (key == "env.m_bounds" and (lo <= 0.0 or hi >= 1.0)):
-            raise ScenarioError(f"{where}key {key!r} = {[lo, hi]} is invalid; allowed: [low, high] with low < high"
-                                + (" inside (0, 1)" if key == "env.m_bounds" else ""))
+    check_action_bounds(s.env.m_bounds, s.env.T_c_bounds_s, section="env", where=where)
     if s.randomization is not None and s.obstacle is None:
         raise ScenarioError(f"{where}section 'randomization' needs an 'obstacle' section (its radii are used)")
     robot_dir(s.robot)
+
+
+def check_action_bounds(m_bounds: Vec, T_c_bounds_s: Vec, *, section: str, where: str = "") -> None:
+    """Raise :class:`ScenarioError` unless both are [low, high] with low < high, and m's inside (0, 1)."""
+    for key, (lo, hi) in ((f"{section}.m_bounds", m_bounds), (f"{section}.T_c_bounds_s", T_c_bounds_s)):
+        is_m = key.endswith("m_bounds")
+        if not lo < hi or (is_m and (lo <= 0.0 or hi >= 1.0)):
+            raise ScenarioError(f"{where}key {key!r} = {[lo, hi]} is invalid; allowed: [low, high] with low < high"
+                                + (" inside (0, 1)" if is_m else ""))
 
 
 def _normalised(s: Scenario) -> Scenario:

@@ -76,6 +76,20 @@ def reference_targets(robot: Robot, scenario: Scenario, initial_q: Array) -> tup
     return path, robot.base_pose(initial_q)
 
 
+def planner_parameters(scenario: Scenario, method: str, m: float | None, T_c: float | None) -> tuple[float, float]:
+    """Validated (m, T_c [s]) of a run: the given values, else the scenario's.
+
+    Raises:
+        InvalidInputError: ``method`` not in :data:`METHODS`, m outside (0, 1), T_c not in (0, inf).
+    """
+    if method not in METHODS:
+        raise InvalidInputError(f"method {method!r}; allowed: {list(METHODS)}")
+    m = scenario.planner.m if m is None else m
+    T_c = scenario.planner.T_c_s if T_c is None else T_c
+    ptsf.check_parameters(float(T_c), float(m), scenario.planner.phi_form)
+    return float(m), float(T_c)
+
+
 class Planner:
     """Joint-rate planner for one scenario and method.
 
@@ -92,11 +106,9 @@ class Planner:
     def __init__(self, robot: Robot, scenario: Scenario, *, method: str = "predefined_time",
                  m: float | None = None, T_c: float | None = None, path: DesiredPath,
                  base_target: tuple[Array, Array]) -> None:
-        if method not in METHODS:
-            raise InvalidInputError(f"method {method!r}; allowed: {list(METHODS)}")
+        self.m, self.T_c = planner_parameters(scenario, method, m, T_c)
         self.robot, self.scenario, self.method = robot, scenario, method
         self.settings = scenario.planner
-        self.set_parameters(self.settings.m if m is None else m, self.settings.T_c_s if T_c is None else T_c)
         self.centroidal_momentum = np.array(scenario.initial.momentum)
         self.path, self.base_target = path, base_target
         self.obstacle = None if scenario.obstacle is None else np.array(scenario.obstacle.position_m)

@@ -6,14 +6,14 @@ from typing import Any
 
 import numpy as np
 
-from ffsr_gym.exceptions import FFSRError, InvalidInputError
+from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.kernel import cache as kernel_cache
 from ffsr_gym.kernel import loop as kernel_loop
 from ffsr_gym.kernel import planner as kp
 from ffsr_gym.model.robot import check_state
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning import ptsf
-from ffsr_gym.planning.planner import METHODS
+from ffsr_gym.planning.planner import planner_parameters
 from ffsr_gym.sim.rollout import STATUS
 from ffsr_gym.sim.setup import ScenarioSetup, prepare
 from ffsr_gym.sim.trajectory import Trajectory
@@ -66,20 +66,16 @@ class KernelRollout:
 
     def __init__(self, scenario: Scenario, *, method: str = "predefined_time", m: float | None = None,
                  T_c: float | None = None, q0: Array | None = None, log: dict[str, Array] | None = None) -> None:
-        if method not in METHODS:
-            raise InvalidInputError(f"method {method!r}; allowed: {list(METHODS)}")
+        m, T_c = planner_parameters(scenario, method, m, T_c)
         self.scenario, self._method = scenario, method
         self.setup = setup = prepare(scenario)
         self.robot = setup.robot
         self.model, self._mdl = setup.assets.kernel, setup.assets.kernel_arrays
-        m = scenario.planner.m if m is None else m
-        T_c = scenario.planner.T_c_s if T_c is None else T_c
-        ptsf.check_parameters(float(T_c), float(m), scenario.planner.phi_form)
         if q0 is not None:
             check_state(q0)
         q = setup.q0 if q0 is None else np.array(q0, dtype=float)
         self.x = np.concatenate((q[:7], q[self.model.q_index]))
-        self.fp, self.ip = settings_vectors(setup, method=method, m=float(m), T_c=float(T_c))
+        self.fp, self.ip = settings_vectors(setup, method=method, m=m, T_c=T_c)
         self.dt, self.n_steps = scenario.simulation.dt_s, scenario.n_steps
         self.k, self.rows, self.finished = 0, 0, False
         self._log = new_log(self.n_steps + 1) if log is None else log

@@ -43,7 +43,7 @@ class ReferenceRollout:
                  T_c: float | None = None, q0: Array | None = None) -> None:
         self.scenario = scenario
         self.setup = setup = prepare(scenario)
-        self.robot, self.collision, self.obstacles = setup.robot, setup.assets.collision, list(setup.obstacles)
+        self.robot, self.collision, self.obstacles = setup.robot, setup.assets.collision, setup.obstacles
         self.planner = Planner(self.robot, scenario, method=method, m=m, T_c=T_c, path=setup.path,
                                base_target=setup.base_target)
         if q0 is not None:

@@ -62,11 +62,11 @@ def initial_configuration(robot: Robot, scenario: Scenario) -> Array:
     )
 
 
-def obstacles_of(scenario: Scenario) -> list[SphereObstacle]:
-    """The scenario's obstacle as a collision sphere (empty list in free space)."""
+def obstacles_of(scenario: Scenario) -> tuple[SphereObstacle, ...]:
+    """The scenario's obstacle as a collision sphere (empty in free space)."""
     if scenario.obstacle is None:
-        return []
-    return [SphereObstacle(np.array(scenario.obstacle.position_m), scenario.obstacle.radius_m)]
+        return ()
+    return (SphereObstacle(np.array(scenario.obstacle.position_m), scenario.obstacle.radius_m),)
 
 
 @dataclass(frozen=True)
@@ -102,5 +102,5 @@ def prepare(scenario: Scenario) -> ScenarioSetup:
     q0 = initial_configuration(assets.robot, scenario)
     q0.flags.writeable = False  # shared by every rollout of this scenario
     path, base_target = reference_targets(assets.robot, scenario, q0)
-    return ScenarioSetup(scenario=scenario, assets=assets, q0=q0, obstacles=tuple(obstacles_of(scenario)),
+    return ScenarioSetup(scenario=scenario, assets=assets, q0=q0, obstacles=obstacles_of(scenario),
                          path=path, base_target=base_target)
