@@ -15,9 +15,10 @@ __version__ = "0.1.0"
 
 gymnasium.register(id="FFSR-v0", entry_point="ffsr_gym.environments.env:FFSREnv",
                    vector_entry_point="ffsr_gym.environments.vector_env:FFSRVectorEnv")
-gymnasium.register(id="FFSR-v1", entry_point="ffsr_gym.environments.env_v1:FFSRV1Env", max_episode_steps=200)
+gymnasium.register(id="FFSR-v1", entry_point="ffsr_gym.environments.env_v1:FFSRV1Env", max_episode_steps=200,
+                   vector_entry_point="ffsr_gym.environments.vector_env_v1:FFSRV1VectorEnv")
 gymnasium.register(id="FFSR-Residual-v1", entry_point="ffsr_gym.environments.env_v1:FFSRResidualV1Env",
-                   max_episode_steps=200)
+                   max_episode_steps=200, vector_entry_point="ffsr_gym.environments.vector_env_v1:FFSRResidualV1VectorEnv")
 gymnasium.register(id="FFSR-Residual-v0", entry_point="ffsr_gym.environments.env:FFSRResidualEnv",
                    vector_entry_point="ffsr_gym.environments.vector_env:FFSRResidualVectorEnv")
 

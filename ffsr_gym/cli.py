@@ -90,6 +90,24 @@ def _leaderboard(args: argparse.Namespace) -> int:
     return 0
 
 
+def _tasks(args: argparse.Namespace) -> None:
+    from concurrent.futures import ProcessPoolExecutor
+
+    from ffsr_gym.tasks.build import build
+
+    workers = max(1, args.workers)
+    executor = ProcessPoolExecutor(workers) if workers > 1 else None
+    try:
+        data = build(args.work, out=args.out, chunk=args.chunk, max_candidates=args.max_candidates, executor=executor,
+                     workers=workers, progress=not args.no_progress)
+    finally:
+        if executor is not None:
+            executor.shutdown()
+    for split, summary in data["splits"].items():
+        print(f"{split}: {summary['candidates']} candidates, tiers {summary['tier_counts']}, "
+              f"rejected {summary['rejection_counts']}")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``ffsr-gym`` console script."""
     parser = argparse.ArgumentParser(prog="ffsr-gym", description=__doc__)
@@ -126,6 +144,17 @@ def main(argv: list[str] | None = None) -> int:
     tr.add_argument("--leaderboard", default=None, help="write the entry under this folder")
     tr.add_argument("--no-progress", action="store_true")
     tr.set_defaults(func=_train)
+    tasks = sub.add_parser("tasks", help="benchmark v1 task tiers")
+    tasks_sub = tasks.add_subparsers(dest="action", required=True)
+    tb = tasks_sub.add_parser("build", help="apply the tier rule to candidate seeds and write the pool file "
+                                            "(resumable: finished chunks in --work are kept)")
+    tb.add_argument("--work", default="runs/tasks-v1", help="folder of the finished chunks (default: runs/tasks-v1)")
+    tb.add_argument("--out", default=None, help="pool file to write (default: the shipped envs/benchmark/v1_tasks.json)")
+    tb.add_argument("--chunk", type=int, default=100, help="candidates per chunk (default: 100)")
+    tb.add_argument("--workers", type=int, default=2, help="worker processes (default: 2)")
+    tb.add_argument("--max-candidates", type=int, default=50_000, help="give up after this many per split (default: 50000)")
+    tb.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    tb.set_defaults(func=_tasks)
     board = sub.add_parser("leaderboard", help="leaderboard tables")
     board_sub = board.add_subparsers(dest="action", required=True)
     render = board_sub.add_parser("render", help="regenerate the tables in <root>/README.md from the JSON entries")

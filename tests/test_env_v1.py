@@ -133,8 +133,8 @@ def test_dense_shaping_telescopes_and_leaves_the_score():
 
 
 SCRIPT = """
-import hashlib, numpy as np, gymnasium as gym, ffsr_gym
-env = gym.make("FFSR-Residual-v1", task="paper")
+import hashlib, sys, numpy as np, gymnasium as gym, ffsr_gym
+env = gym.make("FFSR-Residual-v1", task=sys.argv[1])
 obs, _ = env.reset(seed=5)
 env.action_space.seed(5)
 h = hashlib.sha256(obs.tobytes())
@@ -146,12 +146,29 @@ print(h.hexdigest())
 """
 
 
-def test_same_seed_bit_identical_across_processes():
-    digests = {subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, check=True).stdout
+@pytest.mark.parametrize("task", ["paper", "medium"])
+def test_same_seed_bit_identical_across_processes(task):
+    digests = {subprocess.run([sys.executable, "-c", SCRIPT, task], capture_output=True, text=True, check=True).stdout
                for _ in range(2)}
     assert len(digests) == 1
 
 
-def test_evaluate_refuses_v1_ids_instead_of_scoring_them_with_v0():
-    with pytest.raises(InvalidInputError, match="v0 ids"):
-        ffsr_gym.evaluate((0.3, 4.0), "FFSR-v1")
+def test_evaluate_v1_scores_the_test_pool_from_trajectories_and_records_the_pools():
+    from ffsr_gym.tasks.splits import pool
+
+    report = ffsr_gym.evaluate((0.3, 4.0), "FFSR-v1", task="easy", training_pool="none (fixed default)")
+    entry = report.to_json()
+    tasks = pool("easy", "test")
+    assert entry["extra"]["evaluation_pool"] == "easy/test" and entry["extra"]["training_pool"] == "none (fixed default)"
+    assert [row["task_seed"] for row in entry["episodes"]] == [t.seed for t in tasks]
+    # The default planner is the certificate of every easy task: the stored build scores, replayed.
+    assert [row["score"] for row in entry["episodes"]] == pytest.approx([t.certificate_score for t in tasks], abs=1e-12)
+    assert report.metrics["success_rate"] == 1.0 and 0.0 < report.metrics["score_iqm"] < 1.0
+    lo, hi = report.metrics["score_iqm_ci95"]
+    assert lo <= report.metrics["score_iqm"] <= hi
+    with pytest.raises(InvalidInputError, match="seeds"):
+        ffsr_gym.evaluate((0.3, 4.0), "FFSR-v1", seeds=[1, 2])
+    with pytest.raises(InvalidInputError, match="task"):
+        ffsr_gym.evaluate((0.3, 4.0), "FFSR-v0", task="easy")
+    with pytest.raises(InvalidInputError, match="FFSR-v0 and FFSR-v1"):
+        ffsr_gym.evaluate((0.3, 4.0), "FFSR-Residual-v1", task="easy")

@@ -74,3 +74,44 @@ def test_vector_env_episode_trajectory_scores_like_simulate():
     reference = ffsr_gym.simulate("free_space")
     trajectory = venv.unwrapped.trajectory(1) if hasattr(venv, "unwrapped") else venv.trajectory(1)
     np.testing.assert_allclose(trajectory.q, reference.q[:len(trajectory.t)], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize(("env_id", "task", "steps"), [("FFSR-Residual-v1", "paper", 230), ("FFSR-v1", "paper", 230),
+                                                       ("FFSR-Residual-v1", "hard", 230)])
+def test_v1_vector_env_equals_single_envs(env_id, task, steps):
+    """Batched v1: same observations, rewards, ends, scores and task draws as single envs seeded s, s+1, ..."""
+    n = 3
+    venv = make_vec(env_id, n, task=task, dense_shaping=True)
+    singles = [gym.make(env_id, task=task, dense_shaping=True) for _ in range(n)]
+    obs, info = venv.reset(seed=11)
+    resets = [env.reset(seed=11 + i) for i, env in enumerate(singles)]
+    np.testing.assert_array_equal(obs, np.stack([r[0] for r in resets]))
+    assert list(info["task_seed"]) == [r[1].get("task_seed", -1) for r in resets]
+    rng = np.random.default_rng(1)
+    pending, ends = [False] * n, 0
+    for t in range(steps):
+        actions = rng.uniform(-1.2, 1.2, venv.action_space.shape).astype(np.float32)
+        obs, rewards, terminated, truncated, info = venv.step(actions)
+        for i, env in enumerate(singles):
+            if pending[i]:
+                expected, reward, term, trunc = env.reset()[0], 0.0, False, False
+                pending[i] = False
+            else:
+                expected, reward, term, trunc, single_info = env.step(actions[i])
+                assert info["cost"][i] == single_info["cost"]
+                if term or trunc:
+                    pending[i], ends = True, ends + 1
+                    assert info["_score"][i]
+                    for key in ("score", "success", "failure", "smoothness_cost", "paper_B"):
+                        assert info[key][i] == single_info[key], key
+            np.testing.assert_array_equal(obs[i], expected, err_msg=f"step {t}, copy {i}")
+            assert rewards[i] == reward, (t, i)
+            assert (terminated[i], truncated[i]) == (term, trunc)
+    assert ends >= 3
+
+
+def test_v1_vector_env_refuses_what_it_cannot_batch():
+    with pytest.raises(InvalidInputError, match="terminate_on_violation"):
+        make_vec("FFSR-v1", 2, terminate_on_violation=False)
+    with pytest.raises(InvalidInputError, match="split"):
+        make_vec("FFSR-v1", 2, task="easy", split="dev")

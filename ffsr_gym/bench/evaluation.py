@@ -4,34 +4,27 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Sequence
 from functools import lru_cache
-from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium.utils import seeding
 from tqdm.auto import tqdm
 
+from ffsr_gym.bench.entry import EvalReport, Policy, PredictsActions, stepper
+from ffsr_gym.bench.evaluation_v1 import V1_IDS, evaluate_v1
 from ffsr_gym.bench.protocol import BOOTSTRAP_SAMPLES, BOOTSTRAP_SEED, eval_seeds
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.scenario import Scenario, load_scenario
-from ffsr_gym.provenance import provenance, write_json_atomic
+from ffsr_gym.provenance import provenance
 from ffsr_gym.scoring.objective import objective_terms
 from ffsr_gym.sim.simulate import simulate
 from ffsr_gym.tasks.random_family import sample_scenario
 
+__all__ = ["EvalReport", "Policy", "PredictsActions", "aggregate", "evaluate", "objective_for_params"]
 
-@runtime_checkable
-class PredictsActions(Protocol):
-    """Anything with a stable-baselines3-style ``predict``."""
-
-    def predict(self, observation: Any, deterministic: bool = True) -> tuple[Any, Any]: ...
-
-
-Policy = Callable[[np.ndarray], np.ndarray] | PredictsActions | tuple[float, float]
 #: The ids :func:`evaluate` scores (with the v0 objective).
 V0_IDS = ("FFSR-v0", "FFSR-Residual-v0")
 
@@ -100,83 +93,41 @@ def aggregate(scores: Sequence[float], feasible: Sequence[bool]) -> dict[str, An
     }
 
 
-def _json_safe(x: Any) -> Any:
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if isinstance(x, dict):
-        return {k: _json_safe(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_json_safe(v) for v in x]
-    return x
-
-
-@dataclass
-class EvalReport:
-    """Result of :func:`evaluate`: aggregate metrics, per-episode rows and provenance."""
-
-    env_id: str
-    env_kwargs: dict[str, Any]
-    metrics: dict[str, Any]
-    episodes: list[dict[str, Any]]
-    provenance: dict[str, Any]
-    name: str = "submission"
-    extra: dict[str, Any] = field(default_factory=dict)
-
-    def to_json(self) -> dict[str, Any]:
-        """The leaderboard entry (infinite values as ``null``)."""
-        return _json_safe({
-            "name": self.name, "env_id": self.env_id, "env_kwargs": self.env_kwargs,
-            "protocol": {"seeds": [row["seed"] for row in self.episodes], "episodes": len(self.episodes),
-                         "score": "objective B if feasible else inf (null in JSON)",
-                         "bootstrap": {"seed": BOOTSTRAP_SEED, "samples": BOOTSTRAP_SAMPLES}},
-            "metrics": self.metrics, "episodes": self.episodes, "extra": self.extra, "provenance": self.provenance,
-        })
-
-    def save(self, directory: str | Path) -> Path:
-        """Write the entry atomically to ``directory/<name>.json`` and return its path."""
-        path = Path(directory) / f"{self.name}.json"
-        write_json_atomic(path, self.to_json())
-        return path
-
-
-def _stepper(policy: Policy, env: gym.Env) -> Callable[[np.ndarray], tuple]:
-    """One env step for ``policy`` given the last observation (fixed parameters bypass float32 actions)."""
-    if isinstance(policy, tuple):
-        if env.unwrapped.residual:
-            raise InvalidInputError("a fixed (m, T_c) policy only applies to FFSR-v0")
-        return lambda _obs: env.unwrapped.step_with_parameters(*policy)
-    if isinstance(policy, PredictsActions):
-        return lambda obs: env.step(policy.predict(obs, deterministic=True)[0])
-    if callable(policy):
-        return lambda obs: env.step(policy(obs))
-    raise InvalidInputError(f"policy must be callable, have .predict, or be a (m, T_c) tuple; got {type(policy).__name__}")
-
-
 def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None, env_kwargs: dict | None = None,
-             name: str = "submission", progress: bool = False) -> EvalReport:
-    """Score ``policy`` on ``env_id`` with the benchmark objective, one episode per seed.
+             name: str = "submission", progress: bool = False, task: str | None = None, split: str = "test",
+             training_pool: str | None = None) -> EvalReport:
+    """Score ``policy`` on ``env_id``: v0 with the paper's objective B, v1 with the v1 episode score.
 
-    The env is built here (no caller wrappers can change the score); each episode is scored with
-    :func:`ffsr_gym.scoring.objective.objective_terms` on its trajectory, never with the summed reward.
+    The env is built here (no caller wrappers can change the score), and each episode is scored
+    from its trajectory, never from the summed reward.
 
     Args:
         policy: a callable obs -> action, an object with SB3-style ``predict(obs, deterministic=True)``,
-            or, for ``FFSR-v0``, a fixed ``(m, T_c)`` in physical units (applied without float32 rounding).
-        env_id: ``"FFSR-v0"`` or ``"FFSR-Residual-v0"``.
-        seeds: episode seeds; default: the public evaluation seeds of ``env_id``.
+            or, for ``FFSR-v0`` / ``FFSR-v1``, a fixed ``(m, T_c)`` in physical units (applied
+            without float32 rounding).
+        env_id: ``"FFSR-v0"``, ``"FFSR-Residual-v0"``, ``"FFSR-v1"`` or ``"FFSR-Residual-v1"``.
+        seeds: v0 only: episode seeds; default: the public evaluation seeds of ``env_id``.
         env_kwargs: keyword arguments of ``gymnasium.make`` (e.g. ``{"scenario": "random"}``).
         name: entry name (file name of :meth:`EvalReport.save`).
         progress: show a progress bar.
+        task, split, training_pool: v1 only: the tier (default ``"easy"``) and the pool scored
+            (default: its **test** pool, one episode per task), and what the policy was trained on
+            (recorded in the entry); see :func:`ffsr_gym.bench.evaluation_v1.evaluate_v1`.
     """
+    if env_id in V1_IDS:
+        if seeds is not None:
+            raise InvalidInputError("seeds: v1 scores one episode per task of a pool; choose it with task= and split=")
+        return evaluate_v1(policy, env_id, task=task or "easy", split=split, training_pool=training_pool,
+                           env_kwargs=env_kwargs, name=name, progress=progress)
     if env_id not in V0_IDS:
-        raise InvalidInputError(f"env_id {env_id!r}: evaluate() scores the v0 ids {list(V0_IDS)}; v1 episodes are "
-                                "scored by ffsr_gym.scoring.score.score_episode (v1 evaluation and leaderboards come "
-                                "with the v1 task pools)")
+        raise InvalidInputError(f"env_id {env_id!r}; allowed: {list(V0_IDS + V1_IDS)}")
+    if task is not None or training_pool is not None:
+        raise InvalidInputError("task= and training_pool= are v1 arguments; v0 takes env_kwargs={'scenario': ...}")
     kwargs = dict(env_kwargs or {"scenario": "paper"})
     seeds = list(eval_seeds(env_id) if seeds is None else seeds)
     start = time.perf_counter()
     env = gym.make(env_id, **kwargs)
-    step = _stepper(policy, env)
+    step = stepper(policy, env)
     rows, hashes = [], {"family": env.unwrapped.family.sha256()}
     for seed in tqdm(seeds, disable=not progress, desc=f"evaluate {env_id}", unit="episode"):
         obs, _ = env.reset(seed=seed)

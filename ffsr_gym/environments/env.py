@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.scenario import EnvSettings, Scenario, load_scenario
+from ffsr_gym.model.scenario import Scenario, load_scenario, residual_rates
 from ffsr_gym.scoring.objective import ObjectiveTerms, objective_terms, rate_terms, smooth_part
 from ffsr_gym.sim.rollout import BACKENDS, Rollout
 from ffsr_gym.sim.simulate import make_rollout
@@ -54,11 +54,6 @@ def check_action(action: Any, shape: tuple[int, ...]) -> tuple[np.ndarray, Any]:
         raise InvalidInputError(f"action must be finite, got {a}; allowed range [-1, 1] per entry")
     clipped = np.clip(a, -1.0, 1.0)
     return clipped.astype(np.float32), np.any(clipped != a, axis=-1)
-
-
-def residual_rates(action: np.ndarray, settings: EnvSettings) -> np.ndarray:
-    """Joint rates [rad/s] of a (clipped) ``FFSR-Residual-v0`` action: ± ``residual_rate_deg_s`` per unit."""
-    return np.radians(settings.residual_rate_deg_s) * np.asarray(action, dtype=np.float64)
 
 
 class FFSREnv(gym.Env):
@@ -155,12 +150,16 @@ class FFSREnv(gym.Env):
     # -------------------------------------------------------------------------- gym API
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
-        self.scenario = sample_scenario(self.family, self.np_random) if self.randomised else self.family
+        self.scenario, info = self._episode_scenario(options)
         self.rollout = make_rollout(self.scenario, backend=self.backend)
         self.clipped_actions = 0
         self.last_rates = np.zeros(12)
         obs = self._observation()
-        return obs, {"clearance_m": self._clearance, "ee_position_error_m": self._ee_error}
+        return obs, {**info, "clearance_m": self._clearance, "ee_position_error_m": self._ee_error}
+
+    def _episode_scenario(self, options: dict | None) -> tuple[Scenario, dict]:
+        """The scenario of the episode being reset, and what ``reset``'s info says about it."""
+        return (sample_scenario(self.family, self.np_random) if self.randomised else self.family), {}
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
         if self.rollout is None:

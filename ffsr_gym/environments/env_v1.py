@@ -11,17 +11,19 @@ from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.benchmark import Benchmark, load_benchmark
 from ffsr_gym.model.scenario import Scenario, load_scenario
 from ffsr_gym.scoring.score import EpisodeScore, score_episode, smoothness_cost, smoothness_terms
+from ffsr_gym.tasks.generator import draw_task
+from ffsr_gym.tasks.splits import SPLITS, PoolTask, pool
+from ffsr_gym.tasks.tiers import TIERS
 
 #: Tasks of benchmark v1 (``task=``); a :class:`Scenario` is accepted as a custom, unranked task.
-TASKS = ("paper",)
-SPLITS = ("train", "test")
+TASKS = ("paper", *TIERS)
 
 
 def v1_task(task: str | Scenario, benchmark: Benchmark) -> Scenario:
-    """The scenario of a v1 task name (or a custom scenario) with v1's settings applied."""
+    """The scenario of ``paper`` (or of a custom scenario) with v1's settings applied."""
     if isinstance(task, Scenario):
         return benchmark.task(task)
-    if task not in TASKS:
+    if task != "paper":
         raise InvalidInputError(f"task {task!r}; allowed: {list(TASKS)} or a Scenario")
     return benchmark.task(load_scenario(task))
 
@@ -59,8 +61,11 @@ class FFSRV1Env(FFSREnv):
     ``score``, ``success``, ``failure``, ``smoothness_cost``, ``paper_B``.
 
     ## Starting State
-    The task's initial state (``task="paper"``: the paper's scenario; ``split`` is accepted and
-    both splits hold that one task).
+    ``task="paper"``: the paper's scenario (``split`` is accepted; both splits hold that one task).
+    ``task`` in ``easy``, ``medium``, ``hard``: each reset draws one task of the tier's ``split``
+    pool uniformly from ``self.np_random`` (``reset(options={"task_index": i})`` picks one); the
+    test pool is used only with ``split="test"``. Tiers, pools and certificates:
+    ``ffsr_gym.tasks`` and docs/envs.md. ``reset``'s info has ``task_index`` and ``task_seed``.
 
     ## Episode End
     Terminated on a rate above 200 deg/s or a negative clearance (unless
@@ -73,7 +78,8 @@ class FFSRV1Env(FFSREnv):
     terminate_on_violation=True, dense_shaping=False)``.
 
     ## Version History
-    * v1: bounded score that ranks, 1 mm tolerance, v1 action box, fading residual.
+    * v1: bounded score that ranks, 1 mm tolerance, v1 action box, fading residual, task tiers
+      easy / medium / hard with certified train and test pools.
     * v0: initial release (``FFSR-v0``, frozen).
     """
 
@@ -88,7 +94,24 @@ class FFSRV1Env(FFSREnv):
         self.task_name = task if isinstance(task, str) else task.name
         self.split = split
         self.terminate_on_violation, self.dense_shaping = terminate_on_violation, dense_shaping
-        super().__init__(v1_task(task, self.benchmark), render_mode=render_mode, backend=backend)
+        if isinstance(task, str) and task in TIERS:
+            self.pool: tuple[PoolTask, ...] | None = pool(task, split)
+            first = draw_task(self.pool[0].seed, self.benchmark)
+        else:
+            self.pool, first = None, v1_task(task, self.benchmark)
+        super().__init__(first, render_mode=render_mode, backend=backend)
+
+    def _episode_scenario(self, options: dict | None) -> tuple[Scenario, dict]:
+        """A tier's task: drawn uniformly from the split's pool, or ``options={"task_index": i}``."""
+        if self.pool is None:
+            return self.family, {}
+        index = (options or {}).get("task_index")
+        if index is None:
+            index = int(self.np_random.integers(len(self.pool)))
+        elif isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not 0 <= index < len(self.pool):
+            raise InvalidInputError(f"options['task_index'] = {index!r}; allowed: an integer in [0, {len(self.pool) - 1}]")
+        seed = self.pool[int(index)].seed
+        return draw_task(seed, self.benchmark), {"task_index": int(index), "task_seed": seed}
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         obs, info = super().reset(seed=seed, options=options)

@@ -18,11 +18,11 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from ffsr_gym.environments.env import FFSREnv, FFSRResidualEnv, assemble_observation, check_action, residual_rates
+from ffsr_gym.environments.env import FFSREnv, FFSRResidualEnv, assemble_observation, check_action
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.kernel import batch as kernel_batch
 from ffsr_gym.kernel import planner as kp
-from ffsr_gym.model.scenario import Scenario, load_scenario
+from ffsr_gym.model.scenario import Scenario, load_scenario, residual_rates
 from ffsr_gym.scoring.objective import objective_terms, rate_terms, smooth_part
 from ffsr_gym.sim.compiled import LOG_FIELDS, KernelRollout, new_log
 from ffsr_gym.sim.trajectory import Trajectory
@@ -56,8 +56,8 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
             if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
                 raise InvalidInputError(f"threads = {threads}; allowed: 1 to {numba.config.NUMBA_NUM_THREADS}")
             numba.set_num_threads(threads)
-        self.family = load_scenario(scenario)
-        self._template = self.single_env_class(self.family, backend="kernel")
+        self._template = self._make_template(scenario)
+        self.family = self._template.family
         self.num_envs = int(num_envs)
         self.single_action_space = self._template.action_space
         self.single_observation_space = self._template.observation_space
@@ -77,9 +77,17 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         self._needs_reset = np.zeros(N, dtype=bool)
         self._mdl = None
 
+    def _make_template(self, scenario: str | Scenario) -> FFSREnv:
+        """The single environment whose spaces, mapping and episode scenarios the copies share."""
+        return self.single_env_class(load_scenario(scenario), backend="kernel")
+
     # ---------------------------------------------------------------------------- episodes
+    def _episode_scenario(self, i: int) -> Scenario:
+        """Copy ``i``'s next episode scenario, drawn from its own generator as the single env draws it."""
+        return sample_scenario(self.family, self._rngs[i]) if self.family.randomization is not None else self.family
+
     def _reset_one(self, i: int) -> None:
-        scenario = sample_scenario(self.family, self._rngs[i]) if self.family.randomization is not None else self.family
+        scenario = self._episode_scenario(i)
         if scenario.n_steps != self.n_steps or scenario.simulation.dt_s != self.dt:
             raise FFSRError("a randomised scenario changed dt_s or duration_s; the batch needs them fixed")
         rollout = KernelRollout(scenario, log={key: self._logs[key][i] for key in LOG_FIELDS})
@@ -104,7 +112,11 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         self._needs_reset[:] = False
         return self._observe()[0], {}
 
-    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+    def _advance_batch(self, actions: Any) -> np.ndarray:
+        """Check the actions, reset the copies that ended, step the physics; returns the copies that moved.
+
+        ``self._previous_rates`` keeps the rates applied before this step.
+        """
         if self._mdl is None:
             raise InvalidInputError("call reset() before step()")
         a, was_clipped = check_action(actions, self.action_space.shape)
@@ -120,7 +132,12 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         if np.any(self._status == 3):
             raise FFSRError(f"planner produced non-finite joint rates in copies {np.flatnonzero(self._status == 3).tolist()}")
         moved = np.flatnonzero(active)
+        self._previous_rates = self._last_rates.copy()
         self._last_rates[moved] = self._applied[moved, self._rows[moved] - 1]
+        return active
+
+    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+        active = self._advance_batch(actions)
         objective = self.family.objective
         increments = np.where(active, smooth_part(*rate_terms(self._applied, self.dt, objective)[:2], objective), 0.0)
         terminated = active & (self._status != 0)

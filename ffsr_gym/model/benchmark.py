@@ -16,7 +16,16 @@ from typing import Any
 
 from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model.resources import envs_dir
-from ffsr_gym.model.scenario import Scenario, _choice, _number, _section, _vector, build_table, check_action_bounds
+from ffsr_gym.model.scenario import (
+    Randomization,
+    Scenario,
+    _choice,
+    _number,
+    _section,
+    _vector,
+    build_table,
+    check_action_bounds,
+)
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -62,6 +71,29 @@ class ActionSettings:
 
 
 @dataclass(frozen=True)
+class TaskRule:
+    """The task generator, its screening margins and the tier rule (see ``v1.toml`` [tasks]).
+
+    A candidate task is drawn from ``family`` with the ranges of ``draw``; it is rejected when the
+    nominal motion (the default planner without avoidance) misses the target, brings the balance
+    arm within ``min_balance_sigma`` of a dynamic singularity, or brings the arms closer than
+    ``min_nominal_self_clearance_m``. The rest are tiered: easy (the default planner succeeds),
+    medium (a constant (m, T_c) of the grid does), hard (none does, a residual of
+    ``residual_trials`` seeded draws does), else rejected as unsolved.
+    """
+
+    family: str = field(metadata=_choice("random"))
+    min_balance_sigma: float = field(metadata=_number(0.0, 100.0))
+    min_nominal_self_clearance_m: float = field(metadata=_number(-1.0, 1.0))
+    grid_m: tuple[float, ...] = field(metadata=_vector(6, 0.0, 1.0))
+    grid_T_c_s: tuple[float, ...] = field(metadata=_vector(6, 1e-3, 1000.0))
+    residual_trials: float = field(metadata=_number(0, 1e4))
+    train_tasks: float = field(metadata=_number(1, 1e5))
+    test_tasks: float = field(metadata=_number(1, 1e5))
+    draw: Randomization = field(metadata=_section(Randomization))
+
+
+@dataclass(frozen=True)
 class Benchmark:
     """One benchmark version's definition."""
 
@@ -70,6 +102,7 @@ class Benchmark:
     score: ScoreSettings = field(metadata=_section(ScoreSettings))
     planner: PlannerDefaults = field(metadata=_section(PlannerDefaults))
     action: ActionSettings = field(metadata=_section(ActionSettings))
+    tasks: TaskRule = field(metadata=_section(TaskRule))
 
     def task(self, scenario: Scenario) -> Scenario:
         """``scenario`` with this version's planner defaults, tolerances, rate limit and action box.

@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model.resources import robot_dir, scenario_path
 
@@ -306,7 +308,7 @@ def _build(cls: type, table: Any, *, prefix: str) -> Any:
                 raise ScenarioError(f"missing key {key!r} (required)")
             continue
         if name in _SECTIONS or spec.metadata.get("kind") == "section":
-            section = _SECTIONS[name] if name in _SECTIONS else spec.metadata["cls"]
+            section = spec.metadata["cls"] if spec.metadata.get("kind") == "section" else _SECTIONS[name]
             values[name] = _build(section, table[name], prefix=key + ".")
         else:
             values[name] = _convert(key, table[name], spec.metadata)
@@ -382,6 +384,11 @@ def _check_cross_fields(s: Scenario, where: str) -> None:
     if s.randomization is not None and s.obstacle is None:
         raise ScenarioError(f"{where}section 'randomization' needs an 'obstacle' section (its radii are used)")
     robot_dir(s.robot)
+
+
+def residual_rates(action: Any, settings: EnvSettings) -> Any:
+    """Joint rates [rad/s] of a (clipped) residual action: ± ``residual_rate_deg_s`` per unit."""
+    return np.radians(settings.residual_rate_deg_s) * np.asarray(action, dtype=np.float64)
 
 
 def check_action_bounds(m_bounds: Vec, T_c_bounds_s: Vec, *, section: str, where: str = "") -> None:

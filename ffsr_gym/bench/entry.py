@@ -1,0 +1,81 @@
+"""A scored evaluation as a leaderboard entry (:class:`EvalReport`), and how a policy steps an env."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+import gymnasium as gym
+import numpy as np
+
+from ffsr_gym.bench.protocol import BOOTSTRAP_SAMPLES, BOOTSTRAP_SEED
+from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.provenance import write_json_atomic
+
+V0_SCORE_RULE = "objective B if feasible else inf (null in JSON)"
+
+
+@runtime_checkable
+class PredictsActions(Protocol):
+    """Anything with a stable-baselines3-style ``predict``."""
+
+    def predict(self, observation: Any, deterministic: bool = True) -> tuple[Any, Any]: ...
+
+
+Policy = Callable[[np.ndarray], np.ndarray] | PredictsActions | tuple[float, float]
+def _json_safe(x: Any) -> Any:
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_json_safe(v) for v in x]
+    return x
+
+
+@dataclass
+class EvalReport:
+    """Result of :func:`evaluate`: aggregate metrics, per-episode rows and provenance."""
+
+    env_id: str
+    env_kwargs: dict[str, Any]
+    metrics: dict[str, Any]
+    episodes: list[dict[str, Any]]
+    provenance: dict[str, Any]
+    name: str = "submission"
+    extra: dict[str, Any] = field(default_factory=dict)
+    score_rule: str = V0_SCORE_RULE
+
+    def to_json(self) -> dict[str, Any]:
+        """The leaderboard entry (infinite values as ``null``)."""
+        return _json_safe({
+            "name": self.name, "env_id": self.env_id, "env_kwargs": self.env_kwargs,
+            "protocol": {"seeds": [row["seed"] for row in self.episodes], "episodes": len(self.episodes),
+                         "score": self.score_rule,
+                         "bootstrap": {"seed": BOOTSTRAP_SEED, "samples": BOOTSTRAP_SAMPLES}},
+            "metrics": self.metrics, "episodes": self.episodes, "extra": self.extra, "provenance": self.provenance,
+        })
+
+    def save(self, directory: str | Path) -> Path:
+        """Write the entry atomically to ``directory/<name>.json`` and return its path."""
+        path = Path(directory) / f"{self.name}.json"
+        write_json_atomic(path, self.to_json())
+        return path
+
+
+def stepper(policy: Policy, env: gym.Env) -> Callable[[np.ndarray], tuple]:
+    """One env step for ``policy`` given the last observation (fixed parameters bypass float32 actions)."""
+    if isinstance(policy, tuple):
+        if env.unwrapped.residual:
+            raise InvalidInputError("a fixed (m, T_c) policy only applies to FFSR-v0 and FFSR-v1")
+        return lambda _obs: env.unwrapped.step_with_parameters(*policy)
+    if isinstance(policy, PredictsActions):
+        return lambda obs: env.step(policy.predict(obs, deterministic=True)[0])
+    if callable(policy):
+        return lambda obs: env.step(policy(obs))
+    raise InvalidInputError(f"policy must be callable, have .predict, or be a (m, T_c) tuple; got {type(policy).__name__}")
+
+

@@ -1,0 +1,96 @@
+"""Scoring a policy on benchmark v1: one episode per task of a tier's pool (the test pool by default).
+
+Every episode is scored from its trajectory by :func:`ffsr_gym.scoring.score.score_episode`, the
+one v1 score, never from the rewards. The entry records the pool it was evaluated on and the
+pool the policy was trained on (as the caller states it).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from tqdm.auto import tqdm
+
+from ffsr_gym.bench.entry import EvalReport, stepper
+from ffsr_gym.bench.protocol import BOOTSTRAP_SAMPLES, BOOTSTRAP_SEED
+from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.provenance import provenance
+from ffsr_gym.scoring.score import score_episode
+from ffsr_gym.tasks.splits import SPLITS, pool, pool_path
+from ffsr_gym.tasks.tiers import TIERS
+
+V1_IDS = ("FFSR-v1", "FFSR-Residual-v1")
+SCORE_RULE = "v1 episode score: 1 / (1 + C) on success, 0 on failure (ffsr_gym.scoring.score)"
+
+
+def iqm(values: np.ndarray) -> float:
+    """Interquartile mean: the mean of the middle half of the sorted values."""
+    v = np.sort(np.asarray(values, dtype=float))
+    lo, hi = int(math.floor(0.25 * len(v))), int(math.ceil(0.75 * len(v)))
+    return float(np.mean(v[lo:hi] if hi > lo else v))
+
+
+def aggregate_v1(scores: Sequence[float], successes: Sequence[bool]) -> dict[str, Any]:
+    """Mean, IQM and its seeded-bootstrap 95 % CI of the episode scores, and the success rate."""
+    values = np.asarray(scores, dtype=float)
+    rng = np.random.default_rng(BOOTSTRAP_SEED)
+    boots = [iqm(values[rng.integers(0, len(values), len(values))]) for _ in range(BOOTSTRAP_SAMPLES)]
+    return {"score_mean": float(np.mean(values)), "score_iqm": iqm(values),
+            "score_iqm_ci95": [float(np.percentile(boots, 2.5, method="inverted_cdf")),
+                               float(np.percentile(boots, 97.5, method="inverted_cdf"))],
+            "success_rate": float(np.mean(np.asarray(successes, dtype=float))), "episodes": len(values)}
+
+
+def evaluate_v1(policy: Any, env_id: str, *, task: str = "easy", split: str = "test", indices: Sequence[int] | None = None,
+                training_pool: str | None = None, env_kwargs: dict | None = None, name: str = "submission",
+                progress: bool = False) -> EvalReport:
+    """Score ``policy`` on ``env_id`` over a tier's pool, one episode per task (``reset(seed=i, task_index=i)``).
+
+    Args:
+        policy: as :func:`ffsr_gym.evaluate` (a ``(m, T_c)`` tuple only on ``FFSR-v1``).
+        env_id: ``"FFSR-v1"`` or ``"FFSR-Residual-v1"``.
+        task: a tier (``easy``, ``medium``, ``hard``) or ``"paper"`` (one episode).
+        split: the pool scored; ``"test"`` unless you report a training score.
+        indices: pool indices to score (default: the whole pool).
+        training_pool: what the policy was trained or tuned on (recorded), e.g. ``"easy/train"``.
+        env_kwargs: other ``gymnasium.make`` arguments (``dense_shaping``, ...; never the score).
+        name: entry name.
+        progress: show a progress bar.
+    """
+    if env_id not in V1_IDS:
+        raise InvalidInputError(f"env_id {env_id!r}; allowed: {list(V1_IDS)}")
+    if task not in ("paper", *TIERS) or split not in SPLITS:
+        raise InvalidInputError(f"task {task!r}, split {split!r}; allowed: task in {['paper', *TIERS]}, split in {list(SPLITS)}")
+    kwargs = {**(env_kwargs or {}), "task": task, "split": split}
+    size = 1 if task == "paper" else len(pool(task, split))
+    chosen = list(range(size) if indices is None else indices)
+    if not chosen or any(isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= i < size for i in chosen):
+        raise InvalidInputError(f"indices must be a non-empty list of integers in [0, {size - 1}], got {indices!r}")
+    start = time.perf_counter()
+    env = gym.make(env_id, **kwargs)
+    step = stepper(policy, env)
+    rows, hashes = [], {}
+    for index in tqdm(chosen, disable=not progress, desc=f"evaluate {env_id} {task}/{split}", unit="episode"):
+        options = None if task == "paper" else {"task_index": int(index)}
+        obs, info = env.reset(seed=int(index), options=options)
+        done = False
+        while not done:
+            obs, _, terminated, truncated, _ = step(obs)
+            done = terminated or truncated
+        played = env.unwrapped.scenario
+        result = score_episode(env.unwrapped.trajectory, played, env.unwrapped.benchmark)
+        hashes[played.name] = played.sha256()
+        rows.append({"seed": int(index), "task_index": int(index), "task_seed": info.get("task_seed"), **result.as_dict()})
+    env.close()
+    metrics = aggregate_v1([row["score"] for row in rows], [row["success"] for row in rows])
+    pools = pool_path().read_bytes()
+    extra = {"training_pool": training_pool, "evaluation_pool": f"{task}/{split}",
+             "pool_file_sha256": hashlib.sha256(pools).hexdigest()}
+    prov = provenance(scenarios=hashes, seeds=[int(i) for i in chosen], wall_time_s=time.perf_counter() - start)
+    return EvalReport(env_id, kwargs, metrics, rows, prov, name=name, extra=extra, score_rule=SCORE_RULE)

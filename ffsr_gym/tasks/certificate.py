@@ -1,0 +1,99 @@
+"""Certificates: a planner setting or a residual action that passes a task's success test.
+
+A certificate is replayed exactly as the v1 environments step: decisions every
+``env.decision_interval_s``, stop at the first violation, scored by
+:func:`ffsr_gym.scoring.score.score_episode`.
+
+* ``constant``: ``FFSR-v1`` with the same physical (m, T_c [s]) at every decision
+  (``env.unwrapped.step_with_parameters(m, T_c)``);
+* ``residual``: ``FFSR-Residual-v1`` with the same action (12 values in [-1, 1], exact in float32)
+  at every decision, faded by the benchmark's law, on top of the default planner.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.model.benchmark import Benchmark
+from ffsr_gym.model.scenario import Scenario, residual_rates
+from ffsr_gym.planning.planner import planner_parameters
+from ffsr_gym.scoring.score import EpisodeScore, score_episode
+from ffsr_gym.sim.simulate import make_rollout
+
+KINDS = ("constant", "residual")
+
+
+@dataclass(frozen=True)
+class Certificate:
+    """A replayable proof that a task is solvable.
+
+    Attributes:
+        kind: ``"constant"`` or ``"residual"``.
+        m, T_c_s: the planner's (m, T_c [s]) (for ``residual``: the benchmark's default).
+        residual: (12,) the constant ``FFSR-Residual-v1`` action, or None.
+    """
+
+    kind: str
+    m: float
+    T_c_s: float
+    residual: tuple[float, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise InvalidInputError(f"certificate kind {self.kind!r}; allowed: {list(KINDS)}")
+        if (self.residual is None) != (self.kind == "constant"):
+            raise InvalidInputError("a 'residual' certificate needs 12 residual values; a 'constant' one none")
+        if self.residual is not None:
+            values = np.asarray(self.residual, dtype=float)
+            if values.shape != (12,) or not np.all(np.abs(values) <= 1.0):
+                raise InvalidInputError(f"certificate residual must be 12 values in [-1, 1], got {self.residual!r}")
+            if np.any(values.astype(np.float32).astype(float) != values):
+                raise InvalidInputError("certificate residual values must be exact in float32 (they are env actions)")
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready dict (residual omitted for a constant certificate)."""
+        data: dict[str, Any] = {"kind": self.kind, "m": self.m, "T_c_s": self.T_c_s}
+        if self.residual is not None:
+            data["residual"] = list(self.residual)
+        return data
+
+    @classmethod
+    def from_dict(cls, data: Any) -> Certificate:
+        """Inverse of :meth:`as_dict`.
+
+        Raises:
+            InvalidInputError: not a dict of the keys above with numbers in range.
+        """
+        if not isinstance(data, dict) or set(data) - {"kind", "m", "T_c_s", "residual"}:
+            raise InvalidInputError(f"certificate must be a dict with keys kind, m, T_c_s[, residual], got {data!r}")
+        try:
+            m, T_c = float(data["m"]), float(data["T_c_s"])
+            residual = None if data.get("residual") is None else tuple(float(x) for x in data["residual"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InvalidInputError(f"certificate {data!r}: {exc}") from None
+        if not (0.0 < m < 1.0 and math.isfinite(T_c) and T_c > 0.0):
+            raise InvalidInputError(f"certificate (m, T_c_s) = ({m}, {T_c}); allowed: m in (0, 1), T_c_s > 0")
+        return cls(kind=data.get("kind"), m=m, T_c_s=T_c, residual=residual)
+
+
+def replay(task: Scenario, certificate: Certificate, benchmark: Benchmark, *, backend: str = "auto") -> EpisodeScore:
+    """Run ``certificate`` on ``task`` the way the v1 environments step, and score the episode."""
+    m, T_c = planner_parameters(task, "predefined_time", certificate.m, certificate.T_c_s)
+    rollout = make_rollout(task, backend=backend, m=m, T_c=T_c)
+    per_decision = max(1, int(round(task.env.decision_interval_s / task.simulation.dt_s)))
+    action = None if certificate.residual is None else np.asarray(certificate.residual, dtype=np.float32)
+    motion_time = task.trajectory.motion_time_s
+    while rollout.k < rollout.n_steps:
+        residual = None
+        if action is not None:
+            residual = benchmark.residual_fade(rollout.t, motion_time) * residual_rates(action, task.env)
+        _, status = rollout.advance(per_decision, residual, stop_on_violation=True)
+        if status != "ok":
+            break
+    rollout.finish()
+    return score_episode(rollout.trajectory(), task, benchmark)

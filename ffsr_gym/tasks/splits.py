@@ -1,0 +1,96 @@
+"""Train and test pools of the v1 task tiers: the seed ranges, and the shipped pool file.
+
+The candidate seeds of the two splits are disjoint ranges (:data:`SEED_RANGES`). Each tier's
+training pool is the first ``train_tasks`` candidates of the train range that the tier rule
+(:mod:`ffsr_gym.tasks.tiers`) puts in that tier, in seed order; the test pool the first
+``test_tasks`` of the test range. ``ffsr-gym tasks build`` applies the rule and writes
+``envs/benchmark/v1_tasks.json`` (the pools with their certificates, the label of every candidate
+examined, and the counts); environments read the pools from there.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+from ffsr_gym.exceptions import InvalidInputError, ScenarioError
+from ffsr_gym.model.resources import envs_dir
+from ffsr_gym.tasks.certificate import Certificate
+from ffsr_gym.tasks.tiers import REJECTIONS, TIERS
+
+SPLITS = ("train", "test")
+#: Candidate seeds of each split: [first, end).
+SEED_RANGES = {"train": (0, 1_000_000), "test": (1_000_000, 2_000_000)}
+#: One character per candidate label in the pool file.
+LABEL_CODES = {"easy": "e", "medium": "m", "hard": "h", "nominal_final_error": "f", "balance_singularity": "b",
+               "self_collision": "s", "unsolved_rate_limit": "r", "unsolved_collision": "c", "unsolved_final_error": "t"}
+assert set(LABEL_CODES) == set(TIERS + REJECTIONS)
+
+
+@dataclass(frozen=True)
+class PoolTask:
+    """One task of a pool: its seed, certificate and the certificate's v1 score."""
+
+    seed: int
+    certificate: Certificate
+    certificate_score: float
+
+
+def pool_path() -> Path:
+    """The shipped pool file."""
+    return envs_dir() / "benchmark" / "v1_tasks.json"
+
+
+def check_tier_split(tier: str, split: str) -> None:
+    """Raise :class:`InvalidInputError` unless ``tier`` is in :data:`TIERS` and ``split`` in :data:`SPLITS`."""
+    if tier not in TIERS:
+        raise InvalidInputError(f"tier {tier!r}; allowed: {list(TIERS)}")
+    if split not in SPLITS:
+        raise InvalidInputError(f"split {split!r}; allowed: {list(SPLITS)}")
+
+
+@lru_cache(maxsize=2)
+def load_pools(path: str | None = None) -> dict[str, Any]:
+    """The pool file (default: the shipped one) as read, after a check of its layout.
+
+    Raises:
+        ScenarioError: missing, unreadable or malformed file (naming what is wrong).
+    """
+    source = pool_path() if path is None else Path(path)
+    try:
+        data = json.loads(source.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ScenarioError(f"{source}: not a readable pool file ({exc}); rebuild it with 'ffsr-gym tasks build'") from None
+    try:
+        for split in SPLITS:
+            for tier in TIERS:
+                entries = data["splits"][split]["pools"][tier]
+                if not isinstance(entries, list) or not entries:
+                    raise ScenarioError(f"{source}: splits.{split}.pools.{tier} must be a non-empty list")
+    except (KeyError, TypeError) as exc:
+        raise ScenarioError(f"{source}: missing key {exc} (expected splits.<train|test>.pools.<tier>)") from None
+    return data
+
+
+def pool(tier: str, split: str, *, path: str | None = None) -> tuple[PoolTask, ...]:
+    """The tasks of ``tier``'s ``split`` pool, in seed order.
+
+    Raises:
+        InvalidInputError: unknown tier or split.
+        ScenarioError: malformed pool file, or a seed outside the split's range.
+    """
+    check_tier_split(tier, split)
+    lo, hi = SEED_RANGES[split]
+    tasks = []
+    for entry in load_pools(path)["splits"][split]["pools"][tier]:
+        try:
+            task = PoolTask(int(entry["seed"]), Certificate.from_dict(entry["certificate"]), float(entry["certificate_score"]))
+        except (KeyError, TypeError, ValueError, InvalidInputError) as exc:
+            raise ScenarioError(f"pool {tier}/{split}: malformed entry {entry!r} ({exc})") from None
+        if not lo <= task.seed < hi:
+            raise ScenarioError(f"pool {tier}/{split}: seed {task.seed} outside the split's range [{lo}, {hi})")
+        tasks.append(task)
+    return tuple(tasks)

@@ -1,0 +1,219 @@
+"""Benchmark-v1 task tiers: certificates replayed through the environments, the tier rule re-run,
+disjoint train and test pools, the screening margins against Pinocchio, and the fading residual
+on the easy test pool.
+
+CI replays a sample; ``-m slow`` replays every certificate and re-runs the rule on more candidates.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import ffsr_gym  # noqa: F401  (registers the environments)
+from ffsr_gym.exceptions import InvalidInputError, ScenarioError
+from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.model.robot import load_robot
+from ffsr_gym.sim.setup import initial_configuration
+from ffsr_gym.sim.simulate import make_rollout
+from ffsr_gym.tasks.certificate import Certificate
+from ffsr_gym.tasks.generator import draw_task, screen
+from ffsr_gym.tasks.splits import LABEL_CODES, SEED_RANGES, SPLITS, load_pools, pool
+from ffsr_gym.tasks.tiers import TIERS, classify
+
+BENCH = load_benchmark("v1")
+POOLS = load_pools()
+CODES = {code: label for label, code in LABEL_CODES.items()}
+IDS = ("FFSR-v1", "FFSR-Residual-v1")
+
+
+def replay_in_env(tier: str, split: str, index: int) -> dict:
+    """Step a certificate through the registered environment; the last step's info."""
+    certificate = pool(tier, split)[index].certificate
+    env = gym.make("FFSR-v1" if certificate.kind == "constant" else "FFSR-Residual-v1", task=tier, split=split)
+    _, info = env.reset(seed=0, options={"task_index": index})
+    assert info["task_seed"] == pool(tier, split)[index].seed
+    action = None if certificate.residual is None else np.array(certificate.residual, dtype=np.float32)
+    while True:
+        if action is None:
+            _, _, terminated, truncated, info = env.unwrapped.step_with_parameters(certificate.m, certificate.T_c_s)
+        else:
+            _, _, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            return info
+
+
+def certificate_cases(per_pool: int | None) -> list[tuple[str, str, int]]:
+    cases = []
+    for split in SPLITS:
+        for tier in TIERS:
+            n = len(pool(tier, split))
+            picks = range(n) if per_pool is None else np.linspace(0, n - 1, per_pool).round().astype(int)
+            cases += [(tier, split, int(i)) for i in picks]
+    return cases
+
+
+@pytest.mark.parametrize("tier,split,index", certificate_cases(2))
+def test_certificate_replays_to_success_in_the_env(tier, split, index):
+    info = replay_in_env(tier, split, index)
+    assert info["success"], info["failure"]
+    assert info["score"] == pytest.approx(pool(tier, split)[index].certificate_score, rel=0, abs=1e-12)
+
+
+@pytest.mark.slow
+def test_every_certificate_replays_to_success():
+    failed = [(case, info["failure"]) for case in certificate_cases(None)
+              if not (info := replay_in_env(*case))["success"]]
+    assert not failed
+
+
+def test_pools_are_full_disjoint_in_range_and_the_first_of_their_tier():
+    rule = BENCH.tasks
+    seen: set[int] = set()
+    for split in SPLITS:
+        summary = POOLS["splits"][split]
+        lo, hi = SEED_RANGES[split]
+        labels = [CODES[c] for c in summary["labels"]]
+        seeds = range(summary["first_seed"], summary["first_seed"] + len(labels))
+        assert summary["first_seed"] == lo and seeds[-1] < hi
+        for tier in TIERS:
+            expected = int(rule.train_tasks if split == "train" else rule.test_tasks)
+            pool_seeds = [t.seed for t in pool(tier, split)]
+            assert pool_seeds == [s for s, label in zip(seeds, labels) if label == tier][:expected]
+            assert not seen & set(pool_seeds)
+            seen |= set(pool_seeds)
+        counts = {label: labels.count(label) for label in LABEL_CODES}
+        assert summary["tier_counts"] == {tier: counts[tier] for tier in TIERS}
+
+
+@pytest.mark.parametrize("split", SPLITS)
+def test_the_tier_rule_reruns_to_the_stored_labels(split):
+    summary = POOLS["splits"][split]
+    first = summary["first_seed"]
+    for offset in range(6):
+        verdict = classify(first + offset, BENCH)
+        assert (verdict.tier or verdict.rejection) == CODES[summary["labels"][offset]], first + offset
+
+
+@pytest.mark.slow
+def test_the_tier_rule_reruns_on_a_random_sample():
+    rng = np.random.default_rng(0)
+    for split in SPLITS:
+        summary = POOLS["splits"][split]
+        for offset in rng.choice(len(summary["labels"]), 40, replace=False):
+            verdict = classify(summary["first_seed"] + int(offset), BENCH)
+            assert (verdict.tier or verdict.rejection) == CODES[summary["labels"][offset]]
+
+
+def test_reference_planner_at_its_defaults_defines_the_tiers():
+    """Easy tasks succeed at the default (m, T_c); medium and hard ones fail there (replayed)."""
+    for tier in TIERS:
+        task = pool(tier, "test")[0]
+        result = ffsr_gym.tasks.certificate.replay(draw_task(task.seed, BENCH), Certificate("constant", 0.3, 4.0), BENCH)
+        assert result.success == (tier == "easy"), (tier, result.failure)
+
+
+def test_balance_singularity_margin_matches_pinocchio():
+    """The kernel's σ_min(J_c²) on a rejected candidate equals Pinocchio's, and the default planner breaks the rate limit there."""
+    labels = POOLS["splits"]["train"]["labels"]
+    seed = labels.index(LABEL_CODES["balance_singularity"])
+    task = draw_task(seed, BENCH)
+    nominal = screen(task, BENCH)
+    assert nominal.cause == "balance_singularity" and nominal.min_balance_sigma < BENCH.tasks.min_balance_sigma
+    rollout = make_rollout(task, method="no_avoidance", backend="kernel")
+    rollout.advance(task.n_steps)
+    rollout.finish()
+    traj = rollout.trajectory()
+    k = int(np.argmin(traj.sigma_min[:, 1]))
+    robot = load_robot(task.robot)
+    H_bm2 = robot.momentum_matrices(traj.q[k]).H_bm[1]
+    assert np.linalg.svd(-H_bm2, compute_uv=False)[-1] == pytest.approx(nominal.min_balance_sigma, rel=1e-9)
+    default = ffsr_gym.tasks.certificate.replay(task, Certificate("constant", 0.3, 4.0), BENCH)
+    assert default.failure == "rate_limit" and default.peak_rate_deg_s[1] > BENCH.score.max_rate_deg_s
+
+
+def test_candidates_are_deterministic_and_seeds_checked():
+    a, b = draw_task(5, BENCH), draw_task(5, BENCH)
+    assert a.sha256() == b.sha256() and a.target != draw_task(6, BENCH).target
+    assert np.allclose(initial_configuration(load_robot(a.robot), a), initial_configuration(load_robot(a.robot), a))
+    for bad in (-1, 1.5, "3", True, 2**63):
+        with pytest.raises(InvalidInputError, match="seed"):
+            draw_task(bad, BENCH)
+
+
+def test_reset_never_draws_the_test_pool_unless_asked():
+    test_seeds = {t.seed for t in pool("easy", "test")}
+    env = gym.make("FFSR-v1", task="easy")
+    drawn = {env.reset(seed=s)[1]["task_seed"] for s in range(60)}
+    assert not drawn & test_seeds and len(drawn) > 30
+    env = gym.make("FFSR-v1", task="easy", split="test")
+    assert {env.reset(seed=s)[1]["task_seed"] for s in range(20)} <= test_seeds
+    with pytest.raises(InvalidInputError, match="task_index"):
+        env.reset(options={"task_index": 10_000})
+
+
+def test_bad_pool_file_and_certificate_are_named_errors(tmp_path):
+    path = tmp_path / "pools.json"
+    path.write_text('{"splits": {}}')
+    with pytest.raises(ScenarioError, match="splits"):
+        pool("easy", "train", path=str(path))
+    with pytest.raises(InvalidInputError, match="tier"):
+        pool("trivial", "train")
+    with pytest.raises(InvalidInputError, match="float32"):
+        Certificate("residual", 0.3, 4.0, (0.1,) * 12)
+    with pytest.raises(InvalidInputError, match="m in"):
+        Certificate.from_dict({"kind": "constant", "m": 1.5, "T_c_s": 4.0})
+
+
+@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("tier", TIERS)
+def test_check_env_on_every_tier(env_id, tier):
+    sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        env = gym.make(env_id, task=tier, split="train")
+        check_env(env.unwrapped, skip_render_check=True)
+        sb3_checker.check_env(env.unwrapped, warn=True)
+    assert not caught, [str(w.message) for w in caught]
+
+
+def random_residual_on_easy_test_pool(indices) -> tuple[int, int]:
+    """(successes, episodes without a rate-limit violation or collision) of a uniform random residual."""
+    env = gym.make("FFSR-Residual-v1", task="easy", split="test")
+    env.action_space.seed(0)
+    successes = eligible = 0
+    for index in indices:
+        env.reset(seed=int(index), options={"task_index": int(index)})
+        while True:
+            _, _, terminated, truncated, info = env.step(env.action_space.sample())
+            if terminated or truncated:
+                break
+        if info["failure"] not in ("rate_limit", "collision"):
+            eligible += 1
+            successes += bool(info["success"])
+    return successes, eligible
+
+
+def test_random_residual_succeeds_on_easy_test_tasks_sample():
+    successes, eligible = random_residual_on_easy_test_pool(range(0, 100, 10))
+    assert eligible >= 5 and successes >= 0.9 * eligible
+
+
+@pytest.mark.slow
+def test_random_residual_succeeds_on_90_percent_of_the_easy_test_pool():
+    successes, eligible = random_residual_on_easy_test_pool(range(len(pool("easy", "test"))))
+    assert successes >= 0.9 * eligible
+
+
+def test_docs_tier_table_is_generated_from_the_pool_file():
+    from pathlib import Path
+
+    from ffsr_gym.tasks.build import tier_table
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "envs.md").read_text(encoding="utf-8")
+    block = text.split("<!-- tiers:begin -->\n")[1].split("<!-- tiers:end -->")[0]
+    assert block == tier_table(POOLS)
