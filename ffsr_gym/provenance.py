@@ -67,6 +67,12 @@ def provenance(*, scenarios: dict[str, str] | None = None, seeds: list[int] | No
     }
 
 
+def _current_umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def write_text_atomic(path: str | Path, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file and an atomic rename."""
     path = Path(path)
@@ -76,6 +82,8 @@ def write_text_atomic(path: str | Path, text: str) -> None:
         with os.fdopen(fd, "w", encoding="utf-8") as handle:
             handle.write(text)
             handle.flush()
+            if hasattr(os, "fchmod"):  # mkstemp makes 0600; files people share follow the umask
+                os.fchmod(handle.fileno(), 0o666 & ~_current_umask())
             os.fsync(handle.fileno())
         os.replace(tmp, path)
     except BaseException:

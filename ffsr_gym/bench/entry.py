@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,6 +16,7 @@ from ffsr_gym.bench.protocol import BOOTSTRAP_SAMPLES, BOOTSTRAP_SEED
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.provenance import write_json_atomic
 
+ENTRY_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,127}")
 V0_SCORE_RULE = "objective B if feasible else inf (null in JSON)"
 
 
@@ -61,6 +63,9 @@ class EvalReport:
 
     def save(self, directory: str | Path) -> Path:
         """Write the entry atomically to ``directory/<name>.json`` and return its path."""
+        if not isinstance(self.name, str) or not ENTRY_NAME.fullmatch(self.name):
+            raise InvalidInputError(f"entry name {self.name!r}; allowed: 1-128 characters of letters, digits, '.', '_', "
+                                    "'-', not starting with '.' (it becomes a file name in the entry's folder)")
         path = Path(directory) / f"{self.name}.json"
         write_json_atomic(path, self.to_json())
         return path

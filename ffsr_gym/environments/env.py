@@ -44,7 +44,16 @@ def check_action(action: Any, shape: tuple[int, ...]) -> tuple[np.ndarray, Any]:
     Raises:
         InvalidInputError: wrong shape, or a NaN/inf entry (naming the copies of a batch).
     """
-    a = np.asarray(action, dtype=np.float64)
+    if isinstance(action, (str, bytes, dict)):
+        raise InvalidInputError(f"action must be an array of real numbers of shape {shape}, got {type(action).__name__}")
+    try:
+        raw = np.asarray(action)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"action must be an array of real numbers of shape {shape} ({exc})") from None
+    if raw.dtype.kind not in "biuf":
+        raise InvalidInputError(f"action must hold real numbers (bool, int or float) of shape {shape}, got dtype "
+                                f"{raw.dtype} ({'complex' if raw.dtype.kind == 'c' else 'not numeric'})")
+    a = raw.astype(np.float64)
     if a.shape != shape:
         raise InvalidInputError(f"action must have shape {shape}, got {a.shape}")
     if not np.all(np.isfinite(a)):
@@ -162,8 +171,7 @@ class FFSREnv(gym.Env):
         return (sample_scenario(self.family, self.np_random) if self.randomised else self.family), {}
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
-        if self.rollout is None:
-            raise InvalidInputError("call reset() before step()")
+        self._check_running()
         a = self._checked_action(action)
         if self.residual:
             return self._advance(None, self._residual(a))
@@ -175,9 +183,17 @@ class FFSREnv(gym.Env):
 
     def step_with_parameters(self, m: float, T_c: float) -> tuple[np.ndarray, float, bool, bool, dict]:
         """``FFSR-v0`` step with physical parameters m ∈ (0, 1) and T_c [s] > 0 (no float32 rounding)."""
-        if self.residual or self.rollout is None:
-            raise InvalidInputError("step_with_parameters is for FFSR-v0, after reset()")
+        if self.residual:
+            raise InvalidInputError("step_with_parameters is for the (m, T_c) envs (FFSR-v0, FFSR-v1), not a residual env")
+        self._check_running()
         return self._advance((float(m), float(T_c)), None)
+
+    def _check_running(self) -> None:
+        """Refuse a step before the first reset or after the episode ended (Gymnasium leaves it undefined)."""
+        if self.rollout is None:
+            raise InvalidInputError("call reset() before step()")
+        if self.rollout.finished:
+            raise InvalidInputError("step() after the episode ended (terminated or truncated); call reset() first")
 
     def _advance(self, parameters: tuple[float, float] | None, residual: np.ndarray | None):
         rollout, objective = self.rollout, self.scenario.objective

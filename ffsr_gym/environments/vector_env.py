@@ -96,15 +96,8 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         self._last_rates[i], self._clipped[i] = 0.0, 0
 
     def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
-        super().reset(seed=seed if isinstance(seed, int) else None)
-        if isinstance(seed, int):
-            seeds: list[int | None] = [seed + i for i in range(self.num_envs)]
-        elif seed is None:
-            seeds = [None] * self.num_envs
-        else:
-            if len(seed) != self.num_envs:
-                raise InvalidInputError(f"seed list has {len(seed)} entries; num_envs = {self.num_envs}")
-            seeds = list(seed)
+        seeds = self._copy_seeds(seed)
+        super().reset(seed=seeds[0] if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) else None)
         for i, s in enumerate(seeds):
             if s is not None or self._rngs[i] is None:
                 self._rngs[i] = seeding.np_random(s)[0]
@@ -135,6 +128,25 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         self._previous_rates = self._last_rates.copy()
         self._last_rates[moved] = self._applied[moved, self._rows[moved] - 1]
         return active
+
+    def _copy_seeds(self, seed: Any) -> list[int | None]:
+        """Per-copy seeds of ``reset(seed=...)``: an int s gives s, s + 1, ...; a list gives one per copy.
+
+        Raises:
+            InvalidInputError: anything else, naming what is allowed.
+        """
+        def is_seed(x: Any) -> bool:
+            return isinstance(x, (int, np.integer)) and not isinstance(x, bool) and int(x) >= 0
+
+        if seed is None:
+            return [None] * self.num_envs
+        if is_seed(seed):
+            return [int(seed) + i for i in range(self.num_envs)]
+        if isinstance(seed, (list, tuple, np.ndarray)) and len(seed) == self.num_envs \
+                and all(s is None or is_seed(s) for s in seed):
+            return [None if s is None else int(s) for s in seed]
+        raise InvalidInputError(f"seed = {seed!r}; allowed: None, a non-negative integer, or a list of {self.num_envs} "
+                                "such integers (or None), one per copy")
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         active = self._advance_batch(actions)

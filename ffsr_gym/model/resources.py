@@ -28,16 +28,19 @@ def envs_dir() -> Path:
 
 
 def robot_dir(name: str) -> Path:
-    """Return the folder of the robot called ``name`` (``envs/robots/<name>``).
+    """Return the folder of the shipped robot called ``name`` (``envs/robots/<name>``).
+
+    Only the names of the shipped robots are accepted, never a path: a scenario file cannot
+    make the package read (or hash) files outside ``envs/robots``.
 
     Raises:
         RobotFileError: if no such robot is shipped.
     """
-    path = envs_dir() / "robots" / name
-    if not path.is_dir():
-        known = sorted(p.name for p in (envs_dir() / "robots").iterdir() if p.is_dir())
-        raise RobotFileError(f"robot {name!r} not found under {path.parent}; known robots: {known}")
-    return path
+    robots = envs_dir() / "robots"
+    known = sorted(p.name for p in robots.iterdir() if p.is_dir())
+    if not isinstance(name, str) or name not in known:
+        raise RobotFileError(f"robot {name!r} is not a shipped robot; allowed: {known}")
+    return robots / name
 
 
 def scenario_names() -> list[str]:

@@ -1,0 +1,99 @@
+"""Hostile input gets the project's own errors: stepping past the end, path escapes, odd action and
+seed types, entry names; shared result files follow the umask."""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import ffsr_gym
+from ffsr_gym.bench.entry import EvalReport
+from ffsr_gym.bench.leaderboard import entry_scenario
+from ffsr_gym.exceptions import InvalidInputError, RobotFileError, ScenarioError
+from ffsr_gym.model.resources import scenario_path
+from ffsr_gym.provenance import write_json_atomic
+
+
+@pytest.mark.parametrize("env_id", ["FFSR-v1", "FFSR-Residual-v0"])
+def test_step_after_the_episode_ended_is_an_error_not_more_physics(env_id):
+    env = gym.make(env_id).unwrapped
+    env.reset(seed=0)
+    action = np.ones(env.action_space.shape, dtype=np.float32)  # ends early: (0.6, 10 s) or +20 deg/s residual
+    while True:
+        *_, terminated, truncated, _ = env.step(action if env.residual else np.zeros(2, dtype=np.float32))
+        if terminated or truncated:
+            break
+    samples = len(env.trajectory.t)
+    with pytest.raises(InvalidInputError, match="episode ended.*reset"):
+        env.step(action)
+    assert len(env.trajectory.t) == samples
+    env.reset(seed=1)
+    env.step(action)  # a reset starts a new episode
+
+
+@pytest.mark.parametrize("robot", ["../../../../../../etc", "/proc/self", "ffsr_dual_arm/..", ""])
+def test_scenario_robot_must_be_a_shipped_robot(tmp_path, robot):
+    text = scenario_path("paper").read_text().replace('robot = "ffsr_dual_arm"', f"robot = {json.dumps(robot)}")
+    path = tmp_path / "escape.toml"
+    path.write_text(text)
+    with pytest.raises(RobotFileError, match="not a shipped robot"):
+        ffsr_gym.load_scenario(path)
+
+
+def test_binary_scenario_file_is_a_scenario_error(tmp_path):
+    path = tmp_path / "binary.toml"
+    path.write_bytes(bytes(range(256)))
+    with pytest.raises(ScenarioError, match="UTF-8"):
+        ffsr_gym.load_scenario(path)
+
+
+@pytest.mark.parametrize("action", [{"a": 1}, object(), np.zeros(12) + 1j, ["0.1"] * 12, "0.1", [[0.1], [0.1, 0.2]]])
+def test_odd_actions_are_named_errors(action):
+    env = gym.make("FFSR-Residual-v1")
+    env.reset(seed=0)
+    with pytest.raises(InvalidInputError, match="action"):
+        env.step(action)
+
+
+def test_vector_env_seeds_of_any_integer_type_and_named_errors():
+    venv = gym.make_vec("FFSR-Residual-v1", num_envs=2, vectorization_mode="vector_entry_point")
+    np.testing.assert_array_equal(venv.reset(seed=np.int64(3))[0], venv.reset(seed=3)[0])
+    for bad in ("abc", [1], 1.5, True, -1):
+        with pytest.raises(InvalidInputError, match="seed"):
+            venv.reset(seed=bad)
+
+
+@pytest.mark.parametrize("name", ["../../escaped", "/tmp/x", ".hidden", "a/b", "", "x" * 200])
+def test_entry_names_cannot_leave_their_folder(tmp_path, name):
+    report = EvalReport("FFSR-v0", {}, {}, [], {}, name=name)
+    with pytest.raises(InvalidInputError, match="entry name"):
+        report.save(tmp_path / "board")
+    assert not any(tmp_path.rglob("*.json"))
+
+
+def test_leaderboard_entry_scenario_must_be_shipped_or_in_its_folder(tmp_path):
+    entry = {"name": "e", "_file": "e.json", "_folder": str(tmp_path), "env_kwargs": {"scenario": "/etc/passwd.toml"}}
+    with pytest.raises(InvalidInputError, match="scenario"):
+        entry_scenario(entry)
+    entry["env_kwargs"]["scenario"] = "../outside.toml"
+    with pytest.raises(InvalidInputError, match="scenario"):
+        entry_scenario(entry)
+    entry["env_kwargs"]["scenario"] = "mine.toml"
+    assert entry_scenario(entry) == (tmp_path / "mine.toml").resolve()
+    entry["env_kwargs"]["scenario"] = "paper"
+    assert entry_scenario(entry) == "paper"
+
+
+def test_result_files_follow_the_umask(tmp_path):
+    old = os.umask(0o022)
+    try:
+        write_json_atomic(tmp_path / "result.json", {"a": 1})
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "result.json").stat().st_mode) == 0o644
+    assert json.loads((tmp_path / "result.json").read_text()) == {"a": 1}
