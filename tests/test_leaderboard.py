@@ -69,3 +69,30 @@ def test_tampered_aggregate_is_caught(board):
     entry = json.loads((board / "FFSR-v0" / "good.json").read_text())
     entry["metrics"]["score_iqm"] = 0.0
     assert not _close(entry["metrics"]["score_iqm"], leaderboard.recompute(entry)["score_iqm"])
+
+
+V1_ENTRIES = sorted((ROOT / "v1").rglob("*.json"))
+
+
+@pytest.mark.parametrize("path", V1_ENTRIES, ids=lambda p: f"{p.parent.name}/{p.stem}")
+def test_committed_v1_entries_recompute_and_name_their_pools(path):
+    from ffsr_gym.bench.leaderboard_v1 import recompute_v1
+    from ffsr_gym.tasks.splits import pool
+
+    entry = json.loads(path.read_text())
+    assert entry["metrics"] == pytest.approx(recompute_v1(entry))
+    assert entry["extra"]["evaluation_pool"] == f"{path.parent.name}/test"
+    assert len(entry["episodes"]) == len(pool(path.parent.name, "test"))
+    assert all(0.0 <= row["score"] <= 1.0 and (row["score"] > 0) == row["success"] for row in entry["episodes"])
+
+
+def test_v1_ranks_share_a_rank_when_no_ci_separates_them():
+    from ffsr_gym.bench.leaderboard_v1 import ranks, render_v1_tables
+
+    cis = [[0.6, 0.7], [0.55, 0.65], [0.3, 0.5], [0.0, 0.0], [0.0, 0.0]]
+    entries = [{"metrics": {"score_iqm_ci95": ci}} for ci in cis]
+    assert ranks(entries) == [1, 1, 3, 4, 4]
+    full = [{"name": f"e{i}", "episodes": [], "provenance": {}, "extra": {},
+             "metrics": {"score_iqm": ci[1], "score_iqm_ci95": ci, "success_rate": 1.0}} for i, ci in enumerate(cis)]
+    table = render_v1_tables({"easy": full})
+    assert table.count("| 1 (tied) |") == 2 and "| 3 | `e2`" in table and table.count("| 4 (tied) |") == 2

@@ -7,6 +7,7 @@ pool the policy was trained on (as the caller states it).
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import time
@@ -20,8 +21,12 @@ from tqdm.auto import tqdm
 from ffsr_gym.bench.entry import EvalReport, stepper
 from ffsr_gym.bench.protocol import BOOTSTRAP_SAMPLES, BOOTSTRAP_SEED
 from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.model.benchmark import Benchmark, load_benchmark
+from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.provenance import provenance
-from ffsr_gym.scoring.score import score_episode
+from ffsr_gym.scoring.score import EpisodeScore, score_episode
+from ffsr_gym.sim.simulate import make_rollout
+from ffsr_gym.tasks.generator import draw_task
 from ffsr_gym.tasks.splits import SPLITS, pool, pool_path
 from ffsr_gym.tasks.tiers import TIERS
 
@@ -94,3 +99,53 @@ def evaluate_v1(policy: Any, env_id: str, *, task: str = "easy", split: str = "t
              "pool_file_sha256": hashlib.sha256(pools).hexdigest()}
     prov = provenance(scenarios=hashes, seeds=[int(i) for i in chosen], wall_time_s=time.perf_counter() - start)
     return EvalReport(env_id, kwargs, metrics, rows, prov, name=name, extra=extra, score_rule=SCORE_RULE)
+
+
+def planner_task(task: Scenario, method: str, gain_per_s: float | None) -> Scenario:
+    """``task`` with the proportional planner's gain K [1/s] set (other methods: unchanged)."""
+    if method != "proportional" or gain_per_s is None:
+        return task
+    if not (isinstance(gain_per_s, (int, float)) and math.isfinite(gain_per_s) and gain_per_s > 0):
+        raise InvalidInputError(f"gain_per_s = {gain_per_s!r}; allowed: a finite number > 0 [1/s]")
+    return task.replace(planner=dataclasses.replace(task.planner, proportional_gain_per_s=float(gain_per_s)))
+
+
+def planner_episode(task: Scenario, benchmark: Benchmark, *, method: str, m: float | None = None,
+                    T_c: float | None = None, gain_per_s: float | None = None) -> EpisodeScore:
+    """One episode of a reference-planner variant with constant parameters, scored like every v1 episode.
+
+    ``method`` is one of :data:`ffsr_gym.planning.planner.METHODS` (``predefined_time`` with
+    (m, T_c [s]), ``proportional`` with gain K [1/s]); the run stops at the first violation, as
+    the v1 environments do.
+    """
+    played = planner_task(task, method, gain_per_s)
+    rollout = make_rollout(played, method=method, m=m, T_c=T_c)
+    rollout.advance(played.n_steps, stop_on_violation=True)
+    rollout.finish()
+    return score_episode(rollout.trajectory(), played, benchmark)
+
+
+def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | None = None, T_c: float | None = None,
+                     gain_per_s: float | None = None, training_pool: str | None = None, name: str = "planner",
+                     compute: dict | None = None, progress: bool = False) -> EvalReport:
+    """Score a reference-planner variant with constant parameters on a tier's pool (one episode per task).
+
+    The planner variants that are not an env action (``proportional``) are scored here, from the
+    trajectory with :func:`ffsr_gym.scoring.score.score_episode`, exactly as :func:`evaluate_v1`
+    scores env episodes.
+    """
+    if task not in TIERS or split not in SPLITS:
+        raise InvalidInputError(f"task {task!r}, split {split!r}; allowed: task in {list(TIERS)}, split in {list(SPLITS)}")
+    benchmark, start, rows, hashes = load_benchmark("v1"), time.perf_counter(), [], {}
+    for index, entry in enumerate(tqdm(pool(task, split), disable=not progress, desc=f"{name} {task}/{split}")):
+        played = draw_task(entry.seed, benchmark)
+        result = planner_episode(played, benchmark, method=method, m=m, T_c=T_c, gain_per_s=gain_per_s)
+        hashes[played.name] = planner_task(played, method, gain_per_s).sha256()
+        rows.append({"seed": index, "task_index": index, "task_seed": entry.seed, **result.as_dict()})
+    metrics = aggregate_v1([row["score"] for row in rows], [row["success"] for row in rows])
+    extra = {"training_pool": training_pool, "evaluation_pool": f"{task}/{split}",
+             "pool_file_sha256": hashlib.sha256(pool_path().read_bytes()).hexdigest(),
+             "planner": {"method": method, "m": m, "T_c_s": T_c, "gain_per_s": gain_per_s}, "compute": compute or {}}
+    prov = provenance(scenarios=hashes, seeds=list(range(len(rows))), wall_time_s=time.perf_counter() - start)
+    return EvalReport("planner", {"task": task, "split": split}, metrics, rows, prov, name=name, extra=extra,
+                      score_rule=SCORE_RULE)

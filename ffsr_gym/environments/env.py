@@ -44,8 +44,6 @@ def check_action(action: Any, shape: tuple[int, ...]) -> tuple[np.ndarray, Any]:
     Raises:
         InvalidInputError: wrong shape, or a NaN/inf entry (naming the copies of a batch).
     """
-    if isinstance(action, (str, bytes, dict)):
-        raise InvalidInputError(f"action must be an array of real numbers of shape {shape}, got {type(action).__name__}")
     try:
         raw = np.asarray(action)
     except (TypeError, ValueError) as exc:

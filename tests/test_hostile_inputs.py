@@ -97,3 +97,53 @@ def test_result_files_follow_the_umask(tmp_path):
         os.umask(old)
     assert stat.S_IMODE((tmp_path / "result.json").stat().st_mode) == 0o644
     assert json.loads((tmp_path / "result.json").read_text()) == {"a": 1}
+
+
+def _soak_v1(env_id: str, tier: str, steps: int) -> int:
+    """Random actions (some out of range), and every third episode a certificate: all finite, in space.
+
+    Returns the number of successful episodes (certificate episodes must all succeed).
+    """
+    import math
+
+    from ffsr_gym.tasks.splits import pool
+
+    env = gym.make(env_id, task=tier).unwrapped
+    tasks = pool(tier, "train")
+    rng = np.random.default_rng(0)
+    env.action_space.seed(0)
+    successes, episode, certified = 0, 0, None
+    for _ in range(steps):
+        if certified is None and episode % 3 == 0:
+            index = int(rng.integers(len(tasks)))
+            certificate = tasks[index].certificate
+            if (certificate.kind == "residual") == env.residual:
+                env.reset(seed=episode, options={"task_index": index})
+                certified = certificate
+        if certified is not None and certified.kind == "constant":
+            obs, reward, terminated, truncated, info = env.step_with_parameters(certified.m, certified.T_c_s)
+        elif certified is not None:
+            obs, reward, terminated, truncated, info = env.step(np.array(certified.residual, dtype=np.float32))
+        else:
+            obs, reward, terminated, truncated, info = env.step(env.action_space.sample() * rng.uniform(0, 2))
+        assert np.all(np.isfinite(obs)) and math.isfinite(reward) and env.observation_space.contains(obs)
+        if terminated or truncated:
+            assert 0.0 <= info["score"] <= 1.0 and (info["score"] > 0) == info["success"]
+            assert certified is None or info["success"], (tier, info["failure"])
+            successes += info["success"]
+            episode, certified = episode + 1, None
+            env.reset(seed=int(rng.integers(1 << 30)))
+    return successes
+
+
+@pytest.mark.parametrize("env_id", ["FFSR-v1", "FFSR-Residual-v1"])
+@pytest.mark.parametrize("tier", ["easy", "medium", "hard"])
+def test_v1_soak_short(env_id, tier):
+    _soak_v1(env_id, tier, 450)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("env_id", ["FFSR-v1", "FFSR-Residual-v1"])
+@pytest.mark.parametrize("tier", ["easy", "medium", "hard"])
+def test_v1_soak_long(env_id, tier):
+    assert _soak_v1(env_id, tier, 30_000) > 0
