@@ -41,6 +41,23 @@ def _info(args: argparse.Namespace) -> None:
         print(f"{key:<{width}}  {value}")
 
 
+def _list(args: argparse.Namespace) -> None:
+    import gymnasium
+
+    from ffsr_gym.environments.env_v1 import TASKS
+    from ffsr_gym.model.resources import envs_dir, scenario_names
+    from ffsr_gym.tasks.splits import SPLITS, pool
+
+    ids = sorted(env_id for env_id in gymnasium.registry if env_id.startswith("FFSR-"))
+    robots = sorted(p.name for p in (envs_dir() / "robots").iterdir() if p.is_dir())
+    print("environment ids:", ", ".join(ids))
+    print("v1 tasks (task=):", ", ".join(TASKS))
+    for tier in TASKS[1:]:
+        print(f"  {tier}: " + ", ".join(f"{split} pool {len(pool(tier, split))} tasks" for split in SPLITS))
+    print("scenarios (v0 scenario=):", ", ".join(scenario_names()))
+    print("robots:", ", ".join(robots))
+
+
 def _reproduce(args: argparse.Namespace) -> None:
     from ffsr_gym.report.reproduction import reproduce
 
@@ -80,8 +97,8 @@ def _leaderboard(args: argparse.Namespace) -> int:
     from ffsr_gym.bench.leaderboard import render_readme, write_readme
 
     if args.check:
-        current = (Path(args.root) / "README.md").read_text()
-        if render_readme(args.root) != current:
+        rendered = render_readme(args.root)
+        if rendered != (Path(args.root) / "README.md").read_text():
             print(f"{args.root}/README.md is out of date: run ffsr-gym leaderboard render", file=sys.stderr)
             return 1
         print("leaderboard tables are up to date")
@@ -110,8 +127,13 @@ def _tasks(args: argparse.Namespace) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``ffsr-gym`` console script."""
+    from ffsr_gym import __version__
+
     parser = argparse.ArgumentParser(prog="ffsr-gym", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"ffsr-gym {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
+    listing = sub.add_parser("list", help="list the environment ids, v1 tasks and tiers, scenarios and robots")
+    listing.set_defaults(func=_list)
     info = sub.add_parser("info", help="print the initial state of a scenario")
     info.add_argument("--scenario", default="paper", help="scenario name or TOML path (default: paper)")
     info.set_defaults(func=_info)
@@ -123,15 +145,17 @@ def main(argv: list[str] | None = None) -> int:
     ga = sub.add_parser("ga", help="the paper's GA over (m, T_c): both modes, figures, table, leaderboard entries")
     ga.add_argument("--out", required=True, help="output folder; checkpoints there make a killed run resume")
     ga.add_argument("--modes", nargs="+", default=["reproduction", "full"], choices=["reproduction", "full"])
-    ga.add_argument("--population", type=int, default=100)
-    ga.add_argument("--generations", type=int, default=100)
-    ga.add_argument("--seed", type=int, default=0)
-    ga.add_argument("--selection", default="inverse", choices=["inverse", "literal"])
-    ga.add_argument("--scenario", default="paper")
-    ga.add_argument("--executor", default="process", choices=["process", "dask", "none"])
-    ga.add_argument("--workers", type=int, default=None)
+    ga.add_argument("--population", type=int, default=100, help="individuals per generation (default: 100, the paper's)")
+    ga.add_argument("--generations", type=int, default=100, help="generations (default: 100, the paper's)")
+    ga.add_argument("--seed", type=int, default=0, help="random seed of the GA (default: 0)")
+    ga.add_argument("--selection", default="inverse", choices=["inverse", "literal"],
+                    help="roulette weights: 1/B ('inverse', default) or B as printed ('literal')")
+    ga.add_argument("--scenario", default="paper", help="scenario name or TOML path (default: paper)")
+    ga.add_argument("--executor", default="process", choices=["process", "dask", "none"],
+                    help="where objective evaluations run (default: process pool)")
+    ga.add_argument("--workers", type=int, default=None, help="worker processes (default: all cores)")
     ga.add_argument("--leaderboard", default=None, help="write leaderboard entries under this folder")
-    ga.add_argument("--no-progress", action="store_true")
+    ga.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ga.set_defaults(func=_ga)
     tr = sub.add_parser("train", help="train stable-baselines3 agents and score them with ffsr_gym.evaluate")
     tr.add_argument("--algo", required=True, choices=["ppo", "sac", "td3"])

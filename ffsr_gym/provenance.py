@@ -18,9 +18,9 @@ _PACKAGES = ("ffsr-gym", "numpy", "pin", "coal", "gymnasium", "matplotlib", "sta
 _SOURCE = Path(__file__).resolve().parent.parent
 
 
-def _git(*args: str) -> str | None:
+def _git(*args: str, cwd: Path = _SOURCE) -> str | None:
     try:
-        out = subprocess.run(["git", *args], cwd=_SOURCE, capture_output=True, text=True, timeout=10, check=True)
+        out = subprocess.run(["git", *args], cwd=cwd, capture_output=True, text=True, timeout=10, check=True)
     except (OSError, subprocess.SubprocessError):
         return None
     return out.stdout.strip()
@@ -37,6 +37,27 @@ def package_versions() -> dict[str, str]:
     return versions
 
 
+def _git_tree() -> tuple[Path | None, str]:
+    """The git work tree whose commit describes this run, and a note on where it comes from.
+
+    The package's own checkout (editable install or source tree) first; else the working
+    directory's tree (a wheel installed into a project that is under git); else none.
+    """
+    if (_SOURCE / ".git").exists():
+        return _SOURCE, "the ffsr-gym checkout"
+    top = _git("rev-parse", "--show-toplevel", cwd=Path.cwd())
+    if top:
+        return Path(top), f"the working directory's repository {top} (ffsr-gym is installed, not a checkout)"
+    return None, f"not a git checkout: ffsr-gym {_version()} installed from a wheel or sdist, run outside any git tree"
+
+
+def _version() -> str:
+    try:
+        return metadata.version("ffsr-gym")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
 def provenance(*, scenarios: dict[str, str] | None = None, seeds: list[int] | None = None,
                command: str | None = None, wall_time_s: float | None = None) -> dict[str, Any]:
     """Describe where a result comes from.
@@ -51,13 +72,15 @@ def provenance(*, scenarios: dict[str, str] | None = None, seeds: list[int] | No
         A JSON-ready dict: git commit and dirty flag (None outside a git checkout), package
         versions, platform, command, seeds, scenario hashes, wall time and a UTC timestamp.
     """
-    commit = _git("rev-parse", "HEAD") if (_SOURCE / ".git").exists() else None
+    tree, source = _git_tree()
+    commit = None if tree is None else _git("rev-parse", "HEAD", cwd=tree)
     # Generated results (leaderboard entries and tables) do not make the code dirty.
     dirty = None if commit is None else bool(_git("status", "--porcelain", "--untracked-files=no", "--", ".",
-                                                 ":(exclude)leaderboards"))
+                                                 ":(exclude)leaderboards", cwd=tree))
     return {
         "git_commit": commit,
         "git_dirty": dirty,
+        "git_source": source,
         "versions": package_versions(),
         "platform": f"{platform.platform()} ({platform.machine()}, {os.cpu_count()} CPUs)",
         "command": command if command is not None else " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),

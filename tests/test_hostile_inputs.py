@@ -147,3 +147,35 @@ def test_v1_soak_short(env_id, tier):
 @pytest.mark.parametrize("tier", ["easy", "medium", "hard"])
 def test_v1_soak_long(env_id, tier):
     assert _soak_v1(env_id, tier, 30_000) > 0
+
+
+def test_provenance_finds_a_commit_or_says_why_not(tmp_path, monkeypatch):
+    import subprocess
+
+    from ffsr_gym import provenance as prov
+
+    monkeypatch.setattr(prov, "_SOURCE", tmp_path / "installed")  # as if installed from a wheel
+    monkeypatch.chdir(tmp_path)
+    outside = prov.provenance()
+    assert outside["git_commit"] is None and "not a git checkout" in outside["git_source"]
+    subprocess.run(["git", "init", "-q"], check=True)
+    subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", "commit", "-q", "--allow-empty", "-m", "x"], check=True)
+    inside = prov.provenance()
+    head = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
+    assert inside["git_commit"] == head and "working directory" in inside["git_source"]
+
+
+def test_cli_version_list_and_a_new_leaderboard_folder(tmp_path, capsys):
+    from ffsr_gym.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["--version"])
+    assert capsys.readouterr().out.strip() == f"ffsr-gym {ffsr_gym.__version__}"
+    assert main(["list"]) == 0
+    listed = capsys.readouterr().out
+    assert "FFSR-v1" in listed and "hard: train pool 200 tasks, test pool 100 tasks" in listed and "paper" in listed
+    assert main(["leaderboard", "render", "--root", str(tmp_path / "missing")]) == 2
+    assert "not a folder" in capsys.readouterr().err
+    (tmp_path / "mine").mkdir()
+    assert main(["leaderboard", "render", "--root", str(tmp_path / "mine")]) == 0
+    assert main(["leaderboard", "render", "--root", str(tmp_path / "mine"), "--check"]) == 0

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from ffsr_gym.bench.evaluation import aggregate
-from ffsr_gym.bench.leaderboard_v1 import splice_v1
+from ffsr_gym.bench.leaderboard_v1 import V1_END, V1_START, splice_v1
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.model.resources import scenario_names
 from ffsr_gym.model.scenario import load_scenario
@@ -96,6 +96,8 @@ def _row(rank: str, e: dict[str, Any]) -> str:
 def render_readme(root: str | Path) -> str:
     """The README text with the generated tables between the markers."""
     path = Path(root) / "README.md"
+    if not path.is_file():
+        raise FFSRError(f"{path} does not exist; 'ffsr-gym leaderboard render --root {root}' creates it")
     text = path.read_text()
     if START not in text or END not in text:
         raise FFSRError(f"{path} lacks the markers {START!r} and {END!r}")
@@ -105,10 +107,24 @@ def render_readme(root: str | Path) -> str:
 
 
 def write_readme(root: str | Path) -> bool:
-    """Regenerate the tables in ``root/README.md``; returns whether the file changed."""
-    path = Path(root) / "README.md"
+    """Regenerate the tables in ``root/README.md``; returns whether the file changed.
+
+    A folder without a README (a new leaderboard of one's own) gets one with both marker pairs.
+
+    Raises:
+        InvalidInputError: ``root`` is not a folder.
+    """
+    root = Path(root)
+    if not root.is_dir():
+        raise InvalidInputError(f"leaderboard root {str(root)!r} is not a folder; create it and put entries in "
+                                "<root>/<env-id>/ or <root>/v1/<tier>/")
+    path = root / "README.md"
+    created = not path.exists()
+    if created:
+        write_text_atomic(path, f"# Leaderboards\n\n## Benchmark v1\n{V1_START}\n{V1_END}\n\n"
+                                f"## Benchmark v0\n{START}\n{END}\n")
     new = render_readme(root)
     if new == path.read_text():
-        return False
+        return created
     write_text_atomic(path, new)
     return True

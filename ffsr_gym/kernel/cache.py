@@ -29,17 +29,20 @@ def sources_digest() -> str:
     return digest.hexdigest()
 
 
-def refresh() -> None:
-    """Flush the kernel's numba cache when the sources changed since it was written."""
+def refresh() -> bool:
+    """Flush the kernel's numba cache when the sources changed since it was written.
+
+    Returns whether the kernel will be compiled in this process (no cache, or it was flushed).
+    """
     dispatchers = [obj for module in MODULES for obj in vars(module).values() if isinstance(obj, CPUDispatcher)]
     caches = [d._cache for d in dispatchers if getattr(d, "_cache", None) is not None and hasattr(d._cache, "flush")]
     if not caches:
-        return
+        return True
     stamp = Path(caches[0].cache_path) / "ffsr_gym_kernel.sha256"
     digest = sources_digest()
     try:
         if stamp.read_text() == digest:
-            return
+            return not any(Path(caches[0].cache_path).glob("loop.run-*.nbi"))
     except OSError:
         pass
     for cache in caches:
@@ -48,3 +51,4 @@ def refresh() -> None:
         stamp.write_text(digest)
     except OSError:
         pass  # read-only install: numba then caches elsewhere or not at all
+    return True

@@ -145,7 +145,7 @@ def reproduce(out_dir: str | Path, *, duration_s: float | None = None, progress:
 
 
 def _footer(prov: dict[str, Any]) -> str:
-    commit = (prov["git_commit"] or "no-git")[:10] + ("+dirty" if prov["git_dirty"] else "")
+    commit = prov["git_commit"][:10] + ("+dirty" if prov["git_dirty"] else "") if prov["git_commit"] else "none (not a git checkout)"
     sha = prov["scenario_sha256"].get("paper", "")[:10]
     return f"ffsr-gym {prov['versions'].get('ffsr-gym', '?')} | commit {commit} | scenario paper sha256 {sha} | {prov['command']}"
 
@@ -200,7 +200,7 @@ def render_markdown(result: dict[str, Any]) -> str:
             f"{m['max_base_position_error_m']:.3g} | {m['max_joint_rate_deg_s']['mission']:.1f} / "
             f"{m['max_joint_rate_deg_s']['balance']:.1f} | {_fmt(m['min_clearance_m'])} | {m['collided']} |"
         )
-    lines += ["", "## Provenance", "", f"- commit: {prov['git_commit']} (dirty: {prov['git_dirty']})",
+    lines += ["", "## Provenance", "", f"- commit: {prov['git_commit']} (dirty: {prov['git_dirty']}; from {prov.get('git_source')})",
               f"- command: `{prov['command']}`", f"- versions: {prov['versions']}", f"- platform: {prov['platform']}",
               f"- scenario sha256: {prov['scenario_sha256']}", f"- wall time: {prov['wall_time_s']:.1f} s",
               f"- created: {prov['created_utc']}", ""]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 import numpy as np
@@ -19,7 +20,9 @@ from ffsr_gym.sim.setup import ScenarioSetup, prepare
 from ffsr_gym.sim.trajectory import Trajectory
 from ffsr_gym.types import Array
 
-kernel_cache.refresh()
+if kernel_cache.refresh():
+    sys.stderr.write("ffsr-gym: the compiled kernel is not in numba's cache yet; its first use compiles it, once per "
+                     "install and kernel version (about 1-2 min on 2 cores); later runs load it in seconds\n")
 
 
 def settings_vectors(setup: ScenarioSetup, *, method: str, m: float, T_c: float) -> tuple[Array, Array]:
