@@ -14,6 +14,23 @@ from ffsr_gym.planning.desired_path import DesiredPath, trapezoid
 from ffsr_gym.sim.trajectory import Trajectory
 
 _FLOOR = 1e-17
+_FLOOR_NOTE = "values below 1e-17, exact zeros included, are drawn at 1e-17"
+#: Readable names of the planning methods in legends and titles.
+METHOD_NAMES = {"predefined_time": "predefined-time (the paper's method)", "no_avoidance": "predefined-time, no avoidance",
+                "no_feedback": "no pose feedback", "proportional": "proportional feedback"}
+ARM_NAMES = ("mission arm (arm 1)", "balance arm (arm 2)")
+
+
+def readable(label: str) -> str:
+    """A legend label of the form ``<method>[ m=<m> T_c=<T_c>]`` in words, with units."""
+    method, _, rest = label.partition(" ")
+    if method not in METHOD_NAMES:
+        return label
+    name = METHOD_NAMES[method]
+    if not rest:
+        return name
+    values = dict(part.split("=", 1) for part in rest.split() if "=" in part)
+    return f"{name}, m = {values.get('m', '?')}, T_c = {values.get('T_c', '?')} s"
 
 
 def _pyplot():
@@ -51,18 +68,22 @@ def plot_desired_path(path: DesiredPath, duration: float, out: Path, footer: str
 
 
 def plot_series(runs: dict[str, Trajectory], attribute: str, ylabel: str, title: str, out: Path, footer: str,
-                *, log: bool = True, hlines: dict[str, float] | None = None) -> Path:
-    """One time series per run (Figs. 4, 5, 10)."""
+                *, log: bool = True, hlines: dict[str, float] | None = None, vlines: dict[str, float] | None = None) -> Path:
+    """One time series per run (Figs. 4, 5, 10); ``vlines``: labelled instants [s] (release, release + T_c)."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.2))
     for label, traj in runs.items():
         values = getattr(traj, attribute)
-        ax.plot(traj.t, np.maximum(values, _FLOOR) if log else values, label=label)
+        ax.plot(traj.t, np.maximum(values, _FLOOR) if log else values, label=readable(label))
     for label, value in (hlines or {}).items():
         ax.axhline(value, color="0.3", ls="--", lw=0.8)
         ax.annotate(label, (0.0, value), fontsize=7, va="bottom")
+    for label, value in (vlines or {}).items():
+        ax.axvline(value, color="0.3", ls=":", lw=0.9)
+        ax.annotate(label, (value, 0.02), xycoords=("data", "axes fraction"), fontsize=7, rotation=90, ha="right")
     if log:
         ax.set_yscale("log")
+        ax.annotate(_FLOOR_NOTE, (0.99, 0.01), xycoords="axes fraction", fontsize=6, color="0.4", ha="right")
     ax.set(xlabel="time t [s]", ylabel=ylabel, title=title)
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=8)
@@ -81,12 +102,14 @@ def plot_pose_errors(traj: Trajectory, out: Path, footer: str) -> Path:
         ax.set_yscale("log")
         ax.set(xlabel="time t [s]", ylabel=label)
         ax.grid(True, alpha=0.3)
-    fig.suptitle(f"Pose errors, {traj.info.get('method')} (m = {traj.info.get('m')}, T_c = {traj.info.get('T_c_s')} s)")
+        ax.annotate(_FLOOR_NOTE, (0.99, 0.01), xycoords="axes fraction", fontsize=5, color="0.4", ha="right")
+    fig.suptitle(f"Pose errors, {METHOD_NAMES.get(traj.info.get('method'), traj.info.get('method'))} "
+                 f"(m = {traj.info.get('m')}, T_c = {traj.info.get('T_c_s')} s)")
     return _save(fig, out, footer)
 
 
 def plot_joint_rates(runs: dict[str, Trajectory], arm: int, out: Path, footer: str, *, limit_deg_s: float = 200.0) -> Path:
-    """Figs. 8-9: joint rates [deg/s] of one arm for each run."""
+    """Figs. 8-9: joint rates [deg/s] of one arm for each run; a peak over the limit is marked with its time."""
     plt = _pyplot()
     fig, axes = plt.subplots(1, len(runs), figsize=(6 * len(runs), 3.8), sharey=True, squeeze=False)
     for ax, (label, traj) in zip(axes[0], runs.items()):
@@ -95,9 +118,18 @@ def plot_joint_rates(runs: dict[str, Trajectory], arm: int, out: Path, footer: s
             ax.plot(traj.t, rates[:, j], label=f"joint {j + 1}", lw=0.9)
         for sign in (1, -1):
             ax.axhline(sign * limit_deg_s, color="r", ls="--", lw=0.8)
-        ax.set(xlabel="time t [s]", ylabel="joint rate [deg/s]", title=label)
+        k, j = np.unravel_index(int(np.argmax(np.abs(rates))), rates.shape)
+        if abs(rates[k, j]) > limit_deg_s:
+            window = rates[max(0, k - 25):k + 25, j]
+            flips = int(np.sum(np.diff(np.sign(window)) != 0))
+            kind = f", {flips} sign flips within +-0.25 s (chatter)" if flips >= 10 else ""
+            ax.annotate(f"peak {rates[k, j]:.0f} deg/s, joint {j + 1}, t = {traj.t[k]:.2f} s{kind}", (traj.t[k], rates[k, j]),
+                        fontsize=7, color="r", xytext=(0.3, 0.04), textcoords="axes fraction",
+                        arrowprops={"arrowstyle": "->", "color": "r", "lw": 0.6})
+        ax.set(xlabel="time t [s]", ylabel="joint rate [deg/s]", title=readable(label))
         ax.grid(True, alpha=0.3)
     axes[0][0].legend(fontsize=7, ncol=2)
+    fig.suptitle(f"Joint rates of the {ARM_NAMES[arm]}; dashed: the {limit_deg_s:.0f} deg/s limit")
     return _save(fig, out, footer)
 
 

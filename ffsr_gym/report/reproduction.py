@@ -150,6 +150,13 @@ def _footer(prov: dict[str, Any]) -> str:
     return f"ffsr-gym {prov['versions'].get('ffsr-gym', '?')} | commit {commit} | scenario paper sha256 {sha} | {prov['command']}"
 
 
+def _release_marks(traj: Trajectory, T_c: float) -> dict[str, float]:
+    """The avoidance release time t_r [s] and the predefined-time bound t_r + T_c, for Fig. 5."""
+    release = traj.avoidance_release_time()
+    return {} if release is None else {f"avoidance released, t_r = {release:.2f} s": release,
+                                       f"t_r + T_c = {release + T_c:.2f} s (T_c = {T_c:g} s)": release + T_c}
+
+
 def _write_figures(out: Path, scenario: Scenario, comparison: dict, study: dict, footer: str) -> None:
     path = prepare(scenario).path
     duration = scenario.simulation.duration_s
@@ -161,7 +168,8 @@ def _write_figures(out: Path, scenario: Scenario, comparison: dict, study: dict,
                                      out / "fig4_clearance.png", footer, log=False,
                                      hlines={"contact": 0.0, f"danger radius {danger} m": danger}),
         lambda: plotting.plot_series(comparison, "ee_position_error_m", "EE position error ||p_e - p_d|| [m]",
-                                     "End-effector position error (m = 0.1, T_c = 3 s)", out / "fig5_ee_position_error.png", footer),
+                                     "End-effector position error (m = 0.1, T_c = 3 s)", out / "fig5_ee_position_error.png", footer,
+                                     vlines=_release_marks(comparison["predefined_time"], scenario.planner.T_c_s)),
         lambda: plotting.plot_pose_errors(comparison["predefined_time"], out / "fig6_pose_errors.png", footer),
         lambda: plotting.plot_joint_rates(study, 0, out / "fig8_mission_joint_rates.png", footer),
         lambda: plotting.plot_joint_rates(study, 1, out / "fig9_balance_joint_rates.png", footer),
