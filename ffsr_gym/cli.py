@@ -85,12 +85,20 @@ def _ga(args: argparse.Namespace) -> None:
 
 def _train(args: argparse.Namespace) -> None:
     from ffsr_gym.optim.rl import train_and_evaluate
+    from ffsr_gym.optim.rl_v1 import train_and_evaluate_v1
 
-    report = train_and_evaluate(args.algo, args.env_id, seeds=args.seeds, out=args.out, scenario=args.scenario,
-                                timesteps=args.timesteps, hyperparams=args.hyperparams, progress=not args.no_progress)
+    if args.env_id.endswith("-v1"):
+        report = train_and_evaluate_v1(args.algo, args.env_id, tier=args.task, seeds=args.seeds, out=args.out,
+                                       timesteps=args.timesteps, hyperparams=args.hyperparams,
+                                       curve_every=args.curve_every, progress=not args.no_progress)
+        folder = Path(args.leaderboard or ".") / "v1" / args.task
+    else:
+        report = train_and_evaluate(args.algo, args.env_id, seeds=args.seeds, out=args.out, scenario=args.scenario,
+                                    timesteps=args.timesteps, hyperparams=args.hyperparams, progress=not args.no_progress)
+        folder = Path(args.leaderboard or ".") / args.env_id
     print(f"{report.name}: {report.metrics}")
     if args.leaderboard:
-        print("wrote", report.save(Path(args.leaderboard) / args.env_id))
+        print("wrote", report.save(folder))
 
 
 def _leaderboard(args: argparse.Namespace) -> int:
@@ -159,8 +167,12 @@ def main(argv: list[str] | None = None) -> int:
     ga.set_defaults(func=_ga)
     tr = sub.add_parser("train", help="train stable-baselines3 agents and score them with ffsr_gym.evaluate")
     tr.add_argument("--algo", required=True, choices=["ppo", "sac", "td3"])
-    tr.add_argument("--env-id", default="FFSR-v0", choices=["FFSR-v0", "FFSR-Residual-v0"])
-    tr.add_argument("--scenario", default="paper")
+    tr.add_argument("--env-id", default="FFSR-v0", choices=["FFSR-v0", "FFSR-Residual-v0", "FFSR-v1", "FFSR-Residual-v1"])
+    tr.add_argument("--scenario", default="paper", help="v0 only: scenario name or TOML path (default: paper)")
+    tr.add_argument("--task", default="easy", choices=["easy", "medium", "hard"],
+                    help="v1 only: the tier; trains on its training pool, scores its test pool (default: easy)")
+    tr.add_argument("--curve-every", type=int, default=5000,
+                    help="v1 only: env steps between learning-curve points (default: 5000)")
     tr.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
     tr.add_argument("--timesteps", type=int, default=None, help="default: n_timesteps of the hyperparameter file")
     tr.add_argument("--hyperparams", default=None, help="folder with <algo>.yml (default: baselines/hyperparams)")

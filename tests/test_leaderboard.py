@@ -82,7 +82,7 @@ def test_committed_v1_entries_recompute_and_name_their_pools(path):
     entry = json.loads(path.read_text())
     assert entry["metrics"] == pytest.approx(recompute_v1(entry))
     assert entry["extra"]["evaluation_pool"] == f"{path.parent.name}/test"
-    assert len(entry["episodes"]) == len(pool(path.parent.name, "test"))
+    assert len(entry["episodes"]) % len(pool(path.parent.name, "test")) == 0  # one per test task (per training seed)
     assert all(0.0 <= row["score"] <= 1.0 and (row["score"] > 0) == row["success"] for row in entry["episodes"])
 
 

@@ -41,8 +41,29 @@ def test_same_seed_same_evaluation(tmp_path):
     assert a.metrics == b.metrics
 
 
-def test_hyperparameter_files_cover_both_ids():
+def test_hyperparameter_files_cover_every_id():
     for algo in ("ppo", "sac"):
-        for env_id in ("FFSR-v0", "FFSR-Residual-v0"):
+        for env_id in ("FFSR-v0", "FFSR-Residual-v0", "FFSR-v1", "FFSR-Residual-v1"):
             params = load_hyperparams(algo, env_id)
             assert params["n_timesteps"] > 0 and isinstance(params["policy_kwargs"], dict)
+
+
+def test_v1_training_records_a_curve_scores_the_test_pool_and_resumes(tmp_path):
+    from ffsr_gym.bench.leaderboard_v1 import recompute_v1
+    from ffsr_gym.optim.rl_v1 import train_and_evaluate_v1
+    from ffsr_gym.tasks.splits import pool
+
+    def run():
+        return train_and_evaluate_v1("ppo", "FFSR-v1", tier="easy", seeds=[0], out=tmp_path, timesteps=256,
+                                     curve_every=128, curve_tasks=3, progress=False)
+
+    report = run()
+    entry = report.to_json()
+    curve = entry["extra"]["runs"][0]["curve"]
+    assert [p["env_steps"] for p in curve["points"]][:2] == [0, 128] and len(curve["points"][0]["scores"]) == 3
+    assert len(entry["episodes"]) == len(pool("easy", "test"))
+    assert entry["extra"]["training_pool"] == "easy/train" and entry["extra"]["compute"]["env_steps"] == 256
+    assert entry["metrics"] == pytest.approx(recompute_v1(entry))
+    started = (tmp_path / "ppo_FFSR-v1_easy_seed0" / "train_record.json").stat().st_mtime_ns
+    assert run().episodes == report.episodes  # resumed from the folder, not retrained
+    assert (tmp_path / "ppo_FFSR-v1_easy_seed0" / "train_record.json").stat().st_mtime_ns == started
