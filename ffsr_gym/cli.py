@@ -115,6 +115,13 @@ def _leaderboard(args: argparse.Namespace) -> int:
     return 0
 
 
+def _leaderboard_plot(args: argparse.Namespace) -> None:
+    from ffsr_gym.report.leaderboard_plots import plot_iqm, plot_profiles
+
+    for path in (plot_iqm(args.root), plot_profiles(args.root)):
+        print("wrote" if path else "no v1 entries under", path or args.root)
+
+
 def _tasks(args: argparse.Namespace) -> None:
     from concurrent.futures import ProcessPoolExecutor
 
@@ -191,8 +198,11 @@ def main(argv: list[str] | None = None) -> int:
     tb.add_argument("--max-candidates", type=int, default=50_000, help="give up after this many per split (default: 50000)")
     tb.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     tb.set_defaults(func=_tasks)
-    board = sub.add_parser("leaderboard", help="leaderboard tables")
+    board = sub.add_parser("leaderboard", help="leaderboard tables and figures")
     board_sub = board.add_subparsers(dest="action", required=True)
+    plot = board_sub.add_parser("plot", help="the v1 figures (IQM with CIs, performance profiles) under <root>/v1/")
+    plot.add_argument("--root", default="leaderboards")
+    plot.set_defaults(func=_leaderboard_plot)
     render = board_sub.add_parser("render", help="regenerate the tables in <root>/README.md from the JSON entries")
     render.add_argument("--root", default="leaderboards")
     render.add_argument("--check", action="store_true", help="exit 1 if the tables are out of date, write nothing")
