@@ -8,6 +8,7 @@ import shutil
 from pathlib import Path
 
 import jsonschema
+import numpy as np
 import pytest
 
 import ffsr_gym
@@ -96,3 +97,20 @@ def test_v1_ranks_share_a_rank_when_no_ci_separates_them():
              "metrics": {"score_iqm": ci[1], "score_iqm_ci95": ci, "success_rate": 1.0}} for i, ci in enumerate(cis)]
     table = render_v1_tables({"easy": full})
     assert table.count("| 1 (tied) |") == 2 and "| 3 | `e2`" in table and table.count("| 4 (tied) |") == 2
+
+
+def test_v1_figures_are_drawn_from_entries(tmp_path):
+    from ffsr_gym.bench.evaluation_v1 import aggregate_v1
+    from ffsr_gym.report.leaderboard_plots import plot_iqm, plot_profiles
+
+    assert plot_iqm(tmp_path) is None and plot_profiles(tmp_path) is None
+    rng = np.random.default_rng(0)
+    for tier in ("easy", "hard"):
+        for name in ("a", "b"):
+            scores = list(rng.uniform(0, 1, 20))
+            entry = {"name": name, "provenance": {"git_commit": "abc"}, "metrics": aggregate_v1(scores, [True] * 20),
+                     "episodes": [{"score": s} for s in scores]}
+            (tmp_path / "v1" / tier).mkdir(parents=True, exist_ok=True)
+            (tmp_path / "v1" / tier / f"{name}.json").write_text(json.dumps(entry))
+    for path in (plot_iqm(tmp_path), plot_profiles(tmp_path)):
+        assert path.is_file() and path.stat().st_size > 10_000
