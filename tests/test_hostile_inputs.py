@@ -113,6 +113,7 @@ def _soak_v1(env_id: str, tier: str, steps: int) -> int:
     rng = np.random.default_rng(0)
     env.action_space.seed(0)
     successes, episode, certified = 0, 0, None
+    env.reset(seed=0)
     for _ in range(steps):
         if certified is None and episode % 3 == 0:
             index = int(rng.integers(len(tasks)))

@@ -81,7 +81,10 @@ def test_committed_v1_entries_recompute_and_name_their_pools(path):
     from ffsr_gym.tasks.splits import pool
 
     entry = json.loads(path.read_text())
-    assert entry["metrics"] == pytest.approx(recompute_v1(entry))
+    recomputed = recompute_v1(entry)
+    assert entry["metrics"].keys() == recomputed.keys()
+    for key, value in recomputed.items():
+        assert entry["metrics"][key] == pytest.approx(value, rel=1e-12), key
     assert entry["extra"]["evaluation_pool"] == f"{path.parent.name}/test"
     assert len(entry["episodes"]) % len(pool(path.parent.name, "test")) == 0  # one per test task (per training seed)
     assert all(0.0 <= row["score"] <= 1.0 and (row["score"] > 0) == row["success"] for row in entry["episodes"])

@@ -42,7 +42,8 @@ def _curve_callback(env_id: str, tier: str, every: int, indices: list[int], poin
             points.append({"env_steps": int(self.num_timesteps), "scores": [row["score"] for row in report.episodes]})
 
         def _on_training_start(self) -> None:
-            self.next = 0
+            self._score()  # the untrained policy, at 0 steps
+            self.next = every
 
         def _on_step(self) -> bool:
             if self.num_timesteps >= self.next:

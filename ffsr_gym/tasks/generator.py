@@ -41,7 +41,6 @@ def task_family(benchmark: Benchmark) -> Scenario:
     return benchmark.task(load_scenario(rule.family)).replace(randomization=rule.draw)
 
 
-@lru_cache(maxsize=4096)
 def draw_task(seed: int, benchmark: Benchmark) -> Scenario:
     """The candidate task of ``seed`` (named ``v1-<seed>``, no randomization section).
 
@@ -50,6 +49,12 @@ def draw_task(seed: int, benchmark: Benchmark) -> Scenario:
     """
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) <= MAX_SEED:
         raise InvalidInputError(f"task seed must be an integer in [0, 2**63), got {seed!r}")
+    return _draw_task(int(seed), benchmark)
+
+
+@lru_cache(maxsize=4096)
+def _draw_task(seed: int, benchmark: Benchmark) -> Scenario:
+    """:func:`draw_task` after the check (cached: the environments draw pool tasks again and again)."""
     family = task_family(benchmark)
     drawn = sample_scenario(family, np.random.default_rng(int(seed)))
     return drawn.replace(name=f"v1-{int(seed)}", randomization=None,
