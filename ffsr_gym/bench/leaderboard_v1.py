@@ -40,8 +40,9 @@ def ranks(entries: list[dict[str, Any]]) -> list[int]:
     return [1 + sum(lo > hi for lo, _ in bounds) for _, hi in bounds]
 
 
-def _median(rows: list[dict[str, Any]], key: str, index: int | None = None) -> float | None:
-    values = [row[key] if index is None else row[key][index] for row in rows]
+def _median(rows: list[dict[str, Any]], key: str, index: int | None = None, *, successes: bool = False) -> float | None:
+    """Median of a per-episode value over finite values (over successful episodes only, if asked)."""
+    values = [row[key] if index is None else row[key][index] for row in rows if row["success"] or not successes]
     finite = [v for v in values if v is not None and math.isfinite(v)]
     return None if not finite else float(np.median(finite))
 
@@ -68,12 +69,13 @@ def render_v1_tables(entries: dict[str, list[dict[str, Any]]]) -> str:
     for tier, items in entries.items():
         if not items:
             continue
-        items = sorted(items, key=lambda e: -e["metrics"]["score_iqm"])
+        items = sorted(items, key=lambda e: (-e["metrics"]["score_iqm"], -e["metrics"]["success_rate"],
+                                             -e["metrics"]["score_mean"]))
         rank_of = ranks(items)
         counts = {r: rank_of.count(r) for r in rank_of}
         out += [f"### {tier} (test pool)", "",
                 "| rank | entry | score IQM [95% CI] | success | paper B (median) | peak rate mission / balance "
-                "[deg/s] | final error [m] | convergence [s] | compute | trained on | commit |",
+                "[deg/s] | final error [m], successes | convergence [s], successes | compute | trained on | commit |",
                 "|---|---|---|---|---|---|---|---|---|---|---|"]
         for rank, e in zip(rank_of, items):
             m, rows, extra = e["metrics"], e["episodes"], e.get("extra", {})
@@ -83,8 +85,9 @@ def render_v1_tables(entries: dict[str, list[dict[str, Any]]]) -> str:
             out.append(
                 f"| {rank}{tied} | `{e['name']}` | {m['score_iqm']:.3f} [{lo:.3f}, {hi:.3f}] | {m['success_rate']:.2f} | "
                 f"{_fmt(_median(rows, 'paper_B'))} | {_fmt(_median(rows, 'peak_rate_deg_s', 0), '.0f')} / "
-                f"{_fmt(_median(rows, 'peak_rate_deg_s', 1), '.0f')} | {_fmt(_median(rows, 'final_ee_position_error_m'), '.1e')} | "
-                f"{_fmt(_median(rows, 'convergence_time_s'), '.1f')} | {compute_text(extra.get('compute', {}))} | "
+                f"{_fmt(_median(rows, 'peak_rate_deg_s', 1), '.0f')} | "
+                f"{_fmt(_median(rows, 'final_ee_position_error_m', successes=True), '.1e')} | "
+                f"{_fmt(_median(rows, 'convergence_time_s', successes=True), '.1f')} | {compute_text(extra.get('compute', {}))} | "
                 f"{extra.get('training_pool') or '-'} | {commit} |")
         out.append("")
     return "\n".join(out)

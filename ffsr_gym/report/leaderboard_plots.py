@@ -46,13 +46,15 @@ def plot_iqm(root: str | Path) -> Path | None:
         return None
     entries, tiers, fig, axes = panels
     for ax, tier in zip(axes, tiers):
-        items = sorted(entries[tier], key=lambda e: e["metrics"]["score_iqm"])
+        items = sorted(entries[tier], key=lambda e: (e["metrics"]["score_iqm"], e["metrics"]["success_rate"],
+                                                     e["metrics"]["score_mean"]))  # the table's order, bottom up
         for y, e in enumerate(items):
             lo, hi = e["metrics"]["score_iqm_ci95"]
             ax.plot([lo, hi], [y, y], color="C0", lw=5, alpha=0.35, solid_capstyle="butt")
             ax.plot(e["metrics"]["score_iqm"], y, "o", color="C0")
         ax.set_yticks(range(len(items)), [e["name"] for e in items], fontsize=8)
-        ax.set(xlabel="v1 episode score, IQM with 95 % CI [-]", title=f"{tier}: test pool", xlim=(-0.02, 1.0))
+        top = max(e["metrics"]["score_iqm_ci95"][1] for e in items)
+        ax.set(xlabel="v1 episode score, IQM with 95 % CI [-]", title=f"{tier}: test pool", xlim=(-0.005, 1.15 * top + 0.02))
         ax.grid(True, axis="x", alpha=0.3)
     return _save(fig, root / "v1" / "iqm.png", _footer(entries))
 
