@@ -97,7 +97,7 @@ def test_v1_ranks_share_a_rank_when_no_ci_separates_them():
     entries = [{"metrics": {"score_iqm_ci95": ci}} for ci in cis]
     assert ranks(entries) == [1, 1, 3, 4, 4]
     full = [{"name": f"e{i}", "episodes": [], "provenance": {}, "extra": {},
-             "metrics": {"score_iqm": ci[1], "score_iqm_ci95": ci, "success_rate": 1.0}} for i, ci in enumerate(cis)]
+             "metrics": {"score_iqm": ci[1], "score_iqm_ci95": ci, "success_rate": 1.0, "score_mean": ci[1]}} for i, ci in enumerate(cis)]
     table = render_v1_tables({"easy": full})
     assert table.count("| 1 (tied) |") == 2 and "| 3 | `e2`" in table and table.count("| 4 (tied) |") == 2
 
