@@ -217,3 +217,12 @@ def test_docs_tier_table_is_generated_from_the_pool_file():
     text = (Path(__file__).resolve().parents[1] / "docs" / "envs.md").read_text(encoding="utf-8")
     block = text.split("<!-- tiers:begin -->\n")[1].split("<!-- tiers:end -->")[0]
     assert block == tier_table(POOLS)
+
+
+def test_training_loss_is_one_minus_the_mean_certified_score():
+    """On easy tasks the default planner is the certificate: the optimisers' loss replays the stored scores."""
+    from ffsr_gym.bench.evaluation_v1 import training_loss
+
+    stored = [t.certificate_score for t in pool("easy", "train")[:5]]
+    assert training_loss(0.3, 4.0, tier="easy", tasks=5) == pytest.approx(1.0 - np.mean(stored), abs=1e-12)
+    assert 0.0 <= training_loss(0.1, 3.0, tier="medium", tasks=3) <= 1.0

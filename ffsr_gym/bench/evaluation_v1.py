@@ -149,3 +149,16 @@ def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | 
     prov = provenance(scenarios=hashes, seeds=list(range(len(rows))), wall_time_s=time.perf_counter() - start)
     return EvalReport("planner", {"task": task, "split": split}, metrics, rows, prov, name=name, extra=extra,
                       score_rule=SCORE_RULE)
+
+
+def training_loss(m: float, T_c: float, *, tier: str, tasks: int = 20) -> float:
+    """1 − the mean v1 score of the predefined-time planner at constant (m, T_c [s]) on the first
+    ``tasks`` tasks of ``tier``'s **training** pool: the black-box loss optimisers minimise (in [0, 1]).
+
+    A module-level function: ``functools.partial(training_loss, tier=..., tasks=...)`` pickles
+    for process pools and Dask.
+    """
+    benchmark = load_benchmark("v1")
+    episodes = [planner_episode(draw_task(t.seed, benchmark), benchmark, method="predefined_time", m=m, T_c=T_c)
+                for t in pool(tier, "train")[:tasks]]
+    return 1.0 - float(np.mean([e.score for e in episodes]))
