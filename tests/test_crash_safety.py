@@ -30,6 +30,7 @@ def spawn(code: str) -> subprocess.Popen:
 def kill(child: subprocess.Popen) -> None:
     os.killpg(child.pid, signal.SIGKILL)
     child.wait()
+    child.stderr.close()  # no unclosed pipe left for a later test's warning check
 
 
 def wait_for(path: Path, timeout: float = 120.0) -> None:
