@@ -154,6 +154,8 @@ def test_reset_never_draws_the_test_pool_unless_asked():
     assert {env.reset(seed=s)[1]["task_seed"] for s in range(20)} <= test_seeds
     with pytest.raises(InvalidInputError, match="task_index"):
         env.reset(options={"task_index": 10_000})
+    with pytest.raises(InvalidInputError, match="options"):
+        env.reset(options="task 3")
 
 
 def test_bad_pool_file_and_certificate_are_named_errors(tmp_path):

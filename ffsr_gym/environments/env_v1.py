@@ -103,6 +103,8 @@ class FFSRV1Env(FFSREnv):
 
     def _episode_scenario(self, options: dict | None) -> tuple[Scenario, dict]:
         """A tier's task: drawn uniformly from the split's pool, or ``options={"task_index": i}``."""
+        if options is not None and not isinstance(options, dict):
+            raise InvalidInputError(f"options must be a dict or None, got {type(options).__name__}")
         if self.pool is None:
             return self.family, {}
         index = (options or {}).get("task_index")
