@@ -122,6 +122,57 @@ def _leaderboard_plot(args: argparse.Namespace) -> None:
         print("wrote" if path else "no v1 entries under", path or args.root)
 
 
+def load_policy(spec: str, algo: str | None):
+    """A policy from the command line: ``"m,T_c"`` (fixed parameters), an SB3 ``.zip`` (with ``algo``),
+    or ``module:callable`` (imported; called with an observation, returns an action).
+
+    Raises:
+        InvalidInputError: none of these, naming the accepted forms.
+    """
+    import importlib
+
+    from ffsr_gym.exceptions import InvalidInputError
+
+    parts = spec.split(",")
+    if len(parts) == 2:
+        try:
+            return float(parts[0]), float(parts[1])
+        except ValueError:
+            pass
+    if spec.endswith(".zip"):
+        from ffsr_gym.optim.rl import ALGOS, _sb3
+
+        if algo not in ALGOS:
+            raise InvalidInputError(f"--algo {algo!r}: an SB3 .zip needs --algo, one of {sorted(ALGOS)}")
+        if not Path(spec).is_file():
+            raise InvalidInputError(f"--policy {spec!r}: no such file")
+        return getattr(_sb3()[0], ALGOS[algo]).load(spec, device="cpu")
+    module, _, name = spec.partition(":")
+    if module and name:
+        try:
+            policy = getattr(importlib.import_module(module), name)
+        except (ImportError, AttributeError) as exc:
+            raise InvalidInputError(f"--policy {spec!r}: {exc}") from None
+        if callable(policy):
+            return policy
+    raise InvalidInputError(f"--policy {spec!r}; allowed: 'm,T_c' (e.g. 0.3,4), an SB3 .zip with --algo, "
+                            "or module:callable")
+
+
+def _evaluate(args: argparse.Namespace) -> None:
+    from ffsr_gym.bench.evaluation import evaluate
+
+    policy = load_policy(args.policy, args.algo)
+    v1 = args.env_id.endswith("-v1")
+    report = evaluate(policy, args.env_id, name=args.name, progress=not args.no_progress,
+                      **({"task": args.task, "split": args.split, "training_pool": args.training_pool} if v1
+                         else {"env_kwargs": {"scenario": args.scenario}}))
+    print(f"{report.name}: {report.metrics}")
+    if args.leaderboard:
+        folder = Path(args.leaderboard) / ("v1" if v1 else args.env_id) / (args.task if v1 else "")
+        print("wrote", report.save(folder))
+
+
 def _tasks(args: argparse.Namespace) -> None:
     from concurrent.futures import ProcessPoolExecutor
 
@@ -198,6 +249,19 @@ def main(argv: list[str] | None = None) -> int:
     tb.add_argument("--max-candidates", type=int, default=50_000, help="give up after this many per split (default: 50000)")
     tb.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     tb.set_defaults(func=_tasks)
+    ev = sub.add_parser("evaluate", help="score a policy with ffsr_gym.evaluate and optionally write a leaderboard entry")
+    ev.add_argument("--env-id", required=True, choices=["FFSR-v0", "FFSR-Residual-v0", "FFSR-v1", "FFSR-Residual-v1"])
+    ev.add_argument("--policy", required=True, help="'m,T_c' (fixed parameters, e.g. 0.3,4), an SB3 .zip (with --algo), "
+                                                   "or module:callable")
+    ev.add_argument("--algo", default=None, choices=["ppo", "sac", "td3"], help="the algorithm of an SB3 .zip")
+    ev.add_argument("--task", default="easy", choices=["paper", "easy", "medium", "hard"], help="v1: task or tier (default: easy)")
+    ev.add_argument("--split", default="test", choices=["train", "test"], help="v1: pool scored (default: test)")
+    ev.add_argument("--training-pool", default=None, help="v1: what the policy was trained or tuned on (recorded)")
+    ev.add_argument("--scenario", default="paper", help="v0: scenario name or TOML path (default: paper)")
+    ev.add_argument("--name", default="submission", help="entry name (default: submission)")
+    ev.add_argument("--leaderboard", default=None, help="write the entry under this leaderboard root")
+    ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    ev.set_defaults(func=_evaluate)
     board = sub.add_parser("leaderboard", help="leaderboard tables and figures")
     board_sub = board.add_subparsers(dest="action", required=True)
     plot = board_sub.add_parser("plot", help="the v1 figures (IQM with CIs, performance profiles) under <root>/v1/")

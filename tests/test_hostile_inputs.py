@@ -188,3 +188,15 @@ def test_cli_version_list_and_a_new_leaderboard_folder(tmp_path, capsys):
     (tmp_path / "mine").mkdir()
     assert main(["leaderboard", "render", "--root", str(tmp_path / "mine")]) == 0
     assert main(["leaderboard", "render", "--root", str(tmp_path / "mine"), "--check"]) == 0
+
+
+def test_cli_evaluate_writes_an_entry_and_names_bad_policies(tmp_path, capsys):
+    from ffsr_gym.cli import main
+
+    assert main(["evaluate", "--env-id", "FFSR-v1", "--policy", "0.3,4", "--task", "easy", "--name", "default",
+                 "--leaderboard", str(tmp_path), "--no-progress"]) == 0
+    entry = json.loads((tmp_path / "v1" / "easy" / "default.json").read_text())
+    assert entry["metrics"]["success_rate"] == 1.0 and entry["extra"]["evaluation_pool"] == "easy/test"
+    for bad in ("0.3", "nowhere.zip", "math:nothing", "lambda"):
+        assert main(["evaluate", "--env-id", "FFSR-v1", "--policy", bad, "--no-progress"]) == 2
+        assert "--policy" in capsys.readouterr().err or bad == "nowhere.zip"
