@@ -173,6 +173,36 @@ def _evaluate(args: argparse.Namespace) -> None:
         print("wrote", report.save(folder))
 
 
+def _render(args: argparse.Namespace) -> None:
+    import gymnasium
+    from PIL import Image
+
+    from ffsr_gym.bench.entry import stepper
+    from ffsr_gym.exceptions import InvalidInputError
+
+    if args.every < 1 or args.speed <= 0:
+        raise InvalidInputError(f"--every {args.every} (allowed: >= 1), --speed {args.speed} (allowed: > 0)")
+    policy = load_policy(args.policy, args.algo)
+    v1 = args.env_id.endswith("-v1")
+    env = gymnasium.make(args.env_id, render_mode="rgb_array",
+                         **({"task": args.task, "split": args.split} if v1 else {"scenario": args.scenario}))
+    obs, _ = env.reset(seed=args.seed)
+    step, frames, decisions, done, info = stepper(policy, env), [env.render()], 0, False, {}
+    while not done:
+        obs, _, terminated, truncated, info = step(obs)
+        decisions, done = decisions + 1, terminated or truncated
+        if decisions % args.every == 0 or done:
+            frames.append(env.render())
+    env.close()
+    interval_ms = 1000.0 * args.every * env.unwrapped.family.env.decision_interval_s / args.speed
+    images = [Image.fromarray(frame) for frame in frames]
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    images[0].save(out, save_all=True, append_images=images[1:], duration=round(interval_ms), loop=0)
+    outcome = {k: info.get(k) for k in ("score", "success", "failure") if k in info}
+    print(f"wrote {out}: {len(frames)} frames, {decisions} decisions, {outcome}")
+
+
 def _tasks(args: argparse.Namespace) -> None:
     from concurrent.futures import ProcessPoolExecutor
 
@@ -262,6 +292,18 @@ def main(argv: list[str] | None = None) -> int:
     ev.add_argument("--leaderboard", default=None, help="write the entry under this leaderboard root")
     ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ev.set_defaults(func=_evaluate)
+    rd = sub.add_parser("render", help="an episode of a policy as an animated GIF")
+    rd.add_argument("--env-id", default="FFSR-v1", choices=["FFSR-v0", "FFSR-Residual-v0", "FFSR-v1", "FFSR-Residual-v1"])
+    rd.add_argument("--policy", default="0.3,4", help="'m,T_c' (default: 0.3,4), an SB3 .zip (with --algo), or module:callable")
+    rd.add_argument("--algo", default=None, choices=["ppo", "sac", "td3"], help="the algorithm of an SB3 .zip")
+    rd.add_argument("--task", default="paper", choices=["paper", "easy", "medium", "hard"], help="v1: task or tier (default: paper)")
+    rd.add_argument("--split", default="train", choices=["train", "test"], help="v1: pool of a tier (default: train)")
+    rd.add_argument("--scenario", default="paper", help="v0: scenario name or TOML path (default: paper)")
+    rd.add_argument("--seed", type=int, default=0, help="reset seed: picks a tier's task (default: 0)")
+    rd.add_argument("--every", type=int, default=2, help="one frame every N decisions of 0.1 s (default: 2)")
+    rd.add_argument("--speed", type=float, default=2.0, help="playback speed over real time (default: 2)")
+    rd.add_argument("--out", default="runs/episode.gif", help="GIF file (default: runs/episode.gif)")
+    rd.set_defaults(func=_render)
     board = sub.add_parser("leaderboard", help="leaderboard tables and figures")
     board_sub = board.add_subparsers(dest="action", required=True)
     plot = board_sub.add_parser("plot", help="the v1 figures (IQM with CIs, performance profiles) under <root>/v1/")

@@ -200,3 +200,19 @@ def test_cli_evaluate_writes_an_entry_and_names_bad_policies(tmp_path, capsys):
     for bad in ("0.3", "nowhere.zip", "math:nothing", "lambda"):
         assert main(["evaluate", "--env-id", "FFSR-v1", "--policy", bad, "--no-progress"]) == 2
         assert "--policy" in capsys.readouterr().err or bad == "nowhere.zip"
+
+
+def test_cli_render_writes_a_gif_of_an_episode(tmp_path, capsys):
+    from PIL import Image
+
+    from ffsr_gym.cli import main
+
+    out = tmp_path / "episode.gif"
+    assert main(["render", "--policy", "0.3,4", "--every", "50", "--out", str(out)]) == 0
+    assert "'success': True" in capsys.readouterr().out
+    with Image.open(out) as gif:
+        assert gif.n_frames == 5 and gif.size == (480, 480)  # t = 0, 5, 10, 15, 20 s
+        gif.seek(2)
+        frame = np.asarray(gif.convert("RGB"))
+    assert frame.std() > 10  # a drawn scene, not a blank frame
+    assert main(["render", "--every", "0", "--out", str(out)]) == 2

@@ -9,6 +9,7 @@ from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.sim.rollout import Rollout
 
 _CUBE_EDGES = [(a, b) for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1]
+_CORNERS = np.array([[x, y, z] for x in (-0.4, 0.4) for y in (-0.4, 0.4) for z in (-0.4, 0.4)])  # base cube [m]
 
 
 class SceneRenderer:
@@ -27,36 +28,49 @@ class SceneRenderer:
         self.ax = self.fig.add_subplot(projection="3d")
 
     def draw(self, rollout: Rollout, scenario: Scenario) -> np.ndarray | None:
-        """Draw the current state; return an RGB array (H, W, 3) unless interactive."""
-        ax, robot = self.ax, rollout.robot
-        ax.clear()
+        """Draw the current state; return an RGB array (H, W, 3) unless interactive.
+
+        The artists are built on the first call (and when the scenario changes) and then only
+        get new data, so a frame costs one canvas draw.
+        """
+        robot = rollout.robot
+        if getattr(self, "_scenario", None) is not scenario:
+            self._build(scenario)
         robot.update_kinematics(rollout.q)
         base = robot.data.oMi[1]
-        corners = np.array([[x, y, z] for x in (-0.4, 0.4) for y in (-0.4, 0.4) for z in (-0.4, 0.4)])
-        corners = corners @ base.rotation.T + base.translation
-        for a, b in _CUBE_EDGES:
-            ax.plot(*corners[[a, b]].T, color="0.4", lw=1)
-        for arm, color in ((0, "tab:blue"), (1, "tab:orange")):
+        corners = _CORNERS @ base.rotation.T + base.translation
+        for line, (a, b) in zip(self._cube, _CUBE_EDGES):
+            line.set_data_3d(*corners[[a, b]].T)
+        for arm, line in enumerate(self._arms):
             points, _ = robot.joint_points(arm)
-            ax.plot(*points.T, "-o", color=color, lw=3, ms=3, label=("mission arm", "balance arm")[arm])
-        trace = np.array([q_ee for q_ee in self._ee_trace(rollout)])
-        ax.plot(*trace.T, color="tab:green", lw=1, label="EE trace")
+            line.set_data_3d(*points.T)
+        self._trace.set_data_3d(*np.array(list(self._ee_trace(rollout))).T)
+        self.ax.set_title(f"{scenario.name}: t = {rollout.t:.2f} s")
+        self.fig.canvas.draw()
+        if self.interactive:
+            self.plt.pause(0.001)
+            return None
+        return np.asarray(self.fig.canvas.buffer_rgba())[..., :3].copy()
+
+    def _build(self, scenario: Scenario) -> None:
+        """The static scene (target frame, obstacle, limits, labels) and the moving artists."""
+        ax = self.ax
+        ax.clear()
+        self._scenario = scenario
+        self._cube = [ax.plot([], [], [], color="0.4", lw=1)[0] for _ in _CUBE_EDGES]
+        self._arms = [ax.plot([], [], [], "-o", color=color, lw=3, ms=3, label=name)[0]
+                      for color, name in (("tab:blue", "mission arm"), ("tab:orange", "balance arm"))]
+        self._trace = ax.plot([], [], [], color="tab:green", lw=1, label="EE trace")[0]
         target = np.array(scenario.target.position_m)
         rotation = quat.to_rotation(np.array(scenario.target.quaternion_wxyz))
         for i, c in enumerate(("r", "g", "b")):
             ax.plot(*np.array([target, target + 0.1 * rotation[:, i]]).T, color=c, lw=2)
         if scenario.obstacle is not None:
             self._sphere(np.array(scenario.obstacle.position_m), scenario.obstacle.danger_radius_m)
-        ax.set(xlabel="x [m]", ylabel="y [m]", zlabel="z [m]", title=f"t = {rollout.t:.2f} s")
-        center = base.translation
-        for setter, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), center):
-            setter(c - 1.2, c + 1.5)
+        center = np.array(scenario.initial.base_position_m)
+        ax.set(xlabel="x [m]", ylabel="y [m]", zlabel="z [m]", xlim=(center[0] - 1.2, center[0] + 1.5),
+               ylim=(center[1] - 1.2, center[1] + 1.5), zlim=(center[2] - 1.2, center[2] + 1.5))
         ax.legend(loc="upper left", fontsize=7)
-        self.fig.canvas.draw()
-        if self.interactive:
-            self.plt.pause(0.001)
-            return None
-        return np.asarray(self.fig.canvas.buffer_rgba())[..., :3].copy()
 
     @staticmethod
     def _ee_trace(rollout: Rollout):
