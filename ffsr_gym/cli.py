@@ -67,6 +67,13 @@ def _reproduce(args: argparse.Namespace) -> None:
     for claim in result["claims"]:
         print(f"{'holds' if claim['holds'] else 'FAILS'}  {claim['claim']:<{width}}  ours: {claim['ours']}  paper: {claim['paper']}")
     print(f"wrote figures, reproduction.json and reproduction.md to {args.out}")
+    if args.readme:
+        from ffsr_gym.provenance import write_text_atomic
+        from ffsr_gym.report.reproduction import splice_readme
+
+        readme = Path(args.readme)
+        write_text_atomic(readme, splice_readme(readme.read_text(encoding="utf-8"), result))
+        print(f"updated the claims table in {readme}")
 
 
 def _ga(args: argparse.Namespace) -> None:
@@ -237,6 +244,7 @@ def main(argv: list[str] | None = None) -> int:
     rep.add_argument("--out", required=True, help="output folder, e.g. runs/paper")
     rep.add_argument("--duration", type=float, default=None, help="shorten every run to this many seconds")
     rep.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    rep.add_argument("--readme", default=None, help="also write the claims table into this README (between its markers)")
     rep.set_defaults(func=_reproduce)
     ga = sub.add_parser("ga", help="the paper's GA over (m, T_c): both modes, figures, table, leaderboard entries")
     ga.add_argument("--out", required=True, help="output folder; checkpoints there make a killed run resume")
