@@ -123,9 +123,9 @@ def _leaderboard(args: argparse.Namespace) -> int:
 
 
 def _leaderboard_plot(args: argparse.Namespace) -> None:
-    from ffsr_gym.report.leaderboard_plots import plot_iqm, plot_profiles
+    from ffsr_gym.report.leaderboard_plots import plot_iqm, plot_learning_curves, plot_profiles
 
-    for path in (plot_iqm(args.root), plot_profiles(args.root)):
+    for path in (plot_iqm(args.root), plot_profiles(args.root), plot_learning_curves(args.root)):
         print("wrote" if path else "no v1 entries under", path or args.root)
 
 

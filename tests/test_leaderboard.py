@@ -104,16 +104,26 @@ def test_v1_ranks_share_a_rank_when_no_ci_separates_them():
 
 def test_v1_figures_are_drawn_from_entries(tmp_path):
     from ffsr_gym.bench.evaluation_v1 import aggregate_v1
-    from ffsr_gym.report.leaderboard_plots import plot_iqm, plot_profiles
+    from ffsr_gym.report.leaderboard_plots import plot_iqm, plot_learning_curves, plot_profiles
 
-    assert plot_iqm(tmp_path) is None and plot_profiles(tmp_path) is None
+    assert plot_iqm(tmp_path) is None and plot_profiles(tmp_path) is None and plot_learning_curves(tmp_path) is None
     rng = np.random.default_rng(0)
     for tier in ("easy", "hard"):
         for name in ("a", "b"):
             scores = list(rng.uniform(0, 1, 20))
+            curve = {"test_indices": [0, 50, 99], "points": [{"env_steps": k * 100, "scores": list(rng.uniform(0, 1, 3))}
+                                                              for k in range(4)]}
             entry = {"name": name, "provenance": {"git_commit": "abc"}, "metrics": aggregate_v1(scores, [True] * 20),
-                     "episodes": [{"score": s} for s in scores]}
+                     "episodes": [{"score": s} for s in scores], "extra": {"runs": [{"curve": curve}] * 3}}
             (tmp_path / "v1" / tier).mkdir(parents=True, exist_ok=True)
             (tmp_path / "v1" / tier / f"{name}.json").write_text(json.dumps(entry))
-    for path in (plot_iqm(tmp_path), plot_profiles(tmp_path)):
+    for path in (plot_iqm(tmp_path), plot_profiles(tmp_path), plot_learning_curves(tmp_path)):
         assert path.is_file() and path.stat().st_size > 10_000
+
+
+def test_iqm_is_the_mean_of_the_middle_half():
+    from ffsr_gym.scoring.aggregate import iqm
+
+    assert iqm([4.0, 1.0, 3.0, 2.0]) == 2.5
+    assert iqm([0.0, 0.0, 1.0, 1.0, 1.0, 1.0, 9.0, 100.0]) == 1.0
+    assert iqm([7.0]) == 7.0

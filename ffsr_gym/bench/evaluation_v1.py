@@ -24,6 +24,7 @@ from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.benchmark import Benchmark, load_benchmark
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.provenance import provenance
+from ffsr_gym.scoring.aggregate import iqm
 from ffsr_gym.scoring.score import EpisodeScore, score_episode
 from ffsr_gym.sim.simulate import make_rollout
 from ffsr_gym.tasks.generator import draw_task
@@ -32,13 +33,6 @@ from ffsr_gym.tasks.tiers import TIERS
 
 V1_IDS = ("FFSR-v1", "FFSR-Residual-v1")
 SCORE_RULE = "v1 episode score: 1 / (1 + C) on success, 0 on failure (ffsr_gym.scoring.score)"
-
-
-def iqm(values: np.ndarray) -> float:
-    """Interquartile mean: the mean of the middle half of the sorted values."""
-    v = np.sort(np.asarray(values, dtype=float))
-    lo, hi = int(math.floor(0.25 * len(v))), int(math.ceil(0.75 * len(v)))
-    return float(np.mean(v[lo:hi] if hi > lo else v))
 
 
 def aggregate_v1(scores: Sequence[float], successes: Sequence[bool]) -> dict[str, Any]:

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ffsr_gym.report.plotting import _pyplot, _save
+from ffsr_gym.scoring.aggregate import iqm
 
 TIER_ORDER = ("easy", "medium", "hard")
 
@@ -76,3 +77,33 @@ def plot_profiles(root: str | Path) -> Path | None:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7)
     return _save(fig, root / "v1" / "profiles.png", _footer(entries))
+
+
+def plot_learning_curves(root: str | Path) -> Path | None:
+    """RL learning curves: score on fixed test tasks against environment steps, IQM over training
+    seeds (of each seed's mean over the curve's tasks) with a 95 % bootstrap band over seeds."""
+    root = Path(root)
+    entries = {tier: [e for e in items if any("curve" in run for run in e.get("extra", {}).get("runs", []))]
+               for tier, items in _entries(root).items()}
+    tiers = [t for t in TIER_ORDER if entries[t]]
+    if not tiers:
+        return None
+    fig, axes = _pyplot().subplots(1, len(tiers), figsize=(5.2 * len(tiers), 4.0), squeeze=False, sharey=True)
+    rng = np.random.default_rng(0)
+    for ax, tier in zip(axes[0], tiers):
+        for e in entries[tier]:
+            curves = [run["curve"]["points"] for run in e["extra"]["runs"]]
+            steps = [p["env_steps"] for p in curves[0]]
+            per_seed = np.array([[np.mean(p["scores"]) for p in c[:len(steps)]] for c in curves])  # (seeds, points)
+            centre = [iqm(per_seed[:, k]) for k in range(len(steps))]
+            boots = np.array([[iqm(per_seed[rng.integers(0, len(per_seed), len(per_seed)), k]) for k in range(len(steps))]
+                              for _ in range(2000)])
+            ax.plot(steps, centre, label=f"{e['name']} ({len(curves)} seeds)")
+            ax.fill_between(steps, np.percentile(boots, 2.5, axis=0), np.percentile(boots, 97.5, axis=0), alpha=0.25)
+        n_tasks = len(entries[tier][0]["extra"]["runs"][0]["curve"]["test_indices"])
+        ax.set(xlabel="environment steps (decisions of 0.1 s)", ylabel=f"mean v1 score on {n_tasks} test tasks [-]",
+               title=f"{tier}: learning curves (IQM over seeds, 95 % band)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    return _save(fig, root / "v1" / "learning_curves.png", _footer(entries))
+
