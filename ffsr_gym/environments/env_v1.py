@@ -17,6 +17,8 @@ from ffsr_gym.tasks.tiers import TIERS
 
 #: Tasks of benchmark v1 (``task=``); a :class:`Scenario` is accepted as a custom, unranked task.
 TASKS = ("paper", *TIERS)
+#: The ``info`` keys at the end of a v1 episode (:class:`EpisodeScore` fields) and their dtypes in a batch.
+END_INFO_V1 = {"score": float, "success": bool, "failure": object, "smoothness_cost": float, "paper_B": float}
 
 
 def v1_task(task: str | Scenario, benchmark: Benchmark) -> Scenario:
@@ -140,8 +142,8 @@ class FFSRV1Env(FFSREnv):
         if terminated or truncated:
             rollout.finish()
             result = score_episode(rollout.trajectory(), self.scenario, settings)
-            if truncated and result.failure is not None:
-                penalty += settings.action.tolerance_penalty if result.failure == "final_error" else settings.action.violation_penalty
+            if truncated:
+                penalty += settings.action.horizon_penalty(result.failure)
             info.update(self._final_info_v1(result))
         obs = self._observation()
         shaping = 0.0
@@ -166,8 +168,7 @@ class FFSRV1Env(FFSREnv):
 
     @staticmethod
     def _final_info_v1(result: EpisodeScore) -> dict[str, Any]:
-        return {"score": result.score, "success": result.success, "failure": result.failure,
-                "smoothness_cost": result.smoothness_cost, "paper_B": result.paper_B}
+        return {key: getattr(result, key) for key in END_INFO_V1}
 
 
 class FFSRResidualV1Env(FFSRV1Env):

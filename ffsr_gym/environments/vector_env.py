@@ -41,6 +41,9 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
     single_env_class: type[FFSREnv] = FFSREnv
+    #: Episode-end ``info`` keys (attributes of :meth:`_score_end`'s result) and their dtypes.
+    end_keys: dict[str, type] = {"objective": float, "feasible": bool, "score": float, "rate_violation": bool,
+                                 "collided": bool}
 
     def __init__(self, num_envs: int, scenario: str | Scenario = "paper", *, threads: int | None = None,
                  backend: str = "kernel", render_mode: str | None = None, max_episode_steps: int | None = None) -> None:
@@ -173,21 +176,26 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         return np.zeros((self.num_envs, 12))
 
     def _end_episodes(self, terminated: np.ndarray, truncated: np.ndarray, penalties: np.ndarray) -> dict[str, Any]:
-        """Objective of every finished episode's whole trajectory; adds the tolerance penalty in place."""
-        ended = {key: np.zeros(self.num_envs, dtype=dtype) for key, dtype in _END_KEYS.items()}
+        """Score every finished episode from its whole trajectory (:meth:`_score_end`); adds the horizon
+        penalty to ``penalties`` in place; returns the ``end_keys`` info arrays with their masks."""
+        ended = {key: np.zeros(self.num_envs, dtype=dtype) for key, dtype in self.end_keys.items()}
         for i in np.flatnonzero(terminated | truncated):
             rollout = self._synced_rollout(i)
             rollout.finish()
-            terms = objective_terms(rollout.trajectory(), rollout.scenario.objective)
-            if truncated[i] and not terms.final_errors_ok:
-                penalties[i] += self.family.env.tolerance_penalty
-            for key in _END_KEYS:
-                ended[key][i] = getattr(terms, key)
+            result, penalty = self._score_end(rollout, bool(truncated[i]))
+            penalties[i] += penalty
+            for key in self.end_keys:
+                ended[key][i] = getattr(result, key)
         mask = terminated | truncated
         infos: dict[str, Any] = {}
         for key, values in ended.items():
             infos[key], infos[f"_{key}"] = values, mask.copy()
         return infos
+
+    def _score_end(self, rollout: KernelRollout, truncated: bool) -> tuple[Any, float]:
+        """The finished episode's score terms, and the horizon penalty to add (as the single env)."""
+        terms = objective_terms(rollout.trajectory(), rollout.scenario.objective)
+        return terms, self.family.env.tolerance_penalty if truncated and not terms.final_errors_ok else 0.0
 
     def _observe(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         N = self.num_envs
@@ -212,8 +220,6 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
             rollout.x, rollout.k, rollout.rows = self._X[i].copy(), int(self._K[i]), int(self._K[i])
         return rollout
 
-
-_END_KEYS = {"objective": float, "feasible": bool, "score": float, "rate_violation": bool, "collided": bool}
 
 
 class FFSRResidualVectorEnv(FFSRVectorEnv):

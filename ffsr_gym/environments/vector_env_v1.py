@@ -13,13 +13,12 @@ from typing import Any
 
 import numpy as np
 
-from ffsr_gym.environments.env_v1 import FFSRResidualV1Env, FFSRV1Env
+from ffsr_gym.environments.env_v1 import END_INFO_V1, FFSRResidualV1Env, FFSRV1Env
 from ffsr_gym.environments.vector_env import FFSRVectorEnv
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.scenario import Scenario, residual_rates
 from ffsr_gym.scoring.score import score_episode, smoothness_cost, smoothness_terms
-
-_END_KEYS_V1 = {"score": float, "success": bool, "failure": object, "smoothness_cost": float, "paper_B": float}
+from ffsr_gym.sim.compiled import KernelRollout
 
 
 class FFSRV1VectorEnv(FFSRVectorEnv):
@@ -34,6 +33,7 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
     """
 
     single_env_class: type[FFSRV1Env] = FFSRV1Env
+    end_keys = END_INFO_V1
 
     def __init__(self, num_envs: int, task: str | Scenario = "paper", split: str = "train", *, threads: int | None = None,
                  backend: str = "kernel", render_mode: str | None = None, max_episode_steps: int | None = None,
@@ -103,23 +103,11 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
                       "clearance_m": clearance, "ee_position_error_m": ee_error, "clipped_actions": self._clipped.copy()})
         return obs, np.where(active, -increments - penalties + shaping, 0.0), terminated, truncated, infos
 
-    def _end_episodes(self, terminated: np.ndarray, truncated: np.ndarray, penalties: np.ndarray) -> dict[str, Any]:
-        """The v1 score of every finished episode; adds the horizon penalty in place, as the single env."""
-        ended = {key: np.zeros(self.num_envs, dtype=dtype) for key, dtype in _END_KEYS_V1.items()}
-        action = self._template.benchmark.action
-        for i in np.flatnonzero(terminated | truncated):
-            rollout = self._synced_rollout(i)
-            rollout.finish()
-            result = score_episode(rollout.trajectory(), rollout.scenario, self._template.benchmark)
-            if truncated[i] and result.failure is not None:
-                penalties[i] += action.tolerance_penalty if result.failure == "final_error" else action.violation_penalty
-            for key in _END_KEYS_V1:
-                ended[key][i] = getattr(result, key)
-        mask = terminated | truncated
-        infos: dict[str, Any] = {}
-        for key, values in ended.items():
-            infos[key], infos[f"_{key}"] = values, mask.copy()
-        return infos
+    def _score_end(self, rollout: KernelRollout, truncated: bool) -> tuple[Any, float]:
+        """The v1 score of the finished episode, and the horizon penalty (as the single env)."""
+        benchmark = self._template.benchmark
+        result = score_episode(rollout.trajectory(), rollout.scenario, benchmark)
+        return result, benchmark.action.horizon_penalty(result.failure) if truncated else 0.0
 
 
 class FFSRResidualV1VectorEnv(FFSRV1VectorEnv):

@@ -69,6 +69,13 @@ class ActionSettings:
     shaping_position_scale_m: float = field(metadata=_number(0.0, 1e3, lo_open=True))
     cost_clearance_scale_m: float = field(metadata=_number(0.0, 1e3, lo_open=True))
 
+    def horizon_penalty(self, failure: str | None) -> float:
+        """Extra penalty when an episode reaches the horizon and fails: the tolerance penalty for a
+        final-error failure, the violation penalty for a violation that did not end it, 0 on success."""
+        if failure is None:
+            return 0.0
+        return self.tolerance_penalty if failure == "final_error" else self.violation_penalty
+
 
 @dataclass(frozen=True)
 class TaskRule:
