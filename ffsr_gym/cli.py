@@ -166,14 +166,36 @@ def load_policy(spec: str, algo: str | None):
                             "or module:callable")
 
 
+ENV_IDS = ["FFSR-v0", "FFSR-Residual-v0", "FFSR-v1", "FFSR-Residual-v1"]
+
+
+def _add_policy_arguments(parser: argparse.ArgumentParser, *, env_id: str | None, policy: str | None, task: str,
+                          split: str, split_help: str) -> None:
+    """The options that name an environment and a policy (``evaluate``, ``render``); None: required."""
+    parser.add_argument("--env-id", required=env_id is None, default=env_id, choices=ENV_IDS,
+                        help="environment id" + (f" (default: {env_id})" if env_id else ""))
+    parser.add_argument("--policy", required=policy is None, default=policy,
+                        help="'m,T_c' (fixed parameters, e.g. 0.3,4), an SB3 .zip (with --algo), or module:callable"
+                             + (f" (default: {policy})" if policy else ""))
+    parser.add_argument("--algo", default=None, choices=["ppo", "sac", "td3"], help="the algorithm of an SB3 .zip")
+    parser.add_argument("--task", default=task, choices=["paper", "easy", "medium", "hard"],
+                        help=f"v1: task or tier (default: {task})")
+    parser.add_argument("--split", default=split, choices=["train", "test"], help=f"v1: {split_help} (default: {split})")
+    parser.add_argument("--scenario", default="paper", help="v0: scenario name or TOML path (default: paper)")
+
+
+def _env_kwargs(args: argparse.Namespace) -> dict:
+    """``gymnasium.make`` arguments of ``--env-id``: the v1 task and split, or the v0 scenario."""
+    return {"task": args.task, "split": args.split} if args.env_id.endswith("-v1") else {"scenario": args.scenario}
+
+
 def _evaluate(args: argparse.Namespace) -> None:
     from ffsr_gym.bench.evaluation import evaluate
 
     policy = load_policy(args.policy, args.algo)
     v1 = args.env_id.endswith("-v1")
     report = evaluate(policy, args.env_id, name=args.name, progress=not args.no_progress,
-                      **({"task": args.task, "split": args.split, "training_pool": args.training_pool} if v1
-                         else {"env_kwargs": {"scenario": args.scenario}}))
+                      **(_env_kwargs(args) | {"training_pool": args.training_pool} if v1 else {"env_kwargs": _env_kwargs(args)}))
     print(f"{report.name}: {report.metrics}")
     if args.leaderboard:
         folder = Path(args.leaderboard) / ("v1" if v1 else args.env_id) / (args.task if v1 else "")
@@ -190,9 +212,7 @@ def _render(args: argparse.Namespace) -> None:
     if args.every < 1 or args.speed <= 0:
         raise InvalidInputError(f"--every {args.every} (allowed: >= 1), --speed {args.speed} (allowed: > 0)")
     policy = load_policy(args.policy, args.algo)
-    v1 = args.env_id.endswith("-v1")
-    env = gymnasium.make(args.env_id, render_mode="rgb_array",
-                         **({"task": args.task, "split": args.split} if v1 else {"scenario": args.scenario}))
+    env = gymnasium.make(args.env_id, render_mode="rgb_array", **_env_kwargs(args))
     obs, _ = env.reset(seed=args.seed)
     step, frames, decisions, done, info = stepper(policy, env), [env.render()], 0, False, {}
     while not done:
@@ -263,7 +283,7 @@ def main(argv: list[str] | None = None) -> int:
     ga.set_defaults(func=_ga)
     tr = sub.add_parser("train", help="train stable-baselines3 agents and score them with ffsr_gym.evaluate")
     tr.add_argument("--algo", required=True, choices=["ppo", "sac", "td3"])
-    tr.add_argument("--env-id", default="FFSR-v0", choices=["FFSR-v0", "FFSR-Residual-v0", "FFSR-v1", "FFSR-Residual-v1"])
+    tr.add_argument("--env-id", default="FFSR-v0", choices=ENV_IDS)
     tr.add_argument("--scenario", default="paper", help="v0 only: scenario name or TOML path (default: paper)")
     tr.add_argument("--task", default="easy", choices=["easy", "medium", "hard"],
                     help="v1 only: the tier; trains on its training pool, scores its test pool (default: easy)")
@@ -288,25 +308,14 @@ def main(argv: list[str] | None = None) -> int:
     tb.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     tb.set_defaults(func=_tasks)
     ev = sub.add_parser("evaluate", help="score a policy with ffsr_gym.evaluate and optionally write a leaderboard entry")
-    ev.add_argument("--env-id", required=True, choices=["FFSR-v0", "FFSR-Residual-v0", "FFSR-v1", "FFSR-Residual-v1"])
-    ev.add_argument("--policy", required=True, help="'m,T_c' (fixed parameters, e.g. 0.3,4), an SB3 .zip (with --algo), "
-                                                   "or module:callable")
-    ev.add_argument("--algo", default=None, choices=["ppo", "sac", "td3"], help="the algorithm of an SB3 .zip")
-    ev.add_argument("--task", default="easy", choices=["paper", "easy", "medium", "hard"], help="v1: task or tier (default: easy)")
-    ev.add_argument("--split", default="test", choices=["train", "test"], help="v1: pool scored (default: test)")
+    _add_policy_arguments(ev, env_id=None, policy=None, task="easy", split="test", split_help="pool scored")
     ev.add_argument("--training-pool", default=None, help="v1: what the policy was trained or tuned on (recorded)")
-    ev.add_argument("--scenario", default="paper", help="v0: scenario name or TOML path (default: paper)")
     ev.add_argument("--name", default="submission", help="entry name (default: submission)")
     ev.add_argument("--leaderboard", default=None, help="write the entry under this leaderboard root")
     ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ev.set_defaults(func=_evaluate)
     rd = sub.add_parser("render", help="an episode of a policy as an animated GIF")
-    rd.add_argument("--env-id", default="FFSR-v1", choices=["FFSR-v0", "FFSR-Residual-v0", "FFSR-v1", "FFSR-Residual-v1"])
-    rd.add_argument("--policy", default="0.3,4", help="'m,T_c' (default: 0.3,4), an SB3 .zip (with --algo), or module:callable")
-    rd.add_argument("--algo", default=None, choices=["ppo", "sac", "td3"], help="the algorithm of an SB3 .zip")
-    rd.add_argument("--task", default="paper", choices=["paper", "easy", "medium", "hard"], help="v1: task or tier (default: paper)")
-    rd.add_argument("--split", default="train", choices=["train", "test"], help="v1: pool of a tier (default: train)")
-    rd.add_argument("--scenario", default="paper", help="v0: scenario name or TOML path (default: paper)")
+    _add_policy_arguments(rd, env_id="FFSR-v1", policy="0.3,4", task="paper", split="train", split_help="pool of a tier")
     rd.add_argument("--seed", type=int, default=0, help="reset seed: picks a tier's task (default: 0)")
     rd.add_argument("--every", type=int, default=2, help="one frame every N decisions of 0.1 s (default: 2)")
     rd.add_argument("--speed", type=float, default=2.0, help="playback speed over real time (default: 2)")
