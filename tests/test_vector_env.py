@@ -14,16 +14,12 @@ def make_vec(env_id, num_envs, **kwargs):
     return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs)
 
 
-@pytest.mark.parametrize(("env_id", "scenario", "steps"), [("FFSR-Residual-v0", "random", 250), ("FFSR-v0", "paper", 120)])
-def test_vector_env_equals_single_envs(env_id, scenario, steps):
-    """N copies seeded s, s+1, ... reproduce N single envs, autoresets (next-step mode) included."""
-    n = 3
-    venv = make_vec(env_id, n, scenario=scenario)
-    singles = [gym.make(env_id, scenario=scenario) for _ in range(n)]
-    obs, _ = venv.reset(seed=7)
-    np.testing.assert_array_equal(obs, np.stack([env.reset(seed=7 + i)[0] for i, env in enumerate(singles)]))
-    rng = np.random.default_rng(0)
-    pending, ends = [False] * n, 0
+def lockstep(venv, singles, steps, rng, same_reward, check_end):
+    """Step the batch and the single envs with the same random actions (some clipped), the single envs
+    resetting the step after an episode end as next-step autoreset does; observations, rewards (by
+    ``same_reward``) and ends must agree at every step. ``check_end(i, info, single_info, ended)``
+    compares the step's info of copy i. Returns the number of episode ends covered."""
+    pending, ends = [False] * len(singles), 0
     for t in range(steps):
         actions = rng.uniform(-1.2, 1.2, venv.action_space.shape).astype(np.float32)  # some clipped
         obs, rewards, terminated, truncated, info = venv.step(actions)
@@ -34,13 +30,31 @@ def test_vector_env_equals_single_envs(env_id, scenario, steps):
                 pending[i] = False
             else:
                 expected, reward, term, trunc, single_info = env.step(actions[i])
-                if term or trunc:
-                    pending[i], ends = True, ends + 1
-                    assert info["_score"][i] and info["score"][i] == single_info["score"]
-                    assert info["feasible"][i] == single_info["feasible"]
+                pending[i] = term or trunc
+                ends += pending[i]
+                check_end(i, info, single_info, pending[i])
             np.testing.assert_array_equal(obs[i], expected, err_msg=f"step {t}, copy {i}")
-            assert rewards[i] == pytest.approx(reward, rel=1e-12, abs=1e-15)
+            assert same_reward(rewards[i], reward), (t, i, rewards[i], reward)
             assert (terminated[i], truncated[i]) == (term, trunc)
+    return ends
+
+
+@pytest.mark.parametrize(("env_id", "scenario", "steps"), [("FFSR-Residual-v0", "random", 250), ("FFSR-v0", "paper", 120)])
+def test_vector_env_equals_single_envs(env_id, scenario, steps):
+    """N copies seeded s, s+1, ... reproduce N single envs, autoresets (next-step mode) included."""
+    n = 3
+    venv = make_vec(env_id, n, scenario=scenario)
+    singles = [gym.make(env_id, scenario=scenario) for _ in range(n)]
+    obs, _ = venv.reset(seed=7)
+    np.testing.assert_array_equal(obs, np.stack([env.reset(seed=7 + i)[0] for i, env in enumerate(singles)]))
+
+    def check_end(i, info, single_info, ended):
+        if ended:
+            assert info["_score"][i] and info["score"][i] == single_info["score"]
+            assert info["feasible"][i] == single_info["feasible"]
+
+    ends = lockstep(venv, singles, steps, np.random.default_rng(0),
+                    lambda a, b: a == pytest.approx(b, rel=1e-12, abs=1e-15), check_end)
     assert ends >= 3  # the comparison covered episode ends and resets
 
 
@@ -87,26 +101,15 @@ def test_v1_vector_env_equals_single_envs(env_id, task, steps):
     resets = [env.reset(seed=11 + i) for i, env in enumerate(singles)]
     np.testing.assert_array_equal(obs, np.stack([r[0] for r in resets]))
     assert list(info["task_seed"]) == [r[1].get("task_seed", -1) for r in resets]
-    rng = np.random.default_rng(1)
-    pending, ends = [False] * n, 0
-    for t in range(steps):
-        actions = rng.uniform(-1.2, 1.2, venv.action_space.shape).astype(np.float32)
-        obs, rewards, terminated, truncated, info = venv.step(actions)
-        for i, env in enumerate(singles):
-            if pending[i]:
-                expected, reward, term, trunc = env.reset()[0], 0.0, False, False
-                pending[i] = False
-            else:
-                expected, reward, term, trunc, single_info = env.step(actions[i])
-                assert info["cost"][i] == single_info["cost"]
-                if term or trunc:
-                    pending[i], ends = True, ends + 1
-                    assert info["_score"][i]
-                    for key in ("score", "success", "failure", "smoothness_cost", "paper_B"):
-                        assert info[key][i] == single_info[key], key
-            np.testing.assert_array_equal(obs[i], expected, err_msg=f"step {t}, copy {i}")
-            assert rewards[i] == reward, (t, i)
-            assert (terminated[i], truncated[i]) == (term, trunc)
+
+    def check_end(i, info, single_info, ended):
+        assert info["cost"][i] == single_info["cost"]
+        if ended:
+            assert info["_score"][i]
+            for key in ("score", "success", "failure", "smoothness_cost", "paper_B"):
+                assert info[key][i] == single_info[key], key
+
+    ends = lockstep(venv, singles, steps, np.random.default_rng(1), lambda a, b: a == b, check_end)
     assert ends >= 3
 
 
