@@ -7,9 +7,7 @@ pool the policy was trained on (as the caller states it).
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
-import math
 import time
 from collections.abc import Sequence
 from typing import Any
@@ -21,12 +19,11 @@ from tqdm.auto import tqdm
 from ffsr_gym.bench.entry import EvalReport, stepper
 from ffsr_gym.bench.protocol import BOOTSTRAP_SAMPLES, BOOTSTRAP_SEED
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.benchmark import Benchmark, load_benchmark
-from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.provenance import provenance
 from ffsr_gym.scoring.aggregate import iqm
-from ffsr_gym.scoring.score import EpisodeScore, score_episode
-from ffsr_gym.sim.simulate import make_rollout
+from ffsr_gym.scoring.score import score_episode
+from ffsr_gym.tasks.certificate import planner_episode, planner_task
 from ffsr_gym.tasks.generator import draw_task
 from ffsr_gym.tasks.splits import SPLITS, pool, pool_path
 from ffsr_gym.tasks.tiers import TIERS
@@ -93,30 +90,6 @@ def evaluate_v1(policy: Any, env_id: str, *, task: str = "easy", split: str = "t
              "pool_file_sha256": hashlib.sha256(pools).hexdigest()}
     prov = provenance(scenarios=hashes, seeds=[int(i) for i in chosen], wall_time_s=time.perf_counter() - start)
     return EvalReport(env_id, kwargs, metrics, rows, prov, name=name, extra=extra, score_rule=SCORE_RULE)
-
-
-def planner_task(task: Scenario, method: str, gain_per_s: float | None) -> Scenario:
-    """``task`` with the proportional planner's gain K [1/s] set (other methods: unchanged)."""
-    if method != "proportional" or gain_per_s is None:
-        return task
-    if not (isinstance(gain_per_s, (int, float)) and math.isfinite(gain_per_s) and gain_per_s > 0):
-        raise InvalidInputError(f"gain_per_s = {gain_per_s!r}; allowed: a finite number > 0 [1/s]")
-    return task.replace(planner=dataclasses.replace(task.planner, proportional_gain_per_s=float(gain_per_s)))
-
-
-def planner_episode(task: Scenario, benchmark: Benchmark, *, method: str, m: float | None = None,
-                    T_c: float | None = None, gain_per_s: float | None = None) -> EpisodeScore:
-    """One episode of a reference-planner variant with constant parameters, scored like every v1 episode.
-
-    ``method`` is one of :data:`ffsr_gym.planning.planner.METHODS` (``predefined_time`` with
-    (m, T_c [s]), ``proportional`` with gain K [1/s]); the run stops at the first violation, as
-    the v1 environments do.
-    """
-    played = planner_task(task, method, gain_per_s)
-    rollout = make_rollout(played, method=method, m=m, T_c=T_c)
-    rollout.advance(played.n_steps, stop_on_violation=True)
-    rollout.finish()
-    return score_episode(rollout.trajectory(), played, benchmark)
 
 
 def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | None = None, T_c: float | None = None,

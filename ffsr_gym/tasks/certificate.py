@@ -12,6 +12,7 @@ A certificate is replayed exactly as the v1 environments step: decisions every
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -81,17 +82,46 @@ class Certificate:
         return cls(kind=data.get("kind"), m=m, T_c_s=T_c, residual=residual)
 
 
+def planner_task(task: Scenario, method: str, gain_per_s: float | None) -> Scenario:
+    """``task`` with the proportional planner's gain K [1/s] set (other methods: unchanged)."""
+    if method != "proportional" or gain_per_s is None:
+        return task
+    if not (isinstance(gain_per_s, (int, float)) and math.isfinite(gain_per_s) and gain_per_s > 0):
+        raise InvalidInputError(f"gain_per_s = {gain_per_s!r}; allowed: a finite number > 0 [1/s]")
+    return task.replace(planner=dataclasses.replace(task.planner, proportional_gain_per_s=float(gain_per_s)))
+
+
+def planner_episode(task: Scenario, benchmark: Benchmark, *, method: str, m: float | None = None,
+                    T_c: float | None = None, gain_per_s: float | None = None, backend: str = "auto") -> EpisodeScore:
+    """One episode of a reference-planner variant with constant parameters, scored like every v1 episode.
+
+    ``method`` is one of :data:`ffsr_gym.planning.planner.METHODS` (``predefined_time`` with
+    (m, T_c [s]), ``proportional`` with gain K [1/s]); the run stops at the first violation, as
+    the v1 environments do.
+    """
+    played = planner_task(task, method, gain_per_s)
+    rollout = make_rollout(played, backend=backend, method=method, m=m, T_c=T_c)
+    rollout.advance(played.n_steps, stop_on_violation=True)
+    rollout.finish()
+    return score_episode(rollout.trajectory(), played, benchmark)
+
+
 def replay(task: Scenario, certificate: Certificate, benchmark: Benchmark, *, backend: str = "auto") -> EpisodeScore:
-    """Run ``certificate`` on ``task`` the way the v1 environments step, and score the episode."""
+    """Run ``certificate`` on ``task`` the way the v1 environments step, and score the episode.
+
+    A constant certificate is one run of :func:`planner_episode` (bit-identical with stepping the
+    env decision by decision); a residual one steps decision by decision, fading the residual.
+    """
+    if certificate.residual is None:
+        return planner_episode(task, benchmark, method="predefined_time", m=certificate.m, T_c=certificate.T_c_s,
+                               backend=backend)
     m, T_c = planner_parameters(task, "predefined_time", certificate.m, certificate.T_c_s)
     rollout = make_rollout(task, backend=backend, m=m, T_c=T_c)
     per_decision = max(1, int(round(task.env.decision_interval_s / task.simulation.dt_s)))
-    action = None if certificate.residual is None else np.asarray(certificate.residual, dtype=np.float32)
+    action = np.asarray(certificate.residual, dtype=np.float32)
     motion_time = task.trajectory.motion_time_s
     while rollout.k < rollout.n_steps:
-        residual = None
-        if action is not None:
-            residual = benchmark.residual_fade(rollout.t, motion_time) * residual_rates(action, task.env)
+        residual = benchmark.residual_fade(rollout.t, motion_time) * residual_rates(action, task.env)
         _, status = rollout.advance(per_decision, residual, stop_on_violation=True)
         if status != "ok":
             break
