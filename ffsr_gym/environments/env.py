@@ -180,7 +180,7 @@ class FFSREnv(gym.Env):
         return residual_rates(action, self.scenario.env)
 
     def step_with_parameters(self, m: float, T_c: float) -> tuple[np.ndarray, float, bool, bool, dict]:
-        """``FFSR-v0`` step with physical parameters m ∈ (0, 1) and T_c [s] > 0 (no float32 rounding)."""
+        """A step of ``FFSR-v0`` / ``FFSR-v1`` with physical parameters m ∈ (0, 1) and T_c [s] > 0 (no float32 rounding)."""
         if self.residual:
             raise InvalidInputError("step_with_parameters is for the (m, T_c) envs (FFSR-v0, FFSR-v1), not a residual env")
         self._check_running()
