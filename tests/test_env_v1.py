@@ -1,4 +1,4 @@
-"""FFSR-v1 / FFSR-Residual-v1: API checks, the zero residual is the planner, rewards sum to −C, the residual can succeed."""
+"""FFSR-v1 / FFSR-Residual-v1: API checks, the zero residual is the planner, rewards sum to the score minus 1, the residual can succeed."""
 
 from __future__ import annotations
 
@@ -62,16 +62,34 @@ def test_zero_residual_is_exactly_the_reference_planner():
     assert infos[-1]["success"]
 
 
-def test_rewards_sum_to_minus_cost_and_info_matches_the_trajectory():
+def test_rewards_sum_to_score_minus_one_and_info_matches_the_trajectory():
     env = gym.make("FFSR-v1", task="paper")
     rng = np.random.default_rng(1)
     actions = np.clip(rng.normal([0.0, -0.2], 0.05, (200, 2)), -1, 1).astype(np.float32)
     it = iter(actions)
     rewards, infos, traj = run(env, lambda obs: next(it))
     result = score_episode(traj, env.unwrapped.scenario, BENCH)
-    assert infos[-1]["score"] == result.score and infos[-1]["success"] == result.success
-    penalties = sum(i["penalty"] for i in infos)
-    assert -(rewards.sum() + penalties) == pytest.approx(result.smoothness_cost, rel=1e-12)
+    assert infos[-1]["score"] == result.score and infos[-1]["success"] == result.success and result.success
+    increments = np.array([i["smoothness_increment"] for i in infos])
+    assert increments.sum() == pytest.approx(result.smoothness_cost, rel=1e-12)
+    assert rewards.sum() == pytest.approx(1.0 / (1.0 + result.smoothness_cost) - 1.0, abs=1e-12)
+    values = 1.0 / (1.0 + np.concatenate(([0.0], np.cumsum(increments))))  # closed form of the running value
+    assert rewards[:-1] == pytest.approx(np.diff(values)[:-1], abs=1e-14)
+    assert all(i["penalty"] == 0.0 for i in infos)
+
+
+@pytest.mark.parametrize("terminate", [True, False])
+def test_a_failure_loses_the_remaining_value(terminate):
+    """A rate-limit failure: the return is exactly −1 (score 0), the last reward's penalty is 1 / (1 + C_t)."""
+    env = gym.make("FFSR-v1", task="paper", terminate_on_violation=terminate)
+    lo = np.array([-1.0, -1.0], dtype=np.float32)  # m = 0.05, T_c = 1 s: far over the rate limit
+    rewards, infos, _ = run(env, lambda obs: lo)
+    assert infos[-1]["failure"] == "rate_limit" and infos[-1]["score"] == 0.0
+    assert rewards.sum() == pytest.approx(-1.0, abs=1e-12)
+    cost = sum(i["smoothness_increment"] for i in infos)
+    assert infos[-1]["penalty"] == pytest.approx(1.0 / (1.0 + cost), rel=1e-12)
+    if not terminate:  # the violation did not end the episode: the value is lost at the horizon
+        assert len(infos) == 200 and infos[-2]["penalty"] == 0.0
 
 
 def test_fading_residual_leaves_no_steady_state_error():

@@ -10,7 +10,7 @@ from ffsr_gym.environments.env import FFSREnv
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.benchmark import Benchmark, load_benchmark
 from ffsr_gym.model.scenario import Scenario, load_scenario
-from ffsr_gym.scoring.score import EpisodeScore, score_episode, smoothness_cost, smoothness_terms
+from ffsr_gym.scoring.score import EpisodeScore, score_episode, score_reward, smoothness_cost, smoothness_terms
 from ffsr_gym.tasks.generator import draw_task
 from ffsr_gym.tasks.splits import SPLITS, PoolTask, pool
 from ffsr_gym.tasks.tiers import TIERS
@@ -52,11 +52,13 @@ class FFSRV1Env(FFSREnv):
     As ``FFSR-v0``: ``Box(float32, (53,))``.
 
     ## Rewards
-    Minus the increment of the smoothness cost C over each decision, so an episode's rewards sum
-    to −C; ``-violation_penalty`` on a rate-limit violation or collision, ``-tolerance_penalty``
-    at the horizon if the final errors miss the tolerances. With ``dense_shaping=True`` the
-    potential difference Φ(s') − Φ(s), Φ = −‖p_e − p_d‖ / 0.01 m, is added (off by default). The
-    leaderboard score never comes from the rewards: it is computed from the trajectory.
+    The change of the episode's value over each decision: the value is 1 / (1 + C_t) while the
+    episode runs (C_t the smoothness cost so far) and the score when it ends, so an episode's
+    rewards sum to its score minus 1, and returns rank episodes exactly as scores do. A failure
+    (rate limit, collision, final error) loses the remaining 1 / (1 + C_t), reported as
+    ``info["penalty"]``. With ``dense_shaping=True`` the potential difference Φ(s') − Φ(s),
+    Φ = −‖p_e − p_d‖ / 0.01 m, is added (off by default). The leaderboard score never comes from
+    the rewards: it is computed from the trajectory (``ffsr_gym.scoring.score``).
     ``info``: ``smoothness_increment``, ``penalty``, ``shaping``, ``cost`` (0 when nothing is
     violated, else penetration depth / 0.01 m + relative excess of the peak rate over the limit),
     ``clearance_m``, ``ee_position_error_m``, ``clipped_actions``; at the end of an episode
@@ -80,8 +82,8 @@ class FFSRV1Env(FFSREnv):
     terminate_on_violation=True, dense_shaping=False)``.
 
     ## Version History
-    * v1: bounded score that ranks, 1 mm tolerance, v1 action box, fading residual, task tiers
-      easy / medium / hard with certified train and test pools.
+    * v1: bounded score that ranks, rewards that sum to it, 1 mm tolerance, v1 action box, fading
+      residual, task tiers easy / medium / hard with certified train and test pools.
     * v0: initial release (``FFSR-v0``, frozen).
     """
 
@@ -119,7 +121,7 @@ class FFSRV1Env(FFSREnv):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         obs, info = super().reset(seed=seed, options=options)
-        self._potential = self._shaping_potential()
+        self._potential, self._cost_so_far = self._shaping_potential(), 0.0
         return obs, info
 
     def _residual(self, action: np.ndarray) -> np.ndarray:
@@ -137,14 +139,14 @@ class FFSRV1Env(FFSREnv):
         cost = self._violation_cost(applied, rollout.min_clearance(len(applied)))
         terminated = status != "ok"
         truncated = not terminated and rollout.k >= rollout.n_steps
-        penalty = settings.action.violation_penalty if terminated else 0.0
         info: dict[str, Any] = {"smoothness_increment": increment, "cost": cost, "clipped_actions": self.clipped_actions}
+        result = None
         if terminated or truncated:
             rollout.finish()
             result = score_episode(rollout.trajectory(), self.scenario, settings)
-            if truncated:
-                penalty += settings.action.horizon_penalty(result.failure)
             info.update(self._final_info_v1(result))
+        reward, penalty = score_reward(self._cost_so_far, self._cost_so_far + increment, result)
+        self._cost_so_far += increment
         obs = self._observation()
         shaping = 0.0
         if self.dense_shaping:
@@ -154,7 +156,7 @@ class FFSRV1Env(FFSREnv):
                      "ee_position_error_m": self._ee_error})
         if self.render_mode == "human":
             self.render()
-        return obs, float(-increment - penalty + shaping), terminated, truncated, info
+        return obs, float(reward + shaping), terminated, truncated, info
 
     def _violation_cost(self, applied: np.ndarray, min_clearance: float) -> float:
         """0 without violation; penetration depth / scale + relative excess of the peak rate."""

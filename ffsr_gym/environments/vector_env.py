@@ -182,7 +182,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         for i in np.flatnonzero(terminated | truncated):
             rollout = self._synced_rollout(i)
             rollout.finish()
-            result, penalty = self._score_end(rollout, bool(truncated[i]))
+            result, penalty = self._score_end(i, rollout, bool(truncated[i]))
             penalties[i] += penalty
             for key in self.end_keys:
                 ended[key][i] = getattr(result, key)
@@ -192,8 +192,8 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
             infos[key], infos[f"_{key}"] = values, mask.copy()
         return infos
 
-    def _score_end(self, rollout: KernelRollout, truncated: bool) -> tuple[Any, float]:
-        """The finished episode's score terms, and the horizon penalty to add (as the single env)."""
+    def _score_end(self, i: int, rollout: KernelRollout, truncated: bool) -> tuple[Any, float]:
+        """Copy ``i``'s finished episode's score terms, and the horizon penalty to add (as the single env)."""
         terms = objective_terms(rollout.trajectory(), rollout.scenario.objective)
         return terms, self.family.env.tolerance_penalty if truncated and not terms.final_errors_ok else 0.0
 

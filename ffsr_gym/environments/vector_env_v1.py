@@ -17,7 +17,7 @@ from ffsr_gym.environments.env_v1 import END_INFO_V1, FFSRResidualV1Env, FFSRV1E
 from ffsr_gym.environments.vector_env import FFSRVectorEnv
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.scenario import Scenario, residual_rates
-from ffsr_gym.scoring.score import score_episode, smoothness_cost, smoothness_terms
+from ffsr_gym.scoring.score import score_episode, score_reward, smoothness_cost, smoothness_terms
 from ffsr_gym.sim.compiled import KernelRollout
 
 
@@ -50,6 +50,8 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
         self._potential = np.zeros(self.num_envs)
         self._task_index = np.full(self.num_envs, -1, dtype=np.int64)
         self._task_seed = np.full(self.num_envs, -1, dtype=np.int64)
+        self._cost_so_far = np.zeros(self.num_envs)
+        self._ended: dict[int, Any] = {}
 
     def _make_template(self, scenario: str | Scenario) -> FFSRV1Env:
         return self.single_env_class(self._task, self._split, backend="kernel", dense_shaping=self._dense_shaping)
@@ -63,6 +65,7 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
 
     def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         obs, _ = super().reset(seed=seed, options=options)
+        self._cost_so_far[:] = 0.0
         _, _, ee_error = self._observe()
         self._potential = -ee_error / self._template.benchmark.action.shaping_position_scale_m
         return obs, {"task_index": self._task_index.copy(), "task_seed": self._task_seed.copy()}
@@ -90,8 +93,13 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
             costs[i] = self._template._violation_cost(applied, float(clearance))
         terminated = active & (self._status != 0)
         truncated = active & ~terminated & (self._K >= self.n_steps)
-        penalties = np.where(terminated, settings.action.violation_penalty, 0.0)
-        infos = self._end_episodes(terminated, truncated, penalties)
+        infos = self._end_episodes(terminated, truncated, np.zeros(N))
+        self._cost_so_far[restarted] = 0.0
+        rewards, penalties = np.zeros(N), np.zeros(N)
+        for i in np.flatnonzero(active):
+            end = self._ended[i] if terminated[i] or truncated[i] else None
+            rewards[i], penalties[i] = score_reward(self._cost_so_far[i], self._cost_so_far[i] + increments[i], end)
+            self._cost_so_far[i] += increments[i]
         self._needs_reset = terminated | truncated
         obs, clearance, ee_error = self._observe()
         shaping = np.zeros(N)
@@ -101,13 +109,12 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
         self._potential = np.where(active | restarted, potential, self._potential)
         infos.update({"smoothness_increment": increments, "penalty": penalties, "shaping": shaping, "cost": costs,
                       "clearance_m": clearance, "ee_position_error_m": ee_error, "clipped_actions": self._clipped.copy()})
-        return obs, np.where(active, -increments - penalties + shaping, 0.0), terminated, truncated, infos
+        return obs, np.where(active, rewards + shaping, 0.0), terminated, truncated, infos
 
-    def _score_end(self, rollout: KernelRollout, truncated: bool) -> tuple[Any, float]:
-        """The v1 score of the finished episode, and the horizon penalty (as the single env)."""
-        benchmark = self._template.benchmark
-        result = score_episode(rollout.trajectory(), rollout.scenario, benchmark)
-        return result, benchmark.action.horizon_penalty(result.failure) if truncated else 0.0
+    def _score_end(self, i: int, rollout: KernelRollout, truncated: bool) -> tuple[Any, float]:
+        """The v1 score of copy ``i``'s finished episode (kept for its last reward); no extra penalty here."""
+        self._ended[i] = score_episode(rollout.trajectory(), rollout.scenario, self._template.benchmark)
+        return self._ended[i], 0.0
 
 
 class FFSRResidualV1VectorEnv(FFSRV1VectorEnv):

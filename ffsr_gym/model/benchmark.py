@@ -58,23 +58,14 @@ class PlannerDefaults:
 
 @dataclass(frozen=True)
 class ActionSettings:
-    """Action boxes, the residual fade and the optional reward terms of the v1 environments."""
+    """Action boxes, the residual fade and the optional reward and cost terms of the v1 environments."""
 
     m_bounds: tuple[float, ...] = field(metadata=_vector(2, 0.0, 1.0))
     T_c_bounds_s: tuple[float, ...] = field(metadata=_vector(2, 1e-3, 1000.0))
     residual_rate_deg_s: float = field(metadata=_number(0.0, 1e4))
     residual_fade_s: float = field(metadata=_number(0.0, 3600.0, lo_open=True))
-    violation_penalty: float = field(metadata=_number(0.0, 1e9))
-    tolerance_penalty: float = field(metadata=_number(0.0, 1e9))
     shaping_position_scale_m: float = field(metadata=_number(0.0, 1e3, lo_open=True))
     cost_clearance_scale_m: float = field(metadata=_number(0.0, 1e3, lo_open=True))
-
-    def horizon_penalty(self, failure: str | None) -> float:
-        """Extra penalty when an episode reaches the horizon and fails: the tolerance penalty for a
-        final-error failure, the violation penalty for a violation that did not end it, 0 on success."""
-        if failure is None:
-            return 0.0
-        return self.tolerance_penalty if failure == "final_error" else self.violation_penalty
 
 
 @dataclass(frozen=True)
@@ -122,8 +113,7 @@ class Benchmark:
                                         ee_position_tolerance_m=s.ee_position_tolerance_m,
                                         ee_attitude_tolerance=s.ee_attitude_tolerance)
         env = dataclasses.replace(scenario.env, m_bounds=a.m_bounds, T_c_bounds_s=a.T_c_bounds_s,
-                                  residual_rate_deg_s=a.residual_rate_deg_s, violation_penalty=a.violation_penalty,
-                                  tolerance_penalty=a.tolerance_penalty)
+                                  residual_rate_deg_s=a.residual_rate_deg_s)
         planner = dataclasses.replace(scenario.planner, m=self.planner.m, T_c_s=self.planner.T_c_s)
         return scenario.replace(planner=planner, objective=objective, env=env)
 

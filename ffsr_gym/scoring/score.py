@@ -66,6 +66,26 @@ def bounded_score(success: bool, cost: float) -> float:
     return 1.0 / (1.0 + cost)
 
 
+def score_reward(cost_before: float, cost_after: float, end: "EpisodeScore | None") -> tuple[float, float]:
+    """The v1 reward of one decision, and the part of it that is a failure penalty.
+
+    The value of an unfinished episode is the score it would get if it succeeded now,
+    1 / (1 + C_t); the value of a finished one is its score. The reward is the change of value,
+    so an episode's rewards sum to its score minus 1 (the value at C = 0) and the return ranks
+    episodes exactly as the score does. A failure loses the whole remaining value 1 / (1 + C_t):
+    the ``penalty``.
+
+    Args:
+        cost_before, cost_after: the smoothness cost C accumulated before and after the decision.
+        end: the finished episode's score (:func:`score_episode`), or None while it runs.
+    """
+    value_before = 1.0 / (1.0 + cost_before)
+    if end is None:
+        return 1.0 / (1.0 + cost_after) - value_before, 0.0
+    penalty = 0.0 if end.success else 1.0 / (1.0 + cost_after)
+    return end.score - value_before, penalty
+
+
 @dataclass(frozen=True)
 class EpisodeScore:
     """Everything the v1 leaderboards report of one episode.
