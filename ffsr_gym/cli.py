@@ -73,7 +73,7 @@ def _reproduce(args: argparse.Namespace) -> None:
 
         readme = Path(args.readme)
         write_text_atomic(readme, splice_readme(readme.read_text(encoding="utf-8"), result))
-        print(f"updated the claims table in {readme}")
+        print(f"updated the generated tables in {readme}")
 
 
 def _ga(args: argparse.Namespace) -> None:
@@ -123,10 +123,22 @@ def _leaderboard(args: argparse.Namespace) -> int:
 
 
 def _leaderboard_plot(args: argparse.Namespace) -> None:
-    from ffsr_gym.report.leaderboard_plots import plot_iqm, plot_learning_curves, plot_profiles
+    from ffsr_gym.report.leaderboard_plots import plot_iqm, plot_learning_curves, plot_pareto, plot_profiles
 
     for path in (plot_iqm(args.root), plot_profiles(args.root), plot_learning_curves(args.root)):
         print("wrote" if path else "no v1 entries under", path or args.root)
+    pareto = plot_pareto(args.root)
+    if pareto is None:
+        print("no paper_pareto.json yet: run ffsr-gym leaderboard pareto")
+    else:
+        print("wrote", pareto)
+
+
+def _leaderboard_pareto(args: argparse.Namespace) -> None:
+    from ffsr_gym.bench.pareto import paper_pareto
+
+    print("wrote", paper_pareto(args.root, args.models, progress=not args.no_progress,
+                                command=" ".join(["ffsr-gym", *args.argv])))
 
 
 def load_policy(spec: str, algo: str | None):
@@ -323,11 +335,20 @@ def main(argv: list[str] | None = None) -> int:
     rd.set_defaults(func=_render)
     board = sub.add_parser("leaderboard", help="leaderboard tables and figures")
     board_sub = board.add_subparsers(dest="action", required=True)
-    plot = board_sub.add_parser("plot", help="the v1 figures (IQM with CIs, performance profiles) under <root>/v1/")
-    plot.add_argument("--root", default="leaderboards")
+    plot = board_sub.add_parser("plot", help="the v1 figures (IQM with CIs, performance profiles, learning curves, "
+                                             "the paper Pareto plot) under <root>/v1/, from the JSON only")
+    plot.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
     plot.set_defaults(func=_leaderboard_plot)
+    pareto = board_sub.add_parser("pareto", help="run the planner grid and every v1 baseline on the paper task; "
+                                                 "writes <root>/v1/paper_pareto.json")
+    pareto.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
+    pareto.add_argument("--models", default=None,
+                        help="folder of the RL study's models (<algo>_<env id>_<tier>_seed<s>/model.zip); "
+                             "without it RL entries are listed as not run (default: none)")
+    pareto.add_argument("--no-progress", action="store_true", help="hide the progress bars")
+    pareto.set_defaults(func=_leaderboard_pareto)
     render = board_sub.add_parser("render", help="regenerate the tables in <root>/README.md from the JSON entries")
-    render.add_argument("--root", default="leaderboards")
+    render.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
     render.add_argument("--check", action="store_true", help="exit 1 if the tables are out of date, write nothing")
     render.set_defaults(func=_leaderboard)
     argv = sys.argv[1:] if argv is None else argv

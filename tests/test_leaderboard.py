@@ -72,7 +72,7 @@ def test_tampered_aggregate_is_caught(board):
     assert not _close(entry["metrics"]["score_iqm"], leaderboard.recompute(entry)["score_iqm"])
 
 
-V1_ENTRIES = sorted((ROOT / "v1").rglob("*.json"))
+V1_ENTRIES = sorted((ROOT / "v1").glob("*/*.json"))
 
 
 @pytest.mark.parametrize("path", V1_ENTRIES, ids=lambda p: f"{p.parent.name}/{p.stem}")
@@ -119,6 +119,50 @@ def test_v1_figures_are_drawn_from_entries(tmp_path):
             (tmp_path / "v1" / tier / f"{name}.json").write_text(json.dumps(entry))
     for path in (plot_iqm(tmp_path), plot_profiles(tmp_path), plot_learning_curves(tmp_path)):
         assert path.is_file() and path.stat().st_size > 10_000
+
+
+def test_committed_v1_figures_regenerate_byte_identically_from_the_json(tmp_path):
+    from ffsr_gym.report.leaderboard_plots import plot_iqm, plot_learning_curves, plot_pareto, plot_profiles
+
+    shutil.copytree(ROOT / "v1", tmp_path / "v1", ignore=shutil.ignore_patterns("*.png"))
+    for plot in (plot_iqm, plot_profiles, plot_learning_curves, plot_pareto):
+        path = plot(tmp_path)
+        committed = ROOT / "v1" / path.name
+        assert path.read_bytes() == committed.read_bytes(), f"{committed} is out of date: run ffsr-gym leaderboard plot"
+
+
+def test_pareto_points_are_the_env_episodes_and_the_front_is_non_dominated(tmp_path):
+    import gymnasium as gym
+
+    from ffsr_gym.bench.pareto import PARETO_FILE, paper_pareto
+    from ffsr_gym.report.leaderboard_plots import _front, plot_pareto
+    from ffsr_gym.scoring.score import score_episode
+
+    assert plot_pareto(tmp_path) is None
+    (tmp_path / "v1" / "easy").mkdir(parents=True)
+    for name in ("reference_v1_default.json",):
+        shutil.copy(ROOT / "v1" / "easy" / name, tmp_path / "v1" / "easy" / name)
+    rl = {"name": "sac_residual_easy", "env_id": "FFSR-Residual-v1", "extra": {"runs": [{"seed": 0}]}}
+    (tmp_path / "v1" / "easy" / "sac_residual_easy.json").write_text(json.dumps(rl))
+    data = json.loads(paper_pareto(tmp_path, tmp_path / "no-models", progress=False).read_text())
+    assert (tmp_path / "v1" / PARETO_FILE).is_file() and len(data["grid"]["points"]) == 120
+    env = gym.make("FFSR-v1", task="paper")  # the same setting played through the env, scored independently
+    env.reset(seed=0)
+    done = False
+    while not done:
+        _, _, terminated, truncated, _ = env.unwrapped.step_with_parameters(0.3, 4.0)
+        done = terminated or truncated
+    played = score_episode(env.unwrapped.trajectory, env.unwrapped.scenario, env.unwrapped.benchmark)
+    grid = next(p for p in data["grid"]["points"] if (p["m"], p["T_c_s"]) == (0.3, 4.0))
+    reference, sac = data["baselines"]
+    for point in (grid, reference["points"][0]):
+        assert point["success"] and point["score"] == pytest.approx(played.score, rel=1e-12)
+        assert point["convergence_time_s"] == pytest.approx(played.convergence_time_s, abs=1e-12)
+    assert sac["points"] == [] and "model missing" in sac["missing"]
+    ok = [(p["convergence_time_s"], p["smoothness_cost"]) for p in data["grid"]["points"] if p["success"]]
+    front = _front(ok)
+    assert all(not (x <= fx and y <= fy and (x, y) != (fx, fy)) for fx, fy in front for x, y in ok)
+    assert plot_pareto(tmp_path).stat().st_size > 10_000
 
 
 def test_iqm_is_the_mean_of_the_middle_half():

@@ -149,3 +149,31 @@ def plot_ga_history(history: list[dict], out: Path, footer: str, title: str) -> 
     ax2.set(xlabel="generation", ylabel="feasible fraction [-]", ylim=(0, 1.05), title="Feasible individuals")
     ax2.grid(True, alpha=0.3)
     return _save(fig, out, footer)
+
+
+def plot_gain_sweep(sweep: list[dict], references: dict[str, dict], tolerance_m: float, limit_deg_s: float, out: Path,
+                    footer: str) -> Path:
+    """Fig. 11 (beyond the paper): final EE error and peak rate per arm of proportional feedback against its gain K,
+    with the predefined-time planner's values as horizontal lines."""
+    plt = _pyplot()
+    gains = [r["gain_per_s"] for r in sweep]
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.0))
+    ax1.semilogy(gains, [max(r["final_ee_position_error_m"], _FLOOR) for r in sweep], "o-", label="proportional feedback")
+    ax1.axhline(tolerance_m, color="r", ls="--", lw=0.8, label=f"tolerance {tolerance_m:g} m")
+    for (name, m), style in zip(references.items(), (":", "-.")):
+        ax1.axhline(max(m["final_ee_position_error_m"], _FLOOR), color="k", ls=style, lw=0.8, label=name)
+    ax1.set(xlabel="proportional gain K [1/s]", ylabel="final EE position error [m]", title="Final end-effector error")
+    ax1.legend(fontsize=7)
+    ax1.grid(True, alpha=0.3, which="both")
+    for arm, key, marker in ((0, "mission", "o"), (1, "balance", "s")):
+        ax2.plot(gains, [r["max_joint_rate_deg_s"][key] for r in sweep], marker + "-", label=f"proportional, {ARM_NAMES[arm]}")
+    for m, style in zip(references.values(), (":", "-.")):
+        for key, color in (("mission", "C0"), ("balance", "C1")):
+            ax2.axhline(m["max_joint_rate_deg_s"][key], color=color, ls=style, lw=0.8)
+    ax2.axhline(limit_deg_s, color="r", ls="--", lw=0.8, label=f"limit {limit_deg_s:.0f} deg/s")
+    ax2.set(xlabel="proportional gain K [1/s]", ylabel="peak joint rate [deg/s]",
+            title="Peak joint rate per arm (lines: predefined time, styles as left)")
+    ax2.legend(fontsize=7)
+    ax2.grid(True, alpha=0.3)
+    fig.suptitle(f"Proportional feedback on the paper scenario, gain by gain ({_FLOOR_NOTE})", fontsize=9)
+    return _save(fig, out, footer)

@@ -1,0 +1,92 @@
+"""Smoothness against convergence time on the ``paper`` task: the planner over the FFSR-v1 action box and every v1 baseline.
+
+``ffsr-gym leaderboard pareto --root leaderboards --models runs/rl_v1_study`` runs, on the v1
+``paper`` task, the predefined-time planner at every (m, T_c) of :data:`GRID_M` × :data:`GRID_T_C_S`
+and every baseline of ``<root>/v1/<tier>/*.json``: a planner entry at its recorded parameters, an
+RL entry with each training seed's model (``<models>/<algo>_<env id>_<tier>_seed<s>/model.zip``,
+deterministic actions). Every episode is scored by :func:`ffsr_gym.scoring.score.score_episode`;
+the points go to ``<root>/v1/paper_pareto.json`` (with provenance), from which
+``ffsr-gym leaderboard plot`` draws ``pareto.png``. An RL entry whose models are missing is listed
+as such, never dropped silently.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from ffsr_gym.bench.evaluation_v1 import evaluate_v1
+from ffsr_gym.environments.env_v1 import v1_task
+from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.provenance import provenance, write_json_atomic
+from ffsr_gym.scoring.score import EpisodeScore
+from ffsr_gym.tasks.certificate import planner_episode, planner_task
+
+#: The planner grid: 12 values of m and 10 of T_c [s] spanning the FFSR-v1 action box.
+GRID_M = tuple(float(x) for x in np.round(np.linspace(0.05, 0.6, 12), 4))
+GRID_T_C_S = tuple(float(x) for x in np.linspace(1.0, 10.0, 10))
+PARETO_FILE = "paper_pareto.json"
+
+
+def _point(result: EpisodeScore | dict[str, Any], **where: Any) -> dict[str, Any]:
+    row = result.as_dict() if isinstance(result, EpisodeScore) else result
+    return {**where, **{key: row[key] for key in ("score", "success", "failure", "smoothness_cost", "convergence_time_s")}}
+
+
+def _rl_points(entry: dict[str, Any], tier: str, models: Path | None) -> tuple[list[dict], str | None]:
+    """One point per training seed whose model is found; or why there are none."""
+    from ffsr_gym.optim.rl import ALGOS, _sb3
+
+    algo = entry["name"].split("_")[0]
+    if models is None or algo not in ALGOS:
+        return [], "no model folder given" if models is None else f"unknown algorithm {algo!r}"
+    sb3, _ = _sb3()
+    points = []
+    for run in entry["extra"]["runs"]:
+        path = models / f"{algo}_{entry['env_id']}_{tier}_seed{run['seed']}" / "model.zip"
+        if not path.is_file():
+            return [], f"model missing: {path}"
+        model = getattr(sb3, ALGOS[algo]).load(path, device="cpu")
+        row = evaluate_v1(model, entry["env_id"], task="paper").episodes[0]
+        points.append(_point(row, train_seed=run["seed"]))
+    return points, None
+
+
+def paper_pareto(root: str | Path, models: str | Path | None = None, *, progress: bool = True,
+                 command: str | None = None) -> Path:
+    """Compute the grid and the baselines' points on ``paper``; write ``<root>/v1/paper_pareto.json``."""
+    root, start = Path(root), time.perf_counter()
+    benchmark = load_benchmark("v1")
+    task = v1_task("paper", benchmark)
+    settings = [(m, T_c) for m in GRID_M for T_c in GRID_T_C_S]
+    grid = [_point(planner_episode(task, benchmark, method="predefined_time", m=m, T_c=T_c), m=m, T_c_s=T_c)
+            for m, T_c in tqdm(settings, desc="paper grid", disable=not progress)]
+    baselines: list[dict[str, Any]] = []
+    fixed: dict[str, dict[str, Any]] = {}  # a planner setting that several tiers' entries share: one point
+    for path in tqdm(sorted((root / "v1").glob("*/*.json")), desc="baselines on paper", disable=not progress):
+        entry, tier = json.loads(path.read_text()), path.parent.name
+        planner = entry.get("extra", {}).get("planner")
+        if planner is not None:
+            key = entry["name"] + json.dumps(planner, sort_keys=True)
+            if key in fixed:
+                fixed[key]["tiers"].append(tier)
+                continue
+            result = planner_episode(task, benchmark, method=planner["method"], m=planner["m"], T_c=planner["T_c_s"],
+                                     gain_per_s=planner["gain_per_s"])
+            fixed[key] = {"name": entry["name"], "tiers": [tier], "planner": planner, "points": [_point(result)],
+                          "missing": None, "task_sha256": planner_task(task, planner["method"], planner["gain_per_s"]).sha256()}
+            baselines.append(fixed[key])
+        else:
+            points, missing = _rl_points(entry, tier, None if models is None else Path(models))
+            baselines.append({"name": entry["name"], "tiers": [tier], "planner": None, "points": points,
+                              "missing": missing, "task_sha256": task.sha256()})
+    out = root / "v1" / PARETO_FILE
+    prov = provenance(scenarios={"paper": task.sha256()}, command=command, wall_time_s=time.perf_counter() - start)
+    write_json_atomic(out, {"task": "paper", "grid": {"m": list(GRID_M), "T_c_s": list(GRID_T_C_S), "points": grid},
+                            "baselines": baselines, "provenance": prov})
+    return out
