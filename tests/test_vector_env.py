@@ -118,3 +118,22 @@ def test_v1_vector_env_refuses_what_it_cannot_batch():
         make_vec("FFSR-v1", 2, terminate_on_violation=False)
     with pytest.raises(InvalidInputError, match="split"):
         make_vec("FFSR-v1", 2, task="easy", split="dev")
+
+
+def test_vector_env_renders_copy_0_as_the_single_env_draws_it():
+    """``render_mode="rgb_array"``: one frame, copy 0's, pixel for pixel the single env's frame after the same steps."""
+    venv = gym.make_vec("FFSR-v1", num_envs=2, task="easy", vectorization_mode="vector_entry_point",
+                        render_mode="rgb_array")
+    single = gym.make("FFSR-v1", task="easy", backend="kernel", render_mode="rgb_array")
+    venv.reset(seed=3)
+    single.reset(seed=3)
+    actions = np.array([[0.1, -0.2], [0.5, 0.5]], dtype=np.float32)
+    for _ in range(12):
+        venv.step(actions)
+        single.step(actions[0])
+    frames = venv.render()
+    assert isinstance(frames, tuple) and len(frames) == 1 and frames[0].shape[2] == 3
+    assert np.array_equal(frames[0], single.render())
+    venv.close()
+    with pytest.raises(InvalidInputError, match="rgb_array"):
+        make_vec("FFSR-v1", 2, render_mode="human")

@@ -39,7 +39,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
     full-episode trajectory buffer per copy (~1 MB at dt = 0.01 s, 20 s).
     """
 
-    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"], "render_fps": 10}
     single_env_class: type[FFSREnv] = FFSREnv
     #: Episode-end ``info`` keys (attributes of :meth:`_score_end`'s result) and their dtypes.
     end_keys: dict[str, type] = {"objective": float, "feasible": bool, "score": float, "rate_violation": bool,
@@ -51,8 +51,9 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
             raise InvalidInputError(f"num_envs must be a positive integer, got {num_envs!r}")
         if backend not in ("auto", "kernel"):
             raise InvalidInputError(f"backend {backend!r}; the batched environments run on the kernel: 'auto' or 'kernel'")
-        if render_mode is not None:
-            raise InvalidInputError(f"render_mode {render_mode!r}: the batched environments do not render; use None")
+        if render_mode not in (None, "rgb_array"):
+            raise InvalidInputError(f"render_mode {render_mode!r}; allowed: 'rgb_array' (draws copy 0 only) or None")
+        self.render_mode, self._renderer = render_mode, None
         if max_episode_steps is not None:
             raise InvalidInputError("max_episode_steps: episodes end at the scenario's simulation.duration_s; use None")
         if threads is not None:
@@ -212,6 +213,26 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         if self._rollouts[i] is None:
             raise InvalidInputError("no episode yet: call reset()")
         return self._synced_rollout(i).trajectory()
+
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        """Copy 0's current frame, as a tuple of one (H, W, 3) array; the other copies are not drawn
+        (drawing is ~10 ms per frame). None, with a warning, without ``render_mode="rgb_array"``."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' to make_vec")
+            return None
+        if self._rollouts[0] is None:
+            raise InvalidInputError("call reset() before render()")
+        from ffsr_gym.environments.render import SceneRenderer
+
+        if self._renderer is None:
+            self._renderer = SceneRenderer()
+        rollout = self._synced_rollout(0)
+        return (self._renderer.draw(rollout, rollout.scenario),)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
 
     def _synced_rollout(self, i: int) -> KernelRollout:
         """Copy ``i``'s rollout with the batch's state (an unfinished episode: one logged row per step)."""
