@@ -110,15 +110,26 @@ def _train(args: argparse.Namespace) -> None:
 
 def _leaderboard(args: argparse.Namespace) -> int:
     from ffsr_gym.bench.leaderboard import render_readme, write_readme
+    from ffsr_gym.bench.leaderboard_v1 import splice_summary
+    from ffsr_gym.exceptions import InvalidInputError
+    from ffsr_gym.provenance import write_text_atomic
 
+    readme = Path(args.readme) if args.readme else None
+    if readme is not None and not readme.is_file():
+        raise InvalidInputError(f"--readme {args.readme!r} is not a file")
     if args.check:
-        rendered = render_readme(args.root)
-        if rendered != (Path(args.root) / "README.md").read_text():
-            print(f"{args.root}/README.md is out of date: run ffsr-gym leaderboard render", file=sys.stderr)
+        stale = [f"{args.root}/README.md"] if render_readme(args.root) != (Path(args.root) / "README.md").read_text() else []
+        if readme is not None and splice_summary(readme.read_text(encoding="utf-8"), args.root) != readme.read_text(encoding="utf-8"):
+            stale.append(str(readme))
+        if stale:
+            print(f"out of date: {', '.join(stale)}; run ffsr-gym leaderboard render", file=sys.stderr)
             return 1
         print("leaderboard tables are up to date")
         return 0
     print("updated" if write_readme(args.root) else "already up to date", f"{args.root}/README.md")
+    if readme is not None:
+        write_text_atomic(readme, splice_summary(readme.read_text(encoding="utf-8"), args.root))
+        print("updated the v1 summary in", readme)
     return 0
 
 
@@ -350,6 +361,8 @@ def main(argv: list[str] | None = None) -> int:
     render = board_sub.add_parser("render", help="regenerate the tables in <root>/README.md from the JSON entries")
     render.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
     render.add_argument("--check", action="store_true", help="exit 1 if the tables are out of date, write nothing")
+    render.add_argument("--readme", default=None,
+                        help="also regenerate the v1 summary between its markers in this file (e.g. README.md)")
     render.set_defaults(func=_leaderboard)
     argv = sys.argv[1:] if argv is None else argv
     args = parser.parse_args(argv)

@@ -37,7 +37,11 @@ def test_committed_entries_are_valid_and_recompute(path):
 
 
 def test_committed_tables_are_up_to_date():
+    from ffsr_gym.bench.leaderboard_v1 import splice_summary
+
     assert leaderboard.render_readme(ROOT) == (ROOT / "README.md").read_text(), "run: ffsr-gym leaderboard render"
+    readme = (ROOT.parent / "README.md").read_text(encoding="utf-8")
+    assert splice_summary(readme, ROOT) == readme, "run: ffsr-gym leaderboard render --readme README.md"
 
 
 @pytest.fixture()
