@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
+from concurrent.futures import Executor
 from functools import lru_cache
 from typing import Any
 
@@ -95,7 +96,7 @@ def aggregate(scores: Sequence[float], feasible: Sequence[bool]) -> dict[str, An
 
 def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None, env_kwargs: dict | None = None,
              name: str = "submission", progress: bool = False, task: str | None = None, split: str = "test",
-             training_pool: str | None = None) -> EvalReport:
+             training_pool: str | None = None, executor: Executor | None = None) -> EvalReport:
     """Score ``policy`` on ``env_id``: v0 with the paper's objective B, v1 with the v1 episode score.
 
     The env is built here (no caller wrappers can change the score), and each episode is scored
@@ -113,16 +114,18 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
         task, split, training_pool: v1 only: the tier (default ``"easy"``) and the pool scored
             (default: its **test** pool, one episode per task), and what the policy was trained on
             (recorded in the entry); see :func:`ffsr_gym.bench.evaluation_v1.evaluate_v1`.
+        executor: v1 only: score chunks of the pool on any ``concurrent.futures.Executor``
+            (processes, Dask); the policy must pickle. Same entry as without.
     """
     if env_id in V1_IDS:
         if seeds is not None:
             raise InvalidInputError("seeds: v1 scores one episode per task of a pool; choose it with task= and split=")
         return evaluate_v1(policy, env_id, task=task or "easy", split=split, training_pool=training_pool,
-                           env_kwargs=env_kwargs, name=name, progress=progress)
+                           env_kwargs=env_kwargs, name=name, progress=progress, executor=executor)
     if env_id not in V0_IDS:
         raise InvalidInputError(f"env_id {env_id!r}; allowed: {list(V0_IDS + V1_IDS)}")
-    if task is not None or training_pool is not None:
-        raise InvalidInputError("task= and training_pool= are v1 arguments; v0 takes env_kwargs={'scenario': ...}")
+    if task is not None or training_pool is not None or executor is not None:
+        raise InvalidInputError("task=, training_pool= and executor= are v1 arguments; v0 takes env_kwargs={'scenario': ...}")
     kwargs = dict(env_kwargs or {"scenario": "paper"})
     seeds = list(eval_seeds(env_id) if seeds is None else seeds)
     start = time.perf_counter()

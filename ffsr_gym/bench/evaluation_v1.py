@@ -10,6 +10,8 @@ from __future__ import annotations
 import hashlib
 import time
 from collections.abc import Sequence
+from concurrent.futures import Executor
+from functools import partial
 from typing import Any
 
 import gymnasium as gym
@@ -43,9 +45,30 @@ def aggregate_v1(scores: Sequence[float], successes: Sequence[bool]) -> dict[str
             "success_rate": float(np.mean(np.asarray(successes, dtype=float))), "episodes": len(values)}
 
 
+def _episodes(policy: Any, env_id: str, kwargs: dict[str, Any], indices: Sequence[int]) -> list[tuple[dict, str, str]]:
+    """The scored episodes of pool ``indices`` (one per task, ``reset(seed=i, task_index=i)``), with
+    each played scenario's name and hash. Module level, so executors can run chunks of a pool."""
+    env = gym.make(env_id, **kwargs)
+    step = stepper(policy, env)
+    out = []
+    for index in indices:
+        options = None if kwargs["task"] == "paper" else {"task_index": int(index)}
+        obs, info = env.reset(seed=int(index), options=options)
+        done = False
+        while not done:
+            obs, _, terminated, truncated, _ = step(obs)
+            done = terminated or truncated
+        played = env.unwrapped.scenario
+        result = score_episode(env.unwrapped.trajectory, played, env.unwrapped.benchmark)
+        row = {"seed": int(index), "task_index": int(index), "task_seed": info.get("task_seed"), **result.as_dict()}
+        out.append((row, played.name, played.sha256()))
+    env.close()
+    return out
+
+
 def evaluate_v1(policy: Any, env_id: str, *, task: str = "easy", split: str = "test", indices: Sequence[int] | None = None,
                 training_pool: str | None = None, env_kwargs: dict | None = None, name: str = "submission",
-                progress: bool = False) -> EvalReport:
+                progress: bool = False, executor: Executor | None = None, chunk: int = 10) -> EvalReport:
     """Score ``policy`` on ``env_id`` over a tier's pool, one episode per task (``reset(seed=i, task_index=i)``).
 
     Args:
@@ -58,32 +81,32 @@ def evaluate_v1(policy: Any, env_id: str, *, task: str = "easy", split: str = "t
         env_kwargs: other ``gymnasium.make`` arguments (``dense_shaping``, ...; never the score).
         name: entry name.
         progress: show a progress bar.
+        executor: run chunks of ``chunk`` tasks on any ``concurrent.futures.Executor`` (processes,
+            a Dask cluster's ``get_executor()``); the policy must then pickle (a ``(m, T_c)`` tuple,
+            a module-level function, an SB3 model). The entry is the same as without one.
+        chunk: tasks per submitted job.
     """
     if env_id not in V1_IDS:
         raise InvalidInputError(f"env_id {env_id!r}; allowed: {list(V1_IDS)}")
     if task not in ("paper", *TIERS) or split not in SPLITS:
         raise InvalidInputError(f"task {task!r}, split {split!r}; allowed: task in {['paper', *TIERS]}, split in {list(SPLITS)}")
+    if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
+        raise InvalidInputError(f"chunk = {chunk!r}; allowed: an integer >= 1")
     kwargs = {**(env_kwargs or {}), "task": task, "split": split}
     size = 1 if task == "paper" else len(pool(task, split))
     chosen = list(range(size) if indices is None else indices)
     if not chosen or any(isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= i < size for i in chosen):
         raise InvalidInputError(f"indices must be a non-empty list of integers in [0, {size - 1}], got {indices!r}")
     start = time.perf_counter()
-    env = gym.make(env_id, **kwargs)
-    step = stepper(policy, env)
+    pieces = [chosen[k:k + chunk] for k in range(0, len(chosen), chunk)]
+    results = (map if executor is None else executor.map)(partial(_episodes, policy, env_id, kwargs), pieces)
     rows, hashes = [], {}
-    for index in tqdm(chosen, disable=not progress, desc=f"evaluate {env_id} {task}/{split}", unit="episode"):
-        options = None if task == "paper" else {"task_index": int(index)}
-        obs, info = env.reset(seed=int(index), options=options)
-        done = False
-        while not done:
-            obs, _, terminated, truncated, _ = step(obs)
-            done = terminated or truncated
-        played = env.unwrapped.scenario
-        result = score_episode(env.unwrapped.trajectory, played, env.unwrapped.benchmark)
-        hashes[played.name] = played.sha256()
-        rows.append({"seed": int(index), "task_index": int(index), "task_seed": info.get("task_seed"), **result.as_dict()})
-    env.close()
+    with tqdm(total=len(chosen), disable=not progress, desc=f"evaluate {env_id} {task}/{split}", unit="episode") as bar:
+        for episodes in results:
+            for row, scenario, sha in episodes:
+                rows.append(row)
+                hashes[scenario] = sha
+            bar.update(len(episodes))
     metrics = aggregate_v1([row["score"] for row in rows], [row["success"] for row in rows])
     pools = pool_path().read_bytes()
     extra = {"training_pool": training_pool, "evaluation_pool": f"{task}/{split}",

@@ -1,0 +1,47 @@
+"""Scoring a v1 pool on executors (processes, a Dask cluster) gives the entry of the serial run."""
+
+from __future__ import annotations
+
+from concurrent.futures import ProcessPoolExecutor
+
+import pytest
+
+from ffsr_gym.bench.evaluation_v1 import evaluate_v1
+from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.tasks.certificate import planner_episode
+from ffsr_gym.tasks.generator import draw_task
+from ffsr_gym.tasks.splits import pool
+
+INDICES = [0, 1, 2, 3, 4, 7]
+
+
+def _same(a, b):
+    assert a.episodes == b.episodes and a.metrics == b.metrics
+    assert a.provenance["scenario_sha256"] == b.provenance["scenario_sha256"]
+
+
+def test_process_pool_gives_the_serial_entry_and_the_planner_episodes():
+    serial = evaluate_v1((0.3, 4.0), "FFSR-v1", task="easy", indices=INDICES)
+    with ProcessPoolExecutor(2) as executor:
+        parallel = evaluate_v1((0.3, 4.0), "FFSR-v1", task="easy", indices=INDICES, executor=executor, chunk=2)
+    _same(serial, parallel)
+    assert [row["task_index"] for row in parallel.episodes] == INDICES
+    from ffsr_gym.model.benchmark import load_benchmark
+
+    benchmark = load_benchmark("v1")
+    for row in parallel.episodes:  # the env episodes, replayed by the planner alone
+        task = draw_task(pool("easy", "test")[row["task_index"]].seed, benchmark)
+        assert row["score"] == planner_episode(task, benchmark, method="predefined_time", m=0.3, T_c=4.0).score
+
+
+def test_dask_cluster_gives_the_serial_entry():
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        remote = evaluate_v1((0.3, 4.0), "FFSR-v1", task="medium", indices=INDICES, executor=client.get_executor(), chunk=3)
+    _same(evaluate_v1((0.3, 4.0), "FFSR-v1", task="medium", indices=INDICES), remote)
+
+
+def test_chunk_is_checked():
+    with pytest.raises(InvalidInputError, match="chunk"):
+        evaluate_v1((0.3, 4.0), "FFSR-v1", task="easy", indices=[0], chunk=0)
