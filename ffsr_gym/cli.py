@@ -215,10 +215,22 @@ def _env_kwargs(args: argparse.Namespace) -> dict:
 def _evaluate(args: argparse.Namespace) -> None:
     from ffsr_gym.bench.evaluation import evaluate
 
+    from concurrent.futures import ProcessPoolExecutor
+
+    from ffsr_gym.exceptions import InvalidInputError
+
     policy = load_policy(args.policy, args.algo)
     v1 = args.env_id.endswith("-v1")
-    report = evaluate(policy, args.env_id, name=args.name, progress=not args.no_progress,
-                      **(_env_kwargs(args) | {"training_pool": args.training_pool} if v1 else {"env_kwargs": _env_kwargs(args)}))
+    if args.workers < 1 or (args.workers > 1 and not v1):
+        raise InvalidInputError(f"--workers {args.workers}; allowed: >= 1, and more than 1 only for the v1 ids")
+    executor = ProcessPoolExecutor(args.workers) if args.workers > 1 else None
+    try:
+        report = evaluate(policy, args.env_id, name=args.name, progress=not args.no_progress,
+                          **(_env_kwargs(args) | {"training_pool": args.training_pool, "executor": executor} if v1
+                             else {"env_kwargs": _env_kwargs(args)}))
+    finally:
+        if executor is not None:
+            executor.shutdown()
     print(f"{report.name}: {report.metrics}")
     if args.leaderboard:
         folder = Path(args.leaderboard) / ("v1" if v1 else args.env_id) / (args.task if v1 else "")
@@ -334,6 +346,8 @@ def main(argv: list[str] | None = None) -> int:
     _add_policy_arguments(ev, env_id=None, policy=None, task="easy", split="test", split_help="pool scored")
     ev.add_argument("--training-pool", default=None, help="v1: what the policy was trained or tuned on (recorded)")
     ev.add_argument("--name", default="submission", help="entry name (default: submission)")
+    ev.add_argument("--workers", type=int, default=1,
+                    help="v1: score the pool on this many processes; the same entry as with 1 (default: 1)")
     ev.add_argument("--leaderboard", default=None, help="write the entry under this leaderboard root")
     ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ev.set_defaults(func=_evaluate)
