@@ -114,6 +114,17 @@ def main() -> None:
           f"second on {workers} threads, {single:,.0f} on 1 ({steps_per_s / single:.2f}x); 128 copies: {wide:,.0f} "
           f"(target >= 300,000)")
 
+    from ffsr_gym.bench.evaluation_v1 import evaluate_v1
+
+    for tier in ("easy", "medium", "hard"):  # a fixed-parameter entry on each test pool (100 tasks)
+        serial = best_of(lambda tier=tier: evaluate_v1((0.3, 4.0), "FFSR-v1", task=tier, batched=False), 1)
+        batched = best_of(lambda tier=tier: evaluate_v1((0.3, 4.0), "FFSR-v1", task=tier, batched=True), 1)
+        with ProcessPoolExecutor(workers) as pool:
+            evaluate_v1((0.3, 4.0), "FFSR-v1", task=tier, indices=list(range(2 * workers)), executor=pool, chunk=1)  # warm
+            spread = best_of(lambda tier=tier, pool=pool: evaluate_v1((0.3, 4.0), "FFSR-v1", task=tier, executor=pool), 1)
+        print(f"[5] (0.3, 4 s) on the {tier} test pool: single env {serial:.2f} s; batched env {batched:.2f} s "
+              f"({serial / batched:.1f}x); {workers} worker processes {spread:.2f} s ({serial / spread:.2f}x)")
+
 
 def _evaluate(params: tuple[float, float]) -> float:
     return ffsr_gym.objective_for_params(*params)

@@ -213,10 +213,9 @@ def _env_kwargs(args: argparse.Namespace) -> dict:
 
 
 def _evaluate(args: argparse.Namespace) -> None:
-    from ffsr_gym.bench.evaluation import evaluate
-
     from concurrent.futures import ProcessPoolExecutor
 
+    from ffsr_gym.bench.evaluation import evaluate
     from ffsr_gym.exceptions import InvalidInputError
 
     policy = load_policy(args.policy, args.algo)

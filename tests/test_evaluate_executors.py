@@ -45,3 +45,16 @@ def test_dask_cluster_gives_the_serial_entry():
 def test_chunk_is_checked():
     with pytest.raises(InvalidInputError, match="chunk"):
         evaluate_v1((0.3, 4.0), "FFSR-v1", task="easy", indices=[0], chunk=0)
+
+
+@pytest.mark.parametrize("task", ["paper", "easy", "hard"])
+def test_batched_fixed_parameters_give_the_serial_entry(task):
+    """A fixed (m, T_c) on FFSR-v1 runs all tasks in one batched env: rows equal the single env's, bit for bit."""
+    indices = [0] if task == "paper" else INDICES
+    for m, T_c in ((0.3, 4.0), (0.1, 1.5)):  # (0.1, 1.5 s) breaks the rate limit: early ends in the batch
+        serial = evaluate_v1((m, T_c), "FFSR-v1", task=task, indices=indices, batched=False)
+        _same(serial, evaluate_v1((m, T_c), "FFSR-v1", task=task, indices=indices, batched=True))
+    with ProcessPoolExecutor(2) as executor:
+        _same(serial, evaluate_v1((0.1, 1.5), "FFSR-v1", task=task, indices=indices, executor=executor, chunk=4))
+    with pytest.raises(InvalidInputError, match="batched"):
+        evaluate_v1((0.3, 4.0), "FFSR-Residual-v1", task=task, indices=indices, batched=True)

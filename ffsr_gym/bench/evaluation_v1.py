@@ -66,9 +66,33 @@ def _episodes(policy: Any, env_id: str, kwargs: dict[str, Any], indices: Sequenc
     return out
 
 
+def _batched_episodes(parameters: tuple[float, float], kwargs: dict[str, Any],
+                      indices: Sequence[int]) -> list[tuple[dict, str, str]]:
+    """:func:`_episodes` for a fixed (m, T_c) on ``FFSR-v1``: all tasks in one batched env (bit-identical)."""
+    from ffsr_gym.environments.vector_env_v1 import FFSRV1VectorEnv
+
+    venv = FFSRV1VectorEnv(len(indices), kwargs["task"], kwargs["split"],
+                           dense_shaping=bool(kwargs.get("dense_shaping", False)))
+    _, info = venv.reset(seed=[int(i) for i in indices],
+                         options=None if kwargs["task"] == "paper" else {"task_index": [int(i) for i in indices]})
+    results: dict[int, tuple[dict, str, str]] = {}
+    while len(results) < len(indices):
+        _, _, terminated, truncated, _ = venv.step_with_parameters(*parameters)
+        for i in np.flatnonzero(terminated | truncated):
+            if i not in results:
+                played = venv._rollouts[i].scenario
+                seed = int(info["task_seed"][i])
+                row = {"seed": int(indices[i]), "task_index": int(indices[i]), "task_seed": None if seed < 0 else seed,
+                       **venv._ended[i].as_dict()}
+                results[int(i)] = (row, played.name, played.sha256())
+    venv.close()
+    return [results[i] for i in range(len(indices))]
+
+
 def evaluate_v1(policy: Any, env_id: str, *, task: str = "easy", split: str = "test", indices: Sequence[int] | None = None,
                 training_pool: str | None = None, env_kwargs: dict | None = None, name: str = "submission",
-                progress: bool = False, executor: Executor | None = None, chunk: int = 10) -> EvalReport:
+                progress: bool = False, executor: Executor | None = None, chunk: int = 10,
+                batched: bool | None = None) -> EvalReport:
     """Score ``policy`` on ``env_id`` over a tier's pool, one episode per task (``reset(seed=i, task_index=i)``).
 
     Args:
@@ -85,6 +109,9 @@ def evaluate_v1(policy: Any, env_id: str, *, task: str = "easy", split: str = "t
             a Dask cluster's ``get_executor()``); the policy must then pickle (a ``(m, T_c)`` tuple,
             a module-level function, an SB3 model). The entry is the same as without one.
         chunk: tasks per submitted job.
+        batched: run a fixed ``(m, T_c)`` on ``FFSR-v1`` through the batched env, all tasks at once, in
+            this process (None: whenever the policy allows it and there is no executor; the same
+            entry, tested bit for bit).
     """
     if env_id not in V1_IDS:
         raise InvalidInputError(f"env_id {env_id!r}; allowed: {list(V1_IDS)}")
@@ -98,8 +125,20 @@ def evaluate_v1(policy: Any, env_id: str, *, task: str = "easy", split: str = "t
     if not chosen or any(isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= i < size for i in chosen):
         raise InvalidInputError(f"indices must be a non-empty list of integers in [0, {size - 1}], got {indices!r}")
     start = time.perf_counter()
-    pieces = [chosen[k:k + chunk] for k in range(0, len(chosen), chunk)]
-    results = (map if executor is None else executor.map)(partial(_episodes, policy, env_id, kwargs), pieces)
+    fixed = (isinstance(policy, tuple) and env_id == "FFSR-v1" and kwargs.get("terminate_on_violation", True) is True
+             and set(kwargs) <= {"task", "split", "dense_shaping", "terminate_on_violation"})
+    if batched and not fixed:
+        raise InvalidInputError("batched=True needs a fixed (m, T_c) policy on FFSR-v1, terminate_on_violation=True "
+                                "and no env_kwargs other than dense_shaping")
+    if batched and executor is not None:
+        raise InvalidInputError("batched=True runs in this process (the batched kernel's threads do not survive a fork); "
+                                "with an executor each worker runs single environments")
+    if fixed and executor is None and batched is not False:
+        run, size = partial(_batched_episodes, policy, kwargs), len(chosen)
+    else:
+        run, size = partial(_episodes, policy, env_id, kwargs), chunk
+    pieces = [chosen[k:k + size] for k in range(0, len(chosen), size)]
+    results = (map if executor is None else executor.map)(run, pieces)
     rows, hashes = [], {}
     with tqdm(total=len(chosen), disable=not progress, desc=f"evaluate {env_id} {task}/{split}", unit="episode") as bar:
         for episodes in results:

@@ -80,6 +80,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         self._rngs: list[np.random.Generator | None] = [None] * N
         self._needs_reset = np.zeros(N, dtype=bool)
         self._mdl = None
+        self._parameters: tuple[float, float] | None = None
 
     def _make_template(self, scenario: str | Scenario) -> FFSREnv:
         """The single environment whose spaces, mapping and episode scenarios the copies share."""
@@ -166,13 +167,24 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
                       "clearance_m": clearance, "ee_position_error_m": ee_error, "clipped_actions": self._clipped.copy()})
         return obs, np.where(active, -increments - penalties, 0.0), terminated, truncated, infos
 
+    def step_with_parameters(self, m: float, T_c: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+        """A step of every copy with physical (m, T_c [s]), no float32 rounding: the single env's
+        ``step_with_parameters`` batched (the (m, T_c) ids only)."""
+        if self._template.residual:
+            raise InvalidInputError("step_with_parameters is for the (m, T_c) envs (FFSR-v0, FFSR-v1), not a residual env")
+        self._parameters = (float(m), float(T_c))
+        try:
+            return self.step(np.zeros((self.num_envs, 2), dtype=np.float32))
+        finally:
+            self._parameters = None
+
     def _apply_actions(self, a: np.ndarray, active: np.ndarray) -> np.ndarray:
         """Residual joint rates [rad/s] (N, 12) for ``FFSR-Residual-v0``; sets (m, T_c) for ``FFSR-v0``."""
         if self._template.residual:
             return residual_rates(a, self.family.env)
         for i in np.flatnonzero(active):  # float64 parameters exactly as the single env maps them
             rollout = self._rollouts[i]
-            rollout.set_parameters(*self._template.action_to_parameters(a[i]))
+            rollout.set_parameters(*(self._parameters or self._template.action_to_parameters(a[i])))
             self._FP[i, kp.F_M], self._FP[i, kp.F_TC] = rollout.fp[kp.F_M], rollout.fp[kp.F_TC]
         return np.zeros((self.num_envs, 12))
 

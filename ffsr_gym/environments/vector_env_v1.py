@@ -51,6 +51,7 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
         self._task_index = np.full(self.num_envs, -1, dtype=np.int64)
         self._task_seed = np.full(self.num_envs, -1, dtype=np.int64)
         self._cost_so_far = np.zeros(self.num_envs)
+        self._forced_index: list[int] | None = None
         self._ended: dict[int, Any] = {}
 
     def _make_template(self, scenario: str | Scenario) -> FFSRV1Env:
@@ -59,16 +60,34 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
     def _episode_scenario(self, i: int) -> Scenario:
         template = self._template
         template._np_random = self._rngs[i]
-        scenario, info = template._episode_scenario(None)
+        forced = self._forced_index
+        scenario, info = template._episode_scenario(None if forced is None else {"task_index": forced[i]})
         self._task_index[i], self._task_seed[i] = info.get("task_index", -1), info.get("task_seed", -1)
         return scenario
 
     def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
-        obs, _ = super().reset(seed=seed, options=options)
+        """As the single env; ``options={"task_index": [i_0, ..., i_{N-1}]}`` picks each copy's task
+        of this reset (later autoresets draw from the pool again)."""
+        self._forced_index = self._task_indices(options)
+        try:
+            obs, _ = super().reset(seed=seed, options=options)
+        finally:
+            self._forced_index = None
         self._cost_so_far[:] = 0.0
         _, _, ee_error = self._observe()
         self._potential = -ee_error / self._template.benchmark.action.shaping_position_scale_m
         return obs, {"task_index": self._task_index.copy(), "task_seed": self._task_seed.copy()}
+
+    def _task_indices(self, options: dict | None) -> list[int] | None:
+        if options is not None and not isinstance(options, dict):
+            raise InvalidInputError(f"options must be a dict or None, got {type(options).__name__}")
+        indices = (options or {}).get("task_index")
+        if indices is None:
+            return None
+        if self._template.pool is None or np.ndim(indices) != 1 or len(indices) != self.num_envs:
+            raise InvalidInputError(f"options['task_index'] = {indices!r}; allowed: a list of {self.num_envs} pool "
+                                    "indices, one per copy, on a tier's pool")
+        return [int(i) if isinstance(i, (int, np.integer)) and not isinstance(i, bool) else i for i in indices]
 
     def _apply_actions(self, a: np.ndarray, active: np.ndarray) -> np.ndarray:
         if not self._template.residual:
