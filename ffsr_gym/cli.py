@@ -147,8 +147,11 @@ def _leaderboard_plot(args: argparse.Namespace) -> None:
 
 def _leaderboard_pareto(args: argparse.Namespace) -> None:
     from ffsr_gym.bench.pareto import paper_pareto
+    from ffsr_gym.optim.rl import load_model
+    from ffsr_gym.report.leaderboard_plots import PARETO_FILE
 
-    print("wrote", paper_pareto(args.root, args.models, progress=not args.no_progress,
+    out = Path(args.root) / "v1" / PARETO_FILE
+    print("wrote", paper_pareto(args.root, out, args.models, load_model=load_model, progress=not args.no_progress,
                                 command=" ".join(["ffsr-gym", *args.argv])))
 
 
@@ -170,13 +173,13 @@ def load_policy(spec: str, algo: str | None):
         except ValueError:
             pass
     if spec.endswith(".zip"):
-        from ffsr_gym.optim.rl import ALGOS, _sb3
+        from ffsr_gym.optim.rl import ALGOS, load_model
 
         if algo not in ALGOS:
             raise InvalidInputError(f"--algo {algo!r}: an SB3 .zip needs --algo, one of {sorted(ALGOS)}")
         if not Path(spec).is_file():
             raise InvalidInputError(f"--policy {spec!r}: no such file")
-        return getattr(_sb3()[0], ALGOS[algo]).load(spec, device="cpu")
+        return load_model(algo, spec)
     module, _, name = spec.partition(":")
     if module and name:
         try:

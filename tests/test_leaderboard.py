@@ -15,7 +15,7 @@ import ffsr_gym
 from ffsr_gym.bench import leaderboard
 
 ROOT = Path(__file__).resolve().parent.parent / "leaderboards"
-ENTRIES = sorted(ROOT.glob("*/*.json")) + []
+ENTRIES = sorted(p for p in ROOT.glob("*/*.json") if p.parent.name != "v1")  # v0 entries
 
 
 def _close(a, b):
@@ -138,8 +138,8 @@ def test_committed_v1_figures_regenerate_byte_identically_from_the_json(tmp_path
 def test_pareto_points_are_the_env_episodes_and_the_front_is_non_dominated(tmp_path):
     import gymnasium as gym
 
-    from ffsr_gym.bench.pareto import PARETO_FILE, paper_pareto
-    from ffsr_gym.report.leaderboard_plots import _front, plot_pareto
+    from ffsr_gym.bench.pareto import paper_pareto
+    from ffsr_gym.report.leaderboard_plots import PARETO_FILE, _front, plot_pareto
     from ffsr_gym.scoring.score import score_episode
 
     assert plot_pareto(tmp_path) is None
@@ -148,7 +148,8 @@ def test_pareto_points_are_the_env_episodes_and_the_front_is_non_dominated(tmp_p
         shutil.copy(ROOT / "v1" / "easy" / name, tmp_path / "v1" / "easy" / name)
     rl = {"name": "sac_residual_easy", "env_id": "FFSR-Residual-v1", "extra": {"runs": [{"seed": 0}]}}
     (tmp_path / "v1" / "easy" / "sac_residual_easy.json").write_text(json.dumps(rl))
-    data = json.loads(paper_pareto(tmp_path, tmp_path / "no-models", progress=False).read_text())
+    data = json.loads(paper_pareto(tmp_path, tmp_path / "v1" / PARETO_FILE, tmp_path / "no-models",
+                                   load_model=lambda algo, path: None, progress=False).read_text())
     assert (tmp_path / "v1" / PARETO_FILE).is_file() and len(data["grid"]["points"]) == 120
     env = gym.make("FFSR-v1", task="paper")  # the same setting played through the env, scored independently
     env.reset(seed=0)

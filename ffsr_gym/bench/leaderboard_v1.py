@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -132,8 +133,12 @@ def render_v1_summary(entries: dict[str, list[dict[str, Any]]]) -> str:
         steps = sum(e["extra"]["compute"]["env_steps"] for e in rl)
         seconds = sum(e["extra"]["compute"]["wall_time_s"] for e in rl)
         agents = sum(len(e["extra"].get("runs", [])) for e in rl)
+        ends = [datetime.fromisoformat(e["provenance"]["created_utc"]).timestamp() for e in rl]
+        starts = [end - e["provenance"]["wall_time_s"] for end, e in zip(ends, rl)]
         lines += ["", f"RL entries: {agents} trained agents, {steps:,} environment steps, {seconds / 60:.0f} min of "
-                      "training on one core each (learning-curve scoring included; test-pool scoring not)."]
+                      "training on one core each (learning-curve scoring included, test-pool scoring not); "
+                      f"{(max(ends) - min(starts)) / 60:.0f} min of wall time from the first entry's start to the last "
+                      "one's end (entries' provenance)."]
     return "\n".join(lines) + "\n"
 
 

@@ -5,7 +5,8 @@
 and every baseline of ``<root>/v1/<tier>/*.json``: a planner entry at its recorded parameters, an
 RL entry with each training seed's model (``<models>/<algo>_<env id>_<tier>_seed<s>/model.zip``,
 deterministic actions). Every episode is scored by :func:`ffsr_gym.scoring.score.score_episode`;
-the points go to ``<root>/v1/paper_pareto.json`` (with provenance), from which
+the points go to ``<root>/v1/paper_pareto.json`` (with provenance; the name is
+``ffsr_gym.report.leaderboard_plots.PARETO_FILE``), from which
 ``ffsr-gym leaderboard plot`` draws ``pareto.png``. An RL entry whose models are missing is listed
 as such, never dropped silently.
 """
@@ -15,7 +16,7 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 from tqdm.auto import tqdm
@@ -30,7 +31,6 @@ from ffsr_gym.tasks.certificate import planner_episode, planner_task
 #: The planner grid: 12 values of m and 10 of T_c [s] spanning the FFSR-v1 action box.
 GRID_M = tuple(float(x) for x in np.round(np.linspace(0.05, 0.6, 12), 4))
 GRID_T_C_S = tuple(float(x) for x in np.linspace(1.0, 10.0, 10))
-PARETO_FILE = "paper_pareto.json"
 
 
 def _point(result: EpisodeScore | dict[str, Any], **where: Any) -> dict[str, Any]:
@@ -38,28 +38,30 @@ def _point(result: EpisodeScore | dict[str, Any], **where: Any) -> dict[str, Any
     return {**where, **{key: row[key] for key in ("score", "success", "failure", "smoothness_cost", "convergence_time_s")}}
 
 
-def _rl_points(entry: dict[str, Any], tier: str, models: Path | None) -> tuple[list[dict], str | None]:
+def _rl_points(entry: dict[str, Any], tier: str, models: Path | None,
+               load_model: Callable[[str, Path], Any] | None) -> tuple[list[dict], str | None]:
     """One point per training seed whose model is found; or why there are none."""
-    from ffsr_gym.optim.rl import ALGOS, _sb3
-
+    if models is None or load_model is None:
+        return [], "no model folder given"
     algo = entry["name"].split("_")[0]
-    if models is None or algo not in ALGOS:
-        return [], "no model folder given" if models is None else f"unknown algorithm {algo!r}"
-    sb3, _ = _sb3()
     points = []
     for run in entry["extra"]["runs"]:
         path = models / f"{algo}_{entry['env_id']}_{tier}_seed{run['seed']}" / "model.zip"
         if not path.is_file():
             return [], f"model missing: {path}"
-        model = getattr(sb3, ALGOS[algo]).load(path, device="cpu")
-        row = evaluate_v1(model, entry["env_id"], task="paper").episodes[0]
+        row = evaluate_v1(load_model(algo, path), entry["env_id"], task="paper").episodes[0]
         points.append(_point(row, train_seed=run["seed"]))
     return points, None
 
 
-def paper_pareto(root: str | Path, models: str | Path | None = None, *, progress: bool = True,
+def paper_pareto(root: str | Path, out: str | Path, models: str | Path | None = None, *,
+                 load_model: Callable[[str, Path], Any] | None = None, progress: bool = True,
                  command: str | None = None) -> Path:
-    """Compute the grid and the baselines' points on ``paper``; write ``<root>/v1/paper_pareto.json``."""
+    """Compute the grid and the points of the baselines under ``<root>/v1/`` on ``paper``; write them to ``out``.
+
+    ``load_model(algo, path)`` loads an RL entry's model (``ffsr_gym.optim.rl.load_model``); without
+    it or ``models``, RL entries are listed as not run.
+    """
     root, start = Path(root), time.perf_counter()
     benchmark = load_benchmark("v1")
     task = v1_task("paper", benchmark)
@@ -82,10 +84,10 @@ def paper_pareto(root: str | Path, models: str | Path | None = None, *, progress
                           "missing": None, "task_sha256": planner_task(task, planner["method"], planner["gain_per_s"]).sha256()}
             baselines.append(fixed[key])
         else:
-            points, missing = _rl_points(entry, tier, None if models is None else Path(models))
+            points, missing = _rl_points(entry, tier, None if models is None else Path(models), load_model)
             baselines.append({"name": entry["name"], "tiers": [tier], "planner": None, "points": points,
                               "missing": missing, "task_sha256": task.sha256()})
-    out = root / "v1" / PARETO_FILE
+    out = Path(out)
     prov = provenance(scenarios={"paper": task.sha256()}, command=command, wall_time_s=time.perf_counter() - start)
     write_json_atomic(out, {"task": "paper", "grid": {"m": list(GRID_M), "T_c_s": list(GRID_T_C_S), "points": grid},
                             "baselines": baselines, "provenance": prov})

@@ -33,6 +33,13 @@ def _sb3():
     return stable_baselines3, torch
 
 
+def load_model(algo: str, path: str | Path) -> Any:
+    """A saved stable-baselines3 model of ``algo`` (a key of :data:`ALGOS`), on the CPU."""
+    if algo not in ALGOS:
+        raise InvalidInputError(f"algo {algo!r}; allowed: {sorted(ALGOS)}")
+    return getattr(_sb3()[0], ALGOS[algo]).load(path, device="cpu")
+
+
 def _literal_call(text: str) -> dict[str, Any]:
     """Parse ``"dict(net_arch=[64, 64])"`` (rl-zoo style) without ``eval``."""
     node = ast.parse(text, mode="eval").body

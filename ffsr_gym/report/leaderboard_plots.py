@@ -16,6 +16,8 @@ from ffsr_gym.report.plotting import _pyplot, _save
 from ffsr_gym.scoring.aggregate import iqm
 
 TIER_ORDER = ("easy", "medium", "hard")
+#: The points of the Pareto plot, under ``<root>/v1/`` (written by ``ffsr-gym leaderboard pareto``).
+PARETO_FILE = "paper_pareto.json"
 
 
 def _entries(root: Path) -> dict[str, list[dict]]:
@@ -121,8 +123,6 @@ def _front(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
 
 def plot_pareto(root: str | Path) -> Path | None:
     """Smoothness cost against convergence time on ``paper`` (from ``paper_pareto.json``; None without it)."""
-    from ffsr_gym.bench.pareto import PARETO_FILE
-
     root = Path(root)
     source = root / "v1" / PARETO_FILE
     if not source.is_file():
@@ -134,8 +134,12 @@ def plot_pareto(root: str | Path) -> Path | None:
     ok = [(p["convergence_time_s"], p["smoothness_cost"]) for p in grid if p["success"]]
     ax.scatter(*zip(*ok), s=12, color="0.65", label=f"planner, (m, T_c) grid: {len(ok)} of {len(grid)} settings succeed")
     ax.plot(*zip(*_front(ok)), color="0.35", lw=1, ls="--", label="non-dominated grid settings")
-    notes, markers = [], "osD^v<>Xp*hP"
-    for k, b in enumerate(data["baselines"]):
+    notes, colours = [], {}
+    tier_marker = {"easy": "o", "medium": "s", "hard": "^"}
+    for b in data["baselines"]:
+        tier = b["tiers"][0]
+        method = b["name"][: -len(tier) - 1] if b["name"].endswith(f"_{tier}") else b["name"]
+        colour = colours.setdefault(method, f"C{len(colours) % 10}")
         where = "every tier" if len(b["tiers"]) == len(TIER_ORDER) else ", ".join(b["tiers"])
         label = f"{b['name']} ({where})" if b["planner"] is not None else f"{b['name']} ({len(b['points'])} seeds)"
         if b["missing"]:
@@ -146,10 +150,12 @@ def plot_pareto(root: str | Path) -> Path | None:
         if failed:
             notes.append(f"{label}: {failed} of {len(b['points'])} fail on paper")
         if good:
+            marker = "D" if len(b["tiers"]) > 1 else tier_marker.get(tier, "P")
             ax.scatter([p["convergence_time_s"] for p in good], [p["smoothness_cost"] for p in good], s=46,
-                       marker=markers[k % len(markers)], color=f"C{k % 10}", edgecolor="k", linewidth=0.5, label=label, zorder=3)
+                       marker=marker, color=colour, edgecolor="k", linewidth=0.5, label=label, zorder=3)
     ax.set(xlabel="convergence time: EE position error below 1 mm from then on [s]", ylabel="smoothness cost C [-] (log)",
-           yscale="log", title="paper task (benchmark v1): smoothness against convergence time; lower left is better")
+           yscale="log", title="paper task (benchmark v1): smoothness against convergence time; lower left is better\n"
+                               "colour: method; marker: the tier it was trained or tuned on (o easy, s medium, ^ hard, D all)")
     ax.grid(True, alpha=0.3, which="both")
     ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
     if notes:
