@@ -22,7 +22,7 @@ import numpy as np
 
 import ffsr_gym
 from ffsr_gym.optim import ga
-from ffsr_gym.provenance import provenance, write_json_atomic, write_text_atomic
+from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic, write_text_atomic
 
 
 def best_of(fn, repeats: int) -> float:
@@ -184,9 +184,8 @@ def main() -> None:
     print(speed_table(results))
     if args.readme:
         text = Path(args.readme).read_text(encoding="utf-8")
-        head, rest = text.split(README_START, 1)
-        _, tail = rest.split(README_END, 1)
-        write_text_atomic(args.readme, f"{head}{README_START}\n{speed_table(results)}{README_END}{tail}")
+        write_text_atomic(args.readme, splice_generated(text, README_START, README_END, speed_table(results),
+                                                        where=args.readme))
 
 
 def _evaluate(params: tuple[float, float]) -> float:

@@ -14,6 +14,8 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from ffsr_gym.exceptions import FFSRError
+
 _PACKAGES = ("ffsr-gym", "numpy", "pin", "coal", "gymnasium", "matplotlib", "stable-baselines3", "torch")
 _SOURCE = Path(__file__).resolve().parent.parent
 
@@ -120,6 +122,19 @@ def write_text_atomic(path: str | Path, text: str) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def splice_generated(text: str, start: str, end: str, body: str, *, where: str = "the file") -> str:
+    """``text`` with ``body`` between the marker lines ``start`` and ``end`` (the first pair), markers kept.
+
+    Raises:
+        FFSRError: ``text`` lacks either marker; the message names ``where``.
+    """
+    if start not in text or end not in text:
+        raise FFSRError(f"{where} lacks the markers {start!r} and {end!r}")
+    head, rest = text.split(start, 1)
+    _, tail = rest.split(end, 1)
+    return f"{head}{start}\n{body}{end}{tail}"
 
 
 def write_json_atomic(path: str | Path, data: Any) -> None:

@@ -11,10 +11,9 @@ from typing import Any, Callable
 
 from tqdm.auto import tqdm
 
-from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.model.scenario import Scenario, load_scenario
 from ffsr_gym.planning.planner import METHODS
-from ffsr_gym.provenance import provenance, write_json_atomic, write_text_atomic
+from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic, write_text_atomic
 from ffsr_gym.report import plotting
 from ffsr_gym.scoring.objective import objective_terms
 from ffsr_gym.sim.setup import prepare
@@ -251,12 +250,7 @@ def splice_readme(text: str, result: dict[str, Any]) -> str:
         FFSRError: a block's markers are missing.
     """
     for block, table in README_BLOCKS.items():
-        start, end = readme_markers(block)
-        if start not in text or end not in text:
-            raise FFSRError(f"the README lacks the markers {start!r} and {end!r}")
-        head, rest = text.split(start, 1)
-        _, tail = rest.split(end, 1)
-        text = head + start + "\n" + "\n".join(table(result)) + "\n" + end + tail
+        text = splice_generated(text, *readme_markers(block), "\n".join(table(result)) + "\n", where="the README")
     return text
 
 
