@@ -104,7 +104,7 @@ def splice_v1(text: str, root: str | Path) -> str:
     return splice_generated(text, V1_START, V1_END, render_v1_tables(load_v1_entries(root)))
 
 
-def _method(entry: dict[str, Any], tier: str) -> str:
+def method_name(entry: dict[str, Any], tier: str) -> str:
     """An entry's name without its tier suffix (``ppo_residual_easy`` → ``ppo_residual``)."""
     name = entry["name"]
     return name[: -len(tier) - 1] if name.endswith(f"_{tier}") else name
@@ -119,7 +119,7 @@ def render_v1_summary(entries: dict[str, list[dict[str, Any]]]) -> str:
         items = entries[tier]
         for rank, e in zip(ranks(items), items):
             lo, hi = e["metrics"]["score_iqm_ci95"]
-            method = _method(e, tier)
+            method = method_name(e, tier)
             cells.setdefault(method, {})[tier] = f"{e['metrics']['score_iqm']:.3f} [{lo:.3f}, {hi:.3f}] #{rank}"
             rank_sum[method] = rank_sum.get(method, 0.0) + rank
     order = sorted(cells, key=lambda method: (rank_sum[method] / len(cells[method]), method))

@@ -22,6 +22,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.evaluation_v1 import evaluate_v1
+from ffsr_gym.bench.leaderboard_v1 import method_name
 from ffsr_gym.environments.env_v1 import v1_task
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.provenance import provenance, write_json_atomic
@@ -80,12 +81,14 @@ def paper_pareto(root: str | Path, out: str | Path, models: str | Path | None = 
                 continue
             result = planner_episode(task, benchmark, method=planner["method"], m=planner["m"], T_c=planner["T_c_s"],
                                      gain_per_s=planner["gain_per_s"])
-            fixed[key] = {"name": entry["name"], "tiers": [tier], "planner": planner, "points": [_point(result)],
+            fixed[key] = {"name": entry["name"], "method": method_name(entry, tier), "tiers": [tier], "planner": planner,
+                          "points": [_point(result)],
                           "missing": None, "task_sha256": planner_task(task, planner["method"], planner["gain_per_s"]).sha256()}
             baselines.append(fixed[key])
         else:
             points, missing = _rl_points(entry, tier, None if models is None else Path(models), load_model)
-            baselines.append({"name": entry["name"], "tiers": [tier], "planner": None, "points": points,
+            baselines.append({"name": entry["name"], "method": method_name(entry, tier), "tiers": [tier], "planner": None,
+                              "points": points,
                               "missing": missing, "task_sha256": task.sha256()})
     out = Path(out)
     prov = provenance(scenarios={"paper": task.sha256()}, command=command, wall_time_s=time.perf_counter() - start)

@@ -138,8 +138,7 @@ def plot_pareto(root: str | Path) -> Path | None:
     tier_marker = {"easy": "o", "medium": "s", "hard": "^"}
     for b in data["baselines"]:
         tier = b["tiers"][0]
-        method = b["name"][: -len(tier) - 1] if b["name"].endswith(f"_{tier}") else b["name"]
-        colour = colours.setdefault(method, f"C{len(colours) % 10}")
+        colour = colours.setdefault(b["method"], f"C{len(colours) % 10}")
         where = "every tier" if len(b["tiers"]) == len(TIER_ORDER) else ", ".join(b["tiers"])
         label = f"{b['name']} ({where})" if b["planner"] is not None else f"{b['name']} ({len(b['points'])} seeds)"
         if b["missing"]:
