@@ -22,7 +22,7 @@ def _info(args: argparse.Namespace) -> None:
     ee = robot.transform_ee_to_world(q, 0)
     robot.update_kinematics(q)
     mats = robot.momentum_matrices(q)
-    clearance = setup.assets.collision.clearance(q, setup.obstacles)
+    clearance = setup.assets.collision.clearance(q, setup.obstacles.spheres(0.0))
     rows = [
         ("scenario", f"{scenario.name} ({scenario.source})"),
         ("scenario sha256", scenario.sha256()[:16]),

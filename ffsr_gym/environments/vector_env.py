@@ -72,6 +72,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         self.n_steps, self.dt = n, self.family.simulation.dt_s
         self._X, self._K = np.zeros((N, 19)), np.zeros(N, dtype=np.int64)
         self._FP, self._IP = np.zeros((N, kp.N_FP)), np.zeros((N, kp.N_IP), dtype=np.int64)
+        self._plants = (np.zeros((N, 13)), np.zeros((N, 13, 3)), np.zeros((N, 13, 3, 3)))  # each copy's plant inertias
         self._logs = new_log(n + 1, N)
         self._rows, self._status = np.zeros(N, dtype=np.int64), np.zeros(N, dtype=np.int64)
         self._applied = np.zeros((N, self.steps_per_decision, 12))
@@ -98,6 +99,8 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         rollout = KernelRollout(scenario, log={key: self._logs[key][i] for key in LOG_FIELDS})
         self._rollouts[i], self._mdl = rollout, rollout._mdl
         self._X[i], self._K[i], self._FP[i], self._IP[i] = rollout.x, 0, rollout.fp, rollout.ip
+        for stacked, own in zip(self._plants, rollout.plant):
+            stacked[i] = own
         self._last_rates[i], self._clipped[i] = 0.0, 0
 
     def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
@@ -124,7 +127,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
             self._reset_one(i)
         residuals = self._apply_actions(a, active)
         logs = tuple(self._logs[key] for key in LOG_FIELDS)
-        kernel_batch.run_batch(self._mdl, self._X, self._K, active, self.n_steps, self.steps_per_decision, self._FP,
+        kernel_batch.run_batch(self._mdl, self._plants, self._X, self._K, active, self.n_steps, self.steps_per_decision, self._FP,
                                self._IP, residuals, logs, self._rows, self._status, self._applied,
                                kernel_batch.groups(self.num_envs))
         if np.any(self._status == 3):

@@ -22,14 +22,16 @@ def groups(n: int) -> int:
 
 
 @njit(cache=True, parallel=True)
-def run_batch(mdl, X, K, active, n_total, n_max, FP, IP, residuals, logs, rows, status, applied, n_groups):
+def run_batch(mdl, plants, X, K, active, n_total, n_max, FP, IP, residuals, logs, rows, status, applied, n_groups):
     """Advance every active episode e by up to ``n_max`` steps from step ``K[e]``, stopping on a violation.
 
     ``X`` (N, 19) and ``K`` (N,) are updated in place; ``logs`` is the tuple of (N, n + 1, ...)
     trajectory arrays of :class:`~ffsr_gym.sim.compiled.KernelRollout`, written from row K[e].
     ``rows`` (N,), ``status`` (N,) and ``applied`` (N, n_max, 12; zero-padded rates) are outputs.
     ``n_groups``: :func:`groups` (episode g, g + n_groups, ... share a workspace and a thread).
+    ``plants``: (N, 13), (N, 13, 3), (N, 13, 3, 3) each episode's plant masses, levers and inertias.
     """
+    PM, PL, PI = plants
     LX, LV, LDQ, LERR, LCLEAR, LSELF, LMU, LCDF, LSMIN = logs
     n = X.shape[0]
     for g in prange(n_groups):
@@ -40,7 +42,8 @@ def run_batch(mdl, X, K, active, n_total, n_max, FP, IP, residuals, logs, rows, 
             if not active[e]:
                 continue
             k = K[e]
-            _, r, st = run_into(mdl, ws, X[e], k, n_total, n_max, FP[e], IP[e], residuals[e], True, False, LX[e, k:],
+            _, r, st = run_into(mdl, (PM[e], PL[e], PI[e]), ws, X[e], k, n_total, n_max, FP[e], IP[e], residuals[e], True,
+                                False, LX[e, k:],
                                 LV[e, k:], LDQ[e, k:], LERR[e, k:], LCLEAR[e, k:], LSELF[e, k:], LMU[e, k:], LCDF[e, k:],
                                 LSMIN[e, k:])
             K[e] = k + r

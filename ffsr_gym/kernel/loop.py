@@ -9,19 +9,47 @@ from numba import njit
 
 from ffsr_gym.kernel.borrow import borrowed
 from ffsr_gym.kernel.collision import capsule_ends_into, obstacle_clearance, self_clearance
-from ffsr_gym.kernel.physics import midpoint_into, velocity_into, workspace
-from ffsr_gym.kernel.planner import F_DT, F_H, F_OBS, F_OBS_R, F_RATE_MAX, I_HAS_OBS, I_SCOPE, plan
+from ffsr_gym.kernel.physics import midpoint_into, momentum_into, velocity_into, workspace
+from ffsr_gym.kernel.planner import (
+    F_DT,
+    F_H,
+    F_OBSTACLES,
+    F_RATE_MAX,
+    I_N_OBS,
+    I_PLANT,
+    I_SCOPE,
+    OBSTACLE_FIELDS,
+    obstacle_at,
+    plan,
+)
 
 STATUS_OK, STATUS_RATE, STATUS_COLLISION, STATUS_NONFINITE = 0, 1, 2, 3
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _clearances(mdl, x, fp, ip, ws):
+def _nearest_obstacle(mdl, ws, x, t, fp, ip):
+    """Clearance [m] to the nearest obstacle at time ``t`` (inf without one); ``ws.rel`` points to it.
+
+    Needs :func:`capsule_ends_into` done at ``x``. Ties keep the first obstacle (as the reference).
+    """
+    clear, r0, r1, r2 = np.inf, 0.0, 0.0, 0.0
+    p_o = ws.p_obs
+    for o in range(ip[I_N_OBS]):
+        p_o[0], p_o[1], p_o[2] = obstacle_at(fp, o, t)
+        value = obstacle_clearance(mdl, ws, x, p_o, fp[F_OBSTACLES + OBSTACLE_FIELDS * o + 6])
+        if value < clear or o == 0:
+            clear, r0, r1, r2 = value, ws.rel[0], ws.rel[1], ws.rel[2]
+    ws.rel[0], ws.rel[1], ws.rel[2] = r0, r1, r2
+    return clear
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _clearances(mdl, x, t, fp, ip, ws):
     """Robot–obstacle clearance (inf without obstacle) and self clearance [m] at the workspace's state."""
     capsule_ends_into(mdl, ws, x)
     clear = np.inf
-    if ip[I_HAS_OBS] == 1:
-        clear = obstacle_clearance(mdl, ws, x, fp[F_OBS:F_OBS + 3], fp[F_OBS_R])
+    if ip[I_N_OBS] > 0:
+        clear = _nearest_obstacle(mdl, ws, x, t, fp, ip)
     return clear, self_clearance(mdl, ws, x)
 
 
@@ -38,26 +66,31 @@ def _violation(dq, clear, self_c, fp, ip):
 
 
 @njit(cache=True, error_model="numpy")
-def run(mdl, x_start, k0, n_total, n_max, fp, ip, residual, stop_on_violation, record_only, out_x, out_v, out_dq,
-        out_err, out_clear, out_self, out_mu, out_cdf, out_smin):
+def run(mdl, plant, x_start, k0, n_total, n_max, fp, ip, residual, stop_on_violation, record_only, out_x, out_v,
+        out_dq, out_err, out_clear, out_self, out_mu, out_cdf, out_smin):
     """Advance up to ``n_max`` steps from step ``k0`` (or only record when ``record_only``).
+
+    ``plant``: the (mass, lever, inertia) arrays of the robot the physics integrates (``mdl``'s own
+    unless ``ip[I_PLANT]``: then the planner's model ``mdl`` and the plant differ).
 
     Writes one sample per step into the ``out_*`` arrays (from row 0) and returns
     ``(x_next, rows, status)``: status 0 ok, 1 rate-limit violation, 2 collision, 3 non-finite rates.
     """
-    return run_into(mdl, workspace(len(mdl[13])), x_start.copy(), k0, n_total, n_max, fp, ip, residual,
+    return run_into(mdl, plant, workspace(len(mdl[13])), x_start.copy(), k0, n_total, n_max, fp, ip, residual,
                     stop_on_violation, record_only, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf,
                     out_smin)
 
 
 @njit(cache=True, error_model="numpy")
-def run_into(mdl_owner, ws_owner, x_owner, k0, n_total, n_max, fp_owner, ip_owner, residual, stop_on_violation,
-             record_only, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf, out_smin):
+def run_into(mdl_owner, plant_owner, ws_owner, x_owner, k0, n_total, n_max, fp_owner, ip_owner, residual,
+             stop_on_violation, record_only, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf, out_smin):
     """:func:`run` in the caller's workspace, advancing the state ``x_owner`` in place (and returning it).
 
     Works on borrowed arrays (``ffsr_gym.kernel.borrow``): the caller owns every argument for the call.
     """
     mdl, ws, x, fp, ip = borrowed(mdl_owner), borrowed(ws_owner), borrowed(x_owner), borrowed(fp_owner), borrowed(ip_owner)
+    body = mdl[:4] + borrowed(plant_owner) + mdl[7:]  # the plant: the planner's kinematics, its own inertias
+    mismatch = ip[I_PLANT] == 1
     dt, h = fp[F_DT], fp[F_H:F_H + 6]
     rows = 0
     steps = 1 if record_only else min(n_max, n_total - k0)
@@ -68,7 +101,9 @@ def run_into(mdl_owner, ws_owner, x_owner, k0, n_total, n_max, fp_owner, ip_owne
             dq[j] += residual[j]
             if not math.isfinite(dq[j]):
                 return x_owner, rows, STATUS_NONFINITE
-        clear, self_c = _clearances(mdl, x, fp, ip, ws)
+        clear, self_c = _clearances(mdl, x, (k0 + i) * dt, fp, ip, ws)
+        if mismatch:  # the planner's momentum matrices were the model's; the base moves by the plant's
+            momentum_into(body, x, ws)
         velocity_into(v0, x, dq, h, ws)
         for j in range(19):
             out_x[i, j] = x[j]
@@ -88,7 +123,7 @@ def run_into(mdl_owner, ws_owner, x_owner, k0, n_total, n_max, fp_owner, ip_owne
         rows += 1
         if record_only:
             return x_owner, rows, STATUS_OK
-        midpoint_into(x, mdl, x, v0, dq, dt, h, ws)
+        midpoint_into(x, body, x, v0, dq, dt, h, ws)
         if stop_on_violation:
             status = _violation(dq, clear, self_c, fp, ip)
             if status != STATUS_OK:
@@ -110,8 +145,8 @@ def observe_into(mdl_owner, ws_owner, x_owner, t, fp_owner, ip_owner, rel):
     mdl, ws, x, fp, ip = borrowed(mdl_owner), borrowed(ws_owner), borrowed(x_owner), borrowed(fp_owner), borrowed(ip_owner)
     plan(mdl, x, t, fp, ip, ws)
     clear = np.inf
-    if ip[I_HAS_OBS] == 1:
+    if ip[I_N_OBS] > 0:
         capsule_ends_into(mdl, ws, x)
-        clear = obstacle_clearance(mdl, ws, x, fp[F_OBS:F_OBS + 3], fp[F_OBS_R])
+        clear = _nearest_obstacle(mdl, ws, x, t, fp, ip)
         rel[:] = ws.rel
     return clear

@@ -16,12 +16,15 @@ from numba import njit
 from ffsr_gym.kernel.linalg import smallest_singular_value, solve3, solve_into, svd_into
 from ffsr_gym.kernel.physics import R_to_quat_wxyz, kinematics_into, momentum_about_base_into, momentum_into
 
-F_M, F_TC, F_K, F_LAM1, F_LAM2, F_EPS1, F_EPS2, F_XI, F_DELTA, F_K1, F_DANGER, F_OBS_R = range(12)
-F_TF, F_TA, F_ANGLE, F_DT, F_RATE_MAX = 12, 13, 14, 15, 16
-F_P0, F_P1, F_Q0, F_AXIS, F_OBS, F_R0D, F_SBD, F_H = 17, 20, 23, 27, 30, 33, 36, 40
-N_FP = 46
-I_METHOD, I_PHI, I_SPLIT, I_ATT, I_MU, I_BAL_AVOID, I_HAS_OBS, I_SCOPE = range(8)
-N_IP = 8
+F_M, F_TC, F_K, F_LAM1, F_LAM2, F_EPS1, F_EPS2, F_XI, F_DELTA, F_K1, F_DANGER = range(11)
+F_TF, F_TA, F_ANGLE, F_DT, F_RATE_MAX = 11, 12, 13, 14, 15
+F_P0, F_P1, F_Q0, F_AXIS, F_R0D, F_SBD, F_H = 16, 19, 22, 26, 29, 32, 36
+#: Obstacle records from ``F_OBSTACLES`` on, ``OBSTACLE_FIELDS`` floats each: start position (3) [m],
+#: drift velocity (3) [m/s], radius [m]; ``ip[I_N_OBS]`` of the ``MAX_OBSTACLES`` slots are used.
+F_OBSTACLES, OBSTACLE_FIELDS, MAX_OBSTACLES = 42, 7, 8
+N_FP = F_OBSTACLES + OBSTACLE_FIELDS * MAX_OBSTACLES
+I_METHOD, I_PHI, I_SPLIT, I_ATT, I_MU, I_BAL_AVOID, I_N_OBS, I_SCOPE, I_PLANT = range(9)
+N_IP = 9
 METHOD_CODES = {"no_avoidance": 0, "no_feedback": 1, "proportional": 2, "predefined_time": 3}
 _CAP = 700.0
 
@@ -33,6 +36,13 @@ def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):
             a0 * b1 + b0 * a1 + a2 * b3 - a3 * b2,
             a0 * b2 + b0 * a2 + a3 * b1 - a1 * b3,
             a0 * b3 + b0 * a3 + a1 * b2 - a2 * b1)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def obstacle_at(fp, o, t):
+    """Position (3 scalars) [m] of obstacle ``o`` at time ``t`` [s]: p + v t (``ffsr_gym.model.obstacles``)."""
+    b = F_OBSTACLES + OBSTACLE_FIELDS * o
+    return fp[b] + fp[b + 3] * t, fp[b + 1] + fp[b + 4] * t, fp[b + 2] + fp[b + 5] * t
 
 
 @njit(cache=True, error_model="numpy")
@@ -130,11 +140,11 @@ def desired_into(p_d, sigma_d, V_ed, t, fp):
 
 
 @njit(cache=True, error_model="numpy")
-def _integrals(fp, points, i):
-    """Line integrals along segment i (points i → i+1) seen from the obstacle: (F, I0, I1, nearest distance)."""
+def _integrals(ox, oy, oz, points, i):
+    """Line integrals along segment i (points i → i+1) seen from the obstacle point (ox, oy, oz): (F, I0, I1, nearest distance)."""
     Lx, Ly, Lz = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1], points[i + 1, 2] - points[i, 2]
     length = math.sqrt(Lx * Lx + Ly * Ly + Lz * Lz)
-    wx, wy, wz = fp[F_OBS] - points[i, 0], fp[F_OBS + 1] - points[i, 1], fp[F_OBS + 2] - points[i, 2]
+    wx, wy, wz = ox - points[i, 0], oy - points[i, 1], oz - points[i, 2]
     t0 = (wx * Lx + wy * Ly + wz * Lz) / length
     cx, cy, cz = Ly * wz - Lz * wy, Lz * wx - Lx * wz, Lx * wy - Ly * wx
     h = max(math.sqrt(cx * cx + cy * cy + cz * cz) / length, 1e-12)
@@ -157,22 +167,31 @@ def _integrals(fp, points, i):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def avoidance_into(ws, fp, ip, arm):
-    """μ and CDF of one arm (``Planner._avoidance``); Θ̇_c (6) into ``ws.dq_c``."""
-    points, z, I0s, I1s, dq_c, pj, pe = ws.points, ws.z, ws.I0, ws.I1, ws.dq_c, ws.pj, ws.pe
+def _segment_length(points, i):
+    dx, dy, dz = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1], points[i + 1, 2] - points[i, 2]
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def avoidance_into(ws, fp, ip, arm, t):
+    """μ and CDF of one arm at time ``t`` (``Planner._avoidance``); Θ̇_c (6) into ``ws.dq_c``.
+
+    The CDF and its gradient sum over the obstacles, the distance is the smallest (docs/model.md §10).
+    """
+    points, z, dq_c, pj, pe = ws.points, ws.z, ws.dq_c, ws.pj, ws.pe
     for a in range(3):
         for i in range(6):
             points[i, a] = pj[6 * arm + i, a]
         points[6, a] = pe[arm, a]
     total, dist = 0.0, 1e300
-    for i in range(6):
-        I0s[i], I1s[i] = 0.0, 0.0
-        dx, dy, dz = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1], points[i + 1, 2] - points[i, 2]
-        if math.sqrt(dx * dx + dy * dy + dz * dz) < 1e-12:
-            continue
-        F, I0s[i], I1s[i], nearest = _integrals(fp, points, i)
-        total += F
-        dist = min(dist, nearest)
+    for o in range(ip[I_N_OBS]):
+        ox, oy, oz = obstacle_at(fp, o, t)
+        for i in range(6):
+            if _segment_length(points, i) < 1e-12:
+                continue
+            F, _, _, nearest = _integrals(ox, oy, oz, points, i)
+            total += F
+            dist = min(dist, nearest)
     cdf = fp[F_K1] * total
     if ip[I_MU] == 0:
         mu = 1.0 if cdf <= fp[F_DELTA] else fp[F_DELTA] / cdf
@@ -184,23 +203,25 @@ def avoidance_into(ws, fp, ip, arm):
     if mu >= 1.0:
         return 1.0, cdf
     scale = -fp[F_XI] * fp[F_K1]  # Θ̇_c = −ξ k₁ ∂CDF/∂Θ, only needed while the avoidance acts
-    ox, oy, oz = fp[F_OBS], fp[F_OBS + 1], fp[F_OBS + 2]
-    for i in range(6):
-        if I0s[i] == 0.0 and I1s[i] == 0.0:
-            continue  # zero-length segment
-        ax, ay, az = points[i, 0], points[i, 1], points[i, 2]
-        bx, by, bz = points[i + 1, 0], points[i + 1, 1], points[i + 1, 2]
-        for k in range(i + 1):
-            px, py, pz = points[k, 0], points[k, 1], points[k, 2]
-            ux, uy, uz = ax - px, ay - py, az - pz  # c0 = (a - p_k) x (p_o - a)
-            wx, wy, wz = ox - ax, oy - ay, oz - az
-            c0x, c0y, c0z = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-            ux, uy, uz = bx - ax, by - ay, bz - az  # c1 = (b - a) x (p_o - p_k)
-            wx, wy, wz = ox - px, oy - py, oz - pz
-            c1x, c1y, c1z = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-            j = 6 * arm + k
-            dq_c[k] += scale * (z[j, 0] * (c0x * I0s[i] + c1x * I1s[i]) + z[j, 1] * (c0y * I0s[i] + c1y * I1s[i])
-                                + z[j, 2] * (c0z * I0s[i] + c1z * I1s[i]))
+    for o in range(ip[I_N_OBS]):
+        ox, oy, oz = obstacle_at(fp, o, t)
+        for i in range(6):
+            if _segment_length(points, i) < 1e-12:
+                continue  # zero-length segment
+            _, I0, I1, _ = _integrals(ox, oy, oz, points, i)
+            ax, ay, az = points[i, 0], points[i, 1], points[i, 2]
+            bx, by, bz = points[i + 1, 0], points[i + 1, 1], points[i + 1, 2]
+            for k in range(i + 1):
+                px, py, pz = points[k, 0], points[k, 1], points[k, 2]
+                ux, uy, uz = ax - px, ay - py, az - pz  # c0 = (a - p_k) x (p_o - a)
+                wx, wy, wz = ox - ax, oy - ay, oz - az
+                c0x, c0y, c0z = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+                ux, uy, uz = bx - ax, by - ay, bz - az  # c1 = (b - a) x (p_o - p_k)
+                wx, wy, wz = ox - px, oy - py, oz - pz
+                c1x, c1y, c1z = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+                j = 6 * arm + k
+                dq_c[k] += scale * (z[j, 0] * (c0x * I0 + c1x * I1) + z[j, 1] * (c0y * I0 + c1y * I1)
+                                    + z[j, 2] * (c0z * I0 + c1z * I1))
     return mu, cdf
 
 
@@ -315,8 +336,8 @@ def plan(mdl, x, t, fp, ip, ws):
     for arm in range(2):
         mu, cdf = 1.0, 0.0
         ws.dq_c[:] = 0.0
-        if ip[I_HAS_OBS] == 1:
-            mu, cdf = avoidance_into(ws, fp, ip, arm)
+        if ip[I_N_OBS] > 0:
+            mu, cdf = avoidance_into(ws, fp, ip, arm, t)
         if arm == 0:
             for k in range(6):  # geometric Jacobian of the mission arm (world)
                 dx, dy, dz = pe[0, 0] - pj[k, 0], pe[0, 1] - pj[k, 1], pe[0, 2] - pj[k, 2]

@@ -72,8 +72,33 @@ class Robot:
         self.total_mass = float(sum(inertia.mass for inertia in self.model.inertias))
 
     def __reduce__(self) -> tuple:
-        """Pickle as the URDF path; the model is rebuilt on load."""
+        """Pickle as the URDF path (and the plant's changes); the model is rebuilt on load."""
+        changes = getattr(self, "inertial_changes", None)
+        if changes is not None:
+            return (_changed_robot, (self.urdf_path, changes))
         return (Robot, (self.urdf_path,))
+
+    def with_inertial_changes(self, mass_scale: Array, inertia_scale: Array, com_offset_m: Array) -> Robot:
+        """A copy whose bodies' masses, rotational inertias (about the CoM) and link CoMs are changed.
+
+        Bodies in the paper's order: 0 the base, then the mission arm's links and the balance
+        arm's. ``com_offset_m`` (12, 3) moves each link's CoM in its joint frame; the base's
+        frame stays its CoM. The kinematics are unchanged.
+        """
+        mass_scale, inertia_scale = np.asarray(mass_scale, dtype=float), np.asarray(inertia_scale, dtype=float)
+        offsets = np.zeros((13, 3))
+        offsets[1:] = np.asarray(com_offset_m, dtype=float).reshape(12, 3)
+        copy = Robot.__new__(Robot)
+        copy.__dict__.update(self.__dict__)
+        copy.model = self.model.copy()
+        for body, joint in enumerate([1, *(int(j) for j in self.joint_ids.ravel())]):
+            nominal = self.model.inertias[joint]
+            copy.model.inertias[joint] = pin.Inertia(nominal.mass * mass_scale[body], nominal.lever + offsets[body],
+                                                     nominal.inertia * inertia_scale[body])
+        copy.data = copy.model.createData()
+        copy.total_mass = float(sum(inertia.mass for inertia in copy.model.inertias))
+        copy.inertial_changes = (tuple(mass_scale), tuple(inertia_scale), tuple(map(tuple, offsets[1:])))
+        return copy
 
     def _joint_id(self, name: str) -> int:
         if not self.model.existJointName(name):
@@ -226,6 +251,10 @@ def check_state(q: Array, dq_joints: Array | None = None) -> None:
         arr = np.asarray(value)
         if arr.shape != (size,) or not np.all(np.isfinite(arr)):
             raise InvalidInputError(f"{name} must be {size} finite numbers, got shape {arr.shape}: {arr}")
+
+
+def _changed_robot(urdf_path: Path, changes: tuple) -> Robot:
+    return Robot(urdf_path).with_inertial_changes(*changes)
 
 
 @lru_cache(maxsize=8)

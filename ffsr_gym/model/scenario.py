@@ -40,6 +40,11 @@ def _vector(size: int, lo: float = -math.inf, hi: float = math.inf) -> dict:
     return {"kind": "vector", "size": size, "lo": lo, "hi": hi}
 
 
+def _rows(size: int, lo: float, hi: float, max_rows: int) -> dict:
+    """A list of up to ``max_rows`` entries: numbers (``size`` 0) or ``size``-vectors, each within [lo, hi]."""
+    return {"kind": "rows", "size": size, "lo": lo, "hi": hi, "max_rows": max_rows}
+
+
 def _choice(*options: str) -> dict:
     return {"kind": "choice", "options": options}
 
@@ -99,6 +104,43 @@ class Obstacle:
     position_m: Vec = field(metadata=_vector(3, -100.0, 100.0))
     radius_m: float = field(default=0.0, metadata=_number(0.0, 2.0))
     danger_radius_m: float = field(default=0.2, metadata=_number(0.0, 5.0, lo_open=True))
+
+
+#: Most obstacles besides ``[obstacle]`` a scenario may list in ``[debris]`` (the kernel's fixed slots).
+MAX_DEBRIS = 7
+
+
+@dataclass(frozen=True)
+class Debris:
+    """Further obstacles, and straight-line drift of every obstacle (beyond the paper; docs/model.md §10).
+
+    An obstacle at ``p`` drifting at ``v`` is at ``p + v t`` at time t [s]. ``obstacle_velocity_m_s``
+    is the drift of ``[obstacle]``; ``positions_m``, ``radii_m`` and ``velocities_m_s`` list up to
+    :data:`MAX_DEBRIS` further obstacles (one row each, equally long lists). They share
+    ``[obstacle]``'s danger radius. The danger field is the sum over all obstacles (the CDF is
+    cumulative), the μ distance the smallest, and clearance is taken to the nearest one.
+    """
+
+    obstacle_velocity_m_s: Vec = field(default=(0.0,) * 3, metadata=_vector(3, -1.0, 1.0))
+    positions_m: tuple[Vec, ...] = field(default=(), metadata=_rows(3, -100.0, 100.0, MAX_DEBRIS))
+    radii_m: Vec = field(default=(), metadata=_rows(0, 0.0, 2.0, MAX_DEBRIS))
+    velocities_m_s: tuple[Vec, ...] = field(default=(), metadata=_rows(3, -1.0, 1.0, MAX_DEBRIS))
+
+
+@dataclass(frozen=True)
+class Plant:
+    """The robot the physics integrates, where it differs from the planner's model (beyond the paper; docs/model.md §15).
+
+    Bodies in kernel order: 0 the base, 1-6 the mission links, 7-12 the balance links. Each
+    body's mass and its rotational inertia about its centre of mass are multiplied by the
+    factors; each link's centre of mass moves by ``com_offset_m`` in its joint frame (12 rows, or
+    none: the base's frame is its centre of mass and stays so). The planner keeps the nominal
+    model (the robot's URDF); momentum is conserved for the plant's parameters.
+    """
+
+    mass_scale: Vec = field(default=(1.0,) * 13, metadata=_vector(13, 0.5, 2.0))
+    inertia_scale: Vec = field(default=(1.0,) * 13, metadata=_vector(13, 0.5, 2.0))
+    com_offset_m: tuple[Vec, ...] = field(default=(), metadata=_rows(3, -0.1, 0.1, 12))
 
 
 @dataclass(frozen=True)
@@ -187,6 +229,8 @@ class Scenario:
     trajectory: ReferencePath
     planner: PlannerSettings
     obstacle: Obstacle | None = None
+    debris: Debris | None = None
+    plant: Plant | None = None
     objective: ObjectiveSettings = ObjectiveSettings()
     env: EnvSettings = EnvSettings()
     randomization: Randomization | None = None
@@ -231,6 +275,8 @@ _SECTIONS = {
     "trajectory": ReferencePath,
     "planner": PlannerSettings,
     "obstacle": Obstacle,
+    "debris": Debris,
+    "plant": Plant,
     "objective": ObjectiveSettings,
     "env": EnvSettings,
     "randomization": Randomization,
@@ -241,7 +287,7 @@ def to_dict(scenario: Scenario) -> dict[str, Any]:
     """Return the scenario as plain data (the TOML layout), without its source path."""
     data = dataclasses.asdict(scenario)
     data.pop("source")
-    for optional in ("obstacle", "randomization"):
+    for optional in ("obstacle", "debris", "plant", "randomization"):
         if data[optional] is None:
             data.pop(optional)
     return data
@@ -344,10 +390,27 @@ def _convert(key: str, value: Any, meta: Any) -> Any:
         if isinstance(value, bool) or value not in meta["options"]:
             raise ScenarioError(f"key {key!r} is {value!r}; allowed: {list(meta['options'])}")
         return int(value)
+    if kind == "rows":
+        return _convert_rows(key, value, meta)
     size = meta["size"]
     if not isinstance(value, (list, tuple)) or len(value) != size:
         raise ScenarioError(f"key {key!r} must be a list of {size} numbers, got {value!r}")
     return tuple(_check_number(f"{key}[{i}]", v, meta) for i, v in enumerate(value))
+
+
+def _convert_rows(key: str, value: Any, meta: dict) -> tuple:
+    size, most = meta["size"], meta["max_rows"]
+    shape = "numbers" if size == 0 else f"lists of {size} numbers"
+    if not isinstance(value, (list, tuple)) or len(value) > most:
+        raise ScenarioError(f"key {key!r} must be a list of at most {most} {shape}, got {value!r}")
+    if size == 0:
+        return tuple(_check_number(f"{key}[{i}]", v, meta) for i, v in enumerate(value))
+    rows = []
+    for i, row in enumerate(value):
+        if not isinstance(row, (list, tuple)) or len(row) != size:
+            raise ScenarioError(f"key '{key}[{i}]' must be a list of {size} numbers, got {row!r}")
+        rows.append(tuple(_check_number(f"{key}[{i}][{j}]", v, meta) for j, v in enumerate(row)))
+    return tuple(rows)
 
 
 def _check_number(key: str, value: Any, meta: dict) -> float:
@@ -386,6 +449,16 @@ def _check_cross_fields(s: Scenario, where: str) -> None:
                 "quaternion [w, x, y, z] within 1e-2 of norm 1 (it is normalised on load)"
             )
     check_action_bounds(s.env.m_bounds, s.env.T_c_bounds_s, section="env", where=where)
+    if s.debris is not None:
+        if s.obstacle is None:
+            raise ScenarioError(f"{where}section 'debris' needs an 'obstacle' section (its danger radius is shared)")
+        counts = {name: len(getattr(s.debris, name)) for name in ("positions_m", "radii_m", "velocities_m_s")}
+        if len(set(counts.values())) > 1:
+            raise ScenarioError(f"{where}keys 'debris.positions_m', 'debris.radii_m' and 'debris.velocities_m_s' "
+                                f"must list the same number of obstacles, got {counts}")
+    if s.plant is not None and len(s.plant.com_offset_m) not in (0, 12):
+        raise ScenarioError(f"{where}key 'plant.com_offset_m' lists {len(s.plant.com_offset_m)} rows; allowed: none, "
+                            "or one [x, y, z] per link (12)")
     if s.randomization is not None and s.obstacle is None:
         raise ScenarioError(f"{where}section 'randomization' needs an 'obstacle' section (its radii are used)")
     robot_dir(s.robot)

@@ -14,11 +14,13 @@ Methods: ``predefined_time`` (φ the predefined-time function, CDF avoidance),
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.model.obstacles import obstacle_field
 from ffsr_gym.model.quaternion import from_rotation, skew
 from ffsr_gym.model.robot import Robot
 from ffsr_gym.model.scenario import Scenario
@@ -111,7 +113,7 @@ class Planner:
         self.settings = scenario.planner
         self.centroidal_momentum = np.array(scenario.initial.momentum)
         self.path, self.base_target = path, base_target
-        self.obstacle = None if scenario.obstacle is None else np.array(scenario.obstacle.position_m)
+        self.obstacles = obstacle_field(scenario)
 
     def set_parameters(self, m: float, T_c: float) -> None:
         """Change the predefined-time parameters m ∈ (0, 1) and T_c [s] > 0 from now on."""
@@ -129,19 +131,28 @@ class Planner:
             return np.concatenate([ptsf.phi(part, self.T_c, self.m, form=form) for part in (error[:3], error[3:])])
         return ptsf.phi(error, self.T_c, self.m, form=form)
 
-    def _avoidance(self, arm: int) -> tuple[float, Array, float, float]:
-        """μ, Θ̇_c [rad/s], CDF and distance [m] for ``arm`` (R16-R18)."""
-        if self.obstacle is None:
+    def _avoidance(self, arm: int, t: float) -> tuple[float, Array, float, float]:
+        """μ, Θ̇_c [rad/s], CDF and distance [m] for ``arm`` at time ``t`` [s] (R16-R18).
+
+        With several obstacles the CDF and its gradient are sums over them and the distance is
+        the smallest (docs/model.md §10).
+        """
+        if not len(self.obstacles):
             return 1.0, np.zeros(6), 0.0, np.inf
         points, axes = self.robot.joint_points(arm)
         s = self.settings
-        cdf, distance = danger_field(points, self.obstacle, s.cdf_k1)
+        positions = self.obstacles.at(t)
+        cdf, distance = 0.0, math.inf
+        for p_o in positions:
+            part, nearest = danger_field(points, p_o, s.cdf_k1)
+            cdf, distance = cdf + part, min(distance, nearest)
         mu = blend_factor(cdf, distance, law=s.mu_law, delta=s.cdf_delta, danger_radius=self.scenario.obstacle.danger_radius_m)
         if self.method == "no_avoidance" or (arm == 1 and not s.balance_avoids):
             mu = 1.0
         if mu >= 1.0:
             return 1.0, np.zeros(6), cdf, distance
-        return mu, -s.cdf_xi * danger_field_gradient(points, axes, self.obstacle, s.cdf_k1), cdf, distance
+        gradient = sum(danger_field_gradient(points, axes, p_o, s.cdf_k1) for p_o in positions)
+        return mu, -s.cdf_xi * gradient, cdf, distance
 
     def __call__(self, t: float, q: Array) -> PlanStep:
         """Joint rates at time ``t`` [s] and configuration ``q`` (SPEC §7 steps 1-8)."""
@@ -159,13 +170,13 @@ class Planner:
         J_0[:3, 3:] = -skew(ee.translation - r0)
         x1 = np.linalg.solve(J_e, J_ed @ V_ed - self.feedback(e1)) - J_0 @ V0_cmd
 
-        mu1, dq_c1, cdf1, d1 = self._avoidance(0)
+        mu1, dq_c1, cdf1, d1 = self._avoidance(0, t)
         J_sharp, P, smin1 = filtered_inverse(robot.arm_jacobian(0), lambda_max=s.lambda_max_mission, epsilon=s.epsilon_mission)
         dq1 = mu1 * J_sharp @ x1 + (dq_c1 - mu1 * P @ dq_c1)
 
         C = robot.momentum_about_base(q, self.centroidal_momentum)
         x2 = mats.H_bm[0] @ dq1 + mats.H_b @ V0_cmd - C
-        mu2, dq_c2, cdf2, d2 = self._avoidance(1)
+        mu2, dq_c2, cdf2, d2 = self._avoidance(1, t)
         J_sharp, P, smin2 = filtered_inverse(-mats.H_bm[1], lambda_max=s.lambda_max_balance, epsilon=s.epsilon_balance)
         dq2 = mu2 * J_sharp @ x2 + (dq_c2 - mu2 * P @ dq_c2)
         return PlanStep(np.concatenate((dq1, dq2)), e1, e0, np.array([mu1, mu2]), np.array([cdf1, cdf2]),

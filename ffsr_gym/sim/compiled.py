@@ -29,7 +29,7 @@ def settings_vectors(setup: ScenarioSetup, *, method: str, m: float, T_c: float)
     """The kernel's float and integer settings of a scenario, a method and (m, T_c [s])."""
     scenario = setup.scenario
     s, fp, ip = scenario.planner, np.zeros(kp.N_FP), np.zeros(kp.N_IP, dtype=np.int64)
-    obstacle = scenario.obstacle
+    obstacle, field = scenario.obstacle, setup.obstacles
     fp[[kp.F_M, kp.F_TC, kp.F_K]] = m, T_c, s.proportional_gain_per_s
     fp[[kp.F_LAM1, kp.F_LAM2, kp.F_EPS1, kp.F_EPS2]] = s.lambda_max_mission, s.lambda_max_balance, s.epsilon_mission, s.epsilon_balance
     fp[[kp.F_XI, kp.F_DELTA, kp.F_K1]] = s.cdf_xi, s.cdf_delta, s.cdf_k1
@@ -41,11 +41,12 @@ def settings_vectors(setup: ScenarioSetup, *, method: str, m: float, T_c: float)
     fp[kp.F_R0D:kp.F_R0D + 3], fp[kp.F_SBD:kp.F_SBD + 4] = setup.base_target
     fp[kp.F_H:kp.F_H + 6] = scenario.initial.momentum
     if obstacle is not None:
-        fp[kp.F_OBS:kp.F_OBS + 3] = obstacle.position_m
-        fp[[kp.F_DANGER, kp.F_OBS_R]] = obstacle.danger_radius_m, obstacle.radius_m
+        fp[kp.F_DANGER] = obstacle.danger_radius_m
+    records = fp[kp.F_OBSTACLES:kp.F_OBSTACLES + kp.OBSTACLE_FIELDS * len(field)].reshape(-1, kp.OBSTACLE_FIELDS)
+    records[:, :3], records[:, 3:6], records[:, 6] = field.positions_m, field.velocities_m_s, field.radii_m
     ip[:] = (kp.METHOD_CODES[method], s.phi_form == "printed", s.phi_split, s.attitude_error == "body",
-             s.mu_law == "distance", s.balance_avoids, obstacle is not None,
-             scenario.objective.rate_limit_scope == "balance_arm")
+             s.mu_law == "distance", s.balance_avoids, len(field),
+             scenario.objective.rate_limit_scope == "balance_arm", scenario.plant is not None)
     return fp, ip
 
 
@@ -74,6 +75,7 @@ class KernelRollout:
         self.setup = setup = prepare(scenario)
         self.robot = setup.robot
         self.model, self._mdl = setup.assets.kernel, setup.assets.kernel_arrays
+        self.plant = setup.plant_arrays  # (mass, lever, inertia) of the robot the physics integrates
         if q0 is not None:
             check_state(q0)
         q = setup.q0 if q0 is None else np.array(q0, dtype=float)
@@ -119,7 +121,8 @@ class KernelRollout:
     def _run(self, n: int, residual: Array | None, stop: bool, record_only: bool) -> int:
         res = np.zeros(12) if residual is None else np.asarray(residual, dtype=float)
         outs = [self._log[key][self.rows:] for key in LOG_FIELDS]
-        x, rows, status = kernel_loop.run(self._mdl, self.x, self.k, self.n_steps, n, self.fp, self.ip, res, stop, record_only, *outs)
+        x, rows, status = kernel_loop.run(self._mdl, self.plant, self.x, self.k, self.n_steps, n, self.fp, self.ip, res,
+                                          stop, record_only, *outs)
         if status == 3:
             raise FFSRError(f"planner produced non-finite joint rates at t = {(self.k + rows) * self.dt:.3f} s")
         self.rows += rows
@@ -149,7 +152,8 @@ class KernelRollout:
         """
         x = np.concatenate((q[:7], q[self.model.q_index]))
         outs = list(new_log(1).values())
-        x_next, _, _ = kernel_loop.run(self._mdl, x, k, self.n_steps, 1, self.fp, self.ip, np.zeros(12), False, False, *outs)
+        x_next, _, _ = kernel_loop.run(self._mdl, self.plant, x, k, self.n_steps, 1, self.fp, self.ip, np.zeros(12),
+                                       False, False, *outs)
         _, v, dq, err, clear, self_c, mu, cdf, smin = (o[0] for o in outs)
         v_pin = np.zeros(18)
         v_pin[:6], v_pin[self.model.v_index] = v[:6], v[6:]

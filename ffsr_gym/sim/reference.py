@@ -44,6 +44,7 @@ class ReferenceRollout:
         self.scenario = scenario
         self.setup = setup = prepare(scenario)
         self.robot, self.collision, self.obstacles = setup.robot, setup.assets.collision, setup.obstacles
+        self.plant = setup.plant  # the physics' robot (the planner keeps self.robot)
         self.planner = Planner(self.robot, scenario, method=method, m=m, T_c=T_c, path=setup.path,
                                base_target=setup.base_target)
         if q0 is not None:
@@ -82,9 +83,10 @@ class ReferenceRollout:
         dq = plan.dq_joints if residual is None else plan.dq_joints + residual
         if not np.all(np.isfinite(dq)):
             raise FFSRError(f"planner produced non-finite joint rates at t = {self.t:.3f} s")
-        v = self.robot.velocity(self.q, dq, self.momentum)
+        v = self.plant.velocity(self.q, dq, self.momentum)
         self.collision.place(self.q)
-        obstacle = self.collision.obstacle_proximity(self.q, self.obstacles, place=False) if self.obstacles else None
+        obstacles = self.obstacles.spheres(self.t)
+        obstacle = self.collision.obstacle_proximity(self.q, obstacles, place=False) if obstacles else None
         self_clear = self.collision.self_proximity(self.q, place=False).distance_m
         e1, e0 = plan.ee_error, plan.base_error
         row = (self.q, v, dq, np.linalg.norm(e1[:3]), np.linalg.norm(e1[3:]), np.linalg.norm(e0[:3]),
@@ -100,7 +102,7 @@ class ReferenceRollout:
         if self.k >= self.n_steps:
             raise FFSRError(f"the run is over: {self.n_steps} steps of {self.dt} s were taken")
         dq = self._record(residual)
-        self.q, _ = self.robot.step(self.q, dq, self.dt, self.momentum)
+        self.q, _ = self.plant.step(self.q, dq, self.dt, self.momentum)
         self.k += 1
 
     def finish(self) -> None:
@@ -132,8 +134,8 @@ class ReferenceRollout:
         """Joint angles (12), EE error (6), base error (6), obstacle-relative vector (3), clearance [m]."""
         plan = self.planner(self.t, self.q)
         relative, clearance = np.zeros(3), np.inf
-        if self.obstacles:
-            prox = self.collision.obstacle_proximity(self.q, self.obstacles)
+        if len(self.obstacles):
+            prox = self.collision.obstacle_proximity(self.q, self.obstacles.spheres(self.t))
             relative, clearance = prox.witness_points[1] - prox.witness_points[0], prox.distance_m
         return self.robot.joint_angles(self.q), plan.ee_error, plan.base_error, relative, clearance
 

@@ -14,7 +14,8 @@ from functools import cached_property, lru_cache
 import numpy as np
 
 from ffsr_gym.kernel.arrays import KernelModel, extract
-from ffsr_gym.model.collision import CollisionModel, SphereObstacle
+from ffsr_gym.model.collision import CollisionModel
+from ffsr_gym.model.obstacles import ObstacleField, obstacle_field
 from ffsr_gym.model.robot import Robot, load_robot
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning.desired_path import DesiredPath
@@ -62,13 +63,6 @@ def initial_configuration(robot: Robot, scenario: Scenario) -> Array:
     )
 
 
-def obstacles_of(scenario: Scenario) -> tuple[SphereObstacle, ...]:
-    """The scenario's obstacle as a collision sphere (empty in free space)."""
-    if scenario.obstacle is None:
-        return ()
-    return (SphereObstacle(np.array(scenario.obstacle.position_m), scenario.obstacle.radius_m),)
-
-
 @dataclass(frozen=True)
 class ScenarioSetup:
     """A scenario with everything derived from it that both backends use.
@@ -77,7 +71,9 @@ class ScenarioSetup:
         scenario: the scenario.
         assets: its robot's shared models.
         q0: the nominal initial configuration (19,), Pinocchio order.
-        obstacles: the obstacle as collision spheres (empty in free space).
+        obstacles: the obstacles (``[obstacle]`` and ``[debris]``), positions at any time.
+        plant: the robot the physics integrates (``[plant]``; the nominal robot without it).
+        plant_arrays: the plant's (mass, lever, inertia) kernel arrays (the nominal ones without it).
         path: the desired end-effector path.
         base_target: the base set-point ``(r0d [m], sigma_bd (4,) wxyz)``.
     """
@@ -85,7 +81,9 @@ class ScenarioSetup:
     scenario: Scenario
     assets: RobotAssets
     q0: Array
-    obstacles: tuple[SphereObstacle, ...]
+    obstacles: ObstacleField
+    plant: Robot
+    plant_arrays: tuple
     path: DesiredPath
     base_target: tuple[Array, Array]
 
@@ -102,5 +100,12 @@ def prepare(scenario: Scenario) -> ScenarioSetup:
     q0 = initial_configuration(assets.robot, scenario)
     q0.flags.writeable = False  # shared by every rollout of this scenario
     path, base_target = reference_targets(assets.robot, scenario, q0)
-    return ScenarioSetup(scenario=scenario, assets=assets, q0=q0, obstacles=obstacles_of(scenario),
+    plant, kernel = assets.robot, assets.kernel
+    if scenario.plant is not None:
+        changes = scenario.plant
+        plant = assets.robot.with_inertial_changes(changes.mass_scale, changes.inertia_scale,
+                                                   changes.com_offset_m or np.zeros((12, 3)))
+        kernel = extract(plant, assets.collision)
+    return ScenarioSetup(scenario=scenario, assets=assets, q0=q0, obstacles=obstacle_field(scenario), plant=plant,
+                         plant_arrays=(kernel.mass, kernel.lever, kernel.inertia),
                          path=path, base_target=base_target)
