@@ -9,6 +9,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -40,7 +41,8 @@ def _perturbed_pinocchio():
     offsets = [(0.0, 0.0, 0.0), *PLANT.com_offset_m]
     for body, joint in enumerate(bodies):
         nominal = model.inertias[joint]
-        model.inertias[joint] = pin.Inertia(nominal.mass * PLANT.mass_scale[body], nominal.lever + np.array(offsets[body]),
+        model.inertias[joint] = pin.Inertia(nominal.mass * PLANT.mass_scale[body],
+                                            nominal.lever + np.array(offsets[body]),
                                             nominal.inertia * PLANT.inertia_scale[body])
     return model, model.createData(), robot.model, robot.model.createData()
 
@@ -83,10 +85,25 @@ def test_nominal_plant_reproduces_the_plain_scenario_bit_for_bit():
 @pytest.mark.parametrize("section, message", [
     ("com_offset_m = [[0.0, 0.0, 0.0]]", "'plant.com_offset_m' lists 1 rows"),
     ("mass_scale = [1.0]", "'plant.mass_scale' must be a list of 13 numbers"),
-    (f"inertia_scale = [{', '.join(['1.0'] * 12)}, 3.0]", "'plant.inertia_scale[12]' = 3.0 is out of range; allowed: [0.5, 2.0]"),
+    (f"inertia_scale = [{', '.join(['1.0'] * 12)}, 3.0]",
+     "'plant.inertia_scale[12]' = 3.0 is out of range; allowed: [0.5, 2.0]"),
 ])
 def test_malformed_plant_is_named(tmp_path, section, message):
     path = tmp_path / "plant.toml"
     path.write_text(Path(load_scenario("paper").source).read_text() + f"\n[plant]\n{section}\n")
     with pytest.raises(ScenarioError, match=re.escape(message)):
         load_scenario(path)
+
+
+def test_batched_env_with_debris_and_a_plant_equals_single_envs(scenario):
+    """The batched kernel carries each copy's obstacles and plant: copies reproduce single envs."""
+    from test_debris import DEBRIS
+    from test_vector_env import lockstep, make_vec
+
+    both = scenario.replace(debris=DEBRIS)
+    venv = make_vec("FFSR-Residual-v0", 2, scenario=both)
+    singles = [gym.make("FFSR-Residual-v0", scenario=both) for _ in range(2)]
+    obs, _ = venv.reset(seed=3)
+    np.testing.assert_array_equal(obs, np.stack([env.reset(seed=3 + i)[0] for i, env in enumerate(singles)]))
+    lockstep(venv, singles, 30, np.random.default_rng(1), lambda a, b: a == pytest.approx(b, rel=1e-12, abs=1e-15),
+             lambda *args: None)

@@ -127,8 +127,8 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
             self._reset_one(i)
         residuals = self._apply_actions(a, active)
         logs = tuple(self._logs[key] for key in LOG_FIELDS)
-        kernel_batch.run_batch(self._mdl, self._plants, self._X, self._K, active, self.n_steps, self.steps_per_decision, self._FP,
-                               self._IP, residuals, logs, self._rows, self._status, self._applied,
+        kernel_batch.run_batch(self._mdl, self._plants, self._X, self._K, active, self.n_steps, self.steps_per_decision,
+                               self._FP, self._IP, residuals, logs, self._rows, self._status, self._applied,
                                kernel_batch.groups(self.num_envs))
         if np.any(self._status == 3):
             raise FFSRError(f"planner produced non-finite joint rates in copies {np.flatnonzero(self._status == 3).tolist()}")

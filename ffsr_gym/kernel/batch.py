@@ -42,10 +42,9 @@ def run_batch(mdl, plants, X, K, active, n_total, n_max, FP, IP, residuals, logs
             if not active[e]:
                 continue
             k = K[e]
-            _, r, st = run_into(mdl, (PM[e], PL[e], PI[e]), ws, X[e], k, n_total, n_max, FP[e], IP[e], residuals[e], True,
-                                False, LX[e, k:],
-                                LV[e, k:], LDQ[e, k:], LERR[e, k:], LCLEAR[e, k:], LSELF[e, k:], LMU[e, k:], LCDF[e, k:],
-                                LSMIN[e, k:])
+            _, r, st = run_into(mdl, (PM[e], PL[e], PI[e]), ws, X[e], k, n_total, n_max, FP[e], IP[e], residuals[e],
+                                True, False, LX[e, k:], LV[e, k:], LDQ[e, k:], LERR[e, k:], LCLEAR[e, k:], LSELF[e, k:],
+                                LMU[e, k:], LCDF[e, k:], LSMIN[e, k:])
             K[e] = k + r
             rows[e], status[e] = r, st
             applied[e, :r, :] = LDQ[e, k:k + r, :]

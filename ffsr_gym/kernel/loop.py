@@ -83,7 +83,8 @@ def run(mdl, plant, x_start, k0, n_total, n_max, fp, ip, residual, stop_on_viola
 
 @njit(cache=True, error_model="numpy")
 def run_into(mdl_owner, plant_owner, ws_owner, x_owner, k0, n_total, n_max, fp_owner, ip_owner, residual,
-             stop_on_violation, record_only, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf, out_smin):
+             stop_on_violation, record_only, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf,
+             out_smin):
     """:func:`run` in the caller's workspace, advancing the state ``x_owner`` in place (and returning it).
 
     Works on borrowed arrays (``ffsr_gym.kernel.borrow``): the caller owns every argument for the call.

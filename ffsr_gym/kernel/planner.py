@@ -141,7 +141,10 @@ def desired_into(p_d, sigma_d, V_ed, t, fp):
 
 @njit(cache=True, error_model="numpy")
 def _integrals(ox, oy, oz, points, i):
-    """Line integrals along segment i (points i → i+1) seen from the obstacle point (ox, oy, oz): (F, I0, I1, nearest distance)."""
+    """Line integrals along segment i (points i → i+1) seen from the obstacle point (ox, oy, oz).
+
+    Returns (F, I0, I1, nearest distance).
+    """
     Lx, Ly, Lz = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1], points[i + 1, 2] - points[i, 2]
     length = math.sqrt(Lx * Lx + Ly * Ly + Lz * Lz)
     wx, wy, wz = ox - points[i, 0], oy - points[i, 1], oz - points[i, 2]
@@ -176,7 +179,7 @@ def _segment_length(points, i):
 def avoidance_into(ws, fp, ip, arm, t):
     """μ and CDF of one arm at time ``t`` (``Planner._avoidance``); Θ̇_c (6) into ``ws.dq_c``.
 
-    The CDF and its gradient sum over the obstacles, the distance is the smallest (docs/model.md §10).
+    The CDF and its gradient sum over the obstacles, the distance is the smallest (docs/model.md §14).
     """
     points, z, dq_c, pj, pe = ws.points, ws.z, ws.dq_c, ws.pj, ws.pe
     for a in range(3):

@@ -50,4 +50,5 @@ def obstacle_field(scenario: Scenario) -> ObstacleField:
         positions += list(debris.positions_m)
         velocities += list(debris.velocities_m_s)
         radii += list(debris.radii_m)
-    return ObstacleField(np.array(positions, dtype=float), np.array(velocities, dtype=float), np.array(radii, dtype=float))
+    return ObstacleField(np.array(positions, dtype=float), np.array(velocities, dtype=float),
+                         np.array(radii, dtype=float))

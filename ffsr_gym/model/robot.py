@@ -93,7 +93,8 @@ class Robot:
         copy.model = self.model.copy()
         for body, joint in enumerate([1, *(int(j) for j in self.joint_ids.ravel())]):
             nominal = self.model.inertias[joint]
-            copy.model.inertias[joint] = pin.Inertia(nominal.mass * mass_scale[body], nominal.lever + offsets[body],
+            copy.model.inertias[joint] = pin.Inertia(nominal.mass * mass_scale[body],
+                                                     nominal.lever + offsets[body],
                                                      nominal.inertia * inertia_scale[body])
         copy.data = copy.model.createData()
         copy.total_mass = float(sum(inertia.mass for inertia in copy.model.inertias))

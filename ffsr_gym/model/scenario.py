@@ -129,7 +129,7 @@ class Debris:
 
 @dataclass(frozen=True)
 class Plant:
-    """The robot the physics integrates, where it differs from the planner's model (beyond the paper; docs/model.md §15).
+    """The robot the physics integrates, where it differs from the planner's model (docs/model.md §15).
 
     Bodies in kernel order: 0 the base, 1-6 the mission links, 7-12 the balance links. Each
     body's mass and its rotational inertia about its centre of mass are multiplied by the
