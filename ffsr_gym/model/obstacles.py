@@ -1,7 +1,7 @@
 """Where a scenario's obstacles are at time t: ``[obstacle]`` and the ``[debris]`` list, drifting on straight lines.
 
 Every obstacle is a sphere (radius 0 is a point) at p + v t. The planner's danger field, the
-collision check and the observation all read positions from here (docs/model.md §10).
+collision check and the observation all read positions from here (docs/model.md §14).
 """
 
 from __future__ import annotations

@@ -112,7 +112,7 @@ MAX_DEBRIS = 7
 
 @dataclass(frozen=True)
 class Debris:
-    """Further obstacles, and straight-line drift of every obstacle (beyond the paper; docs/model.md §10).
+    """Further obstacles, and straight-line drift of every obstacle (beyond the paper; docs/model.md §14).
 
     An obstacle at ``p`` drifting at ``v`` is at ``p + v t`` at time t [s]. ``obstacle_velocity_m_s``
     is the drift of ``[obstacle]``; ``positions_m``, ``radii_m`` and ``velocities_m_s`` list up to
@@ -405,12 +405,8 @@ def _convert_rows(key: str, value: Any, meta: dict) -> tuple:
         raise ScenarioError(f"key {key!r} must be a list of at most {most} {shape}, got {value!r}")
     if size == 0:
         return tuple(_check_number(f"{key}[{i}]", v, meta) for i, v in enumerate(value))
-    rows = []
-    for i, row in enumerate(value):
-        if not isinstance(row, (list, tuple)) or len(row) != size:
-            raise ScenarioError(f"key '{key}[{i}]' must be a list of {size} numbers, got {row!r}")
-        rows.append(tuple(_check_number(f"{key}[{i}][{j}]", v, meta) for j, v in enumerate(row)))
-    return tuple(rows)
+    row_meta = {**meta, "kind": "vector"}
+    return tuple(_convert(f"{key}[{i}]", row, row_meta) for i, row in enumerate(value))
 
 
 def _check_number(key: str, value: Any, meta: dict) -> float:
