@@ -15,12 +15,14 @@ from ffsr_gym.kernel.planner import (
     F_H,
     F_OBSTACLES,
     F_RATE_MAX,
+    I_N_EST,
     I_N_OBS,
     I_PLANT,
     I_SCOPE,
     OBSTACLE_FIELDS,
     obstacle_at,
     plan,
+    true_error_into,
 )
 
 STATUS_OK, STATUS_RATE, STATUS_COLLISION, STATUS_NONFINITE = 0, 1, 2, 3
@@ -95,9 +97,13 @@ def run_into(mdl_owner, plant_owner, ws_owner, x_owner, k0, n_total, n_max, fp_o
     dt, h = fp[F_DT], fp[F_H:F_H + 6]
     rows = 0
     steps = 1 if record_only else min(n_max, n_total - k0)
-    dq, v0, e1, e0, mu, cdf, smin = ws.dq, ws.v0, ws.e1, ws.e0, ws.mu, ws.cdf, ws.smin
+    dq, v0, e0, mu, cdf, smin = ws.dq, ws.v0, ws.e0, ws.mu, ws.cdf, ws.smin
     for i in range(steps):
         plan(mdl, x, (k0 + i) * dt, fp, ip, ws)
+        logged = ws.e1
+        if ip[I_N_EST] > 1:  # the planner followed a target estimate; log the error to the true target
+            true_error_into(ws, (k0 + i) * dt, fp, ip)
+            logged = ws.e1t
         for j in range(12):
             dq[j] += residual[j]
             if not math.isfinite(dq[j]):
@@ -113,8 +119,8 @@ def run_into(mdl_owner, plant_owner, ws_owner, x_owner, k0, n_total, n_max, fp_o
         for j in range(12):
             out_v[i, 6 + j] = dq[j]
             out_dq[i, j] = dq[j]
-        out_err[i, 0] = math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
-        out_err[i, 1] = math.sqrt(e1[3] * e1[3] + e1[4] * e1[4] + e1[5] * e1[5])
+        out_err[i, 0] = math.sqrt(logged[0] * logged[0] + logged[1] * logged[1] + logged[2] * logged[2])
+        out_err[i, 1] = math.sqrt(logged[3] * logged[3] + logged[4] * logged[4] + logged[5] * logged[5])
         out_err[i, 2] = math.sqrt(e0[0] * e0[0] + e0[1] * e0[1] + e0[2] * e0[2])
         out_err[i, 3] = math.sqrt(e0[3] * e0[3] + e0[4] * e0[4] + e0[5] * e0[5])
         out_clear[i] = clear

@@ -25,7 +25,7 @@ Workspace = namedtuple("Workspace", [
     "tmp", "rot", "M6", "b6", "x_half", "v_mid",  # scratch
     "J", "U", "V", "s", "G", "tri", "Jo", "Jo_d", "points", "p_obs", "dq_c",  # planner
     "V0", "x1", "target", "p_d", "sigma_d", "V_ed",
-    "dq", "e1", "e0", "mu", "cdf", "smin", "v0",  # planner outputs
+    "dq", "e1", "e0", "mu", "cdf", "smin", "v0", "e1t",  # planner outputs (e1t: EE error to the true target)
     "cap_A", "cap_B", "cap_mid", "cap_hl", "bound", "first", "second", "rel", "cand",  # collision
 ])
 
@@ -42,7 +42,7 @@ def workspace(n_capsules):
         np.empty((2, 6)), np.empty((3, 3)),
         np.empty((3, 3)), np.empty((7, 3)), np.empty(3), np.empty(6), np.empty(6), np.empty(6),
         np.empty(6), np.empty(3), np.empty(4), np.empty(6), np.empty(12), np.empty(6), np.empty(6), np.empty(2),
-        np.empty(2), np.empty(2), np.empty(6), np.empty((n_capsules, 3)), np.empty((n_capsules, 3)),
+        np.empty(2), np.empty(2), np.empty(6), np.empty(6), np.empty((n_capsules, 3)), np.empty((n_capsules, 3)),
         np.empty((n_capsules, 3)), np.empty(n_capsules), np.empty(n_pairs), np.empty(n_pairs, dtype=np.int64),
         np.empty(n_pairs, dtype=np.int64), np.empty(3), np.empty(23),
     )

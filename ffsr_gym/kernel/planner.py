@@ -17,14 +17,22 @@ from ffsr_gym.kernel.linalg import smallest_singular_value, solve3, solve_into, 
 from ffsr_gym.kernel.physics import R_to_quat_wxyz, kinematics_into, momentum_about_base_into, momentum_into
 
 F_M, F_TC, F_K, F_LAM1, F_LAM2, F_EPS1, F_EPS2, F_XI, F_DELTA, F_K1, F_DANGER = range(11)
-F_TF, F_TA, F_ANGLE, F_DT, F_RATE_MAX = 11, 12, 13, 14, 15
-F_P0, F_P1, F_Q0, F_AXIS, F_R0D, F_SBD, F_H = 16, 19, 22, 26, 29, 32, 36
+F_TF, F_TA, F_EST_DT, F_DT, F_RATE_MAX = 11, 12, 13, 14, 15
+#: Path start (position, attitude), then a target record at ``F_TRUE``: target position (3) [m],
+#: rotation axis from the start attitude (3) and its angle [rad] (``TARGET_FIELDS`` floats).
+F_P0, F_Q0, F_TRUE, TARGET_FIELDS = 16, 19, 23, 7
+F_R0D, F_SBD, F_H = 30, 33, 37
 #: Obstacle records from ``F_OBSTACLES`` on, ``OBSTACLE_FIELDS`` floats each: start position (3) [m],
 #: drift velocity (3) [m/s], radius [m]; ``ip[I_N_OBS]`` of the ``MAX_OBSTACLES`` slots are used.
-F_OBSTACLES, OBSTACLE_FIELDS, MAX_OBSTACLES = 42, 7, 8
+F_OBSTACLES, OBSTACLE_FIELDS, MAX_OBSTACLES = 43, 7, 8
+#: Length of the fixed part of ``fp``. The planner's target estimates follow it: ``ip[I_N_EST]``
+#: records like ``F_TRUE``'s, record k used for t in [k, k + 1) · ``fp[F_EST_DT]``
+#: (``ffsr_gym.planning.target_estimate``; one record, the true target, without noise).
 N_FP = F_OBSTACLES + OBSTACLE_FIELDS * MAX_OBSTACLES
-I_METHOD, I_PHI, I_SPLIT, I_ATT, I_MU, I_BAL_AVOID, I_N_OBS, I_SCOPE, I_PLANT = range(9)
-N_IP = 9
+I_METHOD, I_PHI, I_SPLIT, I_ATT, I_MU, I_BAL_AVOID, I_N_OBS, I_SCOPE, I_PLANT, I_N_EST = range(10)
+N_IP = 10
+#: ``ffsr_gym.planning.target_estimate.INDEX_SLACK``.
+_INDEX_SLACK = 1e-9
 METHOD_CODES = {"no_avoidance": 0, "no_feedback": 1, "proportional": 2, "predefined_time": 3}
 _CAP = 700.0
 
@@ -114,8 +122,17 @@ def pose_error_into(e, Jo, Jo_d, p, sigma, p_d, sigma_d, body):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def desired_into(p_d, sigma_d, V_ed, t, fp):
-    """Desired EE pose and world twist at t [s] (``ffsr_gym.planning.desired_path``: trapezoid + SLERP)."""
+def estimate_record(t, fp, ip):
+    """Index in ``fp`` of the target estimate the planner uses at t [s] (``target_estimate.estimate_index``)."""
+    rows = ip[I_N_EST]
+    k = 0 if rows == 1 else min(int(math.floor(t / fp[F_EST_DT] + _INDEX_SLACK)), rows - 1)
+    return N_FP + TARGET_FIELDS * k
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def desired_into(p_d, sigma_d, V_ed, t, fp, rec):
+    """Desired EE pose and world twist at t [s] towards the target record at ``fp[rec]``
+    (``ffsr_gym.planning.desired_path``: trapezoid + SLERP)."""
     t_f, t_a = fp[F_TF], fp[F_TA]
     speed = 1.0 / (t_f - t_a)
     acc = speed / t_a
@@ -129,14 +146,23 @@ def desired_into(p_d, sigma_d, V_ed, t, fp):
         s, sd = 1.0 - 0.5 * acc * (t_f - t) ** 2, acc * (t_f - t)
     else:
         s, sd = 1.0, 0.0
-    angle, ch, sh = fp[F_ANGLE], math.cos(0.5 * s * fp[F_ANGLE]), math.sin(0.5 * s * fp[F_ANGLE])
+    axis = rec + 3
+    angle = fp[rec + 6]
+    ch, sh = math.cos(0.5 * s * angle), math.sin(0.5 * s * angle)
     for a in range(3):
-        p_d[a] = fp[F_P0 + a] + s * (fp[F_P1 + a] - fp[F_P0 + a])
-        V_ed[a] = sd * (fp[F_P1 + a] - fp[F_P0 + a])
-        V_ed[3 + a] = sd * angle * fp[F_AXIS + a]
+        p_d[a] = fp[F_P0 + a] + s * (fp[rec + a] - fp[F_P0 + a])
+        V_ed[a] = sd * (fp[rec + a] - fp[F_P0 + a])
+        V_ed[3 + a] = sd * angle * fp[axis + a]
     q = fp[F_Q0:F_Q0 + 4]
     sigma_d[0], sigma_d[1], sigma_d[2], sigma_d[3] = _qmul(
-        ch, sh * fp[F_AXIS], sh * fp[F_AXIS + 1], sh * fp[F_AXIS + 2], q[0], q[1], q[2], q[3])
+        ch, sh * fp[axis], sh * fp[axis + 1], sh * fp[axis + 2], q[0], q[1], q[2], q[3])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def true_error_into(ws, t, fp, ip):
+    """EE pose error to the true desired pose into ``ws.e1t`` (after :func:`plan` at the same state)."""
+    desired_into(ws.p_d, ws.sigma_d, ws.V_ed, t, fp, F_TRUE)
+    pose_error_into(ws.e1t, ws.Jo, ws.Jo_d, ws.pe[0], R_to_quat_wxyz(ws.Re[0]), ws.p_d, ws.sigma_d, ip[I_ATT] == 1)
 
 
 @njit(cache=True, error_model="numpy")
@@ -309,7 +335,7 @@ def _base_command_into(x, fp, ip, ws):
 @njit(cache=True, error_model="numpy", inline="always")
 def _mission_task_into(x, t, fp, ip, ws):
     """Mission-arm task rate x₁ = J_e⁻¹(J_ed V_ed − f(e₁)) − J₀ V0 into ``ws.x1`` (EE error in ``ws.e1``)."""
-    desired_into(ws.p_d, ws.sigma_d, ws.V_ed, t, fp)
+    desired_into(ws.p_d, ws.sigma_d, ws.V_ed, t, fp, estimate_record(t, fp, ip))
     pe = ws.pe[0]
     pose_error_into(ws.e1, ws.Jo, ws.Jo_d, pe, R_to_quat_wxyz(ws.Re[0]), ws.p_d, ws.sigma_d, ip[I_ATT] == 1)
     f, V_ed, V0, x1, Jd = ws.target, ws.V_ed, ws.V0, ws.x1, ws.Jo_d

@@ -45,6 +45,11 @@ def _rows(size: int, lo: float, hi: float, max_rows: int) -> dict:
     return {"kind": "rows", "size": size, "lo": lo, "hi": hi, "max_rows": max_rows}
 
 
+def _natural(hi: int) -> dict:
+    """An integer in [0, hi] (a seed)."""
+    return {"kind": "natural", "hi": hi}
+
+
 def _choice(*options: str) -> dict:
     return {"kind": "choice", "options": options}
 
@@ -144,6 +149,25 @@ class Plant:
 
 
 @dataclass(frozen=True)
+class TargetNoise:
+    """What the planner sees of the target pose (beyond the paper; docs/model.md §16).
+
+    The planner's estimate is held over each ``interval_s`` (row k for t in [k, k + 1) · interval):
+    position p_t + b_p + σ_p n_k, attitude exp(b_θ + σ_θ n'_k) ⊗ σ_t (a rotation vector in the
+    world frame), with n_k, n'_k standard normal 3-vectors drawn once per task from
+    ``numpy.random.default_rng(seed)``. The planner's desired path runs from the start pose to the
+    current estimate; the logged end-effector errors and the success test use the true target.
+    """
+
+    position_bias_m: Vec = field(default=(0.0,) * 3, metadata=_vector(3, -0.01, 0.01))
+    attitude_bias_rad: Vec = field(default=(0.0,) * 3, metadata=_vector(3, -0.01, 0.01))
+    position_sigma_m: float = field(default=0.0, metadata=_number(0.0, 0.01))
+    attitude_sigma_rad: float = field(default=0.0, metadata=_number(0.0, 0.01))
+    interval_s: float = field(default=0.1, metadata=_number(0.001, 100.0))
+    seed: int = field(default=0, metadata=_natural(2**63 - 1))
+
+
+@dataclass(frozen=True)
 class PlannerSettings:
     """Planner parameters (SPEC §3-6). Symbols follow the paper; see docs/model.md."""
 
@@ -231,6 +255,7 @@ class Scenario:
     obstacle: Obstacle | None = None
     debris: Debris | None = None
     plant: Plant | None = None
+    target_noise: TargetNoise | None = None
     objective: ObjectiveSettings = ObjectiveSettings()
     env: EnvSettings = EnvSettings()
     randomization: Randomization | None = None
@@ -277,6 +302,7 @@ _SECTIONS = {
     "obstacle": Obstacle,
     "debris": Debris,
     "plant": Plant,
+    "target_noise": TargetNoise,
     "objective": ObjectiveSettings,
     "env": EnvSettings,
     "randomization": Randomization,
@@ -287,7 +313,7 @@ def to_dict(scenario: Scenario) -> dict[str, Any]:
     """Return the scenario as plain data (the TOML layout), without its source path."""
     data = dataclasses.asdict(scenario)
     data.pop("source")
-    for optional in ("obstacle", "debris", "plant", "randomization"):
+    for optional in ("obstacle", "debris", "plant", "target_noise", "randomization"):
         if data[optional] is None:
             data.pop(optional)
     return data
@@ -392,6 +418,10 @@ def _convert(key: str, value: Any, meta: Any) -> Any:
         return int(value)
     if kind == "rows":
         return _convert_rows(key, value, meta)
+    if kind == "natural":
+        if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= meta["hi"]:
+            raise ScenarioError(f"key {key!r} is {value!r}; allowed: an integer in [0, {meta['hi']}]")
+        return int(value)
     size = meta["size"]
     if not isinstance(value, (list, tuple)) or len(value) != size:
         raise ScenarioError(f"key {key!r} must be a list of {size} numbers, got {value!r}")

@@ -29,6 +29,7 @@ from ffsr_gym.planning.avoidance import blend_factor, danger_field, danger_field
 from ffsr_gym.planning.desired_path import DesiredPath
 from ffsr_gym.planning.inverse import filtered_inverse
 from ffsr_gym.planning.pose_error import pose_error
+from ffsr_gym.planning.target_estimate import estimate_index
 from ffsr_gym.types import Array
 
 METHODS = ("no_avoidance", "no_feedback", "proportional", "predefined_time")
@@ -46,6 +47,8 @@ class PlanStep:
         cdf: (2,) danger field of each arm at the obstacle (0 without obstacle).
         arm_distance_m: (2,) distance from the obstacle point to each arm's segments [m].
         sigma_min: (2,) smallest singular values of J_m¹ and J_c².
+        true_ee_error: (6,) e₁ to the true desired pose (``ee_error`` itself unless the planner
+            sees a noisy target estimate).
     """
 
     dq_joints: Array
@@ -55,6 +58,7 @@ class PlanStep:
     cdf: Array
     arm_distance_m: Array
     sigma_min: Array
+    true_ee_error: Array
 
 
 def reference_targets(robot: Robot, scenario: Scenario, initial_q: Array) -> tuple[DesiredPath, tuple[Array, Array]]:
@@ -103,16 +107,20 @@ class Planner:
         T_c: predefined time [s], overrides the scenario's.
         path: the desired end-effector path (:func:`reference_targets`).
         base_target: the base set-point ``(r0d [m], sigma_bd wxyz)`` (:func:`reference_targets`).
+        estimates: the paths the planner follows, one per target estimate, each held for
+            ``estimate_interval_s`` (:mod:`ffsr_gym.planning.target_estimate`; default: ``(path,)``).
     """
 
     def __init__(self, robot: Robot, scenario: Scenario, *, method: str = "predefined_time",
                  m: float | None = None, T_c: float | None = None, path: DesiredPath,
-                 base_target: tuple[Array, Array]) -> None:
+                 base_target: tuple[Array, Array], estimates: tuple[DesiredPath, ...] | None = None,
+                 estimate_interval_s: float = 0.0) -> None:
         self.m, self.T_c = planner_parameters(scenario, method, m, T_c)
         self.robot, self.scenario, self.method = robot, scenario, method
         self.settings = scenario.planner
         self.centroidal_momentum = np.array(scenario.initial.momentum)
         self.path, self.base_target = path, base_target
+        self.estimates, self.estimate_interval_s = estimates or (path,), estimate_interval_s
         self.obstacles = obstacle_field(scenario)
 
     def set_parameters(self, m: float, T_c: float) -> None:
@@ -164,8 +172,11 @@ class Planner:
         V0_cmd = -np.linalg.solve(J_b, self.feedback(e0))
 
         ee = robot.data.oMf[int(robot.ee_frame_ids[0])]
-        p_d, sigma_d, V_ed = self.path.at(t)
-        e1, J_e, J_ed = pose_error(ee.translation, from_rotation(ee.rotation), p_d, sigma_d, s.attitude_error)
+        pose = ee.translation, from_rotation(ee.rotation)
+        seen = self.estimates[estimate_index(t, self.estimate_interval_s, len(self.estimates))]
+        p_d, sigma_d, V_ed = seen.at(t)
+        e1, J_e, J_ed = pose_error(*pose, p_d, sigma_d, s.attitude_error)
+        true_e1 = e1 if len(self.estimates) == 1 else pose_error(*pose, *self.path.at(t)[:2], s.attitude_error)[0]
         J_0 = np.eye(6)
         J_0[:3, 3:] = -skew(ee.translation - r0)
         x1 = np.linalg.solve(J_e, J_ed @ V_ed - self.feedback(e1)) - J_0 @ V0_cmd
@@ -180,4 +191,4 @@ class Planner:
         J_sharp, P, smin2 = filtered_inverse(-mats.H_bm[1], lambda_max=s.lambda_max_balance, epsilon=s.epsilon_balance)
         dq2 = mu2 * J_sharp @ x2 + (dq_c2 - mu2 * P @ dq_c2)
         return PlanStep(np.concatenate((dq1, dq2)), e1, e0, np.array([mu1, mu2]), np.array([cdf1, cdf2]),
-                        np.array([d1, d2]), np.array([smin1, smin2]))
+                        np.array([d1, d2]), np.array([smin1, smin2]), true_e1)

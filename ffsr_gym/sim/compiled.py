@@ -28,16 +28,20 @@ if kernel_cache.refresh():
 def settings_vectors(setup: ScenarioSetup, *, method: str, m: float, T_c: float) -> tuple[Array, Array]:
     """The kernel's float and integer settings of a scenario, a method and (m, T_c [s])."""
     scenario = setup.scenario
-    s, fp, ip = scenario.planner, np.zeros(kp.N_FP), np.zeros(kp.N_IP, dtype=np.int64)
+    estimates = setup.estimates
+    s, ip = scenario.planner, np.zeros(kp.N_IP, dtype=np.int64)
+    fp = np.zeros(kp.N_FP + kp.TARGET_FIELDS * len(estimates))
     obstacle, field = scenario.obstacle, setup.obstacles
     fp[[kp.F_M, kp.F_TC, kp.F_K]] = m, T_c, s.proportional_gain_per_s
     fp[[kp.F_LAM1, kp.F_LAM2, kp.F_EPS1, kp.F_EPS2]] = s.lambda_max_mission, s.lambda_max_balance, s.epsilon_mission, s.epsilon_balance
     fp[[kp.F_XI, kp.F_DELTA, kp.F_K1]] = s.cdf_xi, s.cdf_delta, s.cdf_k1
     path = setup.path
-    fp[[kp.F_TF, kp.F_TA, kp.F_ANGLE, kp.F_DT, kp.F_RATE_MAX]] = (
-        path.motion_time, path.accel_time, path.angle, scenario.simulation.dt_s, scenario.objective.max_rate_deg_s)
-    fp[kp.F_P0:kp.F_P0 + 3], fp[kp.F_P1:kp.F_P1 + 3] = path.start_position, path.target_position
-    fp[kp.F_Q0:kp.F_Q0 + 4], fp[kp.F_AXIS:kp.F_AXIS + 3] = path.start_attitude, path.axis
+    fp[[kp.F_TF, kp.F_TA, kp.F_EST_DT, kp.F_DT, kp.F_RATE_MAX]] = (
+        path.motion_time, path.accel_time, setup.estimate_interval_s, scenario.simulation.dt_s,
+        scenario.objective.max_rate_deg_s)
+    fp[kp.F_P0:kp.F_P0 + 3], fp[kp.F_Q0:kp.F_Q0 + 4] = path.start_position, path.start_attitude
+    for start, target in ((kp.F_TRUE, path), *((kp.N_FP + kp.TARGET_FIELDS * k, e) for k, e in enumerate(estimates))):
+        fp[start:start + 3], fp[start + 3:start + 6], fp[start + 6] = target.target_position, target.axis, target.angle
     fp[kp.F_R0D:kp.F_R0D + 3], fp[kp.F_SBD:kp.F_SBD + 4] = setup.base_target
     fp[kp.F_H:kp.F_H + 6] = scenario.initial.momentum
     if obstacle is not None:
@@ -46,7 +50,7 @@ def settings_vectors(setup: ScenarioSetup, *, method: str, m: float, T_c: float)
     records[:, :3], records[:, 3:6], records[:, 6] = field.positions_m, field.velocities_m_s, field.radii_m
     ip[:] = (kp.METHOD_CODES[method], s.phi_form == "printed", s.phi_split, s.attitude_error == "body",
              s.mu_law == "distance", s.balance_avoids, len(field),
-             scenario.objective.rate_limit_scope == "balance_arm", scenario.plant is not None)
+             scenario.objective.rate_limit_scope == "balance_arm", scenario.plant is not None, len(estimates))
     return fp, ip
 
 

@@ -46,7 +46,8 @@ class ReferenceRollout:
         self.robot, self.collision, self.obstacles = setup.robot, setup.assets.collision, setup.obstacles
         self.plant = setup.plant  # the physics' robot (the planner keeps self.robot)
         self.planner = Planner(self.robot, scenario, method=method, m=m, T_c=T_c, path=setup.path,
-                               base_target=setup.base_target)
+                               base_target=setup.base_target, estimates=setup.estimates,
+                               estimate_interval_s=setup.estimate_interval_s)
         if q0 is not None:
             check_state(q0)
         self.q = setup.q0.copy() if q0 is None else np.array(q0, dtype=float)
@@ -88,7 +89,7 @@ class ReferenceRollout:
         obstacles = self.obstacles.spheres(self.t)
         obstacle = self.collision.obstacle_proximity(self.q, obstacles, place=False) if obstacles else None
         self_clear = self.collision.self_proximity(self.q, place=False).distance_m
-        e1, e0 = plan.ee_error, plan.base_error
+        e1, e0 = plan.true_ee_error, plan.base_error  # logged and scored against the true target
         row = (self.q, v, dq, np.linalg.norm(e1[:3]), np.linalg.norm(e1[3:]), np.linalg.norm(e0[:3]),
                np.linalg.norm(e0[3:]), np.inf if obstacle is None else obstacle.distance_m, self_clear,
                plan.mu, plan.cdf, plan.sigma_min)

@@ -20,6 +20,7 @@ from ffsr_gym.model.robot import Robot, load_robot
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning.desired_path import DesiredPath
 from ffsr_gym.planning.planner import reference_targets
+from ffsr_gym.planning.target_estimate import estimated_paths
 from ffsr_gym.types import Array
 
 
@@ -74,7 +75,10 @@ class ScenarioSetup:
         obstacles: the obstacles (``[obstacle]`` and ``[debris]``), positions at any time.
         plant: the robot the physics integrates (``[plant]``; the nominal robot without it).
         plant_arrays: the plant's (mass, lever, inertia) kernel arrays (the nominal ones without it).
-        path: the desired end-effector path.
+        path: the desired end-effector path (to the true target).
+        estimates: the planner's desired paths, one per target estimate (``(path,)`` without
+            ``[target_noise]``; :mod:`ffsr_gym.planning.target_estimate`).
+        estimate_interval_s: how long each estimate holds [s] (0 without ``[target_noise]``).
         base_target: the base set-point ``(r0d [m], sigma_bd (4,) wxyz)``.
     """
 
@@ -85,6 +89,8 @@ class ScenarioSetup:
     plant: Robot
     plant_arrays: tuple
     path: DesiredPath
+    estimates: tuple[DesiredPath, ...]
+    estimate_interval_s: float
     base_target: tuple[Array, Array]
 
     @property
@@ -108,4 +114,6 @@ def prepare(scenario: Scenario) -> ScenarioSetup:
         kernel = extract(plant, assets.collision)
     return ScenarioSetup(scenario=scenario, assets=assets, q0=q0, obstacles=obstacle_field(scenario), plant=plant,
                          plant_arrays=(kernel.mass, kernel.lever, kernel.inertia),
-                         path=path, base_target=base_target)
+                         path=path, estimates=estimated_paths(scenario, path),
+                         estimate_interval_s=0.0 if scenario.target_noise is None else scenario.target_noise.interval_s,
+                         base_target=base_target)
