@@ -1,4 +1,4 @@
-"""Benchmark-v1 entries of the classical planners on every tier's test pool.
+"""Benchmark-v1 entries of the classical planners on every tier's test pool (the perturbed tiers included).
 
     python baselines/v1_classical.py --leaderboard leaderboards [--tune-tasks 50]
 
@@ -23,9 +23,8 @@ from tqdm.auto import tqdm
 
 from ffsr_gym.bench.evaluation_v1 import evaluate_planner, planner_episode
 from ffsr_gym.model.benchmark import load_benchmark
-from ffsr_gym.tasks.generator import draw_task
-from ffsr_gym.tasks.splits import pool
-from ffsr_gym.tasks.tiers import TIERS
+from ffsr_gym.tasks.splits import pool, task_scenario
+from ffsr_gym.tasks.tiers import ALL_TIERS
 
 GAINS_PER_S = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
 
@@ -33,7 +32,7 @@ GAINS_PER_S = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
 def tune(tier: str, candidates: list[dict], tasks: int) -> tuple[dict, dict]:
     """The candidate with the best mean v1 score on the first ``tasks`` training tasks, and its cost."""
     benchmark, start = load_benchmark("v1"), time.perf_counter()
-    scenarios = [draw_task(t.seed, benchmark) for t in pool(tier, "train")[:tasks]]
+    scenarios = [task_scenario(tier, t.seed, benchmark) for t in pool(tier, "train")[:tasks]]
     means = [np.mean([planner_episode(s, benchmark, **c).score for s in scenarios])
              for c in tqdm(candidates, desc=f"tune {tier}", leave=False)]
     best = candidates[int(np.argmax(means))]
@@ -52,7 +51,7 @@ def main() -> None:
     jobs = {"reference_v1_default": [{"method": "predefined_time", "m": 0.3, "T_c": 4.0}],
             "reference_paper_default": [{"method": "predefined_time", "m": 0.1, "T_c": 3.0}],
             "reference_best_constant": grid, "proportional_tuned": gains}
-    for tier in TIERS:
+    for tier in ALL_TIERS:
         folder = Path(args.leaderboard) / "v1" / tier
         for name, candidates in jobs.items():
             if (folder / f"{name}.json").exists():

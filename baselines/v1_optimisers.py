@@ -21,7 +21,7 @@ import numpy as np
 from ffsr_gym.bench.evaluation_v1 import evaluate_planner, training_loss
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.optim import ga
-from ffsr_gym.tasks.tiers import TIERS
+from ffsr_gym.tasks.tiers import ALL_TIERS
 
 
 def run_ga(tier, tasks, work, pool, generations, population):
@@ -59,7 +59,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default: 2)")
     args = parser.parse_args()
     with ProcessPoolExecutor(args.workers) as pool:
-        for tier in TIERS:
+        for tier in ALL_TIERS:
             folder = Path(args.leaderboard) / "v1" / tier
             searches = {"ga_v1": partial(run_ga, tier, args.tasks, args.work, pool, args.generations, args.population),
                         "cmaes_v1": partial(run_cmaes, tier, args.tasks, pool, args.evaluations)}

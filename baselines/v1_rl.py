@@ -22,7 +22,7 @@ from tqdm.auto import tqdm
 
 from ffsr_gym.optim.rl import load_hyperparams
 from ffsr_gym.optim.rl_v1 import train_and_evaluate_v1
-from ffsr_gym.tasks.tiers import TIERS
+from ffsr_gym.tasks.tiers import ALL_TIERS
 
 ALGOS = ("sac", "ppo")
 ENV_IDS = ("FFSR-Residual-v1", "FFSR-v1")
@@ -47,8 +47,10 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2, help="pieces trained at once (default: 2)")
     parser.add_argument("--scale", type=float, default=1.0, help="multiplies every training budget (default: 1)")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4], help="training seeds (default: 0-4)")
+    parser.add_argument("--algos", nargs="+", default=list(ALGOS), choices=ALGOS, help="algorithms (default: sac ppo)")
+    parser.add_argument("--tiers", nargs="+", default=list(ALL_TIERS), choices=ALL_TIERS, help="tiers (default: all)")
     args = parser.parse_args()
-    pieces = [(algo, env_id, tier) for algo in ALGOS for env_id in ENV_IDS for tier in TIERS
+    pieces = [(algo, env_id, tier) for algo in args.algos for env_id in ENV_IDS for tier in args.tiers
               if not (Path(args.leaderboard) / "v1" / tier / f"{entry_name(algo, env_id, tier)}.json").exists()]
     start = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as pool:

@@ -275,7 +275,7 @@ def _tasks(args: argparse.Namespace) -> None:
     workers = max(1, args.workers)
     executor = ProcessPoolExecutor(workers) if workers > 1 else None
     try:
-        data = build(args.work, out=args.out, chunk=args.chunk, max_candidates=args.max_candidates, executor=executor,
+        data = build(args.work, target=args.tier, out=args.out, chunk=args.chunk, max_candidates=args.max_candidates, executor=executor,
                      workers=workers, progress=not args.no_progress)
     finally:
         if executor is not None:
@@ -337,8 +337,13 @@ def main(argv: list[str] | None = None) -> int:
     tasks_sub = tasks.add_subparsers(dest="action", required=True)
     tb = tasks_sub.add_parser("build", help="apply the tier rule to candidate seeds and write the pool file "
                                             "(resumable: finished chunks in --work are kept)")
-    tb.add_argument("--work", default="runs/tasks-v1", help="folder of the finished chunks (default: runs/tasks-v1)")
-    tb.add_argument("--out", default=None, help="pool file to write (default: the shipped envs/benchmark/v1_tasks.json)")
+    tb.add_argument("--tier", default="v1", choices=("v1", "debris", "robust"),
+                    help="v1: the easy, medium and hard pools; debris or robust: that perturbed tier, on top of the v1 "
+                         "pool file's tier tasks (default: v1)")
+    tb.add_argument("--work", default="runs/tasks-v1", help="folder of the finished chunks (default: runs/tasks-v1; "
+                                                            "a perturbed tier uses <work>/<tier>)")
+    tb.add_argument("--out", default=None, help="pool file to write (default: the shipped envs/benchmark/v1_tasks.json, "
+                                                "or v1_<tier>_tasks.json)")
     tb.add_argument("--chunk", type=int, default=100, help="candidates per chunk (default: 100)")
     tb.add_argument("--workers", type=int, default=2, help="worker processes (default: 2)")
     tb.add_argument("--max-candidates", type=int, default=50_000, help="give up after this many per split (default: 50000)")

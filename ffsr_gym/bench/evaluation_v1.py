@@ -26,9 +26,8 @@ from ffsr_gym.provenance import provenance
 from ffsr_gym.scoring.aggregate import iqm
 from ffsr_gym.scoring.score import score_episode
 from ffsr_gym.tasks.certificate import planner_episode, planner_task
-from ffsr_gym.tasks.generator import draw_task
-from ffsr_gym.tasks.splits import SPLITS, pool, pool_path
-from ffsr_gym.tasks.tiers import TIERS
+from ffsr_gym.tasks.splits import SPLITS, pool, pool_path, task_scenario
+from ffsr_gym.tasks.tiers import ALL_TIERS
 
 V1_IDS = ("FFSR-v1", "FFSR-Residual-v1")
 SCORE_RULE = "v1 episode score: 1 / (1 + C) on success, 0 on failure (ffsr_gym.scoring.score)"
@@ -115,8 +114,9 @@ def evaluate_v1(policy: Any, env_id: str, *, task: str = "easy", split: str = "t
     """
     if env_id not in V1_IDS:
         raise InvalidInputError(f"env_id {env_id!r}; allowed: {list(V1_IDS)}")
-    if task not in ("paper", *TIERS) or split not in SPLITS:
-        raise InvalidInputError(f"task {task!r}, split {split!r}; allowed: task in {['paper', *TIERS]}, split in {list(SPLITS)}")
+    if task not in ("paper", *ALL_TIERS) or split not in SPLITS:
+        raise InvalidInputError(f"task {task!r}, split {split!r}; allowed: task in {['paper', *ALL_TIERS]}, "
+                                f"split in {list(SPLITS)}")
     if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
         raise InvalidInputError(f"chunk = {chunk!r}; allowed: an integer >= 1")
     kwargs = {**(env_kwargs or {}), "task": task, "split": split}
@@ -147,7 +147,7 @@ def evaluate_v1(policy: Any, env_id: str, *, task: str = "easy", split: str = "t
                 hashes[scenario] = sha
             bar.update(len(episodes))
     metrics = aggregate_v1([row["score"] for row in rows], [row["success"] for row in rows])
-    pools = pool_path().read_bytes()
+    pools = pool_path("easy" if task == "paper" else task).read_bytes()
     extra = {"training_pool": training_pool, "evaluation_pool": f"{task}/{split}",
              "pool_file_sha256": hashlib.sha256(pools).hexdigest()}
     prov = provenance(scenarios=hashes, seeds=[int(i) for i in chosen], wall_time_s=time.perf_counter() - start)
@@ -163,17 +163,17 @@ def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | 
     trajectory with :func:`ffsr_gym.scoring.score.score_episode`, exactly as :func:`evaluate_v1`
     scores env episodes.
     """
-    if task not in TIERS or split not in SPLITS:
-        raise InvalidInputError(f"task {task!r}, split {split!r}; allowed: task in {list(TIERS)}, split in {list(SPLITS)}")
+    if task not in ALL_TIERS or split not in SPLITS:
+        raise InvalidInputError(f"task {task!r}, split {split!r}; allowed: task in {list(ALL_TIERS)}, split in {list(SPLITS)}")
     benchmark, start, rows, hashes = load_benchmark("v1"), time.perf_counter(), [], {}
     for index, entry in enumerate(tqdm(pool(task, split), disable=not progress, desc=f"{name} {task}/{split}")):
-        played = draw_task(entry.seed, benchmark)
+        played = task_scenario(task, entry.seed, benchmark)
         result = planner_episode(played, benchmark, method=method, m=m, T_c=T_c, gain_per_s=gain_per_s)
         hashes[played.name] = planner_task(played, method, gain_per_s).sha256()
         rows.append({"seed": index, "task_index": index, "task_seed": entry.seed, **result.as_dict()})
     metrics = aggregate_v1([row["score"] for row in rows], [row["success"] for row in rows])
     extra = {"training_pool": training_pool, "evaluation_pool": f"{task}/{split}",
-             "pool_file_sha256": hashlib.sha256(pool_path().read_bytes()).hexdigest(),
+             "pool_file_sha256": hashlib.sha256(pool_path(task).read_bytes()).hexdigest(),
              "planner": {"method": method, "m": m, "T_c_s": T_c, "gain_per_s": gain_per_s}, "compute": compute or {}}
     prov = provenance(scenarios=hashes, seeds=list(range(len(rows))), wall_time_s=time.perf_counter() - start)
     return EvalReport("planner", {"task": task, "split": split}, metrics, rows, prov, name=name, extra=extra,
@@ -188,6 +188,6 @@ def training_loss(m: float, T_c: float, *, tier: str, tasks: int = 20) -> float:
     for process pools and Dask.
     """
     benchmark = load_benchmark("v1")
-    episodes = [planner_episode(draw_task(t.seed, benchmark), benchmark, method="predefined_time", m=m, T_c=T_c)
+    episodes = [planner_episode(task_scenario(tier, t.seed, benchmark), benchmark, method="predefined_time", m=m, T_c=T_c)
                 for t in pool(tier, "train")[:tasks]]
     return 1.0 - float(np.mean([e.score for e in episodes]))

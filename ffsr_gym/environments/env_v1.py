@@ -11,12 +11,11 @@ from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.benchmark import Benchmark, load_benchmark
 from ffsr_gym.model.scenario import Scenario, load_scenario
 from ffsr_gym.scoring.score import EpisodeScore, score_episode, score_reward, smoothness_cost, smoothness_terms
-from ffsr_gym.tasks.generator import draw_task
-from ffsr_gym.tasks.splits import SPLITS, PoolTask, pool
-from ffsr_gym.tasks.tiers import TIERS
+from ffsr_gym.tasks.splits import SPLITS, PoolTask, pool, task_scenario
+from ffsr_gym.tasks.tiers import ALL_TIERS
 
 #: Tasks of benchmark v1 (``task=``); a :class:`Scenario` is accepted as a custom, unranked task.
-TASKS = ("paper", *TIERS)
+TASKS = ("paper", *ALL_TIERS)
 #: The ``info`` keys at the end of a v1 episode (:class:`EpisodeScore` fields) and their dtypes in a batch.
 END_INFO_V1 = {"score": float, "success": bool, "failure": object, "smoothness_cost": float, "paper_B": float}
 
@@ -66,7 +65,7 @@ class FFSRV1Env(FFSREnv):
 
     ## Starting State
     ``task="paper"``: the paper's scenario (``split`` is accepted; both splits hold that one task).
-    ``task`` in ``easy``, ``medium``, ``hard``: each reset draws one task of the tier's ``split``
+    ``task`` in ``easy``, ``medium``, ``hard``, ``debris``, ``robust``: each reset draws one task of the tier's ``split``
     pool uniformly from ``self.np_random`` (``reset(options={"task_index": i})`` picks one); the
     test pool is used only with ``split="test"``. Tiers, pools and certificates:
     ``ffsr_gym.tasks`` and docs/envs.md. ``reset``'s info has ``task_index`` and ``task_seed``.
@@ -83,7 +82,8 @@ class FFSRV1Env(FFSREnv):
 
     ## Version History
     * v1: bounded score that ranks, rewards that sum to it, 1 mm tolerance, v1 action box, fading
-      residual, task tiers easy / medium / hard with certified train and test pools.
+      residual, task tiers easy / medium / hard with certified train and test pools; perturbed tiers
+      debris (several drifting obstacles) and robust (model mismatch, initial momentum, noisy target).
     * v0: initial release (``FFSR-v0``, frozen).
     """
 
@@ -98,9 +98,9 @@ class FFSRV1Env(FFSREnv):
         self.task_name = task if isinstance(task, str) else task.name
         self.split = split
         self.terminate_on_violation, self.dense_shaping = terminate_on_violation, dense_shaping
-        if isinstance(task, str) and task in TIERS:
+        if isinstance(task, str) and task in ALL_TIERS:
             self.pool: tuple[PoolTask, ...] | None = pool(task, split)
-            first = draw_task(self.pool[0].seed, self.benchmark)
+            first = task_scenario(task, self.pool[0].seed, self.benchmark)
         else:
             self.pool, first = None, v1_task(task, self.benchmark)
         super().__init__(first, render_mode=render_mode, backend=backend)
@@ -117,7 +117,7 @@ class FFSRV1Env(FFSREnv):
         elif isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not 0 <= index < len(self.pool):
             raise InvalidInputError(f"options['task_index'] = {index!r}; allowed: an integer in [0, {len(self.pool) - 1}]")
         seed = self.pool[int(index)].seed
-        return draw_task(seed, self.benchmark), {"task_index": int(index), "task_seed": seed}
+        return task_scenario(self.task_name, seed, self.benchmark), {"task_index": int(index), "task_seed": seed}
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         obs, info = super().reset(seed=seed, options=options)

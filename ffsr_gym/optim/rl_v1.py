@@ -24,7 +24,7 @@ from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.optim.rl import ALGOS, _Progress, _sb3, load_hyperparams
 from ffsr_gym.provenance import provenance, write_json_atomic
 from ffsr_gym.tasks.splits import pool
-from ffsr_gym.tasks.tiers import TIERS
+from ffsr_gym.tasks.tiers import ALL_TIERS
 
 
 def curve_indices(tier: str, count: int) -> list[int]:
@@ -65,8 +65,8 @@ def train_v1(algo: str, env_id: str, *, tier: str, seed: int, out: str | Path, t
     sb3, torch = _sb3()
     from stable_baselines3.common.env_util import make_vec_env
 
-    if env_id not in V1_IDS or tier not in TIERS:
-        raise InvalidInputError(f"env_id {env_id!r}, tier {tier!r}; allowed: {list(V1_IDS)}, {list(TIERS)}")
+    if env_id not in V1_IDS or tier not in ALL_TIERS:
+        raise InvalidInputError(f"env_id {env_id!r}, tier {tier!r}; allowed: {list(V1_IDS)}, {list(ALL_TIERS)}")
     cls, out = getattr(sb3, ALGOS[algo]), Path(out)
     if (out / "model.zip").is_file() and (out / "train_record.json").is_file():
         return cls.load(out / "model.zip", device="cpu"), json.loads((out / "train_record.json").read_text())

@@ -14,8 +14,9 @@ import numpy as np
 
 from ffsr_gym.report.plotting import _pyplot, _save
 from ffsr_gym.scoring.aggregate import iqm
+from ffsr_gym.tasks.tiers import ALL_TIERS
 
-TIER_ORDER = ("easy", "medium", "hard")
+TIER_ORDER = ALL_TIERS
 #: The points of the Pareto plot, under ``<root>/v1/`` (written by ``ffsr-gym leaderboard pareto``).
 PARETO_FILE = "paper_pareto.json"
 

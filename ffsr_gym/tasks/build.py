@@ -5,6 +5,10 @@ of consecutive seeds. Every finished chunk is written atomically to the work fol
 build resumes where it stopped and never reruns a finished chunk. When the first ``train_tasks``
 (``test_tasks``) candidates of every tier are known, the pools, the label of every candidate
 examined and the counts are written to ``envs/benchmark/v1_tasks.json`` (atomically).
+
+``--tier debris`` (``robust``) builds a perturbed tier the same way, into ``<work>/<tier>`` and
+``envs/benchmark/v1_<tier>_tasks.json``; its candidates are the seeds that the v1 pool file
+labels easy, medium or hard (:mod:`ffsr_gym.tasks.perturbation`).
 """
 
 from __future__ import annotations
@@ -24,19 +28,57 @@ from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.model.benchmark import Benchmark, load_benchmark
 from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.provenance import provenance, write_json_atomic
-from ffsr_gym.tasks.splits import LABEL_CODES, SEED_RANGES, SPLITS, pool_path
-from ffsr_gym.tasks.tiers import REJECTIONS, TIERS, Verdict, classify
+from ffsr_gym.tasks.perturbation import PERTURBED_TIERS, load_perturbed_rule, perturbed_rule_sha256
+from ffsr_gym.tasks.splits import LABEL_CODES, SEED_RANGES, SPLITS, load_pools, pool_path
+from ffsr_gym.tasks.tiers import PERTURBED_REJECTIONS, REJECTIONS, TIERS, Verdict, classify, classify_perturbed
+
+#: What ``--tier`` builds: the v1 tiers together, or one perturbed tier.
+TARGETS = ("v1", *PERTURBED_TIERS)
+_ADMITTED = {LABEL_CODES[tier] for tier in TIERS}
 
 
-def rule_sha256() -> str:
-    """Hash of the benchmark definition file (the tier rule's numbers)."""
-    return hashlib.sha256((envs_dir() / "benchmark" / "v1.toml").read_bytes()).hexdigest()
+def _check_target(target: str) -> None:
+    if target not in TARGETS:
+        raise FFSRError(f"tier {target!r}; allowed: {list(TARGETS)}")
 
 
-def classify_chunk(split: str, start: int, stop: int) -> list[dict[str, Any]]:
+def rule_sha256(target: str = "v1") -> str:
+    """Hash of the rule a pool file was built under (``v1.toml``; a perturbed tier: also ``v1_perturbed.toml``
+    and the v1 pool file its candidates come from)."""
+    _check_target(target)
+    digest = hashlib.sha256((envs_dir() / "benchmark" / "v1.toml").read_bytes())
+    if target != "v1":
+        digest.update(perturbed_rule_sha256().encode())
+        digest.update(pool_path().read_bytes())
+    return digest.hexdigest()
+
+
+def base_admitted(split: str, start: int, stop: int) -> list[bool]:
+    """Whether the v1 pool file labels each seed of [start, stop) easy, medium or hard.
+
+    Raises:
+        FFSRError: a seed beyond the candidates the v1 pool file labels.
+    """
+    summary = load_pools()["splits"][split]
+    first, labels = int(summary["first_seed"]), summary["labels"]
+    if stop - first > len(labels):
+        raise FFSRError(f"split {split}: the v1 pool file labels seeds up to {first + len(labels) - 1}; the perturbed "
+                        f"tiers need seeds up to {stop - 1} (their candidates are v1 tier tasks)")
+    return [labels[seed - first] in _ADMITTED for seed in range(start, stop)]
+
+
+def classify_chunk(split: str, start: int, stop: int, target: str = "v1") -> list[dict[str, Any]]:
     """Verdicts (as dicts) of the candidate seeds [start, stop) (a worker's unit of work)."""
     benchmark = load_benchmark("v1")
-    return [classify(seed, benchmark).as_dict() for seed in range(start, stop)]
+    if target == "v1":
+        return [classify(seed, benchmark).as_dict() for seed in range(start, stop)]
+    rule = load_perturbed_rule()
+    return [classify_perturbed(target, seed, benchmark, base_admitted=admitted, rule=rule).as_dict()
+            for seed, admitted in zip(range(start, stop), base_admitted(split, start, stop))]
+
+
+def _work_dir(work: Path, target: str) -> Path:
+    return work if target == "v1" else work / target
 
 
 def _chunk_path(work: Path, split: str, start: int) -> Path:
@@ -53,17 +95,21 @@ def _load_chunk(path: Path, sha: str) -> list[Verdict] | None:
     return [Verdict.from_dict(v) for v in data["verdicts"]]
 
 
-def _needed(benchmark: Benchmark, split: str) -> int:
-    rule = benchmark.tasks
+def _needed(benchmark: Benchmark, split: str, target: str = "v1") -> int:
+    rule = benchmark.tasks if target == "v1" else load_perturbed_rule()
     return int(rule.train_tasks if split == "train" else rule.test_tasks)
 
 
-def _complete(verdicts: list[Verdict], needed: int) -> bool:
+def _tiers(target: str) -> tuple[str, ...]:
+    return TIERS if target == "v1" else (target,)
+
+
+def _complete(verdicts: list[Verdict], needed: int, tiers: tuple[str, ...]) -> bool:
     counts = Counter(v.tier for v in verdicts)
-    return all(counts[tier] >= needed for tier in TIERS)
+    return all(counts[tier] >= needed for tier in tiers)
 
 
-def build_split(work: Path, split: str, *, chunk: int = 100, max_candidates: int = 50_000,
+def build_split(work: Path, split: str, *, target: str = "v1", chunk: int = 100, max_candidates: int = 50_000,
                 executor: Executor | None = None, workers: int = 1, progress: bool = True) -> list[Verdict]:
     """Classify the candidates of ``split`` chunk by chunk until every tier's pool is full.
 
@@ -73,12 +119,13 @@ def build_split(work: Path, split: str, *, chunk: int = 100, max_candidates: int
         FFSRError: a tier is still short after ``max_candidates`` candidates, or a chunk of the
             work folder was built under another rule.
     """
-    benchmark, sha = load_benchmark("v1"), rule_sha256()
-    needed, first = _needed(benchmark, split), SEED_RANGES[split][0]
+    _check_target(target)
+    benchmark, sha, tiers = load_benchmark("v1"), rule_sha256(target), _tiers(target)
+    needed, first, work = _needed(benchmark, split, target), SEED_RANGES[split][0], _work_dir(Path(work), target)
     verdicts: list[Verdict] = []
-    with tqdm(desc=f"tasks {split}", unit="task", disable=not progress) as bar:
+    with tqdm(desc=f"tasks {target} {split}", unit="task", disable=not progress) as bar:
         start = first
-        while not _complete(verdicts, needed):
+        while not _complete(verdicts, needed, tiers):
             if start - first >= max_candidates:
                 counts = Counter(v.tier for v in verdicts)
                 raise FFSRError(f"split {split}: after {max_candidates} candidates the pools hold {dict(counts)}, "
@@ -87,21 +134,23 @@ def build_split(work: Path, split: str, *, chunk: int = 100, max_candidates: int
             missing = [s for s in starts if not _chunk_path(work, split, s).exists()]
             run: Callable = executor.map if executor is not None else map
             for s, result in zip(missing, run(classify_chunk, [split] * len(missing), missing,
-                                              [s + chunk for s in missing])):
+                                              [s + chunk for s in missing], [target] * len(missing))):
                 write_json_atomic(_chunk_path(work, split, s), {"split": split, "start": s, "stop": s + chunk,
                                                                 "rule_sha256": sha, "verdicts": result})
             for s in starts:
                 verdicts += _load_chunk(_chunk_path(work, split, s), sha)
             counts = Counter(v.tier for v in verdicts)
             bar.update(len(starts) * chunk)
-            bar.set_postfix({tier: f"{counts[tier]}/{needed}" for tier in TIERS})
+            bar.set_postfix({tier: f"{counts[tier]}/{needed}" for tier in tiers})
             start += len(starts) * chunk
     return verdicts
 
 
-def summarise_split(verdicts: list[Verdict], needed: int) -> dict[str, Any]:
+def summarise_split(verdicts: list[Verdict], needed: int, target: str = "v1") -> dict[str, Any]:
     """The pools, labels and counts of a split from its consecutive verdicts (trimmed to the last pool seed)."""
-    pools: dict[str, list[Verdict]] = {tier: [] for tier in TIERS}
+    tiers = _tiers(target)
+    rejections = REJECTIONS if target == "v1" else PERTURBED_REJECTIONS
+    pools: dict[str, list[Verdict]] = {tier: [] for tier in tiers}
     last = 0
     for i, v in enumerate(verdicts):
         if v.tier is not None and len(pools[v.tier]) < needed:
@@ -115,41 +164,65 @@ def summarise_split(verdicts: list[Verdict], needed: int) -> dict[str, Any]:
         "first_seed": examined[0].seed,
         "candidates": len(examined),
         "labels": "".join(LABEL_CODES[label] for label in labels),
-        "tier_counts": {tier: counts[tier] for tier in TIERS},
-        "rejection_counts": {cause: counts[cause] for cause in REJECTIONS},
-        "rejection_shares": {cause: counts[cause] / max(1, len(rejected)) for cause in REJECTIONS},
+        "tier_counts": {tier: counts[tier] for tier in tiers},
+        "rejection_counts": {cause: counts[cause] for cause in rejections},
+        "rejection_shares": {cause: counts[cause] / max(1, len(rejected)) for cause in rejections},
         "rejected_but_constant_solvable": sum(v.constant_solvable for v in rejected),
-        "default_success_in_pool": {tier: sum(v.default_failure is None for v in pools[tier]) / needed for tier in TIERS},
+        "default_success_in_pool": {tier: sum(v.default_failure is None for v in pools[tier]) / needed for tier in tiers},
         "pools": {tier: [{"seed": v.seed, "certificate": v.certificate.as_dict(), "certificate_score": v.certificate_score,
-                          "default_failure": v.default_failure} for v in pools[tier]] for tier in TIERS},
+                          "default_failure": v.default_failure} for v in pools[tier]] for tier in tiers},
     }
 
 
-def build(work: str | Path, *, out: str | Path | None = None, chunk: int = 100, max_candidates: int = 50_000,
-          executor: Executor | None = None, workers: int = 1, progress: bool = True) -> dict[str, Any]:
-    """Build both splits (resuming from ``work``) and write the pool file ``out`` (default: the shipped one)."""
+def build(work: str | Path, *, target: str = "v1", out: str | Path | None = None, chunk: int = 100,
+          max_candidates: int = 50_000, executor: Executor | None = None, workers: int = 1,
+          progress: bool = True) -> dict[str, Any]:
+    """Build both splits of ``target`` (``v1``: easy, medium and hard; or a perturbed tier), resuming from
+    ``work``, and write the pool file ``out`` (default: the shipped one)."""
+    _check_target(target)
     began, work = time.perf_counter(), Path(work)
     benchmark = load_benchmark("v1")
     splits = {}
     for split in SPLITS:
-        verdicts = build_split(work, split, chunk=chunk, max_candidates=max_candidates, executor=executor,
-                               workers=workers, progress=progress)
-        splits[split] = summarise_split(verdicts, _needed(benchmark, split))
-    data = {"version": "v1", "rule_sha256": rule_sha256(), "seed_ranges": SEED_RANGES, "label_codes": LABEL_CODES,
+        verdicts = build_split(work, split, target=target, chunk=chunk, max_candidates=max_candidates,
+                               executor=executor, workers=workers, progress=progress)
+        splits[split] = summarise_split(verdicts, _needed(benchmark, split, target), target)
+    data = {"version": "v1", "tiers": list(_tiers(target)), "rule_sha256": rule_sha256(target),
+            "seed_ranges": SEED_RANGES, "label_codes": LABEL_CODES,
             "provenance": provenance(wall_time_s=time.perf_counter() - began), "splits": splits}
-    write_json_atomic(pool_path() if out is None else out, data)
+    write_json_atomic(pool_path(_tiers(target)[0]) if out is None else out, data)
     return data
 
 
 def tier_table(data: dict[str, Any]) -> str:
-    """Markdown table of a pool file's counts: candidates, tiers, rejection shares, default success."""
-    lines = ["| split | candidates | easy | medium | hard | rejected | rejected, a constant setting solves | "
+    """Markdown table of a pool file's counts: candidates, tiers, rejection shares (a perturbed tier:
+    the v1 tier tasks perturbed, the share certified and the default planner's success in the pool)."""
+    tiers = tuple(data.get("tiers", TIERS))
+    if tiers != TIERS:
+        return _perturbed_table(data, tiers[0])
+    lines = ["| split | candidates | " + " | ".join(tiers) + " | rejected | rejected, a constant setting solves | "
              + " | ".join(f"`{cause}`" for cause in REJECTIONS) + " |",
-             "|---" * (7 + len(REJECTIONS)) + "|"]
+             "|---" * (4 + len(tiers) + len(REJECTIONS)) + "|"]
     for split in SPLITS:
         s = data["splits"][split]
         rejected = s["candidates"] - sum(s["tier_counts"].values())
         shares = " | ".join(f"{100 * s['rejection_shares'][cause]:.1f} %" for cause in REJECTIONS)
-        lines.append(f"| {split} | {s['candidates']} | " + " | ".join(str(s["tier_counts"][t]) for t in TIERS)
+        lines.append(f"| {split} | {s['candidates']} | " + " | ".join(str(s["tier_counts"][t]) for t in tiers)
                      + f" | {rejected} | {s['rejected_but_constant_solvable']} | {shares} |")
+    return "\n".join(lines) + "\n"
+
+
+def _perturbed_table(data: dict[str, Any], tier: str) -> str:
+    unsolved = [cause for cause in PERTURBED_REJECTIONS if cause != "base_rejected"]
+    lines = ["| split | seeds examined | v1 tier tasks perturbed | certified (in the pool) | certified share | "
+             + " | ".join(f"`{cause}`" for cause in unsolved) + " | reference (0.3, 4 s) succeeds, pool |",
+             "|---" * (6 + len(unsolved)) + "|"]
+    for split in SPLITS:
+        s = data["splits"][split]
+        counts = s["rejection_counts"]
+        perturbed = s["candidates"] - counts["base_rejected"]
+        certified = s["tier_counts"][tier]
+        lines.append(f"| {split} | {s['candidates']} | {perturbed} | {certified} | {100 * certified / perturbed:.1f} % | "
+                     + " | ".join(str(counts[cause]) for cause in unsolved)
+                     + f" | {100 * s['default_success_in_pool'][tier]:.1f} % |")
     return "\n".join(lines) + "\n"

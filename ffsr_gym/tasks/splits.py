@@ -5,7 +5,9 @@ training pool is the first ``train_tasks`` candidates of the train range that th
 (:mod:`ffsr_gym.tasks.tiers`) puts in that tier, in seed order; the test pool the first
 ``test_tasks`` of the test range. ``ffsr-gym tasks build`` applies the rule and writes
 ``envs/benchmark/v1_tasks.json`` (the pools with their certificates, the label of every candidate
-examined, and the counts); environments read the pools from there.
+examined, and the counts); environments read the pools from there. The perturbed tiers
+(:mod:`ffsr_gym.tasks.perturbation`) have one such file each, ``v1_<tier>_tasks.json``, over the
+same seed ranges.
 """
 
 from __future__ import annotations
@@ -17,17 +19,22 @@ from pathlib import Path
 from typing import Any
 
 from ffsr_gym.exceptions import InvalidInputError, ScenarioError
+from ffsr_gym.model.benchmark import Benchmark
 from ffsr_gym.model.resources import envs_dir
+from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.tasks.certificate import Certificate
-from ffsr_gym.tasks.tiers import REJECTIONS, TIERS
+from ffsr_gym.tasks.generator import draw_task
+from ffsr_gym.tasks.perturbation import PERTURBED_TIERS, perturbed_task
+from ffsr_gym.tasks.tiers import ALL_TIERS, PERTURBED_REJECTIONS, REJECTIONS, TIERS
 
 SPLITS = ("train", "test")
 #: Candidate seeds of each split: [first, end).
 SEED_RANGES = {"train": (0, 1_000_000), "test": (1_000_000, 2_000_000)}
 #: One character per candidate label in the pool file.
 LABEL_CODES = {"easy": "e", "medium": "m", "hard": "h", "nominal_final_error": "f", "balance_singularity": "b",
-               "self_collision": "s", "unsolved_rate_limit": "r", "unsolved_collision": "c", "unsolved_final_error": "t"}
-assert set(LABEL_CODES) == set(TIERS + REJECTIONS)
+               "self_collision": "s", "unsolved_rate_limit": "r", "unsolved_collision": "c", "unsolved_final_error": "t",
+               "debris": "D", "robust": "R", "base_rejected": "x", "draw_failed": "d"}
+assert set(LABEL_CODES) == set(ALL_TIERS + REJECTIONS + PERTURBED_REJECTIONS)
 
 
 @dataclass(frozen=True)
@@ -39,40 +46,60 @@ class PoolTask:
     certificate_score: float
 
 
-def pool_path() -> Path:
-    """The shipped pool file."""
-    return envs_dir() / "benchmark" / "v1_tasks.json"
+def pool_path(tier: str = "easy") -> Path:
+    """The shipped pool file of ``tier`` (``v1_tasks.json`` for easy, medium and hard)."""
+    name = "v1_tasks.json" if tier in TIERS else f"v1_{tier}_tasks.json"
+    return envs_dir() / "benchmark" / name
 
 
 def check_tier_split(tier: str, split: str) -> None:
-    """Raise :class:`InvalidInputError` unless ``tier`` is in :data:`TIERS` and ``split`` in :data:`SPLITS`."""
-    if tier not in TIERS:
-        raise InvalidInputError(f"tier {tier!r}; allowed: {list(TIERS)}")
+    """Raise :class:`InvalidInputError` unless ``tier`` is in :data:`ALL_TIERS` and ``split`` in :data:`SPLITS`."""
+    if tier not in ALL_TIERS:
+        raise InvalidInputError(f"tier {tier!r}; allowed: {list(ALL_TIERS)}")
     if split not in SPLITS:
         raise InvalidInputError(f"split {split!r}; allowed: {list(SPLITS)}")
 
 
-@lru_cache(maxsize=2)
-def load_pools(path: str | None = None) -> dict[str, Any]:
-    """The pool file (default: the shipped one) as read, after a check of its layout.
+def file_tiers(tier: str) -> tuple[str, ...]:
+    """The tiers whose pools share ``tier``'s pool file."""
+    return TIERS if tier in TIERS else (tier,)
+
+
+@lru_cache(maxsize=4)
+def load_pools(path: str | None = None, tiers: tuple[str, ...] = TIERS) -> dict[str, Any]:
+    """A pool file (default: the shipped one of ``tiers``) as read, after a check of its layout.
 
     Raises:
         ScenarioError: missing, unreadable or malformed file (naming what is wrong).
     """
-    source = pool_path() if path is None else Path(path)
+    source = pool_path(tiers[0]) if path is None else Path(path)
     try:
         data = json.loads(source.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ScenarioError(f"{source}: not a readable pool file ({exc}); rebuild it with 'ffsr-gym tasks build'") from None
     try:
         for split in SPLITS:
-            for tier in TIERS:
+            for tier in tiers:
                 entries = data["splits"][split]["pools"][tier]
                 if not isinstance(entries, list) or not entries:
                     raise ScenarioError(f"{source}: splits.{split}.pools.{tier} must be a non-empty list")
     except (KeyError, TypeError) as exc:
         raise ScenarioError(f"{source}: missing key {exc} (expected splits.<train|test>.pools.<tier>)") from None
     return data
+
+
+def task_scenario(tier: str, seed: int, benchmark: Benchmark) -> Scenario:
+    """The scenario of a pool task of ``tier`` (the v1 candidate of ``seed``, perturbed in a perturbed tier).
+
+    Raises:
+        ScenarioError: a perturbed tier's seed without an admissible draw (not a pool seed).
+    """
+    if tier not in PERTURBED_TIERS:
+        return draw_task(seed, benchmark)
+    task = perturbed_task(tier, seed, benchmark)
+    if task is None:
+        raise ScenarioError(f"{tier} candidate of seed {seed}: no admissible draw (not a pool task)")
+    return task
 
 
 def pool(tier: str, split: str, *, path: str | None = None) -> tuple[PoolTask, ...]:
@@ -85,7 +112,7 @@ def pool(tier: str, split: str, *, path: str | None = None) -> tuple[PoolTask, .
     check_tier_split(tier, split)
     lo, hi = SEED_RANGES[split]
     tasks = []
-    for entry in load_pools(path)["splits"][split]["pools"][tier]:
+    for entry in load_pools(path, file_tiers(tier))["splits"][split]["pools"][tier]:
         try:
             task = PoolTask(int(entry["seed"]), Certificate.from_dict(entry["certificate"]), float(entry["certificate_score"]))
         except (KeyError, TypeError, ValueError, InvalidInputError) as exc:

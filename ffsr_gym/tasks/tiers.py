@@ -22,13 +22,19 @@ from typing import Any
 import numpy as np
 
 from ffsr_gym.model.benchmark import Benchmark
+from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.scoring.score import FAILURES, EpisodeScore
 from ffsr_gym.tasks.certificate import Certificate, replay
 from ffsr_gym.tasks.generator import SCREEN_CAUSES, draw_task, screen
+from ffsr_gym.tasks.perturbation import PERTURBED_TIERS, PerturbedRule, perturbed_task
 
 TIERS = ("easy", "medium", "hard")
 #: Why a candidate is not in any tier.
 REJECTIONS = SCREEN_CAUSES + tuple(f"unsolved_{name}" for name in FAILURES)
+#: Why a candidate is not in a perturbed tier: its v1 task is in no tier, no admissible debris draw, or unsolved.
+PERTURBED_REJECTIONS = ("base_rejected", "draw_failed") + tuple(f"unsolved_{name}" for name in FAILURES)
+#: Every tier of benchmark v1: the three of v1.toml, then the perturbed ones (v1_perturbed.toml).
+ALL_TIERS = TIERS + PERTURBED_TIERS
 
 
 @dataclass(frozen=True)
@@ -43,7 +49,8 @@ class Verdict:
         certificate_score: the v1 score of the certificate's episode (0 when rejected).
         default_failure: failure of the default planner (None: it succeeded).
         constant_solvable: a setting of the grid (or the default) succeeds.
-        nominal: screening measurements (final error [m], min σ_min(J_c²), min self clearance [m]).
+        nominal: screening measurements (final error [m], min σ_min(J_c²), min self clearance [m]);
+            empty for a perturbed-tier candidate (its v1 task was screened).
         rollouts: episodes run to reach the verdict.
     """
 
@@ -54,7 +61,7 @@ class Verdict:
     certificate_score: float
     default_failure: str | None
     constant_solvable: bool
-    nominal: tuple[float, float, float]
+    nominal: tuple[float, ...]
     rollouts: int
 
     def as_dict(self) -> dict[str, Any]:
@@ -81,38 +88,86 @@ def residual_candidates(seed: int, trials: int) -> np.ndarray:
     return rng.uniform(-1.0, 1.0, (int(trials), 12)).astype(np.float32).astype(np.float64)
 
 
-def classify(seed: int, benchmark: Benchmark) -> Verdict:
-    """Apply the tier rule of ``benchmark`` to the candidate task of ``seed``."""
-    task, rule, default = draw_task(seed, benchmark), benchmark.tasks, benchmark.planner
-    nominal = screen(task, benchmark)
-    measured = (nominal.final_ee_position_error_m, nominal.min_balance_sigma, nominal.min_self_clearance_m)
-    runs = 1
+@dataclass(frozen=True)
+class Certification:
+    """The certificate search of the tier rule on one task.
 
-    def attempt(certificate: Certificate) -> EpisodeScore:
+    Attributes:
+        certificate: the first certificate that succeeds (default, grid, residual), or None.
+        result: its episode (None without a certificate).
+        default_failure: failure of the default planner (None: it succeeded).
+        constant_solvable: the default or a grid setting succeeds.
+        rollouts: episodes run.
+    """
+
+    certificate: Certificate | None
+    result: EpisodeScore | None
+    default_failure: str | None
+    constant_solvable: bool
+    rollouts: int
+
+
+def certify(task: Scenario, seed: int, benchmark: Benchmark, *, residuals: bool = True) -> Certification:
+    """Search ``task`` for a certificate in the tier rule's order: the default planner, the grid
+    (m outer), then (when ``residuals``) the residual trials of ``seed``."""
+    rule, default = benchmark.tasks, benchmark.planner
+    runs = 0
+
+    def attempt(certificate: Certificate) -> tuple[Certificate, EpisodeScore]:
         nonlocal runs
         runs += 1
-        return replay(task, certificate, benchmark)
+        return certificate, replay(task, certificate, benchmark)
 
-    def verdict(tier: str | None, rejection: str | None, certificate: Certificate | None, result: EpisodeScore | None,
-                default_failure: str | None, constant: bool) -> Verdict:
-        return Verdict(int(seed), tier, rejection, certificate, 0.0 if result is None else result.score,
-                       default_failure, constant, measured, runs)
-
-    base = Certificate("constant", default.m, default.T_c_s)
-    first = attempt(base)
-    solved = (base, first) if first.success else None
+    first = attempt(Certificate("constant", default.m, default.T_c_s))
+    solved = first if first[1].success else None
     grid = ((m, T_c) for m in rule.grid_m for T_c in rule.grid_T_c_s)
     while solved is None and (setting := next(grid, None)) is not None:
-        certificate = Certificate("constant", *setting)
-        result = attempt(certificate)
-        solved = (certificate, result) if result.success else None
+        tried = attempt(Certificate("constant", *setting))
+        solved = tried if tried[1].success else None
+    constant = solved is not None
+    if solved is None and residuals:
+        for action in residual_candidates(seed, rule.residual_trials):
+            tried = attempt(Certificate("residual", default.m, default.T_c_s, tuple(float(x) for x in action)))
+            if tried[1].success:
+                solved = tried
+                break
+    certificate, result = solved if solved is not None else (None, None)
+    return Certification(certificate, result, first[1].failure, constant, runs)
+
+
+def classify(seed: int, benchmark: Benchmark) -> Verdict:
+    """Apply the tier rule of ``benchmark`` to the candidate task of ``seed``."""
+    task = draw_task(seed, benchmark)
+    nominal = screen(task, benchmark)
+    measured = (nominal.final_ee_position_error_m, nominal.min_balance_sigma, nominal.min_self_clearance_m)
+    found = certify(task, seed, benchmark, residuals=nominal.cause is None)
+    runs = found.rollouts + 1
     if nominal.cause is not None:
-        return verdict(None, nominal.cause, None, None, first.failure, solved is not None)
-    if solved is not None:
-        return verdict("easy" if first.success else "medium", None, *solved, first.failure, True)
-    for action in residual_candidates(seed, rule.residual_trials):
-        certificate = Certificate("residual", default.m, default.T_c_s, tuple(float(x) for x in action))
-        result = attempt(certificate)
-        if result.success:
-            return verdict("hard", None, certificate, result, first.failure, False)
-    return verdict(None, f"unsolved_{first.failure}", None, None, first.failure, False)
+        return Verdict(int(seed), None, nominal.cause, None, 0.0, found.default_failure, found.constant_solvable,
+                       measured, runs)
+    if found.certificate is None:
+        return Verdict(int(seed), None, f"unsolved_{found.default_failure}", None, 0.0, found.default_failure, False,
+                       measured, runs)
+    tier = "hard" if found.certificate.kind == "residual" else "easy" if found.default_failure is None else "medium"
+    return Verdict(int(seed), tier, None, found.certificate, found.result.score, found.default_failure,
+                   found.constant_solvable, measured, runs)
+
+
+def classify_perturbed(tier: str, seed: int, benchmark: Benchmark, *, base_admitted: bool,
+                       rule: PerturbedRule | None = None) -> Verdict:
+    """Apply the perturbed-tier rule (``v1_perturbed.toml``) to the ``tier`` candidate of ``seed``.
+
+    ``base_admitted``: the v1 task of ``seed`` is in a v1 tier (from the v1 pool file's labels);
+    otherwise the candidate is rejected as ``base_rejected`` without a rollout.
+    """
+    if not base_admitted:
+        return Verdict(int(seed), None, "base_rejected", None, 0.0, None, False, (), 0)
+    task = perturbed_task(tier, seed, benchmark, rule)
+    if task is None:
+        return Verdict(int(seed), None, "draw_failed", None, 0.0, None, False, (), 0)
+    found = certify(task, seed, benchmark)
+    if found.certificate is None:
+        return Verdict(int(seed), None, f"unsolved_{found.default_failure}", None, 0.0, found.default_failure, False,
+                       (), found.rollouts)
+    return Verdict(int(seed), tier, None, found.certificate, found.result.score, found.default_failure,
+                   found.constant_solvable, (), found.rollouts)

@@ -1,0 +1,175 @@
+"""Perturbed tiers ``debris`` and ``robust``: zero perturbation is v1, certificates replay in the
+environments, pools are the first certified v1 tier tasks, draws stay in the documented ranges.
+
+CI replays a sample; ``-m slow`` replays every certificate.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_tasks_v1 import CODES, replay_in_env
+from test_vector_env import lockstep, make_vec
+
+import ffsr_gym  # noqa: F401  (registers the environments)
+from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.model.resources import envs_dir
+from ffsr_gym.sim.simulate import make_rollout
+from ffsr_gym.tasks.generator import draw_task
+from ffsr_gym.tasks.perturbation import PERTURBED_TIERS, load_perturbed_rule, perturbed_task
+from ffsr_gym.tasks.splits import SEED_RANGES, SPLITS, load_pools, pool
+from ffsr_gym.tasks.tiers import certify, classify_perturbed
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+BENCH = load_benchmark("v1")
+RANGES = tomllib.loads((envs_dir() / "benchmark" / "v1_perturbed.toml").read_text())
+V1_LABELS = {split: load_pools()["splits"][split] for split in SPLITS}
+LOGGED = ("q", "v", "dq_joints", "ee_position_error_m", "ee_attitude_error", "clearance_m", "self_clearance_m", "mu", "cdf")
+
+
+def _trajectory(task, certificate):
+    rollout = make_rollout(task, backend="kernel", m=certificate.m, T_c=certificate.T_c_s)
+    rollout.advance(task.n_steps, stop_on_violation=True)
+    rollout.finish()
+    return rollout.trajectory()
+
+
+@pytest.mark.parametrize("tier", PERTURBED_TIERS)
+def test_zero_perturbation_reproduces_the_v1_medium_tier_bit_for_bit(tier):
+    """With every range collapsed, the perturbed code paths (debris section, plant, momentum, noise)
+    find the v1 certificate and its score, and move exactly as the v1 task."""
+    zero = load_perturbed_rule().zero()
+    for entry in pool("medium", "test")[:3]:
+        task = perturbed_task(tier, entry.seed, BENCH, zero)
+        assert (task.debris is not None) == (tier == "debris") and (task.target_noise is not None) == (tier == "robust")
+        found = certify(task, entry.seed, BENCH)
+        assert found.default_failure is not None  # medium: the default planner fails on it too
+        assert found.certificate == entry.certificate
+        assert found.result.score == entry.certificate_score
+        perturbed, plain = _trajectory(task, entry.certificate), _trajectory(draw_task(entry.seed, BENCH), entry.certificate)
+        for name in LOGGED:
+            assert np.array_equal(getattr(perturbed, name), getattr(plain, name)), name
+
+
+def _cases(per_pool):
+    cases = []
+    for tier in PERTURBED_TIERS:
+        for split in SPLITS:
+            n = len(pool(tier, split))
+            picks = range(n) if per_pool is None else np.linspace(0, n - 1, per_pool).round().astype(int)
+            cases += [(tier, split, int(i)) for i in picks]
+    return cases
+
+
+@pytest.mark.parametrize("tier,split,index", _cases(2))
+def test_certificate_replays_to_success_in_the_env(tier, split, index):
+    info = replay_in_env(tier, split, index)
+    assert info["success"], info["failure"]
+    assert info["score"] == pytest.approx(pool(tier, split)[index].certificate_score, rel=0, abs=1e-12)
+
+
+@pytest.mark.slow
+def test_every_perturbed_certificate_replays_to_success():
+    failed = [(case, info["failure"]) for case in _cases(None) if not (info := replay_in_env(*case))["success"]]
+    assert not failed
+
+
+@pytest.mark.parametrize("tier", PERTURBED_TIERS)
+def test_pools_are_the_first_certified_v1_tier_tasks_disjoint_and_full(tier):
+    data = load_pools(None, (tier,))
+    seen: set[int] = set()
+    for split in SPLITS:
+        summary, v1 = data["splits"][split], V1_LABELS[split]
+        labels = [CODES[c] for c in summary["labels"]]
+        seeds = range(summary["first_seed"], summary["first_seed"] + len(labels))
+        assert summary["first_seed"] == SEED_RANGES[split][0] == v1["first_seed"]
+        for seed, label in zip(seeds, labels):  # candidates are exactly the v1 tier tasks
+            in_v1_tier = CODES[v1["labels"][seed - v1["first_seed"]]] in ("easy", "medium", "hard")
+            assert (label != "base_rejected") == in_v1_tier, seed
+        expected = int(RANGES["train_tasks"] if split == "train" else RANGES["test_tasks"])
+        pool_seeds = [t.seed for t in pool(tier, split)]
+        assert pool_seeds == [s for s, label in zip(seeds, labels) if label == tier][:expected]
+        assert len(pool_seeds) == expected and not seen & set(pool_seeds)
+        seen |= set(pool_seeds)
+
+
+@pytest.mark.parametrize("tier", PERTURBED_TIERS)
+def test_the_rule_reruns_to_the_stored_labels(tier):
+    summary = load_pools(None, (tier,))["splits"]["test"]
+    first, v1 = summary["first_seed"], V1_LABELS["test"]["labels"]
+    for offset in range(8):
+        admitted = CODES[v1[offset]] in ("easy", "medium", "hard")
+        verdict = classify_perturbed(tier, first + offset, BENCH, base_admitted=admitted)
+        assert (verdict.tier or verdict.rejection) == CODES[summary["labels"][offset]], first + offset
+
+
+def test_debris_draws_stay_in_the_documented_ranges():
+    spec = RANGES["debris"]
+    for split in SPLITS:
+        for entry in pool("debris", split)[:20]:
+            task, base = perturbed_task("debris", entry.seed, BENCH), draw_task(entry.seed, BENCH)
+            d = task.debris
+            assert spec["extra_obstacles"][0] <= len(d.positions_m) <= spec["extra_obstacles"][1]
+            assert spec["obstacle_speed_m_s"][0] <= np.linalg.norm(d.obstacle_velocity_m_s) <= spec["obstacle_speed_m_s"][1]
+            for radius, velocity in zip(d.radii_m, d.velocities_m_s):
+                assert spec["radius_m"][0] <= radius <= spec["radius_m"][1]
+                assert spec["debris_speed_m_s"][0] <= np.linalg.norm(velocity) <= spec["debris_speed_m_s"][1] + 1e-15
+            assert task.replace(debris=None, name=base.name, description=base.description) == base
+            assert task.target == base.target and task.initial == base.initial  # bit for bit, not normalised again
+
+
+def test_robust_draws_stay_in_the_documented_ranges():
+    spec = RANGES["robust"]
+    for entry in pool("robust", "train")[:20]:
+        task, base = perturbed_task("robust", entry.seed, BENCH), draw_task(entry.seed, BENCH)
+        plant, noise, momentum = task.plant, task.target_noise, np.array(task.initial.momentum)
+        assert all(spec["mass_scale"][0] <= x <= spec["mass_scale"][1] for x in plant.mass_scale)
+        assert all(spec["inertia_scale"][0] <= x <= spec["inertia_scale"][1] for x in plant.inertia_scale)
+        assert np.max(np.abs(plant.com_offset_m)) <= spec["com_offset_m"]
+        assert np.max(np.abs(momentum[:3])) <= spec["linear_momentum_kg_m_s"]
+        assert np.max(np.abs(momentum[3:])) <= spec["angular_momentum_kg_m2_s"]
+        assert np.max(np.abs(noise.position_bias_m)) <= spec["position_bias_m"]
+        assert np.max(np.abs(noise.attitude_bias_rad)) <= spec["attitude_bias_rad"]
+        assert (noise.position_sigma_m, noise.attitude_sigma_rad, noise.interval_s) == (
+            spec["position_sigma_m"], spec["attitude_sigma_rad"], spec["interval_s"])
+        assert np.any(momentum != 0.0) and np.any(np.array(plant.mass_scale) != 1.0)
+        assert task.replace(plant=None, target_noise=None, initial=base.initial, name=base.name,
+                            description=base.description) == base
+
+
+@pytest.mark.parametrize("tier", PERTURBED_TIERS)
+def test_batched_env_on_a_perturbed_tier_equals_single_envs(tier):
+    import gymnasium as gym
+
+    n = 2
+    venv = make_vec("FFSR-Residual-v1", n, task=tier)
+    singles = [gym.make("FFSR-Residual-v1", task=tier) for _ in range(n)]
+    obs, info = venv.reset(seed=5)
+    resets = [env.reset(seed=5 + i) for i, env in enumerate(singles)]
+    np.testing.assert_array_equal(obs, np.stack([r[0] for r in resets]))
+    assert list(info["task_seed"]) == [r[1]["task_seed"] for r in resets]
+    lockstep(venv, singles, 40, np.random.default_rng(2), lambda a, b: a == b, lambda *args: None)
+
+
+def test_pool_files_record_the_rule_they_were_built_under():
+    from ffsr_gym.tasks.build import rule_sha256
+
+    for tier in PERTURBED_TIERS:
+        assert load_pools(None, (tier,))["rule_sha256"] == rule_sha256(tier)
+        assert Path(envs_dir() / "benchmark" / f"v1_{tier}_tasks.json").is_file()
+
+
+@pytest.mark.parametrize("tier", PERTURBED_TIERS)
+def test_docs_tables_are_generated_from_the_pool_files(tier):
+    from ffsr_gym.tasks.build import tier_table
+
+    text = (Path(__file__).parents[1] / "docs" / "envs.md").read_text(encoding="utf-8")
+    block = text.split(f"<!-- tiers-{tier}:begin -->\n")[1].split(f"<!-- tiers-{tier}:end -->")[0]
+    assert block == tier_table(load_pools(None, (tier,)))
