@@ -19,9 +19,10 @@ from ffsr_gym.model.scenario import MAX_DEBRIS, Debris, load_scenario, to_dict
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.sim.simulate import simulate
 
-#: ``paper`` with its obstacle drifting and two more: one still, one drifting across the swept path.
+#: ``paper`` with its obstacle drifting and two more: one still, 0.25 m above the target, one drifting
+#: across the swept path. Each of the three is the nearest at some time of the rollout.
 DEBRIS = Debris(obstacle_velocity_m_s=(0.0, 0.004, -0.002),
-                positions_m=((-0.0691, 0.6037, 0.4742), (0.66, 0.47, -0.02)),
+                positions_m=((0.7147, 0.415, 0.0742), (0.66, 0.47, -0.02)),
                 radii_m=(0.02, 0.01),
                 velocities_m_s=((0.0, 0.0, 0.0), (0.003, -0.004, 0.002)))
 
@@ -74,16 +75,19 @@ def test_danger_field_is_the_sum_over_obstacles_where_they_are_at_t(scenario):
 
 
 def test_clearance_is_to_the_nearest_obstacle_where_it_is_at_t(scenario):
-    """Kernel clearances against coal queried per obstacle at its drifted position."""
+    """Kernel clearances against coal queried per obstacle at its drifted position; the nearest one changes."""
     trajectory = simulate(scenario, backend="kernel")
     setup = prepare(scenario)
     field = obstacle_field(scenario)
+    nearest = set()
     for k in range(0, len(trajectory.t), 50):
         t = trajectory.t[k]
         collision = setup.assets.collision
         distances = [collision.obstacle_proximity(trajectory.q[k], [SphereObstacle(p + v * t, r)]).distance_m
                      for p, v, r in zip(field.positions_m, field.velocities_m_s, field.radii_m)]
         assert trajectory.clearance_m[k] == pytest.approx(min(distances), abs=1e-9)
+        nearest.add(int(np.argmin(distances)))
+    assert nearest == {0, 1, 2}
 
 
 def test_still_empty_debris_reproduces_the_plain_scenario_bit_for_bit():
