@@ -33,17 +33,17 @@ def scenario():
     return paper.replace(plant=PLANT, initial=initial)
 
 
-def _perturbed_pinocchio():
+def _perturbed_pinocchio(plant=PLANT):
     """The plant as a fresh Pinocchio model: URDF, then each body's inertia rebuilt from the scenario's numbers."""
     robot = load_robot()
     model = pin.buildModelFromUrdf(str(robot.urdf_path), pin.JointModelFreeFlyer())
     bodies = [1, *(int(model.getJointId(f"{arm}_joint{k}")) for arm in ("mission", "balance") for k in range(1, 7))]
-    offsets = [(0.0, 0.0, 0.0), *PLANT.com_offset_m]
+    offsets = [(0.0, 0.0, 0.0), *plant.com_offset_m]
     for body, joint in enumerate(bodies):
         nominal = model.inertias[joint]
-        model.inertias[joint] = pin.Inertia(nominal.mass * PLANT.mass_scale[body],
+        model.inertias[joint] = pin.Inertia(nominal.mass * plant.mass_scale[body],
                                             nominal.lever + np.array(offsets[body]),
-                                            nominal.inertia * PLANT.inertia_scale[body])
+                                            nominal.inertia * plant.inertia_scale[body])
     return model, model.createData(), robot.model, robot.model.createData()
 
 

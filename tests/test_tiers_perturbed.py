@@ -173,3 +173,19 @@ def test_docs_tables_are_generated_from_the_pool_files(tier):
     text = (Path(__file__).parents[1] / "docs" / "envs.md").read_text(encoding="utf-8")
     block = text.split(f"<!-- tiers-{tier}:begin -->\n")[1].split(f"<!-- tiers-{tier}:end -->")[0]
     assert block == tier_table(load_pools(None, (tier,)))
+
+
+def test_robust_task_conserves_the_momentum_it_draws_for_its_own_plant():
+    """A robust test task in the kernel: the centroidal momentum of a Pinocchio model built here from
+    the task's drawn plant stays at the drawn C to 1e-10 over the certificate's episode."""
+    import pinocchio as pin
+    from test_plant import _perturbed_pinocchio
+
+    entry = pool("robust", "test")[0]
+    task = perturbed_task("robust", entry.seed, BENCH)
+    model, data, _, _ = _perturbed_pinocchio(task.plant)
+    trajectory = _trajectory(task, entry.certificate)
+    momentum = np.array(task.initial.momentum)
+    worst = max(float(np.max(np.abs(pin.computeCentroidalMomentum(model, data, q, v).vector - momentum)))
+                for q, v in zip(trajectory.q, trajectory.v))
+    assert worst <= 1e-10 and np.max(np.abs(momentum)) > 0.1
