@@ -76,7 +76,8 @@ def test_batched_env_with_a_noisy_target_equals_single_envs(scenario):
 
 
 @pytest.mark.parametrize("section, message", [
-    ("position_bias_m = [0.0, 0.02, 0.0]", "'target_noise.position_bias_m[1]' = 0.02 is out of range; allowed: [-0.01, 0.01]"),
+    ("position_bias_m = [0.0, 0.02, 0.0]",
+     "'target_noise.position_bias_m[1]' = 0.02 is out of range; allowed: [-0.01, 0.01]"),
     ("attitude_sigma_rad = -1e-3", "'target_noise.attitude_sigma_rad' = -0.001 is out of range; allowed: [0.0, 0.01]"),
     ("interval_s = 0.0", "'target_noise.interval_s' = 0.0 is out of range; allowed: [0.001, 100.0]"),
     ("seed = 1.5", "'target_noise.seed' is 1.5; allowed: an integer in [0, 9223372036854775807]"),

@@ -31,7 +31,8 @@ else:  # pragma: no cover
 BENCH = load_benchmark("v1")
 RANGES = tomllib.loads((envs_dir() / "benchmark" / "v1_perturbed.toml").read_text())
 V1_LABELS = {split: load_pools()["splits"][split] for split in SPLITS}
-LOGGED = ("q", "v", "dq_joints", "ee_position_error_m", "ee_attitude_error", "clearance_m", "self_clearance_m", "mu", "cdf")
+LOGGED = ("q", "v", "dq_joints", "ee_position_error_m", "ee_attitude_error", "clearance_m", "self_clearance_m", "mu",
+          "cdf")
 
 
 def _trajectory(task, certificate):
@@ -53,7 +54,8 @@ def test_zero_perturbation_reproduces_the_v1_medium_tier_bit_for_bit(tier):
         assert found.default_failure is not None  # medium: the default planner fails on it too
         assert found.certificate == entry.certificate
         assert found.result.score == entry.certificate_score
-        perturbed, plain = _trajectory(task, entry.certificate), _trajectory(draw_task(entry.seed, BENCH), entry.certificate)
+        perturbed = _trajectory(task, entry.certificate)
+        plain = _trajectory(draw_task(entry.seed, BENCH), entry.certificate)
         for name in LOGGED:
             assert np.array_equal(getattr(perturbed, name), getattr(plain, name)), name
 
@@ -117,7 +119,8 @@ def test_debris_draws_stay_in_the_documented_ranges():
             task, base = perturbed_task("debris", entry.seed, BENCH), draw_task(entry.seed, BENCH)
             d = task.debris
             assert spec["extra_obstacles"][0] <= len(d.positions_m) <= spec["extra_obstacles"][1]
-            assert spec["obstacle_speed_m_s"][0] <= np.linalg.norm(d.obstacle_velocity_m_s) <= spec["obstacle_speed_m_s"][1]
+            speed = np.linalg.norm(d.obstacle_velocity_m_s)
+            assert spec["obstacle_speed_m_s"][0] <= speed <= spec["obstacle_speed_m_s"][1]
             for radius, velocity in zip(d.radii_m, d.velocities_m_s):
                 assert spec["radius_m"][0] <= radius <= spec["radius_m"][1]
                 assert spec["debris_speed_m_s"][0] <= np.linalg.norm(velocity) <= spec["debris_speed_m_s"][1] + 1e-15
@@ -207,3 +210,31 @@ def test_what_the_perturbations_change_for_the_reference_planner():
         flips[tier] = sum(succeeds(draw_task(e.seed, BENCH)) != succeeds(task_scenario(tier, e.seed, BENCH))
                           for e in entries) / len(entries)
     assert flips["robust"] <= 0.10 and flips["debris"] >= 0.20, flips
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ("mass_scale = [0.9, 1.1]", "mass_scale = [0.9, 3.0]",
+     "'robust.mass_scale[1]' = 3.0 is out of range; allowed: [0.5, 2.0]"),
+    ("extra_obstacles = [1, 3]", "extra_obstacles = [1.5, 3]",
+     "'debris.extra_obstacles' = [1.5, 3.0]; allowed: two integers"),
+    ("radius_m = [0.0, 0.05]", "radius_m = [0.05, 0.0]", "'debris.radius_m' = [0.05, 0.0]; allowed: [low, high]"),
+    ("interval_s = 0.1", "interval_s = 0.1\nspin = 1", "unknown key 'robust.spin'"),
+])
+def test_malformed_perturbed_rule_is_named(tmp_path, monkeypatch, old, new, message):
+    import re
+
+    from ffsr_gym.exceptions import ScenarioError
+    from ffsr_gym.tasks import perturbation
+
+    path = tmp_path / "v1_perturbed.toml"
+    text = (envs_dir() / "benchmark" / "v1_perturbed.toml").read_text()
+    assert old in text
+    path.write_text(text.replace(old, new))
+    monkeypatch.setattr(perturbation, "rule_path", lambda: str(path))
+    perturbation.load_perturbed_rule.cache_clear()
+    try:
+        with pytest.raises(ScenarioError, match=re.escape(message)):
+            perturbation.load_perturbed_rule()
+    finally:
+        monkeypatch.undo()
+        perturbation.load_perturbed_rule.cache_clear()

@@ -164,7 +164,8 @@ def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | 
     scores env episodes.
     """
     if task not in ALL_TIERS or split not in SPLITS:
-        raise InvalidInputError(f"task {task!r}, split {split!r}; allowed: task in {list(ALL_TIERS)}, split in {list(SPLITS)}")
+        raise InvalidInputError(f"task {task!r}, split {split!r}; allowed: task in {list(ALL_TIERS)}, "
+                                f"split in {list(SPLITS)}")
     benchmark, start, rows, hashes = load_benchmark("v1"), time.perf_counter(), [], {}
     for index, entry in enumerate(tqdm(pool(task, split), disable=not progress, desc=f"{name} {task}/{split}")):
         played = task_scenario(task, entry.seed, benchmark)
@@ -188,6 +189,6 @@ def training_loss(m: float, T_c: float, *, tier: str, tasks: int = 20) -> float:
     for process pools and Dask.
     """
     benchmark = load_benchmark("v1")
-    episodes = [planner_episode(task_scenario(tier, t.seed, benchmark), benchmark, method="predefined_time", m=m, T_c=T_c)
-                for t in pool(tier, "train")[:tasks]]
+    episodes = [planner_episode(task_scenario(tier, t.seed, benchmark), benchmark, method="predefined_time", m=m,
+                                T_c=T_c) for t in pool(tier, "train")[:tasks]]
     return 1.0 - float(np.mean([e.score for e in episodes]))

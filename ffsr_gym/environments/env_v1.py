@@ -65,10 +65,12 @@ class FFSRV1Env(FFSREnv):
 
     ## Starting State
     ``task="paper"``: the paper's scenario (``split`` is accepted; both splits hold that one task).
-    ``task`` in ``easy``, ``medium``, ``hard``, ``debris``, ``robust``: each reset draws one task of the tier's ``split``
-    pool uniformly from ``self.np_random`` (``reset(options={"task_index": i})`` picks one); the
-    test pool is used only with ``split="test"``. Tiers, pools and certificates:
-    ``ffsr_gym.tasks`` and docs/envs.md. ``reset``'s info has ``task_index`` and ``task_seed``.
+    ``task`` in ``easy``, ``medium``, ``hard``, ``debris``, ``robust``: each reset draws one task of
+    the tier's ``split`` pool uniformly from ``self.np_random`` (``reset(options={"task_index": i})``
+    picks one); the test pool is used only with ``split="test"``. Tiers, pools and certificates:
+    ``ffsr_gym.tasks`` and docs/envs.md. ``reset``'s info has ``task_index`` and ``task_seed``. On
+    ``robust`` the planner sees a noisy target: the observation's end-effector error is the
+    planner's; the score uses the true target.
 
     ## Episode End
     Terminated on a rate above 200 deg/s or a negative clearance (unless

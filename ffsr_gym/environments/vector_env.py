@@ -99,7 +99,9 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         rollout = KernelRollout(scenario, log={key: self._logs[key][i] for key in LOG_FIELDS})
         self._rollouts[i], self._mdl = rollout, rollout._mdl
         if len(rollout.fp) > self._FP.shape[1]:  # more target estimates than any copy so far: widen the rows
-            self._FP = np.concatenate((self._FP, np.zeros((self.num_envs, len(rollout.fp) - self._FP.shape[1]))), axis=1)
+            wider = np.zeros((self.num_envs, len(rollout.fp)))
+            wider[:, :self._FP.shape[1]] = self._FP
+            self._FP = wider
         self._X[i], self._K[i], self._IP[i] = rollout.x, 0, rollout.ip
         self._FP[i, :len(rollout.fp)], self._FP[i, len(rollout.fp):] = rollout.fp, 0.0
         for stacked, own in zip(self._plants, rollout.plant):

@@ -168,7 +168,8 @@ def summarise_split(verdicts: list[Verdict], needed: int, target: str = "v1") ->
         "rejection_counts": {cause: counts[cause] for cause in rejections},
         "rejection_shares": {cause: counts[cause] / max(1, len(rejected)) for cause in rejections},
         "rejected_but_constant_solvable": sum(v.constant_solvable for v in rejected),
-        "default_success_in_pool": {tier: sum(v.default_failure is None for v in pools[tier]) / needed for tier in tiers},
+        "default_success_in_pool": {tier: sum(v.default_failure is None for v in pools[tier]) / needed
+                                    for tier in tiers},
         "pools": {tier: [{"seed": v.seed, "certificate": v.certificate.as_dict(), "certificate_score": v.certificate_score,
                           "default_failure": v.default_failure} for v in pools[tier]] for tier in tiers},
     }
@@ -222,7 +223,8 @@ def _perturbed_table(data: dict[str, Any], tier: str) -> str:
         counts = s["rejection_counts"]
         perturbed = s["candidates"] - counts["base_rejected"]
         certified = s["tier_counts"][tier]
-        lines.append(f"| {split} | {s['candidates']} | {perturbed} | {certified} | {100 * certified / perturbed:.1f} % | "
+        lines.append(f"| {split} | {s['candidates']} | {perturbed} | {certified} | "
+                     f"{100 * certified / perturbed:.1f} % | "
                      + " | ".join(str(counts[cause]) for cause in unsolved)
                      + f" | {100 * s['default_success_in_pool'][tier]:.1f} % |")
     return "\n".join(lines) + "\n"

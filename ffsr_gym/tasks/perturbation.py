@@ -121,6 +121,9 @@ def load_perturbed_rule() -> PerturbedRule:
         raise ScenarioError(f"{path}: not a readable TOML file ({exc})") from None
     except ScenarioError as exc:
         raise ScenarioError(f"{path}: {exc}") from None
+    if any(v != int(v) for v in rule.debris.extra_obstacles):
+        raise ScenarioError(f"{path}: key 'debris.extra_obstacles' = {list(rule.debris.extra_obstacles)}; "
+                            "allowed: two integers in [0, 7]")
     for name, pair in (("debris.extra_obstacles", rule.debris.extra_obstacles),
                        ("debris.radius_m", rule.debris.radius_m), ("robust.mass_scale", rule.robust.mass_scale)):
         if pair[0] > pair[1]:
@@ -205,9 +208,10 @@ def draw_robust(task: Scenario, rng: np.random.Generator, spec: RobustDraw) -> S
                                      for row in rng.uniform(-spec.com_offset_m, spec.com_offset_m, (12, 3))))
     momentum = np.concatenate((rng.uniform(-spec.linear_momentum_kg_m_s, spec.linear_momentum_kg_m_s, 3),
                                rng.uniform(-spec.angular_momentum_kg_m2_s, spec.angular_momentum_kg_m2_s, 3)))
-    noise = TargetNoise(position_bias_m=tuple(float(x) for x in rng.uniform(-spec.position_bias_m, spec.position_bias_m, 3)),
-                        attitude_bias_rad=tuple(float(x) for x in
-                                                rng.uniform(-spec.attitude_bias_rad, spec.attitude_bias_rad, 3)),
+    position_bias = rng.uniform(-spec.position_bias_m, spec.position_bias_m, 3)
+    attitude_bias = rng.uniform(-spec.attitude_bias_rad, spec.attitude_bias_rad, 3)
+    noise = TargetNoise(position_bias_m=tuple(float(x) for x in position_bias),
+                        attitude_bias_rad=tuple(float(x) for x in attitude_bias),
                         position_sigma_m=spec.position_sigma_m, attitude_sigma_rad=spec.attitude_sigma_rad,
                         interval_s=spec.interval_s, seed=int(rng.integers(2**63 - 1)))
     initial = dataclasses.replace(task.initial, momentum=tuple(float(x) for x in momentum))
@@ -237,5 +241,5 @@ def _perturbed_task(tier: str, seed: int, benchmark: Benchmark, rule: PerturbedR
         if debris is None:
             return None
         task = with_sections(base, debris=debris)
-    return with_sections(task, name=f"v1-{tier}-{seed}",
-                         description=f"Benchmark v1 {tier} candidate task of seed {seed} (ffsr_gym.tasks.perturbation).")
+    description = f"Benchmark v1 {tier} candidate task of seed {seed} (ffsr_gym.tasks.perturbation)."
+    return with_sections(task, name=f"v1-{tier}-{seed}", description=description)
