@@ -26,7 +26,7 @@ ALLOWED = {
     "tasks": {"model", "planning", "sim", "scoring"},
     "environments": {"model", "planning", "kernel", "sim", "scoring", "tasks"},
     "bench": {"model", "planning", "sim", "scoring", "tasks", "environments"},
-    "report": {"model", "planning", "sim", "scoring"},
+    "report": {"model", "planning", "sim", "scoring", "tasks"},  # tasks: the tier names the figures order
     "optim": {"model", "planning", "sim", "scoring", "tasks", "environments", "bench", "report"},
 }
 PHYSICS_STAGES = ("model", "planning", "kernel", "sim", "scoring", "tasks")
