@@ -228,3 +228,19 @@ def test_training_loss_is_one_minus_the_mean_certified_score():
     stored = [t.certificate_score for t in pool("easy", "train")[:5]]
     assert training_loss(0.3, 4.0, tier="easy", tasks=5) == pytest.approx(1.0 - np.mean(stored), abs=1e-12)
     assert 0.0 <= training_loss(0.1, 3.0, tier="medium", tasks=3) <= 1.0
+
+
+def test_backends_part_on_a_grazing_task_from_rounding_noise_at_the_start():
+    """docs/model.md §12: at t = 0 the pose error is rounding noise, which φ ∝ |e|^(1−m) turns into
+    tiny rates that differ between the backends; on this grazing medium task the reference collides
+    where the kernel (the benchmark's backend, the certificate's) clears the obstacle."""
+    entry = pool("medium", "test")[0]
+    assert entry.seed == 1000086 and (entry.certificate.m, entry.certificate.T_c_s) == (0.5, 6.0)
+    task = draw_task(entry.seed, BENCH)
+    kernel = ffsr_gym.tasks.certificate.replay(task, entry.certificate, BENCH, backend="kernel")
+    reference = ffsr_gym.tasks.certificate.replay(task, entry.certificate, BENCH, backend="pinocchio")
+    assert kernel.success and kernel.min_clearance_m > 0.0
+    assert reference.failure == "collision" and reference.min_clearance_m < 0.0
+    first = [make_rollout(task, backend=b, m=0.5, T_c=6.0) for b in ("kernel", "pinocchio")]
+    rates = [r.advance(1)[0][0] for r in first]
+    assert max(np.max(np.abs(r)) for r in rates) < 1e-7 and np.max(np.abs(rates[0] - rates[1])) > 1e-10
