@@ -4,12 +4,11 @@ the nearest obstacle where it is at time t, and nothing changed without debris."
 from __future__ import annotations
 
 import dataclasses
-import re
-from pathlib import Path
 
 import numpy as np
 import pytest
 from test_kernel import ARRAYS, assert_agree
+from test_scenario import assert_section_rejected
 
 from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.kernel import planner as kp
@@ -115,10 +114,7 @@ def test_scenario_hash_unchanged_without_debris():
     ("spin = 1.0", "unknown key 'debris.spin'"),
 ])
 def test_malformed_debris_is_named(tmp_path, section, message):
-    path = tmp_path / "debris.toml"
-    path.write_text(Path(load_scenario("paper").source).read_text() + f"\n[debris]\n{section}\n")
-    with pytest.raises(ScenarioError, match=re.escape(message)):
-        load_scenario(path)
+    assert_section_rejected(tmp_path, "debris", section, message)
 
 
 def test_debris_needs_the_obstacle_section():

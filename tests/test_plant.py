@@ -6,16 +6,12 @@ not with the code under test.
 
 from __future__ import annotations
 
-import re
-from pathlib import Path
-
-import gymnasium as gym
 import numpy as np
 import pinocchio as pin
 import pytest
 from test_kernel import ARRAYS, assert_agree
+from test_scenario import assert_section_rejected
 
-from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model.robot import load_robot
 from ffsr_gym.model.scenario import InitialState, Plant, load_scenario
 from ffsr_gym.sim.simulate import simulate
@@ -89,21 +85,12 @@ def test_nominal_plant_reproduces_the_plain_scenario_bit_for_bit():
      "'plant.inertia_scale[12]' = 3.0 is out of range; allowed: [0.5, 2.0]"),
 ])
 def test_malformed_plant_is_named(tmp_path, section, message):
-    path = tmp_path / "plant.toml"
-    path.write_text(Path(load_scenario("paper").source).read_text() + f"\n[plant]\n{section}\n")
-    with pytest.raises(ScenarioError, match=re.escape(message)):
-        load_scenario(path)
+    assert_section_rejected(tmp_path, "plant", section, message)
 
 
 def test_batched_env_with_debris_and_a_plant_equals_single_envs(scenario):
     """The batched kernel carries each copy's obstacles and plant: copies reproduce single envs."""
     from test_debris import DEBRIS
-    from test_vector_env import lockstep, make_vec
+    from test_vector_env import assert_batch_matches_singles
 
-    both = scenario.replace(debris=DEBRIS)
-    venv = make_vec("FFSR-Residual-v0", 2, scenario=both)
-    singles = [gym.make("FFSR-Residual-v0", scenario=both) for _ in range(2)]
-    obs, _ = venv.reset(seed=3)
-    np.testing.assert_array_equal(obs, np.stack([env.reset(seed=3 + i)[0] for i, env in enumerate(singles)]))
-    lockstep(venv, singles, 30, np.random.default_rng(1), lambda a, b: a == pytest.approx(b, rel=1e-12, abs=1e-15),
-             lambda *args: None)
+    assert_batch_matches_singles(scenario.replace(debris=DEBRIS))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +35,14 @@ def test_paper_differs_from_printed_only_in_the_obstacle():
 def test_printed_target_quaternion_is_normalised():
     printed = np.array([0.0215, 0.9027, 0.1184, 0.4132])
     assert np.allclose(load_scenario("paper").target.quaternion_wxyz, printed / np.linalg.norm(printed))
+
+
+def assert_section_rejected(tmp_path: Path, section: str, body: str, message: str) -> None:
+    """``paper`` with a ``[section]`` of ``body`` appended fails to load with ``message`` in the error."""
+    path = tmp_path / f"{section}.toml"
+    path.write_text(scenario_path("paper").read_text() + f"\n[{section}]\n{body}\n")
+    with pytest.raises(ScenarioError, match=re.escape(message)):
+        load_scenario(path)
 
 
 def _write_variant(tmp_path: Path, old: str, new: str) -> Path:

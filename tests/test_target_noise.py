@@ -6,15 +6,11 @@ kinematics of the logged state, and compared with bias + σ · standard normal d
 
 from __future__ import annotations
 
-import re
-from pathlib import Path
-
-import gymnasium as gym
 import numpy as np
 import pytest
 from test_kernel import ARRAYS, assert_agree
+from test_scenario import assert_section_rejected
 
-from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.robot import load_robot
 from ffsr_gym.model.scenario import TargetNoise, load_scenario, to_dict
@@ -65,14 +61,9 @@ def test_zero_noise_reproduces_the_plain_task_bit_for_bit(scenario):
 
 
 def test_batched_env_with_a_noisy_target_equals_single_envs(scenario):
-    from test_vector_env import lockstep, make_vec
+    from test_vector_env import assert_batch_matches_singles
 
-    venv = make_vec("FFSR-Residual-v0", 2, scenario=scenario)
-    singles = [gym.make("FFSR-Residual-v0", scenario=scenario) for _ in range(2)]
-    obs, _ = venv.reset(seed=3)
-    np.testing.assert_array_equal(obs, np.stack([env.reset(seed=3 + i)[0] for i, env in enumerate(singles)]))
-    lockstep(venv, singles, 30, np.random.default_rng(1), lambda a, b: a == pytest.approx(b, rel=1e-12, abs=1e-15),
-             lambda *args: None)
+    assert_batch_matches_singles(scenario)
 
 
 @pytest.mark.parametrize("section, message", [
@@ -85,7 +76,4 @@ def test_batched_env_with_a_noisy_target_equals_single_envs(scenario):
     ("jitter = 1.0", "unknown key 'target_noise.jitter'"),
 ])
 def test_malformed_target_noise_is_named(tmp_path, section, message):
-    path = tmp_path / "noise.toml"
-    path.write_text(Path(load_scenario("paper").source).read_text() + f"\n[target_noise]\n{section}\n")
-    with pytest.raises(ScenarioError, match=re.escape(message)):
-        load_scenario(path)
+    assert_section_rejected(tmp_path, "target_noise", section, message)

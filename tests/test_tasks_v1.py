@@ -23,7 +23,7 @@ from ffsr_gym.sim.simulate import make_rollout
 from ffsr_gym.tasks.certificate import Certificate
 from ffsr_gym.tasks.generator import draw_task, screen
 from ffsr_gym.tasks.splits import LABEL_CODES, SEED_RANGES, SPLITS, load_pools, pool
-from ffsr_gym.tasks.tiers import TIERS, classify
+from ffsr_gym.tasks.tiers import ALL_TIERS, TIERS, classify
 
 BENCH = load_benchmark("v1")
 POOLS = load_pools()
@@ -48,9 +48,10 @@ def replay_in_env(tier: str, split: str, index: int) -> dict:
 
 
 def certificate_cases(per_pool: int | None) -> list[tuple[str, str, int]]:
+    """(tier, split, index) of ``per_pool`` spread tasks (None: all) of every pool, the perturbed tiers' included."""
     cases = []
     for split in SPLITS:
-        for tier in TIERS:
+        for tier in ALL_TIERS:
             n = len(pool(tier, split))
             picks = range(n) if per_pool is None else np.linspace(0, n - 1, per_pool).round().astype(int)
             cases += [(tier, split, int(i)) for i in picks]

@@ -39,6 +39,17 @@ def lockstep(venv, singles, steps, rng, same_reward, check_end):
     return ends
 
 
+def assert_batch_matches_singles(scenario, *, env_id="FFSR-Residual-v0", num_envs=2, seed=3, steps=30):
+    """A batch of ``scenario`` reproduces single envs seeded seed, seed+1, ...: first observations bit for bit,
+    then ``steps`` lockstep decisions (rewards to 1e-12)."""
+    venv = make_vec(env_id, num_envs, scenario=scenario)
+    singles = [gym.make(env_id, scenario=scenario) for _ in range(num_envs)]
+    obs, _ = venv.reset(seed=seed)
+    np.testing.assert_array_equal(obs, np.stack([env.reset(seed=seed + i)[0] for i, env in enumerate(singles)]))
+    lockstep(venv, singles, steps, np.random.default_rng(1), lambda a, b: a == pytest.approx(b, rel=1e-12, abs=1e-15),
+             lambda *args: None)
+
+
 @pytest.mark.parametrize(("env_id", "scenario", "steps"), [("FFSR-Residual-v0", "random", 250), ("FFSR-v0", "paper", 120)])
 def test_vector_env_equals_single_envs(env_id, scenario, steps):
     """N copies seeded s, s+1, ... reproduce N single envs, autoresets (next-step mode) included."""
