@@ -22,7 +22,7 @@ ALLOWED = {
     "planning": {"model"},
     "kernel": {"model"},
     "sim": {"model", "planning", "kernel"},
-    "scoring": {"model", "sim"},
+    "scoring": {"model", "kernel", "sim"},  # kernel: the compiled score terms
     "tasks": {"model", "planning", "sim", "scoring"},
     "environments": {"model", "planning", "kernel", "sim", "scoring", "tasks"},
     "bench": {"model", "planning", "sim", "scoring", "tasks", "environments"},

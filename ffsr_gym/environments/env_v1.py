@@ -6,11 +6,21 @@ from typing import Any
 
 import numpy as np
 
-from ffsr_gym.environments.env import FFSREnv
-from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.environments.env import FFSREnv, check_action
+from ffsr_gym.exceptions import FFSRError, InvalidInputError
+from ffsr_gym.kernel import decision
 from ffsr_gym.model.benchmark import Benchmark, load_benchmark
 from ffsr_gym.model.scenario import Scenario, load_scenario
-from ffsr_gym.scoring.score import EpisodeScore, score_episode, score_reward, smoothness_cost, smoothness_terms
+from ffsr_gym.scoring.score import (
+    EpisodeScore,
+    score_episode,
+    score_reward,
+    score_vector,
+    smoothness_cost,
+    smoothness_terms,
+)
+from ffsr_gym.sim.compiled import LOG_FIELDS, KernelRollout
+from ffsr_gym.sim.rollout import STATUS
 from ffsr_gym.tasks.splits import SPLITS, PoolTask, pool, task_scenario
 from ffsr_gym.tasks.tiers import ALL_TIERS
 
@@ -124,32 +134,69 @@ class FFSRV1Env(FFSREnv):
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         obs, info = super().reset(seed=seed, options=options)
         self._potential, self._cost_so_far = self._shaping_potential(), 0.0
+        self._episode = self._compiled_episode()
         return obs, info
 
-    def _residual(self, action: np.ndarray) -> np.ndarray:
-        """The v0 residual times the fade f(t) at the start of this decision."""
-        fade = self.benchmark.residual_fade(self.rollout.t, self.scenario.trajectory.motion_time_s)
-        return fade * super()._residual(action)
+    # ------------------------------------------------------------- the compiled step (kernel)
+    def _compiled_episode(self) -> decision.Episode | None:
+        """The episode's arrays for :func:`ffsr_gym.kernel.decision.step_episode` (None on the reference backend)."""
+        rollout = self.rollout
+        if not isinstance(rollout, KernelRollout):
+            return None
+        self._obs, self._no_action = np.zeros(decision.N_OBS, dtype=np.float32), np.zeros(2, dtype=np.float32)
+        settings = decision_settings(self.scenario, self.benchmark)
+        logs = tuple(rollout._log[key] for key in LOG_FIELDS)
+        return decision.new_episode(rollout._mdl, rollout.plant, rollout.x, rollout.fp, rollout.ip, settings, logs,
+                                    self.last_rates)
 
-    def _advance(self, parameters: tuple[float, float] | None, residual: np.ndarray | None):
-        rollout, settings = self.rollout, self.benchmark
-        if parameters is not None:
-            rollout.set_parameters(*parameters)
-        applied, status = rollout.advance(self.steps_per_decision, residual, stop_on_violation=self.terminate_on_violation)
-        increment = smoothness_cost(*smoothness_terms(applied, rollout.dt, self.last_rates), settings.score)
-        self.last_rates = applied[-1]
-        cost = self._violation_cost(applied, rollout.min_clearance(len(applied)))
-        terminated = status != "ok"
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
+        if self._episode is None:
+            return super().step(action)
+        self._check_running()
+        shape, clipped = self.action_space.shape, 0
+        if not (type(action) is np.ndarray and action.dtype == np.float32 and action.shape == shape
+                and action.flags.c_contiguous):
+            action, was_clipped = check_action(action, shape)
+            clipped = int(was_clipped)
+        return self._decide(action, decision.MODE_RESIDUAL if self.residual else decision.MODE_PARAMETERS, clipped)
+
+    def step_with_parameters(self, m: float, T_c: float) -> tuple[np.ndarray, float, bool, bool, dict]:
+        if self._episode is None or self.residual:
+            return super().step_with_parameters(m, T_c)
+        self._check_running()
+        self.rollout.set_parameters(float(m), float(T_c))
+        return self._decide(self._no_action, decision.MODE_SET, 0)
+
+    def _decide(self, action: np.ndarray, mode: int, clipped: int):
+        """One compiled decision (:func:`ffsr_gym.kernel.decision.decide`), then what Gymnasium needs as objects."""
+        rollout = self.rollout
+        rows, status, was_clipped, increment, cost, clearance, ee_error = decision.step_episode(
+            self._episode, action, mode, self.terminate_on_violation, rollout.k, rollout.rows, rollout.n_steps,
+            self.steps_per_decision, self._obs)
+        if status == decision.STATUS_BAD_ACTION:
+            check_action(action, self.action_space.shape)  # raises, naming the problem
+            raise InvalidInputError(f"action must be finite, got {action}; allowed range [-1, 1] per entry")
+        if status == 3:
+            raise FFSRError(f"planner produced non-finite joint rates at t = {(rollout.k + rows) * rollout.dt:.3f} s")
+        rollout.k += rows
+        rollout.rows += rows
+        self.clipped_actions += clipped + int(was_clipped)
+        self._clearance, self._ee_error = clearance, ee_error
+        return self._finish_decision(status, increment, cost, self._obs.copy())
+
+    def _finish_decision(self, status: int, increment: float, cost: float, obs: np.ndarray):
+        """Episode end (score from the whole trajectory), reward, shaping and info of a decision."""
+        rollout = self.rollout
+        terminated = status != 0
         truncated = not terminated and rollout.k >= rollout.n_steps
         info: dict[str, Any] = {"smoothness_increment": increment, "cost": cost, "clipped_actions": self.clipped_actions}
         result = None
         if terminated or truncated:
             rollout.finish()
-            result = score_episode(rollout.trajectory(), self.scenario, settings)
+            result = score_episode(rollout.trajectory(), self.scenario, self.benchmark)
             info.update(self._final_info_v1(result))
         reward, penalty = score_reward(self._cost_so_far, self._cost_so_far + increment, result)
         self._cost_so_far += increment
-        obs = self._observation()
         shaping = 0.0
         if self.dense_shaping:
             potential = self._shaping_potential()
@@ -159,6 +206,23 @@ class FFSRV1Env(FFSREnv):
         if self.render_mode == "human":
             self.render()
         return obs, float(reward + shaping), terminated, truncated, info
+
+    def _residual(self, action: np.ndarray) -> np.ndarray:
+        """The v0 residual times the fade f(t) at the start of this decision."""
+        fade = self.benchmark.residual_fade(self.rollout.t, self.scenario.trajectory.motion_time_s)
+        return fade * super()._residual(action)
+
+    def _advance(self, parameters: tuple[float, float] | None, residual: np.ndarray | None):
+        """A decision through the :class:`~ffsr_gym.sim.rollout.Rollout` interface (the reference backend)."""
+        rollout = self.rollout
+        if parameters is not None:
+            rollout.set_parameters(*parameters)
+        applied, status = rollout.advance(self.steps_per_decision, residual, stop_on_violation=self.terminate_on_violation)
+        increment = smoothness_cost(*smoothness_terms(applied, rollout.dt, self.last_rates), self.benchmark.score)
+        self.last_rates = applied[-1]
+        cost = self._violation_cost(applied, rollout.min_clearance(len(applied)))
+        obs = self._observation()
+        return self._finish_decision(STATUS.index(status), increment, cost, obs)
 
     def _violation_cost(self, applied: np.ndarray, min_clearance: float) -> float:
         """0 without violation; penetration depth / scale + relative excess of the peak rate."""
@@ -173,6 +237,17 @@ class FFSRV1Env(FFSREnv):
     @staticmethod
     def _final_info_v1(result: EpisodeScore) -> dict[str, Any]:
         return {key: getattr(result, key) for key in END_INFO_V1}
+
+
+def decision_settings(task: Scenario, benchmark: Benchmark) -> np.ndarray:
+    """The compiled decision's settings (:data:`ffsr_gym.kernel.decision.N_DS`) of a v1 task."""
+    settings, action, score = np.zeros(decision.N_DS), benchmark.action, benchmark.score
+    (m_lo, m_hi), (t_lo, t_hi) = task.env.m_bounds, task.env.T_c_bounds_s
+    settings[:decision.D_SCORE] = (float(np.radians(task.env.residual_rate_deg_s)), action.residual_fade_s,
+                                   task.trajectory.motion_time_s, m_lo, m_hi, t_lo, t_hi, score.max_rate_deg_s,
+                                   action.cost_clearance_scale_m)
+    settings[decision.D_SCORE:] = score_vector(score)
+    return settings
 
 
 class FFSRResidualV1Env(FFSRV1Env):

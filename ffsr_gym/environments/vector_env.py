@@ -259,6 +259,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         rollout = self._rollouts[i]
         if not rollout.finished:
             rollout.x, rollout.k, rollout.rows = self._X[i].copy(), int(self._K[i]), int(self._K[i])
+            rollout.fp[:] = self._FP[i, :len(rollout.fp)]  # (m, T_c) the batch set
         return rollout
 
 

@@ -3,8 +3,10 @@
 ``gymnasium.make_vec("FFSR-Residual-v1", num_envs=64, task="easy", vectorization_mode="vector_entry_point")``
 gives the same episodes as 64 single environments seeded ``seed, seed + 1, ...`` (tested bit for
 bit): each copy draws its tasks from the pool with its own generator, the residual fades with
-the copy's own time, and rewards and episode scores come from :mod:`ffsr_gym.scoring.score`,
-called per copy exactly as the single environment calls it.
+the copy's own time, every copy's decision runs the single environment's compiled decision
+(:func:`ffsr_gym.kernel.batch.decide_batch` over :func:`ffsr_gym.kernel.decision.decide`), and
+rewards and episode scores come from :mod:`ffsr_gym.scoring.score`, called per copy exactly as
+the single environment calls them.
 """
 
 from __future__ import annotations
@@ -13,12 +15,16 @@ from typing import Any
 
 import numpy as np
 
-from ffsr_gym.environments.env_v1 import END_INFO_V1, FFSRResidualV1Env, FFSRV1Env
+from ffsr_gym.environments.env import assemble_observation, check_action
+from ffsr_gym.environments.env_v1 import END_INFO_V1, FFSRResidualV1Env, FFSRV1Env, decision_settings
 from ffsr_gym.environments.vector_env import FFSRVectorEnv
-from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.scenario import Scenario, residual_rates
-from ffsr_gym.scoring.score import score_episode, score_reward, smoothness_cost, smoothness_terms
-from ffsr_gym.sim.compiled import KernelRollout
+from ffsr_gym.exceptions import FFSRError, InvalidInputError
+from ffsr_gym.kernel import batch as kernel_batch
+from ffsr_gym.kernel import decision
+from ffsr_gym.kernel import planner as kp
+from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.scoring.score import score_episode, score_reward
+from ffsr_gym.sim.compiled import LOG_FIELDS, KernelRollout
 
 
 class FFSRV1VectorEnv(FFSRVectorEnv):
@@ -53,6 +59,10 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
         self._cost_so_far = np.zeros(self.num_envs)
         self._forced_index: list[int] | None = None
         self._ended: dict[int, Any] = {}
+        self._DS = np.zeros((self.num_envs, decision.N_DS))
+        self._SCRATCH = np.zeros((self.num_envs, decision.N_SCRATCH))
+        self._OBS = np.zeros((self.num_envs, decision.N_OBS), dtype=np.float32)
+        self._out = np.zeros((self.num_envs, 7))
 
     def _make_template(self, scenario: str | Scenario) -> FFSRV1Env:
         return self.single_env_class(self._task, self._split, backend="kernel", dense_shaping=self._dense_shaping)
@@ -70,13 +80,21 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
         of this reset (later autoresets draw from the pool again)."""
         self._forced_index = self._task_indices(options)
         try:
-            obs, _ = super().reset(seed=seed, options=options)
+            super().reset(seed=seed, options=options)
         finally:
             self._forced_index = None
         self._cost_so_far[:] = 0.0
-        _, _, ee_error = self._observe()
-        self._potential = -ee_error / self._template.benchmark.action.shaping_position_scale_m
-        return obs, {"task_index": self._task_index.copy(), "task_seed": self._task_seed.copy()}
+        return self._OBS.copy(), {"task_index": self._task_index.copy(), "task_seed": self._task_seed.copy()}
+
+    def _reset_one(self, i: int) -> None:
+        """Copy ``i``'s next episode, its decision settings and its first observation."""
+        super()._reset_one(i)
+        rollout = self._rollouts[i]
+        self._DS[i] = decision_settings(rollout.scenario, self._template.benchmark)
+        angles, e1, e0, rel, clear = rollout.observation()
+        self._OBS[i] = assemble_observation(angles, self._last_rates[i], e1, e0, rel, clear, 0.0)
+        self._out[i, 5], self._out[i, 6] = clear, np.linalg.norm(e1[:3])
+        self._potential[i] = -self._out[i, 6] / self._template.benchmark.action.shaping_position_scale_m
 
     def _task_indices(self, options: dict | None) -> list[int] | None:
         if options is not None and not isinstance(options, dict):
@@ -89,27 +107,23 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
                                     "indices, one per copy, on a tier's pool")
         return [int(i) if isinstance(i, (int, np.integer)) and not isinstance(i, bool) else i for i in indices]
 
-    def _apply_actions(self, a: np.ndarray, active: np.ndarray) -> np.ndarray:
-        if not self._template.residual:
-            return super()._apply_actions(a, active)
-        benchmark, residuals = self._template.benchmark, np.zeros((self.num_envs, 12))
-        for i in np.flatnonzero(active):
-            fade = benchmark.residual_fade(self._K[i] * self.dt, self._rollouts[i].scenario.trajectory.motion_time_s)
-            residuals[i] = fade * residual_rates(a[i], self._rollouts[i].scenario.env)
-        return residuals
-
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
-        restarted = self._needs_reset.copy()
-        active = self._advance_batch(actions)
-        settings, N = self._template.benchmark, self.num_envs
-        increments, costs = np.zeros(N), np.zeros(N)
-        for i in np.flatnonzero(active):
-            rows = int(self._rows[i])
-            applied = self._applied[i, :rows]
-            increments[i] = smoothness_cost(*smoothness_terms(applied, self.dt, self._previous_rates[i]), settings.score)
-            window = slice(int(self._K[i]) - rows, int(self._K[i]))
-            clearance = min(np.min(self._logs["clear"][i, window]), np.min(self._logs["self"][i, window]))
-            costs[i] = self._template._violation_cost(applied, float(clearance))
+        if self._mdl is None:
+            raise InvalidInputError("call reset() before step()")
+        a, was_clipped = check_action(actions, self.action_space.shape)
+        active, restarted = ~self._needs_reset, self._needs_reset.copy()
+        self._clipped += was_clipped
+        for i in np.flatnonzero(restarted):
+            self._reset_one(i)
+        out, mode = self._out, self._mode(active)
+        out[restarted, :5] = 0.0  # no steps, no cost; clearance and EE error of the reset state stay
+        kernel_batch.decide_batch(self._mdl, self._plants, self._X, self._K, active, self.n_steps, self.steps_per_decision,
+                                  self._FP, self._IP, self._DS, a, mode, tuple(self._logs[key] for key in LOG_FIELDS),
+                                  self._last_rates, self._SCRATCH, self._OBS, out, kernel_batch.groups(self.num_envs))
+        self._rows, self._status = out[:, 0].astype(np.int64), out[:, 1].astype(np.int64)
+        if np.any(self._status == 3):
+            raise FFSRError(f"planner produced non-finite joint rates in copies {np.flatnonzero(self._status == 3).tolist()}")
+        N, increments, costs = self.num_envs, out[:, 3].copy(), out[:, 4].copy()
         terminated = active & (self._status != 0)
         truncated = active & ~terminated & (self._K >= self.n_steps)
         infos = self._end_episodes(terminated, truncated, np.zeros(N))
@@ -120,15 +134,25 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
             rewards[i], penalties[i] = score_reward(self._cost_so_far[i], self._cost_so_far[i] + increments[i], end)
             self._cost_so_far[i] += increments[i]
         self._needs_reset = terminated | truncated
-        obs, clearance, ee_error = self._observe()
-        shaping = np.zeros(N)
-        potential = -ee_error / settings.action.shaping_position_scale_m
-        if self._dense_shaping:
-            shaping = np.where(active, potential - self._potential, 0.0)
-        self._potential = np.where(active | restarted, potential, self._potential)
+        clearance, ee_error = out[:, 5].copy(), out[:, 6].copy()
+        potential = -ee_error / self._template.benchmark.action.shaping_position_scale_m
+        shaping = np.where(active, potential - self._potential, 0.0) if self._dense_shaping else np.zeros(N)
+        self._potential = np.where(active, potential, self._potential)
         infos.update({"smoothness_increment": increments, "penalty": penalties, "shaping": shaping, "cost": costs,
                       "clearance_m": clearance, "ee_position_error_m": ee_error, "clipped_actions": self._clipped.copy()})
-        return obs, np.where(active, rewards + shaping, 0.0), terminated, truncated, infos
+        return self._OBS.copy(), np.where(active, rewards + shaping, 0.0), terminated, truncated, infos
+
+    def _mode(self, active: np.ndarray) -> int:
+        """The compiled decision's action mode; sets (m, T_c) for ``step_with_parameters`` (validated per copy)."""
+        if self._template.residual:
+            return decision.MODE_RESIDUAL
+        if self._parameters is None:
+            return decision.MODE_PARAMETERS
+        for i in np.flatnonzero(active):
+            rollout = self._rollouts[i]
+            rollout.set_parameters(*self._parameters)
+            self._FP[i, kp.F_M], self._FP[i, kp.F_TC] = rollout.fp[kp.F_M], rollout.fp[kp.F_TC]
+        return decision.MODE_SET
 
     def _score_end(self, i: int, rollout: KernelRollout, truncated: bool) -> tuple[Any, float]:
         """The v1 score of copy ``i``'s finished episode (kept for its last reward); no extra penalty here."""

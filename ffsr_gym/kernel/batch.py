@@ -11,6 +11,7 @@ from __future__ import annotations
 import numba
 from numba import njit, prange
 
+from ffsr_gym.kernel.decision import decide
 from ffsr_gym.kernel.loop import observe_into, run_into
 from ffsr_gym.kernel.physics import workspace
 from ffsr_gym.kernel.planner import F_DT
@@ -43,7 +44,7 @@ def run_batch(mdl, plants, X, K, active, n_total, n_max, FP, IP, residuals, logs
                 continue
             k = K[e]
             _, r, st = run_into(mdl, (PM[e], PL[e], PI[e]), ws, X[e], k, n_total, n_max, FP[e], IP[e], residuals[e],
-                                True, False, LX[e, k:], LV[e, k:], LDQ[e, k:], LERR[e, k:], LCLEAR[e, k:], LSELF[e, k:],
+                                True, False, False, LX[e, k:], LV[e, k:], LDQ[e, k:], LERR[e, k:], LCLEAR[e, k:], LSELF[e, k:],
                                 LMU[e, k:], LCDF[e, k:], LSMIN[e, k:])
             K[e] = k + r
             rows[e], status[e] = r, st
@@ -59,3 +60,31 @@ def observe_batch(mdl, X, K, FP, IP, E1, E0, REL, CLEAR, n_groups):
         for e in range(g, n, n_groups):
             CLEAR[e] = observe_into(mdl, ws, X[e], K[e] * FP[e, F_DT], FP[e], IP[e], REL[e])
             E1[e, :], E0[e, :] = ws.e1, ws.e0
+
+
+@njit(cache=True, parallel=True)
+def decide_batch(mdl, plants, X, K, active, n_total, n_max, FP, IP, DS, actions, mode, logs, LAST, SCRATCH, OBS, out,
+                 n_groups):
+    """:func:`ffsr_gym.kernel.decision.decide` for every active episode e (stopping on a violation).
+
+    ``X``, ``K``, ``FP`` (the (m, T_c) of ``MODE_PARAMETERS``) and ``LAST`` (N, 12) advance in
+    place; ``logs`` as :func:`run_batch`'s, written from row K[e]; ``OBS`` (N, 53) float32.
+    ``out`` (N, 7) float64 receives the returns (rows, status, clipped, increment, cost,
+    clearance, EE error); inactive episodes keep their rows of ``out`` and ``OBS``.
+    """
+    PM, PL, PI = plants
+    LX, LV, LDQ, LERR, LCLEAR, LSELF, LMU, LCDF, LSMIN = logs
+    n = X.shape[0]
+    for g in prange(n_groups):
+        ws = workspace(len(mdl[13]))
+        for e in range(g, n, n_groups):
+            if not active[e]:
+                continue
+            k = K[e]
+            rows, status, clipped, increment, cost, clearance, ee_error = decide(
+                mdl, (PM[e], PL[e], PI[e]), ws, X[e], k, n_total, n_max, FP[e], IP[e], DS[e], actions[e], mode, True,
+                (LX[e], LV[e], LDQ[e], LERR[e], LCLEAR[e], LSELF[e], LMU[e], LCDF[e], LSMIN[e]), k, LAST[e],
+                SCRATCH[e], OBS[e], False)
+            K[e] = k + rows
+            out[e, 0], out[e, 1], out[e, 2], out[e, 3] = rows, status, clipped, increment
+            out[e, 4], out[e, 5], out[e, 6] = cost, clearance, ee_error

@@ -79,17 +79,19 @@ def run(mdl, plant, x_start, k0, n_total, n_max, fp, ip, residual, stop_on_viola
     ``(x_next, rows, status)``: status 0 ok, 1 rate-limit violation, 2 collision, 3 non-finite rates.
     """
     return run_into(mdl, plant, workspace(len(mdl[13])), x_start.copy(), k0, n_total, n_max, fp, ip, residual,
-                    stop_on_violation, record_only, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf,
+                    stop_on_violation, record_only, False, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf,
                     out_smin)
 
 
 @njit(cache=True, error_model="numpy")
 def run_into(mdl_owner, plant_owner, ws_owner, x_owner, k0, n_total, n_max, fp_owner, ip_owner, residual,
-             stop_on_violation, record_only, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf,
+             stop_on_violation, record_only, planned, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf,
              out_smin):
     """:func:`run` in the caller's workspace, advancing the state ``x_owner`` in place (and returning it).
 
     Works on borrowed arrays (``ffsr_gym.kernel.borrow``): the caller owns every argument for the call.
+    ``planned``: the workspace already holds :func:`plan` at (``k0`` dt, ``x_owner``) with these
+    settings (an observation just computed it), so the first step reuses it.
     """
     mdl, ws, x, fp, ip = borrowed(mdl_owner), borrowed(ws_owner), borrowed(x_owner), borrowed(fp_owner), borrowed(ip_owner)
     body = mdl[:4] + borrowed(plant_owner) + mdl[7:]  # the plant: the planner's kinematics, its own inertias
@@ -99,7 +101,8 @@ def run_into(mdl_owner, plant_owner, ws_owner, x_owner, k0, n_total, n_max, fp_o
     steps = 1 if record_only else min(n_max, n_total - k0)
     dq, v0, e0, mu, cdf, smin = ws.dq, ws.v0, ws.e0, ws.mu, ws.cdf, ws.smin
     for i in range(steps):
-        plan(mdl, x, (k0 + i) * dt, fp, ip, ws)
+        if i > 0 or not planned:
+            plan(mdl, x, (k0 + i) * dt, fp, ip, ws)
         logged = ws.e1
         if ip[I_N_EST] > 1:  # the planner followed a target estimate; log the error to the true target
             true_error_into(ws, (k0 + i) * dt, fp, ip)

@@ -23,6 +23,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from ffsr_gym.kernel import score_terms
 from ffsr_gym.model.benchmark import Benchmark, ScoreSettings
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.scoring.objective import objective_terms
@@ -43,20 +44,28 @@ def smoothness_terms(dq_joints: Array, dt: float, previous: Array | None = None)
             of an episode, each with the previous chunk's last row, sum to the whole episode's terms.
 
     Returns:
-        ``(E, V)``, each (2,) for (mission, balance).
+        ``(E, V)``, each (2,) for (mission, balance). The sums run in
+        :func:`ffsr_gym.kernel.score_terms.smoothness_into` (shared with the environments' step).
     """
-    rates = np.asarray(dq_joints, dtype=float).reshape(-1, 2, 6)
-    before = np.zeros((1, 2, 6)) if previous is None else np.asarray(previous, dtype=float).reshape(1, 2, 6)
-    energy = np.einsum("kaj,kaj->a", rates, rates) * dt
-    steps = np.diff(np.concatenate((before, rates)), axis=0)
-    variation = np.sqrt(np.einsum("kaj,kaj->ka", steps, steps)).sum(axis=0)
-    return energy, variation
+    rates = np.ascontiguousarray(dq_joints, dtype=float).reshape(-1, 12)
+    before = np.zeros(12) if previous is None else np.ascontiguousarray(previous, dtype=float).reshape(12)
+    out = np.empty(4)
+    score_terms.smoothness_into(rates, len(rates), float(dt), before, out)
+    return out[:2], out[2:]
 
 
 def smoothness_cost(energy: Array, variation: Array, settings: ScoreSettings) -> float:
     """C = α (E₁/E_ref + V₁/V_ref) + β (E₂/E_ref + V₂/V_ref) (dimensionless, ≥ 0)."""
-    per_arm = np.asarray(energy) / settings.rate_energy_ref_rad2_s + np.asarray(variation) / settings.rate_variation_ref_rad_s
-    return float(settings.alpha * per_arm[0] + settings.beta * per_arm[1])
+    terms = np.concatenate((np.asarray(energy, dtype=float), np.asarray(variation, dtype=float)))
+    return float(score_terms.smoothness_cost(terms, score_vector(settings)))
+
+
+def score_vector(settings: ScoreSettings) -> Array:
+    """The cost's settings as the compiled terms read them (:data:`ffsr_gym.kernel.score_terms.S_ALPHA`, ...)."""
+    out = np.empty(score_terms.N_SCORE)
+    out[[score_terms.S_ALPHA, score_terms.S_BETA, score_terms.S_E_REF, score_terms.S_V_REF]] = (
+        settings.alpha, settings.beta, settings.rate_energy_ref_rad2_s, settings.rate_variation_ref_rad_s)
+    return out
 
 
 def bounded_score(success: bool, cost: float) -> float:
