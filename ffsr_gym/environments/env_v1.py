@@ -24,6 +24,7 @@ from ffsr_gym.sim.rollout import STATUS
 from ffsr_gym.tasks.splits import SPLITS, PoolTask, pool, task_scenario
 from ffsr_gym.tasks.tiers import ALL_TIERS
 
+_FLOAT32 = np.dtype(np.float32)
 #: Tasks of benchmark v1 (``task=``); a :class:`Scenario` is accepted as a custom, unranked task.
 TASKS = ("paper", *ALL_TIERS)
 #: The ``info`` keys at the end of a v1 episode (:class:`EpisodeScore` fields) and their dtypes in a batch.
@@ -144,6 +145,7 @@ class FFSRV1Env(FFSREnv):
         if not isinstance(rollout, KernelRollout):
             return None
         self._obs, self._no_action = np.zeros(decision.N_OBS, dtype=np.float32), np.zeros(2, dtype=np.float32)
+        self._action_mode = decision.MODE_RESIDUAL if self.residual else decision.MODE_PARAMETERS
         settings = decision_settings(self.scenario, self.benchmark)
         logs = tuple(rollout._log[key] for key in LOG_FIELDS)
         return decision.new_episode(rollout._mdl, rollout.plant, rollout.x, rollout.fp, rollout.ip, settings, logs,
@@ -154,11 +156,11 @@ class FFSRV1Env(FFSREnv):
             return super().step(action)
         self._check_running()
         shape, clipped = self.action_space.shape, 0
-        if not (type(action) is np.ndarray and action.dtype == np.float32 and action.shape == shape
-                and action.flags.c_contiguous):
+        if not (type(action) is np.ndarray and action.dtype is _FLOAT32 and action.shape == shape
+                and action.flags.c_contiguous):  # else the checks in Python (the kernel takes C-ordered float32)
             action, was_clipped = check_action(action, shape)
             clipped = int(was_clipped)
-        return self._decide(action, decision.MODE_RESIDUAL if self.residual else decision.MODE_PARAMETERS, clipped)
+        return self._decide(action, self._action_mode, clipped)
 
     def step_with_parameters(self, m: float, T_c: float) -> tuple[np.ndarray, float, bool, bool, dict]:
         if self._episode is None or self.residual:

@@ -140,7 +140,7 @@ def score_episode(traj: Trajectory, task: Scenario, benchmark: Benchmark) -> Epi
     applied = traj.dq_joints[:-1]
     energy, variation = smoothness_terms(applied, traj.dt)
     cost = smoothness_cost(energy, variation, settings)
-    peak = np.degrees(np.abs(applied)).reshape(-1, 2, 6).max(axis=(0, 2)) if len(applied) else np.zeros(2)
+    peak = np.degrees(np.abs(applied).max(axis=0).reshape(2, 6).max(axis=1)) if len(applied) else np.zeros(2)
     min_clear, min_self = float(np.min(traj.clearance_m)), float(np.min(traj.self_clearance_m))
     final_p, final_o = float(traj.ee_position_error_m[-1]), float(traj.ee_attitude_error[-1])
     checks = (bool(np.any(peak > settings.max_rate_deg_s)), min_clear < 0.0 or min_self < 0.0,
