@@ -37,9 +37,12 @@ def best_of(fn, repeats: int) -> float:
 
 
 def per_step(env, steps: int) -> float:
-    """Mean wall time [s] of one ``env.step`` with random actions (resets excluded)."""
+    """Mean wall time [s] of one ``env.step`` with random actions (resets excluded; one warm-up episode first)."""
     env.reset(seed=0)
     env.action_space.seed(0)
+    while not any(env.step(env.action_space.sample())[2:4]):
+        pass
+    env.reset(seed=1)
     total, count = 0.0, 0
     while count < steps:
         action = env.action_space.sample()
@@ -52,12 +55,66 @@ def per_step(env, steps: int) -> float:
     return total / count
 
 
-def vector_throughput(num_envs: int, decisions: int, threads: int) -> tuple[float, float]:
-    """Physics steps per second and wall time [s] per vector step of the batched FFSR-Residual-v0."""
+def step_budget(env_id: str, task: str, steps: int) -> dict[str, float]:
+    """Where the wall time [s] of one ``env_id`` step goes (means per step, random actions).
+
+    ``compiled``: inside the compiled decision (physics, score terms, observation); ``episode_end``:
+    the extra time of the episodes' last steps (final sample, trajectory, score), spread over all
+    steps; ``wrappers``: Gymnasium's wrappers (wrapped minus bare env); ``python``: the rest.
+    """
+    from ffsr_gym.environments import env_v1
+
+    inside = [0.0]
+    compiled = env_v1.decision.step_episode
+
+    def timed(*args):
+        start = time.perf_counter()
+        out = compiled(*args)
+        inside[0] += time.perf_counter() - start
+        return out
+
+    env = gym.make(env_id, task=task)
+    wrapped = per_step(env, steps)
+    env_v1.decision.step_episode = timed
+    try:
+        inside[0] = 0.0
+        bare, ends = _bare_steps(env.unwrapped, steps)
+        in_decision = inside[0] / steps
+    finally:
+        env_v1.decision.step_episode = compiled
+    return {"total": wrapped, "compiled": in_decision, "episode_end": ends, "wrappers": wrapped - bare,
+            "python": bare - in_decision - ends}
+
+
+def _bare_steps(env, steps: int) -> tuple[float, float]:
+    """Mean step time [s] of an unwrapped env, and its episode-end steps' extra time per step."""
+    env.reset(seed=1)
+    env.action_space.seed(1)
+    total, last, count, ended = 0.0, 0.0, 0, []
+    while count < steps:
+        action = env.action_space.sample()
+        start = time.perf_counter()
+        _, _, terminated, truncated, _ = env.step(action)
+        last = time.perf_counter() - start
+        total += last
+        count += 1
+        if terminated or truncated:
+            ended.append(last)
+            env.reset()
+    mean = total / count
+    return mean, sum(t - mean for t in ended) / count
+
+
+def vector_throughput(env_id: str, num_envs: int, decisions: int, threads: int, **kwargs) -> tuple[float, float]:
+    """Physics steps per second and wall time [s] per vector step of a batched env, zero actions.
+
+    For the residual ids a zero action is the reference planner; copies run whole episodes (ends
+    scored, resets included) for ``decisions`` decisions after a first one.
+    """
     numba.set_num_threads(threads)
-    venv = gym.make_vec("FFSR-Residual-v0", num_envs=num_envs, vectorization_mode="vector_entry_point")
+    venv = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs)
     venv.reset(seed=0)
-    actions = np.zeros(venv.action_space.shape, dtype=np.float32)  # the reference planner
+    actions = np.zeros(venv.action_space.shape, dtype=np.float32)
     venv.step(actions)
     steps, start = 0, time.perf_counter()
     for _ in range(decisions):
@@ -67,8 +124,9 @@ def vector_throughput(num_envs: int, decisions: int, threads: int) -> tuple[floa
     return steps / elapsed, elapsed / decisions
 
 
-def measure(workers: int, repeats: int, quick: bool) -> list[dict]:
-    """One run of every measurement: rows of (what, value, reference measured in this run, ratio, target)."""
+def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
+    """One run of every measurement: rows of (what, value, reference measured in this run, ratio, target),
+    and the step budget of ``FFSR-Residual-v1``."""
     rows = []
 
     def row(key: str, what: str, value: float, unit: str, reference: str, ratio: float | None, target: str,
@@ -84,18 +142,20 @@ def measure(workers: int, repeats: int, quick: bool) -> list[dict]:
     row("rollout", "20 s paper rollout at dt = 0.01 s, kernel", kernel * 1e3, "ms", f"Pinocchio {reference * 1e3:.0f} ms",
         reference / kernel, "speed-up >= 10x and <= 20 ms", reference / kernel >= 10 and kernel <= 0.02)
 
-    ours = per_step(gym.make("FFSR-Residual-v0", scenario="paper"), 400)
-    ours_v1 = per_step(gym.make("FFSR-Residual-v1", task="easy"), 400)
-    _, vector_step = vector_throughput(64, 200, workers)
     try:
-        pusher = per_step(gym.make("Pusher-v5"), 2000)
+        pusher = per_step(gym.make("Pusher-v5"), 4000)
     except Exception as exc:  # noqa: BLE001 - MuJoCo is optional
         print(f"  Pusher-v5 unavailable ({exc.__class__.__name__}: pip install -e '.[bench]')")
         pusher = None
-    for key, name, value in (("step_v0", "one FFSR-Residual-v0 step (10 physics steps)", ours),
-                             ("step_v1", "one FFSR-Residual-v1 step (10 physics steps)", ours_v1),
-                             ("step_batched", f"one batched FFSR-Residual-v0 step per copy (64 copies, {workers} threads)",
-                              vector_step / 64)):
+    budget = step_budget("FFSR-Residual-v1", "easy", 2000)
+    v0 = per_step(gym.make("FFSR-Residual-v0"), 2000)
+    singles = (("step_v0", "one FFSR-Residual-v0 step (10 physics steps)", v0),
+               ("step_v1", "one FFSR-Residual-v1 step on easy (10 physics steps)", budget["total"]),
+               ("step_v1_parameters", "one FFSR-v1 step on easy (10 physics steps)",
+                per_step(gym.make("FFSR-v1", task="easy"), 2000)))
+    _, vector_step = vector_throughput("FFSR-Residual-v1", 64, 200, workers, task="easy")
+    for key, name, value in (*singles, ("step_batched", f"one batched FFSR-Residual-v1 step per copy (64 copies, "
+                                                         f"{workers} threads)", vector_step / 64)):
         ratio = None if pusher is None else value / pusher
         row(key, name, value * 1e6, "us", "Pusher-v5 " + ("n/a" if pusher is None else f"{pusher * 1e6:.0f} us"), ratio,
             "ratio <= 1", None if ratio is None else ratio <= 1.0)
@@ -114,15 +174,19 @@ def measure(workers: int, repeats: int, quick: bool) -> list[dict]:
     row("ga", f"{what}, 100 x 100, genes m and T_c, {workers} processes", ga_time, "s",
         f"Pinocchio without cache {serial:.0f} s", serial / ga_time, "<= 60 s", ga_time <= 60)
 
-    single, _ = vector_throughput(64, 200, 1)  # 200 decisions: whole episodes, with their ends and resets
-    steps_per_s, _ = vector_throughput(64, 200, workers)
-    row("batched", f"batched FFSR-Residual-v0, 64 copies, {workers} threads, whole episodes", steps_per_s,
-        "physics steps/s", f"1 thread {single:,.0f} steps/s", steps_per_s / single, ">= 600,000 steps/s",
-        steps_per_s >= 600_000)
+    for env_id, key in (("FFSR-Residual-v1", "batched"), ("FFSR-Residual-v0", "batched_v0")):
+        kwargs = {"task": "easy"} if env_id.endswith("v1") else {}
+        single, _ = vector_throughput(env_id, 64, 400, 1, **kwargs)  # 400 decisions: two whole episodes per copy
+        steps_per_s, _ = vector_throughput(env_id, 64, 400, workers, **kwargs)
+        row(key, f"batched {env_id}{' on easy' if kwargs else ''}, 64 copies, {workers} threads, whole episodes",
+            steps_per_s, "physics steps/s", f"1 thread {single:,.0f} steps/s", steps_per_s / single,
+            ">= 600,000 steps/s", steps_per_s >= 600_000)
+    numba.set_num_threads(workers)
 
     from ffsr_gym.bench.evaluation_v1 import evaluate_v1
+    from ffsr_gym.tasks.tiers import ALL_TIERS
 
-    for tier in ("easy", "medium", "hard"):  # a fixed-parameter entry on each test pool (100 tasks)
+    for tier in ALL_TIERS:  # a fixed-parameter entry on each test pool
         alone = best_of(lambda tier=tier: evaluate_v1((0.3, 4.0), "FFSR-v1", task=tier, batched=False), 1)
         batched = best_of(lambda tier=tier: evaluate_v1((0.3, 4.0), "FFSR-v1", task=tier, batched=True), 1)
         with ProcessPoolExecutor(workers) as pool:
@@ -132,11 +196,45 @@ def measure(workers: int, repeats: int, quick: bool) -> list[dict]:
             f"single env {alone:.2f} s", alone / batched, "faster than single env", batched < alone)
         row(f"pool_{tier}_workers", f"(0.3, 4 s) on the {tier} test pool, {workers} worker processes", spread, "s",
             f"single env {alone:.2f} s", alone / spread, "faster than single env", spread < alone)
-    return rows
+    dask = dask_scaling(workers)
+    if dask is not None:
+        one, many = dask
+        row("dask", f"(0.3, 4 s) on the easy test pool, Dask LocalCluster, {workers} workers", many, "s",
+            f"1 worker {one:.2f} s", one / many, "scales with workers (ratio > 1)", one / many > 1.0)
+    return rows, budget
+
+
+def dask_scaling(workers: int) -> tuple[float, float] | None:
+    """Wall time [s] of a fixed-parameter entry on the easy test pool on a Dask LocalCluster of 1 and of ``workers``
+    single-threaded worker processes (warm: the kernel loaded in every worker); None without ``distributed``."""
+    try:
+        import distributed
+    except ImportError:
+        print("  Dask unavailable (pip install -e '.[bench]')")
+        return None
+    from ffsr_gym.bench.evaluation_v1 import evaluate_v1
+
+    times = []
+    for n in (1, workers):
+        cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
+        with cluster, distributed.Client(cluster) as client:
+            executor = client.get_executor()
+            evaluate_v1((0.3, 4.0), "FFSR-v1", task="easy", indices=list(range(2 * n)), executor=executor, chunk=1)
+            start = time.perf_counter()
+            evaluate_v1((0.3, 4.0), "FFSR-v1", task="easy", executor=executor, chunk=10)
+            times.append(time.perf_counter() - start)
+    return times[0], times[1]
 
 
 README_START = "<!-- speed:start (generated by `python benchmarks/bench.py --runs 3 --readme README.md`) -->"
 README_END = "<!-- speed:end -->"
+BUDGET_START = "<!-- speed-budget:start (generated by `python benchmarks/bench.py --runs 3 --readme README.md`) -->"
+BUDGET_END = "<!-- speed-budget:end -->"
+#: The parts of :func:`step_budget`, in the order the README lists them.
+BUDGET_PARTS = {"compiled": "compiled decision: 10 physics steps, score terms, observation",
+                "python": "Python in the env: action fast path, reward, info dict, observation copy",
+                "episode_end": "episode ends (final sample, trajectory, score), spread over all steps",
+                "wrappers": "Gymnasium wrappers (TimeLimit, OrderEnforcing, PassiveEnvChecker)"}
 
 
 def _span(values: list[float], spec: str) -> str:
@@ -161,6 +259,19 @@ def speed_table(results: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def budget_table(results: dict) -> str:
+    """The README table of where one ``FFSR-Residual-v1`` step's microseconds go (ranges over the runs)."""
+    budgets = results["budgets"]
+    totals = [b["total"] for b in budgets]
+    lines = [f"One `FFSR-Residual-v1` step on `easy` with random actions: {_span([t * 1e6 for t in totals], '.0f')} us "
+             f"over {len(budgets)} runs.", "", "| part | us per step | share |", "|---|---|---|"]
+    for key, name in BUDGET_PARTS.items():
+        values = [b[key] * 1e6 for b in budgets]
+        shares = [100 * b[key] / b["total"] for b in budgets]
+        lines.append(f"| {name} | {_span(values, '.1f')} | {_span(shares, '.0f')} % |")
+    return "\n".join(lines) + "\n"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--repeats", type=int, default=3, help="timed repeats of the rollout (best of; default: 3)")
@@ -173,19 +284,23 @@ def main() -> None:
     machine = (f"{platform.processor() or platform.machine()}, {workers} CPUs, Python {platform.python_version()}, "
                f"numba {numba.__version__}")
     print("machine:", machine)
-    start, runs = time.perf_counter(), []
+    start, runs, budgets = time.perf_counter(), [], []
     for k in range(args.runs):
         print(f"run {k + 1} of {args.runs}")
-        runs.append(measure(workers, args.repeats, args.quick))
-    results = {"machine": machine, "quick": args.quick, "runs": runs,
+        rows, budget = measure(workers, args.repeats, args.quick)
+        runs.append(rows)
+        budgets.append(budget)
+    results = {"machine": machine, "quick": args.quick, "runs": runs, "budgets": budgets,
                "provenance": provenance(command="python benchmarks/bench.py " + " ".join(sys.argv[1:]),
                                         wall_time_s=time.perf_counter() - start)}
     write_json_atomic(args.out, results)
     print(speed_table(results))
+    print(budget_table(results))
     if args.readme:
         text = Path(args.readme).read_text(encoding="utf-8")
-        write_text_atomic(args.readme, splice_generated(text, README_START, README_END, speed_table(results),
-                                                        where=args.readme))
+        text = splice_generated(text, README_START, README_END, speed_table(results), where=args.readme)
+        text = splice_generated(text, BUDGET_START, BUDGET_END, budget_table(results), where=args.readme)
+        write_text_atomic(args.readme, text)
 
 
 def _evaluate(params: tuple[float, float]) -> float:

@@ -154,7 +154,8 @@ class FFSRV1Env(FFSREnv):
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
         if self._episode is None:
             return super().step(action)
-        self._check_running()
+        if self.rollout.finished:
+            self._check_running()  # raises
         shape, clipped = self.action_space.shape, 0
         if not (type(action) is np.ndarray and action.dtype is _FLOAT32 and action.shape == shape
                 and action.flags.c_contiguous):  # else the checks in Python (the kernel takes C-ordered float32)
@@ -203,8 +204,8 @@ class FFSRV1Env(FFSREnv):
         if self.dense_shaping:
             potential = self._shaping_potential()
             shaping, self._potential = potential - self._potential, potential
-        info.update({"penalty": penalty, "shaping": shaping, "clearance_m": self._clearance,
-                     "ee_position_error_m": self._ee_error})
+        info["penalty"], info["shaping"] = penalty, shaping
+        info["clearance_m"], info["ee_position_error_m"] = self._clearance, self._ee_error
         if self.render_mode == "human":
             self.render()
         return obs, float(reward + shaping), terminated, truncated, info

@@ -35,8 +35,9 @@ SCREEN_CAUSES = ("nominal_final_error", "balance_singularity", "self_collision")
 MAX_SEED = 2**63 - 1
 
 
+@lru_cache(maxsize=4)
 def task_family(benchmark: Benchmark) -> Scenario:
-    """The family scenario of the v1 tasks: v1's settings and the ``[tasks.draw]`` ranges."""
+    """The family scenario of the v1 tasks: v1's settings and the ``[tasks.draw]`` ranges (cached; frozen)."""
     rule = benchmark.tasks
     return benchmark.task(load_scenario(rule.family)).replace(randomization=rule.draw)
 
