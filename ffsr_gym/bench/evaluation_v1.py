@@ -71,7 +71,7 @@ def _batched_episodes(parameters: tuple[float, float], kwargs: dict[str, Any],
     from ffsr_gym.environments.vector_env_v1 import FFSRV1VectorEnv
 
     venv = FFSRV1VectorEnv(len(indices), kwargs["task"], kwargs["split"],
-                           dense_shaping=bool(kwargs.get("dense_shaping", False)))
+                           dense_shaping=bool(kwargs.get("dense_shaping", False)), autoreset_mode="Disabled")
     _, info = venv.reset(seed=[int(i) for i in indices],
                          options=None if kwargs["task"] == "paper" else {"task_index": [int(i) for i in indices]})
     results: dict[int, tuple[dict, str, str]] = {}

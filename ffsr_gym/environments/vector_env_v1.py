@@ -14,6 +14,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from gymnasium.vector import AutoresetMode
 
 from ffsr_gym.environments.env import assemble_observation, check_action
 from ffsr_gym.environments.env_v1 import END_INFO_V1, FFSRResidualV1Env, FFSRV1Env, decision_settings
@@ -32,8 +33,11 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
 
     Arguments as the single environment (``task``, ``split``, ``dense_shaping``) plus ``threads``;
     ``terminate_on_violation`` must stay True (the batched kernel stops a copy at its first
-    violation). Autoreset is Gymnasium's next-step mode; ``reset(seed=s)`` seeds copy i with
-    s + i. ``reset``'s info has ``task_index`` and ``task_seed`` per copy (-1 on ``paper``);
+    violation). Autoreset is Gymnasium's next-step mode, or with
+    ``autoreset_mode=AutoresetMode.DISABLED`` none: a copy whose episode ended holds (not stepped,
+    reward 0, its end reported once) until the next ``reset()``, which resets every copy (no
+    ``reset_mask``); scoring one episode per task wastes no physics that way. ``reset(seed=s)``
+    seeds copy i with s + i. ``reset``'s info has ``task_index`` and ``task_seed`` per copy (-1 on ``paper``);
     episode-end keys (``score``, ``success``, ``failure``, ``smoothness_cost``, ``paper_B``) come
     with their ``_key`` masks.
     """
@@ -43,7 +47,13 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
 
     def __init__(self, num_envs: int, task: str | Scenario = "paper", split: str = "train", *, threads: int | None = None,
                  backend: str = "kernel", render_mode: str | None = None, max_episode_steps: int | None = None,
-                 terminate_on_violation: bool = True, dense_shaping: bool = False) -> None:
+                 terminate_on_violation: bool = True, dense_shaping: bool = False,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP) -> None:
+        modes = {mode.value: mode for mode in (AutoresetMode.NEXT_STEP, AutoresetMode.DISABLED)}
+        mode = modes.get(autoreset_mode.value if isinstance(autoreset_mode, AutoresetMode) else autoreset_mode)
+        if mode is None:
+            raise InvalidInputError(f"autoreset_mode {autoreset_mode!r}; allowed: {list(modes)}")
+        self.metadata = {**self.metadata, "autoreset_mode": mode}
         if terminate_on_violation is not True:
             raise InvalidInputError("terminate_on_violation: the batched v1 environments stop a copy at its first "
                                     "violation; use True, or the single environment for False")
@@ -78,6 +88,8 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
     def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         """As the single env; ``options={"task_index": [i_0, ..., i_{N-1}]}`` picks each copy's task
         of this reset (later autoresets draw from the pool again)."""
+        if isinstance(options, dict) and "reset_mask" in options:
+            raise InvalidInputError("options['reset_mask']: partial resets are not supported; reset() resets every copy")
         self._forced_index = self._task_indices(options)
         try:
             super().reset(seed=seed, options=options)
@@ -111,12 +123,14 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
         if self._mdl is None:
             raise InvalidInputError("call reset() before step()")
         a, was_clipped = check_action(actions, self.action_space.shape)
-        active, restarted = ~self._needs_reset, self._needs_reset.copy()
+        active = ~self._needs_reset
+        restarted = self._needs_reset.copy() if self.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP \
+            else np.zeros(self.num_envs, dtype=bool)
         self._clipped += was_clipped
         for i in np.flatnonzero(restarted):
             self._reset_one(i)
         out, mode = self._out, self._mode(active)
-        out[restarted, :5] = 0.0  # no steps, no cost; clearance and EE error of the reset state stay
+        out[~active, :5] = 0.0  # no steps, no cost; clearance and EE error of the reset (or held) state stay
         kernel_batch.decide_batch(self._mdl, self._plants, self._X, self._K, active, self.n_steps, self.steps_per_decision,
                                   self._FP, self._IP, self._DS, a, mode, tuple(self._logs[key] for key in LOG_FIELDS),
                                   self._last_rates, self._SCRATCH, self._OBS, out, kernel_batch.groups(self.num_envs))
@@ -133,7 +147,7 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
             end = self._ended[i] if terminated[i] or truncated[i] else None
             rewards[i], penalties[i] = score_reward(self._cost_so_far[i], self._cost_so_far[i] + increments[i], end)
             self._cost_so_far[i] += increments[i]
-        self._needs_reset = terminated | truncated
+        self._needs_reset = (self._needs_reset & ~restarted) | terminated | truncated
         clearance, ee_error = out[:, 5].copy(), out[:, 6].copy()
         potential = -ee_error / self._template.benchmark.action.shaping_position_scale_m
         shaping = np.where(active, potential - self._potential, 0.0) if self._dense_shaping else np.zeros(N)
