@@ -187,7 +187,9 @@ def test_bad_actions_raise_clear_errors_and_out_of_range_is_clipped(env_id):
 def test_env_pickles_mid_episode(env_id):
     env = gym.make(env_id, scenario=_short("random", 0.5))
     env.reset(seed=1)
-    env.step(env.action_space.sample())
+    # a fixed first action: about 8 % of random v0 samples end this short episode at once
+    _, _, terminated, truncated, _ = env.step(np.full(env.action_space.shape, 0.25, np.float32))
+    assert not (terminated or truncated)
     clone = pickle.loads(pickle.dumps(env))
     action = np.zeros(env.action_space.shape, np.float32)
     a, b = env.step(action), clone.step(action)
