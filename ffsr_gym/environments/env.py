@@ -8,6 +8,7 @@ import gymnasium as gym
 import numpy as np
 
 from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.model import portable
 from ffsr_gym.model.scenario import Scenario, load_scenario, residual_rates
 from ffsr_gym.scoring.objective import ObjectiveTerms, objective_terms, rate_terms, smooth_part
 from ffsr_gym.sim.rollout import BACKENDS, Rollout
@@ -226,7 +227,7 @@ class FFSREnv(gym.Env):
     def _observation(self) -> np.ndarray:
         angles, ee_error, base_error, relative, clearance = self.rollout.observation()
         self._clearance = float(clearance)
-        self._ee_error = float(np.linalg.norm(ee_error[:3]))
+        self._ee_error = portable.norm(ee_error[:3])
         return assemble_observation(angles, self.last_rates, ee_error, base_error, relative, clearance,
                                     self.rollout.k / self.rollout.n_steps)
 

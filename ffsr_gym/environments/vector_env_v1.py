@@ -23,6 +23,7 @@ from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.kernel import batch as kernel_batch
 from ffsr_gym.kernel import decision
 from ffsr_gym.kernel import planner as kp
+from ffsr_gym.model import portable
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.scoring.score import score_episode, score_reward
 from ffsr_gym.sim.compiled import LOG_FIELDS, KernelRollout
@@ -105,7 +106,7 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
         self._DS[i] = decision_settings(rollout.scenario, self._template.benchmark)
         angles, e1, e0, rel, clear = rollout.observation()
         self._OBS[i] = assemble_observation(angles, self._last_rates[i], e1, e0, rel, clear, 0.0)
-        self._out[i, 5], self._out[i, 6] = clear, np.linalg.norm(e1[:3])
+        self._out[i, 5], self._out[i, 6] = clear, portable.norm(e1[:3])
         self._potential[i] = -self._out[i, 6] / self._template.benchmark.action.shaping_position_scale_m
 
     def _task_indices(self, options: dict | None) -> list[int] | None:

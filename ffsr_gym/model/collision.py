@@ -19,6 +19,7 @@ import numpy as np
 import pinocchio as pin
 
 from ffsr_gym.exceptions import RobotFileError
+from ffsr_gym.model import portable
 from ffsr_gym.model.robot import Robot
 from ffsr_gym.types import Array
 
@@ -79,10 +80,10 @@ class _Part:
 
 def _segment_frame(start: Array, end: Array) -> pin.SE3:
     """Frame at the segment midpoint whose z axis points from ``start`` to ``end``."""
-    axis = (end - start) / np.linalg.norm(end - start)
+    axis = (end - start) / portable.norm(end - start)
     helper = np.array([1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     x = np.cross(helper, axis)
-    x /= np.linalg.norm(x)
+    x /= portable.norm(x)
     return pin.SE3(np.column_stack((x, np.cross(axis, x), axis)), 0.5 * (start + end))
 
 
@@ -119,7 +120,7 @@ class CollisionModel:
             if not model.existFrame(link):
                 raise ValueError(f"link {link!r} is not in the URDF")
             start, end = np.array(item["start_m"], float), np.array(item["end_m"], float)
-            length = float(np.linalg.norm(end - start))
+            length = portable.norm(end - start)
             arm = link.split("_")[0]
             shape = coal.Capsule(float(item.get("radius_m", radius)), length)
             parts.append(_Part(link, arm, shape, model.getFrameId(link), _segment_frame(start, end)))

@@ -6,9 +6,12 @@ only place where the orders meet.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pinocchio as pin
 
+from ffsr_gym.model import portable
 from ffsr_gym.types import Array
 
 
@@ -28,10 +31,16 @@ def skew(a: Array) -> Array:
 
 
 def multiply(a: Array, b: Array) -> Array:
-    """Hamilton product a ⊗ b of scalar-first quaternions."""
-    wa, va = a[0], a[1:]
-    wb, vb = b[0], b[1:]
-    return np.concatenate(([wa * wb - va @ vb], wa * vb + wb * va + np.cross(va, vb)))
+    """Hamilton product a ⊗ b of scalar-first quaternions.
+
+    Scalar arithmetic in a fixed order, the same on every machine (``ffsr_gym.model.portable``).
+    """
+    aw, ax, ay, az = (float(c) for c in a)
+    bw, bx, by, bz = (float(c) for c in b)
+    return np.array([aw * bw - ((ax * bx + ay * by) + az * bz),
+                     (aw * bx + bw * ax) + (ay * bz - az * by),
+                     (aw * by + bw * ay) + (az * bx - ax * bz),
+                     (aw * bz + bw * az) + (ax * by - ay * bx)])
 
 
 def conjugate(a: Array) -> Array:
@@ -42,7 +51,7 @@ def conjugate(a: Array) -> Array:
 def to_rotation(quat_wxyz: Array) -> Array:
     """Rotation matrix R(σ) = (η² − εᵀε) I + 2 ε εᵀ + 2 η S(ε) of a unit quaternion."""
     eta, eps = quat_wxyz[0], np.asarray(quat_wxyz[1:])
-    return (eta * eta - eps @ eps) * np.eye(3) + 2.0 * np.outer(eps, eps) + 2.0 * eta * skew(eps)
+    return (eta * eta - portable.dot(eps, eps)) * np.eye(3) + 2.0 * np.outer(eps, eps) + 2.0 * eta * skew(eps)
 
 
 def from_rotation(rotation: Array) -> Array:
@@ -54,4 +63,4 @@ def from_rotation(rotation: Array) -> Array:
 
 def from_axis_angle(axis: Array, angle_rad: float) -> Array:
     """Quaternion of a rotation by ``angle_rad`` [rad] about the unit ``axis``."""
-    return np.concatenate(([np.cos(angle_rad / 2.0)], np.sin(angle_rad / 2.0) * np.asarray(axis)))
+    return np.concatenate(([math.cos(angle_rad / 2.0)], math.sin(angle_rad / 2.0) * np.asarray(axis)))

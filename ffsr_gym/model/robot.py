@@ -22,6 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from ffsr_gym.exceptions import InvalidInputError, RobotFileError
+from ffsr_gym.model import portable
 from ffsr_gym.model.quaternion import skew, wxyz_from_xyzw, xyzw_from_wxyz
 from ffsr_gym.model.resources import robot_dir
 from ffsr_gym.types import Array
@@ -117,7 +118,7 @@ class Robot:
         q = pin.neutral(self.model)
         q[:3] = base_position_m
         quat = np.asarray(base_quaternion_wxyz, dtype=float)
-        q[3:7] = xyzw_from_wxyz(quat / np.linalg.norm(quat))
+        q[3:7] = xyzw_from_wxyz(quat / portable.norm(quat))
         q[self.joint_q_index] = joints_rad
         return q
 

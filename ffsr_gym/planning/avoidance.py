@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from ffsr_gym.model import portable
 from ffsr_gym.types import Array
 
 _MIN_LENGTH = 1e-12
@@ -62,7 +63,7 @@ def danger_field(points: Array, p_o: Array, k1: float = 1.0) -> tuple[float, flo
     """
     total, distance = 0.0, math.inf
     for a, b in zip(points[:-1], points[1:]):
-        if np.linalg.norm(b - a) < _MIN_LENGTH:
+        if portable.norm(b - a) < _MIN_LENGTH:
             continue
         F, _, _, nearest = _segment_integrals(p_o, a, b)
         total += F
@@ -89,7 +90,7 @@ def danger_field_gradient(points: Array, axes: Array, p_o: Array, k1: float = 1.
     """
     grad = np.zeros(len(axes))
     for i, (a, b) in enumerate(zip(points[:-1], points[1:])):
-        if np.linalg.norm(b - a) < _MIN_LENGTH:
+        if portable.norm(b - a) < _MIN_LENGTH:
             continue
         _, I0, I1, _ = _segment_integrals(p_o, a, b)
         for k in range(i + 1):

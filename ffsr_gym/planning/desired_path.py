@@ -7,10 +7,12 @@ straight line p_e0 → p_t, attitude on the shortest great arc (SLERP) σ_e0 →
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from ffsr_gym.model import portable
 from ffsr_gym.model import quaternion as quat
 from ffsr_gym.types import Array
 
@@ -57,8 +59,8 @@ class DesiredPath:
         delta = quat.multiply(np.asarray(target_attitude), quat.conjugate(np.asarray(start_attitude)))
         if delta[0] < 0.0:
             delta = -delta
-        sin_half = float(np.linalg.norm(delta[1:]))
-        angle = 2.0 * float(np.arctan2(sin_half, delta[0]))
+        sin_half = portable.norm(delta[1:])
+        angle = 2.0 * math.atan2(sin_half, float(delta[0]))
         axis = delta[1:] / sin_half if sin_half > 0.0 else np.array([1.0, 0.0, 0.0])
         return cls(np.asarray(start_position, float), np.asarray(target_position, float),
                    np.asarray(start_attitude, float), axis, angle, motion_time, accel_time)

@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from ffsr_gym.model import portable
 from ffsr_gym.model import quaternion as quat
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning.desired_path import DesiredPath
@@ -57,7 +58,7 @@ def estimated_paths(scenario: Scenario, path: DesiredPath) -> tuple[DesiredPath,
     true_attitude = np.asarray(scenario.target.quaternion_wxyz, dtype=float)
     paths = []
     for position, rotation in zip(positions, rotations):
-        angle = float(np.linalg.norm(rotation))
+        angle = portable.norm(rotation)
         attitude = true_attitude if angle == 0.0 else quat.multiply(
             quat.from_axis_angle(rotation / angle, angle), true_attitude)
         paths.append(DesiredPath.between(path.start_position, path.start_attitude, position, attitude,

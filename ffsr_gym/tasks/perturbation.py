@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from ffsr_gym.exceptions import InvalidInputError, ScenarioError
+from ffsr_gym.model import portable
 from ffsr_gym.model.benchmark import Benchmark
 from ffsr_gym.model.collision import SphereObstacle
 from ffsr_gym.model.resources import envs_dir
@@ -140,15 +141,15 @@ def with_sections(base: Scenario, **sections: Any) -> Scenario:
 
 def _unit(rng: np.random.Generator) -> np.ndarray:
     direction = rng.normal(size=3)
-    return direction / np.linalg.norm(direction)
+    return direction / portable.norm(direction)
 
 
 def _segment_distance(point: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     """Distance [m] from ``point`` to the segment a-b."""
     ab = b - a
-    length2 = float(ab @ ab)
-    u = 0.0 if length2 == 0.0 else min(1.0, max(0.0, float((point - a) @ ab) / length2))
-    return float(np.linalg.norm(point - (a + u * ab)))
+    length2 = portable.dot(ab, ab)
+    u = 0.0 if length2 == 0.0 else min(1.0, max(0.0, portable.dot(point - a, ab) / length2))
+    return portable.norm(point - (a + u * ab))
 
 
 def draw_debris(task: Scenario, rng: np.random.Generator, spec: DebrisDraw) -> Debris | None:

@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 
 from ffsr_gym.exceptions import ScenarioError
+from ffsr_gym.model import portable
 from ffsr_gym.model.collision import SphereObstacle
 from ffsr_gym.model.quaternion import from_rotation
 from ffsr_gym.model.scenario import Scenario
@@ -48,14 +49,14 @@ def sample_scenario(family: Scenario, rng: np.random.Generator) -> Scenario:
         q_target[robot.arm_q_index[0]] += offsets
         robot.update_kinematics(q_target)
         target = robot.data.oMf[int(robot.ee_frame_ids[0])].copy()
-        if np.linalg.norm(target.translation - start.translation) < spec.min_travel_m:
+        if portable.norm(target.translation - start.translation) < spec.min_travel_m:
             continue
         if np.linalg.svd(robot.arm_jacobian(0), compute_uv=False)[-1] < spec.min_sigma_target:
             continue
         path = DesiredPath.between(start.translation, from_rotation(start.rotation), target.translation,
                                    from_rotation(target.rotation), motion_time=1.0, accel_time=0.25)
         lateral = rng.normal(size=3)
-        obstacle = path.at(rng.uniform(*spec.path_fraction))[0] + spec.lateral_offset_m * rng.uniform() * lateral / np.linalg.norm(lateral)
+        obstacle = path.at(rng.uniform(*spec.path_fraction))[0] + spec.lateral_offset_m * rng.uniform() * lateral / portable.norm(lateral)
         if clearance(q_target, obstacle) < spec.min_final_distance_m or clearance(q_start, obstacle) < danger:
             continue
         if collision.self_proximity(q_target).distance_m < spec.min_self_clearance_m:

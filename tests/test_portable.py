@@ -1,0 +1,93 @@
+"""Machine independence: the numbers that feed the kernel, the task draws and the score do not
+depend on which SIMD code numpy or OpenBLAS pick for this CPU (docs/model.md §17)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from fractions import Fraction
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from ffsr_gym.model import portable
+from ffsr_gym.model import quaternion as quat
+
+#: Forces numpy onto its baseline (SSE) loops and OpenBLAS onto its Nehalem kernels, whatever the CPU.
+OTHER_MACHINE = {"NPY_DISABLE_CPU_FEATURES": "X86_V3 X86_V4 AVX512_ICL AVX512_SPR", "OPENBLAS_CORETYPE": "Nehalem"}
+
+FINGERPRINT = """
+import hashlib, json, sys
+import numpy as np
+import gymnasium as gym
+import ffsr_gym
+from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.sim.compiled import KernelRollout
+from ffsr_gym.tasks.splits import pool, task_scenario
+from ffsr_gym.tasks.tiers import ALL_TIERS
+
+bench = load_benchmark()
+out = {}
+for tier in ALL_TIERS:
+    tasks = pool(tier, "test")
+    for index in (0, len(tasks) // 2, len(tasks) - 1):
+        task = tasks[index]
+        scenario = task_scenario(tier, task.seed, bench)
+        rollout = KernelRollout(scenario, m=task.certificate.m, T_c=task.certificate.T_c_s)
+        digest = hashlib.sha256()
+        for array in (rollout.x, rollout.fp, rollout.ip, *rollout.plant):
+            digest.update(np.ascontiguousarray(array, dtype=float).tobytes())
+        out[f"{tier}/{index}"] = digest.hexdigest()
+env = gym.make("FFSR-v1", task="hard", split="test")
+env.reset(seed=0, options={"task_index": 0})
+while True:
+    *_, terminated, truncated, info = env.unwrapped.step_with_parameters(0.3, 4.0)
+    if terminated or truncated:
+        break
+out["hard/0 score"] = float(info["score"]).hex()
+print(json.dumps(out))
+"""
+
+
+def _fingerprint(extra_env: dict[str, str]) -> dict[str, str]:
+    env = {**os.environ, **extra_env}
+    done = subprocess.run([sys.executable, "-c", FINGERPRINT], capture_output=True, text=True, env=env, timeout=900)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_task_settings_and_score_do_not_depend_on_the_cpu_paths_of_numpy_and_openblas():
+    """Three test tasks per tier: state, settings and plant arrays bit for bit, and one episode's score."""
+    here, other = _fingerprint({}), _fingerprint(OTHER_MACHINE)
+    assert len(here) == 16
+    assert here == other, [key for key in here if here[key] != other[key]]
+
+
+def test_dot_sums_left_to_right():
+    # exactly 1, but left to right 1e16 + 1 rounds back to 1e16 and the sum is 0
+    a, b = [1e16, 1.0, -1e16], [1.0, 1.0, 1.0]
+    assert sum(Fraction(x) * Fraction(y) for x, y in zip(a, b)) == 1
+    assert portable.dot(a, b) == 0.0
+    assert portable.dot([1e16, -1e16, 1.0], b) == 1.0  # the same terms in another order
+    with pytest.raises(ValueError):
+        portable.dot([1.0, 2.0], [1.0])
+
+
+def test_norm_against_exact_rational():
+    rng = np.random.default_rng(0)
+    for v in rng.normal(size=(200, 3)):
+        exact = sum(Fraction(float(c)) ** 2 for c in v)
+        assert abs(portable.norm(v) ** 2 - float(exact)) <= 4e-16 * float(exact)
+
+
+def test_quaternion_product_against_pinocchio():
+    rng = np.random.default_rng(1)
+    for _ in range(100):
+        a, b = rng.normal(size=4), rng.normal(size=4)
+        a, b = a / np.sqrt(a @ a), b / np.sqrt(b @ b)
+        product = pin.Quaternion(*a) * pin.Quaternion(*b)  # Pinocchio/Eigen: (w, x, y, z) constructor
+        expected = np.array([product.w, product.x, product.y, product.z])
+        np.testing.assert_allclose(quat.multiply(a, b), expected, rtol=0, atol=1e-15)
