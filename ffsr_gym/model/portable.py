@@ -4,7 +4,7 @@ numpy sends ``a @ b`` and ``np.linalg.norm(a)`` of a float vector to the BLAS ``
 OpenBLAS picks that kernel at run time by CPU (Haswell, SkylakeX, ...); numpy's ``arctan2``,
 ``arccos``, ``exp`` and ``log`` switch to AVX-512 code on CPUs that have it. The last bits of
 their results differ between machines, and through the planner's non-Lipschitz feedback a last
-bit in a task's desired path can change a grazing episode's score in the third digit
+bit in a task's desired path can change a grazing episode's score in the second digit
 (docs/model.md §17). Everything that feeds the kernel, the task draws or the score therefore
 uses these left-to-right sums and Python's ``math`` (the C library's functions, the same ones the
 compiled kernel calls).
