@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from ffsr_gym.exceptions import ScenarioError
+from ffsr_gym.model import portable
 from ffsr_gym.model.resources import robot_dir, scenario_path
 
 if sys.version_info >= (3, 11):
@@ -468,7 +469,7 @@ def _check_cross_fields(s: Scenario, where: str) -> None:
         ("initial.base_quaternion_wxyz", s.initial.base_quaternion_wxyz),
         ("target.quaternion_wxyz", s.target.quaternion_wxyz),
     ):
-        norm = math.sqrt(sum(c * c for c in quat))
+        norm = portable.norm(quat)
         if abs(norm - 1.0) > 1e-2:
             raise ScenarioError(
                 f"{where}key {key!r} = {list(quat)} has norm {norm:.6f}; allowed: a unit "
@@ -506,7 +507,7 @@ def check_action_bounds(m_bounds: Vec, T_c_bounds_s: Vec, *, section: str, where
 
 def _normalised(s: Scenario) -> Scenario:
     def unit(q: Vec) -> Vec:
-        norm = math.sqrt(sum(c * c for c in q))
+        norm = portable.norm(q)
         return tuple(c / norm for c in q)
 
     initial = dataclasses.replace(s.initial, base_quaternion_wxyz=unit(s.initial.base_quaternion_wxyz))
