@@ -100,12 +100,15 @@ def _mv3_add_into(out, base, A, v):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _rotate_inertia_into(out, R, I, tmp):
-    """out = R I R^T."""
-    _mm3_into(tmp, R, I)
+def _rotate_inertia_into(out, R, I):
+    """out = (R I) R^T, each entry summed left to right (R I held in registers)."""
     for a in range(3):
+        ra0, ra1, ra2 = R[a, 0], R[a, 1], R[a, 2]
+        t0 = ra0 * I[0, 0] + ra1 * I[1, 0] + ra2 * I[2, 0]
+        t1 = ra0 * I[0, 1] + ra1 * I[1, 1] + ra2 * I[2, 1]
+        t2 = ra0 * I[0, 2] + ra1 * I[1, 2] + ra2 * I[2, 2]
         for b in range(3):
-            out[a, b] = tmp[a, 0] * R[b, 0] + tmp[a, 1] * R[b, 1] + tmp[a, 2] * R[b, 2]
+            out[a, b] = t0 * R[b, 0] + t1 * R[b, 1] + t2 * R[b, 2]
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -116,23 +119,24 @@ def kinematics_into(mdl, x, ws):
     Rj, pj, R_b, Re, pe, z, tmp, rot = ws.Rj, ws.pj, ws.R_b, ws.Re, ws.pe, ws.z, ws.tmp, ws.rot
     quat_into(R_b, x[3], x[4], x[5], x[6])
     for k in range(12):
-        if parent[k] < 0:
-            _mm3_into(tmp, R_b, pl_R[k])
-            _mv3_add_into(pj[k], x, R_b, pl_p[k])
-        else:
-            q = parent[k]
-            _mm3_into(tmp, Rj[q], pl_R[k])
-            _mv3_add_into(pj[k], pj[q], Rj[q], pl_p[k])
-        a = axis_code[k]
-        if a >= 0:  # rotation about frame axis a: column a kept, the other two mixed
+        q = parent[k]
+        P = R_b if q < 0 else Rj[q]  # the parent frame's rotation and origin
+        _mv3_add_into(pj[k], x if q < 0 else pj[q], P, pl_p[k])
+        L, a = pl_R[k], axis_code[k]
+        if a >= 0:  # rotation about frame axis a of P L: column a kept, the other two mixed (P L in registers)
             b, d = (a + 1) % 3, (a + 2) % 3
             c, s = math.cos(x[7 + k]), math.sin(x[7 + k])
             for r in range(3):
-                Rj[k, r, a] = tmp[r, a]
-                Rj[k, r, b] = c * tmp[r, b] + s * tmp[r, d]
-                Rj[k, r, d] = c * tmp[r, d] - s * tmp[r, b]
-                z[k, r] = tmp[r, a]
+                p0, p1, p2 = P[r, 0], P[r, 1], P[r, 2]
+                ta = p0 * L[0, a] + p1 * L[1, a] + p2 * L[2, a]
+                tb = p0 * L[0, b] + p1 * L[1, b] + p2 * L[2, b]
+                td = p0 * L[0, d] + p1 * L[1, d] + p2 * L[2, d]
+                Rj[k, r, a] = ta
+                Rj[k, r, b] = c * tb + s * td
+                Rj[k, r, d] = c * td - s * tb
+                z[k, r] = ta
         else:
+            _mm3_into(tmp, P, L)
             _rot_into(rot, axis[k], x[7 + k])
             _mm3_into(Rj[k], tmp, rot)
             for r in range(3):
@@ -149,26 +153,37 @@ def momentum_into(mdl, x, ws):
     mass, lever, inertia, subtree = mdl[4], mdl[5], mdl[6], mdl[20]
     Rj, pj, z, H_b, H_bm, rg, r, Iw = ws.Rj, ws.pj, ws.z, ws.H_b, ws.H_bm, ws.rg, ws.r, ws.Iw
     M = mass[0]
-    for a in range(3):
-        rg[a] = mass[0] * x[a]
+    g0, g1, g2 = mass[0] * x[0], mass[0] * x[1], mass[0] * x[2]
     H_b[:, :] = 0.0
-    _rotate_inertia_into(ws.tmp, ws.R_b, inertia[0], ws.rot)
-    H_b[3:6, 3:6] = ws.tmp
+    _rotate_inertia_into(ws.tmp, ws.R_b, inertia[0])
+    b00, b01, b02 = ws.tmp[0, 0], ws.tmp[0, 1], ws.tmp[0, 2]  # rotational block, summed in registers
+    b10, b11, b12 = ws.tmp[1, 0], ws.tmp[1, 1], ws.tmp[1, 2]
+    b20, b21, b22 = ws.tmp[2, 0], ws.tmp[2, 1], ws.tmp[2, 2]
     for i in range(12):
         m_i = mass[i + 1]
         _mv3_add_into(r[i], pj[i], Rj[i], lever[i + 1])
-        _rotate_inertia_into(Iw[i], Rj[i], inertia[i + 1], ws.tmp)
+        _rotate_inertia_into(Iw[i], Rj[i], inertia[i + 1])
         M += m_i
-        d0, d1, d2 = r[i, 0] - x[0], r[i, 1] - x[1], r[i, 2] - x[2]
-        rg[0] += m_i * r[i, 0]
-        rg[1] += m_i * r[i, 1]
-        rg[2] += m_i * r[i, 2]
+        r0, r1, r2 = r[i, 0], r[i, 1], r[i, 2]
+        d0, d1, d2 = r0 - x[0], r1 - x[1], r2 - x[2]
+        g0 += m_i * r0
+        g1 += m_i * r1
+        g2 += m_i * r2
         dd = d0 * d0 + d1 * d1 + d2 * d2
-        for a in range(3):  # S(d)^T S(d) = |d|^2 I - d d^T
-            da = d0 if a == 0 else (d1 if a == 1 else d2)
-            for b in range(3):
-                db = d0 if b == 0 else (d1 if b == 1 else d2)
-                H_b[3 + a, 3 + b] += Iw[i, a, b] + m_i * ((dd if a == b else 0.0) - da * db)
+        W = Iw[i]  # S(d)^T S(d) = |d|^2 I - d d^T
+        b00 += W[0, 0] + m_i * (dd - d0 * d0)
+        b01 += W[0, 1] + m_i * (0.0 - d0 * d1)
+        b02 += W[0, 2] + m_i * (0.0 - d0 * d2)
+        b10 += W[1, 0] + m_i * (0.0 - d1 * d0)
+        b11 += W[1, 1] + m_i * (dd - d1 * d1)
+        b12 += W[1, 2] + m_i * (0.0 - d1 * d2)
+        b20 += W[2, 0] + m_i * (0.0 - d2 * d0)
+        b21 += W[2, 1] + m_i * (0.0 - d2 * d1)
+        b22 += W[2, 2] + m_i * (dd - d2 * d2)
+    H_b[3, 3], H_b[3, 4], H_b[3, 5] = b00, b01, b02
+    H_b[4, 3], H_b[4, 4], H_b[4, 5] = b10, b11, b12
+    H_b[5, 3], H_b[5, 4], H_b[5, 5] = b20, b21, b22
+    rg[0], rg[1], rg[2] = g0, g1, g2
     for a in range(3):
         rg[a] /= M
     w0, w1, w2 = M * (rg[0] - x[0]), M * (rg[1] - x[1]), M * (rg[2] - x[2])
@@ -176,23 +191,27 @@ def momentum_into(mdl, x, ws):
         H_b[a, a] = M
     H_b[0, 4], H_b[0, 5], H_b[1, 3], H_b[1, 5], H_b[2, 3], H_b[2, 4] = w2, -w1, -w2, w0, w1, -w0
     H_b[4, 0], H_b[5, 0], H_b[3, 1], H_b[5, 1], H_b[3, 2], H_b[4, 2] = w2, -w1, -w2, w0, w1, -w0
-    H_bm[:, :, :] = 0.0
-    for k in range(12):
+    for k in range(12):  # column k of H_bm, accumulated in registers over the bodies joint k moves
         arm, col = k // 6, k % 6
-        zk = z[k]
+        zx, zy, zz = z[k, 0], z[k, 1], z[k, 2]
+        px, py, pz = pj[k, 0], pj[k, 1], pj[k, 2]
+        h0 = h1 = h2 = h3 = h4 = h5 = 0.0
         for i in range(k, 6 * arm + 6):  # bodies moved by joint k (on its own arm)
             if not subtree[k, i]:
                 continue
             m_i = mass[i + 1]
-            ex, ey, ez = r[i, 0] - pj[k, 0], r[i, 1] - pj[k, 1], r[i, 2] - pj[k, 2]
-            vx, vy, vz = zk[1] * ez - zk[2] * ey, zk[2] * ex - zk[0] * ez, zk[0] * ey - zk[1] * ex
-            fx, fy, fz = r[i, 0] - x[0], r[i, 1] - x[1], r[i, 2] - x[2]
-            H_bm[arm, 0, col] += m_i * vx
-            H_bm[arm, 1, col] += m_i * vy
-            H_bm[arm, 2, col] += m_i * vz
-            H_bm[arm, 3, col] += Iw[i, 0, 0] * zk[0] + Iw[i, 0, 1] * zk[1] + Iw[i, 0, 2] * zk[2] + m_i * (fy * vz - fz * vy)
-            H_bm[arm, 4, col] += Iw[i, 1, 0] * zk[0] + Iw[i, 1, 1] * zk[1] + Iw[i, 1, 2] * zk[2] + m_i * (fz * vx - fx * vz)
-            H_bm[arm, 5, col] += Iw[i, 2, 0] * zk[0] + Iw[i, 2, 1] * zk[1] + Iw[i, 2, 2] * zk[2] + m_i * (fx * vy - fy * vx)
+            rx, ry, rz = r[i, 0], r[i, 1], r[i, 2]
+            ex, ey, ez = rx - px, ry - py, rz - pz
+            vx, vy, vz = zy * ez - zz * ey, zz * ex - zx * ez, zx * ey - zy * ex
+            fx, fy, fz = rx - x[0], ry - x[1], rz - x[2]
+            h0 += m_i * vx
+            h1 += m_i * vy
+            h2 += m_i * vz
+            h3 += Iw[i, 0, 0] * zx + Iw[i, 0, 1] * zy + Iw[i, 0, 2] * zz + m_i * (fy * vz - fz * vy)
+            h4 += Iw[i, 1, 0] * zx + Iw[i, 1, 1] * zy + Iw[i, 1, 2] * zz + m_i * (fz * vx - fx * vz)
+            h5 += Iw[i, 2, 0] * zx + Iw[i, 2, 1] * zy + Iw[i, 2, 2] * zz + m_i * (fx * vy - fy * vx)
+        H_bm[arm, 0, col], H_bm[arm, 1, col], H_bm[arm, 2, col] = h0, h1, h2
+        H_bm[arm, 3, col], H_bm[arm, 4, col], H_bm[arm, 5, col] = h3, h4, h5
 
 
 @njit(cache=True, error_model="numpy", inline="always")
