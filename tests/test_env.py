@@ -196,6 +196,21 @@ def test_env_pickles_mid_episode(env_id):
     assert np.array_equal(a[0], b[0]) and a[1] == b[1]
 
 
+@pytest.mark.parametrize("env_id", ["FFSR-v1", "FFSR-Residual-v1"])
+def test_v1_env_pickles_mid_episode(env_id):
+    env = gym.make(env_id, task="easy")
+    env.reset(seed=3)
+    action = np.full(env.action_space.shape, 0.1, np.float32)
+    env.step(action)
+    clone = pickle.loads(pickle.dumps(env))
+    for _ in range(5):  # the clone's first decision plans afresh, the original's reuses its plan: same numbers
+        a, b = env.step(action), clone.step(action)
+        assert np.array_equal(a[0], b[0]) and a[1:4] == b[1:4]
+        if a[2] or a[3]:
+            break
+    assert np.array_equal(env.unwrapped.rollout.x, clone.unwrapped.rollout.x)
+
+
 def test_async_vector_env_runs():
     envs = gym.make_vec("FFSR-Residual-v0", num_envs=4, vectorization_mode="async", scenario=_short("paper", 0.3))
     obs, _ = envs.reset(seed=0)

@@ -138,6 +138,20 @@ class FFSRV1Env(FFSREnv):
         self._episode = self._compiled_episode()
         return obs, info
 
+    def __getstate__(self) -> dict:
+        """Pickled without the compiled episode (a numba structure); unpickling rebuilds it over the
+        same arrays, so a clone steps on bit for bit (its first decision plans afresh: same numbers)."""
+        state = self.__dict__.copy()
+        state["_episode"] = None
+        state["_rebuild_episode"] = self.__dict__.get("_episode") is not None
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        rebuild = state.pop("_rebuild_episode", False)
+        self.__dict__.update(state)
+        if rebuild:
+            self._episode = self._compiled_episode()
+
     # ------------------------------------------------------------- the compiled step (kernel)
     def _compiled_episode(self) -> decision.Episode | None:
         """The episode's arrays for :func:`ffsr_gym.kernel.decision.step_episode` (None on the reference backend)."""

@@ -72,6 +72,7 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
         self._ended: dict[int, Any] = {}
         self._DS = np.zeros((self.num_envs, decision.N_DS))
         self._SCRATCH = np.zeros((self.num_envs, decision.N_SCRATCH))
+        self._workspaces = None  # one kernel workspace per copy, made at the first step
         self._OBS = np.zeros((self.num_envs, decision.N_OBS), dtype=np.float32)
         self._out = np.zeros((self.num_envs, 7))
 
@@ -103,11 +104,21 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
         """Copy ``i``'s next episode, its decision settings and its first observation."""
         super()._reset_one(i)
         rollout = self._rollouts[i]
+        decision.forget_plan(self._SCRATCH[i])
         self._DS[i] = decision_settings(rollout.scenario, self._template.benchmark)
         angles, e1, e0, rel, clear = rollout.observation()
         self._OBS[i] = assemble_observation(angles, self._last_rates[i], e1, e0, rel, clear, 0.0)
         self._out[i, 5], self._out[i, 6] = clear, portable.norm(e1[:3])
         self._potential[i] = -self._out[i, 6] / self._template.benchmark.action.shaping_position_scale_m
+
+    def __getstate__(self) -> dict:
+        """Pickled without the per-copy kernel workspaces (numba structures): the clone makes new ones
+        and its copies' next decisions plan afresh (same numbers)."""
+        state = self.__dict__.copy()
+        state["_workspaces"], state["_SCRATCH"] = None, self._SCRATCH.copy()
+        for row in state["_SCRATCH"]:
+            decision.forget_plan(row)
+        return state
 
     def _task_indices(self, options: dict | None) -> list[int] | None:
         if options is not None and not isinstance(options, dict):
@@ -132,7 +143,9 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
             self._reset_one(i)
         out, mode = self._out, self._mode(active)
         out[~active, :5] = 0.0  # no steps, no cost; clearance and EE error of the reset (or held) state stay
-        kernel_batch.decide_batch(self._mdl, self._plants, self._X, self._K, active, self.n_steps, self.steps_per_decision,
+        if self._workspaces is None:
+            self._workspaces = kernel_batch.workspaces(self.num_envs, len(self._mdl[13]))
+        kernel_batch.decide_batch(self._mdl, self._plants, self._workspaces, self._X, self._K, active, self.n_steps, self.steps_per_decision,
                                   self._FP, self._IP, self._DS, a, mode, tuple(self._logs[key] for key in LOG_FIELDS),
                                   self._last_rates, self._SCRATCH, self._OBS, out, kernel_batch.groups(self.num_envs))
         self._rows, self._status = out[:, 0].astype(np.int64), out[:, 1].astype(np.int64)

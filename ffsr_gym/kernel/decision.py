@@ -103,6 +103,11 @@ def _apply_action(action, mode, t, fp, ds, residual):
     return clipped
 
 
+def forget_plan(scratch: np.ndarray) -> None:
+    """Mark a decision scratch (:data:`N_SCRATCH`) as holding no planner step (a new episode's)."""
+    scratch[_PLANNED] = 0.0
+
+
 @njit(cache=True, error_model="numpy")
 def decide(mdl_owner, plant_owner, ws_owner, x, k, n_total, n_max, fp, ip, ds, action, mode, stop, logs_owner, row0,
            last_rates, scratch, obs, own_workspace):

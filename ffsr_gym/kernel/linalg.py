@@ -23,11 +23,12 @@ def dot3(a, b):
 
 @njit(cache=True, error_model="numpy")
 def solve_into(A, b, M, x):
-    """Solve A x = b (n x n, small n) by Gaussian elimination with partial pivoting.
+    """Solve A x = b (6 x 6) by Gaussian elimination with partial pivoting.
 
-    ``M`` (n, n) is scratch; ``x`` (n,) receives the solution. ``A`` and ``b`` are not modified.
+    ``M`` (6, 6) is scratch; ``x`` (6,) receives the solution. ``A`` and ``b`` are not modified.
+    The size is a constant, so the compiler unrolls the loops.
     """
-    n = A.shape[0]
+    n = 6
     for r in range(n):
         x[r] = b[r]
         for c in range(n):

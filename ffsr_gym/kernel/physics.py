@@ -233,8 +233,10 @@ def velocity_into(out, x, dq, h, ws):
     H_bm, R_b, rhs = ws.H_bm, ws.R_b, ws.b6
     momentum_about_base_into(rhs, h, ws.rg, x)
     for a in range(6):
+        acc = rhs[a]
         for c in range(6):
-            rhs[a] -= H_bm[0, a, c] * dq[c] + H_bm[1, a, c] * dq[6 + c]
+            acc -= H_bm[0, a, c] * dq[c] + H_bm[1, a, c] * dq[6 + c]
+        rhs[a] = acc
     V = ws.x1  # scratch 6-vector
     solve_into(ws.H_b, rhs, ws.M6, V)
     for a in range(3):

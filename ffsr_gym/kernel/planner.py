@@ -380,7 +380,9 @@ def plan(mdl, x, t, fp, ip, ws):
                 acc = -target[r]
                 for c in range(6):
                     acc += H_bm[0, r, c] * dq[c] + H_b[r, c] * V0[c]
-                    J[r, c] = -H_bm[1, r, c]
                 target[r] = acc
+            for r in range(6):
+                for c in range(6):
+                    J[r, c] = -H_bm[1, r, c]
         ws.mu[arm], ws.cdf[arm] = mu, cdf
         ws.smin[arm] = filtered_solve_into(dq[6 * arm:6 * arm + 6], ws, target, lam, eps, mu, mu < 1.0)
