@@ -25,7 +25,7 @@ from ffsr_gym.kernel import decision
 from ffsr_gym.kernel import planner as kp
 from ffsr_gym.model import portable
 from ffsr_gym.model.scenario import Scenario
-from ffsr_gym.scoring.score import score_episode, score_reward
+from ffsr_gym.scoring.score import running_reward, score_episode, score_reward
 from ffsr_gym.sim.compiled import LOG_FIELDS, KernelRollout
 
 
@@ -156,11 +156,12 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
         truncated = active & ~terminated & (self._K >= self.n_steps)
         infos = self._end_episodes(terminated, truncated, np.zeros(N))
         self._cost_so_far[restarted] = 0.0
-        rewards, penalties = np.zeros(N), np.zeros(N)
-        for i in np.flatnonzero(active):
-            end = self._ended[i] if terminated[i] or truncated[i] else None
-            rewards[i], penalties[i] = score_reward(self._cost_so_far[i], self._cost_so_far[i] + increments[i], end)
-            self._cost_so_far[i] += increments[i]
+        before = self._cost_so_far
+        after = before + increments  # inactive copies: increment 0
+        rewards, penalties = np.where(active, running_reward(before, after), 0.0), np.zeros(N)
+        for i in np.flatnonzero(terminated | truncated):
+            rewards[i], penalties[i] = score_reward(before[i], after[i], self._ended[i])
+        self._cost_so_far = np.where(active, after, before)
         self._needs_reset = (self._needs_reset & ~restarted) | terminated | truncated
         clearance, ee_error = out[:, 5].copy(), out[:, 6].copy()
         potential = -ee_error / self._template.benchmark.action.shaping_position_scale_m

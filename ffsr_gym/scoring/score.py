@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -88,11 +89,19 @@ def score_reward(cost_before: float, cost_after: float, end: "EpisodeScore | Non
         cost_before, cost_after: the smoothness cost C accumulated before and after the decision.
         end: the finished episode's score (:func:`score_episode`), or None while it runs.
     """
-    value_before = 1.0 / (1.0 + cost_before)
     if end is None:
-        return 1.0 / (1.0 + cost_after) - value_before, 0.0
+        return running_reward(cost_before, cost_after), 0.0
     penalty = 0.0 if end.success else 1.0 / (1.0 + cost_after)
-    return end.score - value_before, penalty
+    return end.score - 1.0 / (1.0 + cost_before), penalty
+
+
+def running_reward(cost_before: Any, cost_after: Any) -> Any:
+    """:func:`score_reward` of a decision that did not end its episode: 1 / (1 + C_after) − 1 / (1 + C_before).
+
+    Floats or arrays (the batched environments reward every running copy at once; elementwise
+    IEEE arithmetic, so the same numbers as one at a time).
+    """
+    return 1.0 / (1.0 + cost_after) - 1.0 / (1.0 + cost_before)
 
 
 @dataclass(frozen=True)
