@@ -7,7 +7,7 @@ import pytest
 
 from ffsr_gym.bench.evaluation import scenario_for_seed
 from ffsr_gym.kernel.collision import segment_box
-from ffsr_gym.kernel.linalg import smallest_singular_value, svd_into
+from ffsr_gym.kernel.linalg import smallest_singular_value, smallest_singular_values, svd_into
 from ffsr_gym.planning.planner import METHODS
 from ffsr_gym.sim.compiled import KernelRollout
 from ffsr_gym.sim.simulate import simulate
@@ -129,6 +129,25 @@ def test_smallest_singular_value_declines_what_it_cannot_certify():
     assert s.min() < 1e-14 * s.max()
     Q, _ = np.linalg.qr(rng.normal(size=(6, 6)))
     assert smallest_singular_value(3.0 * Q, G, tri) == -1.0  # Newton crawls towards a root of multiplicity 6
+
+
+def test_paired_smallest_singular_values_equal_two_calls():
+    """The interleaved pair (the planner's two arms) gives each matrix's own result bit for bit, also
+    when one declines (-1) or needs more Newton steps than the other."""
+    rng = np.random.default_rng(11)
+    G, tri, tri_b = np.empty((6, 6)), np.empty((2, 6)), np.empty((2, 6))
+    singular = rng.normal(size=(6, 6))
+    singular[:, 5] = singular[:, 0] - 2.0 * singular[:, 3]
+    Q, _ = np.linalg.qr(rng.normal(size=(6, 6)))
+    matrices = [rng.normal(size=(6, 6)) * rng.uniform(0.01, 100.0) for _ in range(40)] + [singular, 3.0 * Q]
+    seen = set()
+    for i, A in enumerate(matrices):
+        B = matrices[(7 * i + 3) % len(matrices)]
+        pair = smallest_singular_values(A, B, G, tri, tri_b)
+        single = (smallest_singular_value(A, G, tri), smallest_singular_value(B, G, tri))
+        assert pair == single, i
+        seen.update(value == -1.0 for value in single)
+    assert seen == {True, False}
 
 
 def test_cache_guard_covers_every_compiled_module():

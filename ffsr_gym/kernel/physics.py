@@ -27,6 +27,7 @@ Workspace = namedtuple("Workspace", [
     "V0", "x1", "target", "p_d", "sigma_d", "V_ed",
     "dq", "e1", "e0", "mu", "cdf", "smin", "v0", "e1t",  # planner outputs (e1t: EE error to the true target)
     "cap_A", "cap_B", "cap_mid", "cap_hl", "bound", "first", "second", "rel", "cand",  # collision
+    "Jb", "tri_b",  # the balance arm's Jacobian and its tridiagonal form (both arms' σ_min run together)
 ])
 
 
@@ -44,7 +45,7 @@ def workspace(n_capsules):
         np.empty(6), np.empty(3), np.empty(4), np.empty(6), np.empty(12), np.empty(6), np.empty(6), np.empty(2),
         np.empty(2), np.empty(2), np.empty(6), np.empty(6), np.empty((n_capsules, 3)), np.empty((n_capsules, 3)),
         np.empty((n_capsules, 3)), np.empty(n_capsules), np.empty(n_pairs), np.empty(n_pairs, dtype=np.int64),
-        np.empty(n_pairs, dtype=np.int64), np.empty(3), np.empty(23),
+        np.empty(n_pairs, dtype=np.int64), np.empty(3), np.empty(23), np.empty((6, 6)), np.empty((2, 6)),
     )
 
 

@@ -13,7 +13,7 @@ import math
 
 from numba import njit
 
-from ffsr_gym.kernel.linalg import smallest_singular_value, solve3, solve_into, svd_into
+from ffsr_gym.kernel.linalg import smallest_singular_values, solve3, solve_into, svd_into
 from ffsr_gym.kernel.physics import R_to_quat_wxyz, kinematics_into, momentum_about_base_into, momentum_into
 
 F_M, F_TC, F_K, F_LAM1, F_LAM2, F_EPS1, F_EPS2, F_XI, F_DELTA, F_K1, F_DANGER = range(11)
@@ -255,8 +255,8 @@ def avoidance_into(ws, fp, ip, arm, t):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def filtered_solve_into(out, ws, target, lam_max, eps, mu, avoiding):
-    """out = μ J♯ target + (Θ̇_c − μ P Θ̇_c) for J = ``ws.J`` (``ffsr_gym.planning.inverse``); returns σ_min.
+def filtered_solve_into(out, ws, J, s_min, target, lam_max, eps, mu, avoiding):
+    """out = μ J♯ target + (Θ̇_c − μ P Θ̇_c) (``ffsr_gym.planning.inverse``); returns σ_min of J.
 
     J♯ damps each singular value below ε (λ²(1 − (σ/ε)²)); P projects onto J's row space. When
     σ_min ≥ ε (nothing damped) and J is well conditioned (σ_min ≥ 1e-3 ‖J‖_F), J♯ = J⁻¹ and
@@ -264,14 +264,13 @@ def filtered_solve_into(out, ws, target, lam_max, eps, mu, avoiding):
     mission-arm steps and every balance-arm step on ``paper``). Otherwise the Jacobi SVD decides
     (its singular values alone when that estimate was not certified) and its singular vectors
     give J♯ when something is damped. The result depends on the current J only (no state between
-    steps).
+    steps). ``s_min``: ``smallest_singular_value(J)`` (-1 when it declined), computed by the caller.
     """
-    Ut, s, Vt, dq_c, J = ws.U, ws.s, ws.V, ws.dq_c, ws.J  # singular vectors as rows
+    Ut, s, Vt, dq_c = ws.U, ws.s, ws.V, ws.dq_c  # singular vectors as rows
     frobenius = 0.0
     for r in range(6):
         for c in range(6):
             frobenius += J[r, c] * J[r, c]
-    s_min = smallest_singular_value(J, ws.G, ws.tri)
     certified = s_min >= 1e-3 * math.sqrt(frobenius)
     undamped = certified and s_min >= eps
     if not certified:
@@ -361,28 +360,29 @@ def plan(mdl, x, t, fp, ip, ws):
     momentum_into(mdl, x, ws)
     _base_command_into(x, fp, ip, ws)
     _mission_task_into(x, t, fp, ip, ws)
-    J, dq, pj, pe, z, H_b, H_bm, V0 = ws.J, ws.dq, ws.pj, ws.pe, ws.z, ws.H_b, ws.H_bm, ws.V0
+    J, Jb, dq, pj, pe, z, H_b, H_bm, V0 = ws.J, ws.Jb, ws.dq, ws.pj, ws.pe, ws.z, ws.H_b, ws.H_bm, ws.V0
+    for k in range(6):  # geometric Jacobian of the mission arm (world)
+        dx, dy, dz = pe[0, 0] - pj[k, 0], pe[0, 1] - pj[k, 1], pe[0, 2] - pj[k, 2]
+        J[0, k], J[1, k], J[2, k] = z[k, 1] * dz - z[k, 2] * dy, z[k, 2] * dx - z[k, 0] * dz, z[k, 0] * dy - z[k, 1] * dx
+        J[3, k], J[4, k], J[5, k] = z[k, 0], z[k, 1], z[k, 2]
+    for r in range(6):  # the balance arm's: J_c² = −H_bm2
+        for c in range(6):
+            Jb[r, c] = -H_bm[1, r, c]
+    s_mission, s_balance = smallest_singular_values(J, Jb, ws.G, ws.tri, ws.tri_b)
     for arm in range(2):
         mu, cdf = 1.0, 0.0
         ws.dq_c[:] = 0.0
         if ip[I_N_OBS] > 0:
             mu, cdf = avoidance_into(ws, fp, ip, arm, t)
         if arm == 0:
-            for k in range(6):  # geometric Jacobian of the mission arm (world)
-                dx, dy, dz = pe[0, 0] - pj[k, 0], pe[0, 1] - pj[k, 1], pe[0, 2] - pj[k, 2]
-                J[0, k], J[1, k], J[2, k] = z[k, 1] * dz - z[k, 2] * dy, z[k, 2] * dx - z[k, 0] * dz, z[k, 0] * dy - z[k, 1] * dx
-                J[3, k], J[4, k], J[5, k] = z[k, 0], z[k, 1], z[k, 2]
-            target, lam, eps = ws.x1, fp[F_LAM1], fp[F_EPS1]
+            A, s_min, target, lam, eps = J, s_mission, ws.x1, fp[F_LAM1], fp[F_EPS1]
         else:
-            target, lam, eps = ws.target, fp[F_LAM2], fp[F_EPS2]
+            A, s_min, target, lam, eps = Jb, s_balance, ws.target, fp[F_LAM2], fp[F_EPS2]
             momentum_about_base_into(target, fp[F_H:F_H + 6], ws.rg, x)  # x₂ = H_bm1 Θ̇₁ + H_b V0 − C
             for r in range(6):
                 acc = -target[r]
                 for c in range(6):
                     acc += H_bm[0, r, c] * dq[c] + H_b[r, c] * V0[c]
                 target[r] = acc
-            for r in range(6):
-                for c in range(6):
-                    J[r, c] = -H_bm[1, r, c]
         ws.mu[arm], ws.cdf[arm] = mu, cdf
-        ws.smin[arm] = filtered_solve_into(dq[6 * arm:6 * arm + 6], ws, target, lam, eps, mu, mu < 1.0)
+        ws.smin[arm] = filtered_solve_into(dq[6 * arm:6 * arm + 6], ws, A, s_min, target, lam, eps, mu, mu < 1.0)
