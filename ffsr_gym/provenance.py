@@ -16,7 +16,9 @@ from typing import Any
 
 from ffsr_gym.exceptions import FFSRError
 
-_PACKAGES = ("ffsr-gym", "numpy", "pin", "coal", "gymnasium", "matplotlib", "stable-baselines3", "torch")
+#: numba compiles the kernel; mujoco runs the speed benchmark's reference (Pusher-v5), when installed.
+_PACKAGES = ("ffsr-gym", "numpy", "numba", "pin", "coal", "gymnasium", "matplotlib", "stable-baselines3", "torch",
+             "mujoco")
 _SOURCE = Path(__file__).resolve().parent.parent
 
 

@@ -145,9 +145,10 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
         out[~active, :5] = 0.0  # no steps, no cost; clearance and EE error of the reset (or held) state stay
         if self._workspaces is None:
             self._workspaces = kernel_batch.workspaces(self.num_envs, len(self._mdl[13]))
-        kernel_batch.decide_batch(self._mdl, self._plants, self._workspaces, self._X, self._K, active, self.n_steps, self.steps_per_decision,
-                                  self._FP, self._IP, self._DS, a, mode, tuple(self._logs[key] for key in LOG_FIELDS),
-                                  self._last_rates, self._SCRATCH, self._OBS, out, kernel_batch.groups(self.num_envs))
+        kernel_batch.decide_batch(self._mdl, self._plants, self._workspaces, self._X, self._K, active, self.n_steps,
+                                  self.steps_per_decision, self._FP, self._IP, self._DS, a, mode,
+                                  tuple(self._logs[key] for key in LOG_FIELDS), self._last_rates, self._SCRATCH,
+                                  self._OBS, out, kernel_batch.groups(self.num_envs))
         self._rows, self._status = out[:, 0].astype(np.int64), out[:, 1].astype(np.int64)
         if np.any(self._status == 3):
             raise FFSRError(f"planner produced non-finite joint rates in copies {np.flatnonzero(self._status == 3).tolist()}")

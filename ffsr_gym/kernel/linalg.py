@@ -187,7 +187,8 @@ def smallest_singular_values(A, B, G, tri_a, tri_b):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _tridiagonal_into(A, G, tri):
-    """G = AᵀA reduced to tridiagonal form by Householder reflections: diagonal in ``tri[0]``, off-diagonal in ``tri[1]``."""
+    """G = AᵀA reduced to tridiagonal form by Householder reflections (diagonal into ``tri[0]``,
+    off-diagonal into ``tri[1]``)."""
     n = 6
     for i in range(n):
         for j in range(i, n):

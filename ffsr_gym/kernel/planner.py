@@ -363,7 +363,8 @@ def plan(mdl, x, t, fp, ip, ws):
     J, Jb, dq, pj, pe, z, H_b, H_bm, V0 = ws.J, ws.Jb, ws.dq, ws.pj, ws.pe, ws.z, ws.H_b, ws.H_bm, ws.V0
     for k in range(6):  # geometric Jacobian of the mission arm (world)
         dx, dy, dz = pe[0, 0] - pj[k, 0], pe[0, 1] - pj[k, 1], pe[0, 2] - pj[k, 2]
-        J[0, k], J[1, k], J[2, k] = z[k, 1] * dz - z[k, 2] * dy, z[k, 2] * dx - z[k, 0] * dz, z[k, 0] * dy - z[k, 1] * dx
+        J[0, k], J[1, k] = z[k, 1] * dz - z[k, 2] * dy, z[k, 2] * dx - z[k, 0] * dz
+        J[2, k] = z[k, 0] * dy - z[k, 1] * dx
         J[3, k], J[4, k], J[5, k] = z[k, 0], z[k, 1], z[k, 2]
     for r in range(6):  # the balance arm's: J_c² = −H_bm2
         for c in range(6):
