@@ -22,6 +22,28 @@ def test_shipped_scenarios_load(name):
     assert np.linalg.norm(scenario.target.quaternion_wxyz) == pytest.approx(1.0, abs=1e-15)
 
 
+def test_plain_data_equals_the_standard_library_conversion():
+    """``to_dict`` (which skips copying immutable leaves) against ``dataclasses.asdict``, on every shipped
+    scenario and on task draws with and without perturbation sections; the hash is taken from it."""
+    from ffsr_gym.model.benchmark import load_benchmark
+    from ffsr_gym.model.scenario import to_dict
+    from ffsr_gym.tasks.generator import draw_task
+    from ffsr_gym.tasks.perturbation import perturbed_task
+
+    benchmark = load_benchmark("v1")
+    scenarios = [load_scenario(name) for name in ("paper", "paper_as_printed", "free_space", "random")]
+    scenarios += [draw_task(seed, benchmark) for seed in range(5)]
+    for tier in ("debris", "robust"):
+        scenarios += [task for seed in range(40) if (task := perturbed_task(tier, seed, benchmark)) is not None][:3]
+    sections = {key for scenario in scenarios for key in to_dict(scenario)}
+    assert sections >= {"obstacle", "debris", "plant", "target_noise", "randomization"}
+    for scenario in scenarios:
+        expected = dataclasses.asdict(scenario)
+        del expected["source"]
+        expected = {key: value for key, value in expected.items() if value is not None}
+        assert to_dict(scenario) == expected
+
+
 def test_paper_differs_from_printed_only_in_the_obstacle():
     printed, paper = load_scenario("paper_as_printed"), load_scenario("paper")
     assert printed.obstacle.position_m == (-0.0691, 0.6037, 0.4742)
