@@ -116,8 +116,7 @@ class FFSRV1VectorEnv(FFSRVectorEnv):
         and its copies' next decisions plan afresh (same numbers)."""
         state = self.__dict__.copy()
         state["_workspaces"], state["_SCRATCH"] = None, self._SCRATCH.copy()
-        for row in state["_SCRATCH"]:
-            decision.forget_plan(row)
+        decision.forget_plan(state["_SCRATCH"])
         return state
 
     def _task_indices(self, options: dict | None) -> list[int] | None:

@@ -104,8 +104,9 @@ def _apply_action(action, mode, t, fp, ds, residual):
 
 
 def forget_plan(scratch: np.ndarray) -> None:
-    """Mark a decision scratch (:data:`N_SCRATCH`) as holding no planner step (a new episode's)."""
-    scratch[_PLANNED] = 0.0
+    """Mark decision scratch, one (:data:`N_SCRATCH`,) row or (N, :data:`N_SCRATCH`) rows, as holding
+    no planner step (a new episode's, or a clone's without its workspace)."""
+    scratch[..., _PLANNED] = 0.0
 
 
 @njit(cache=True, error_model="numpy")
