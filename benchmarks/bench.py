@@ -9,11 +9,15 @@ speed table (``--runs 3`` gives the ranges it shows; a test checks the table aga
 from __future__ import annotations
 
 import argparse
+import gc
+import math
 import os
 import platform
 import sys
 import time
+from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
 from pathlib import Path
 
 import gymnasium as gym
@@ -21,6 +25,7 @@ import numba
 import numpy as np
 
 import ffsr_gym
+from ffsr_gym.kernel import batch as kernel_batch
 from ffsr_gym.optim import ga
 from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic, write_text_atomic
 
@@ -28,14 +33,30 @@ sys.path.insert(0, str(Path(__file__).parent))
 import kernel_parts  # noqa: E402  (benchmarks/kernel_parts.py, next to this script)
 
 
+@contextmanager
+def _no_gc() -> Iterator[None]:
+    """A timed section without Python's cycle collector (collected first), as ``timeit`` times.
+
+    Late in a bench process (after the GA's and Dask's objects), full collections of 50-900 ms
+    landed inside single timed passes and doubled them in some runs.
+    """
+    gc.collect()
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.enable()
+
+
 def best_of(fn, repeats: int) -> float:
     """Smallest wall time [s] of ``repeats`` calls (after one warm-up call)."""
     fn()
     times = []
     for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
+        with _no_gc():
+            start = time.perf_counter()
+            fn()
+            times.append(time.perf_counter() - start)
     return min(times)
 
 
@@ -47,14 +68,15 @@ def per_step(env, steps: int) -> float:
         pass
     env.reset(seed=1)
     total, count = 0.0, 0
-    while count < steps:
-        action = env.action_space.sample()
-        start = time.perf_counter()
-        _, _, terminated, truncated, _ = env.step(action)
-        total += time.perf_counter() - start
-        count += 1
-        if terminated or truncated:
-            env.reset()
+    with _no_gc():
+        while count < steps:
+            action = env.action_space.sample()
+            start = time.perf_counter()
+            _, _, terminated, truncated, _ = env.step(action)
+            total += time.perf_counter() - start
+            count += 1
+            if terminated or truncated:
+                env.reset()
     return total / count
 
 
@@ -94,22 +116,43 @@ def _bare_steps(env, steps: int) -> tuple[float, float]:
     env.reset(seed=1)
     env.action_space.seed(1)
     total, last, count, ended = 0.0, 0.0, 0, []
-    while count < steps:
-        action = env.action_space.sample()
-        start = time.perf_counter()
-        _, _, terminated, truncated, _ = env.step(action)
-        last = time.perf_counter() - start
-        total += last
-        count += 1
-        if terminated or truncated:
-            ended.append(last)
-            env.reset()
+    with _no_gc():
+        while count < steps:
+            action = env.action_space.sample()
+            start = time.perf_counter()
+            _, _, terminated, truncated, _ = env.step(action)
+            last = time.perf_counter() - start
+            total += last
+            count += 1
+            if terminated or truncated:
+                ended.append(last)
+                env.reset()
     mean = total / count
     return mean, sum(t - mean for t in ended) / count
 
 
-def vector_throughput(env_id: str, num_envs: int, decisions: int, threads: int, **kwargs) -> tuple[float, float]:
-    """Physics steps per second and wall time [s] per vector step of a batched env, zero actions.
+@contextmanager
+def _kernel_time() -> Iterator[list[float]]:
+    """Seconds spent in the batched v1 kernel (``kernel.batch.decide_batch``) while the block runs, in ``[0]``."""
+    original, spent = kernel_batch.decide_batch, [0.0]
+
+    def timed(*args):
+        start = time.perf_counter()
+        try:
+            return original(*args)
+        finally:
+            spent[0] += time.perf_counter() - start
+
+    kernel_batch.decide_batch = timed
+    try:
+        yield spent
+    finally:
+        kernel_batch.decide_batch = original
+
+
+def vector_throughput(env_id: str, num_envs: int, decisions: int, threads: int, **kwargs) -> tuple[float, float, float]:
+    """Physics steps per second, wall time [s] per vector step of a batched env (zero actions), and
+    physics steps per second of its compiled decisions alone (``nan`` for an env without them).
 
     For the residual ids a zero action is the reference planner; copies run whole episodes (ends
     scored, resets included) for ``decisions`` decisions after a first one.
@@ -119,12 +162,13 @@ def vector_throughput(env_id: str, num_envs: int, decisions: int, threads: int, 
     venv.reset(seed=0)
     actions = np.zeros(venv.action_space.shape, dtype=np.float32)
     venv.step(actions)
-    steps, start = 0, time.perf_counter()
-    for _ in range(decisions):
-        venv.step(actions)
-        steps += int(venv._rows.sum())
+    with _no_gc(), _kernel_time() as kernel:
+        steps, start = 0, time.perf_counter()
+        for _ in range(decisions):
+            venv.step(actions)
+            steps += int(venv._rows.sum())
     elapsed = time.perf_counter() - start
-    return steps / elapsed, elapsed / decisions
+    return steps / elapsed, elapsed / decisions, steps / kernel[0] if kernel[0] > 0.0 else float("nan")
 
 
 def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
@@ -156,7 +200,7 @@ def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
                ("step_v1", "one FFSR-Residual-v1 step on easy (10 physics steps)", budget["total"]),
                ("step_v1_parameters", "one FFSR-v1 step on easy (10 physics steps)",
                 per_step(gym.make("FFSR-v1", task="easy"), 2000)))
-    _, vector_step = vector_throughput("FFSR-Residual-v1", 64, 200, workers, task="easy")
+    _, vector_step, _ = vector_throughput("FFSR-Residual-v1", 64, 200, workers, task="easy")
     for key, name, value in (*singles, ("step_batched", f"one batched FFSR-Residual-v1 step per copy (64 copies, "
                                                          f"{workers} threads)", vector_step / 64)):
         ratio = None if pusher is None else value / pusher
@@ -181,12 +225,16 @@ def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
         kwargs = {"task": "easy"} if env_id.endswith("v1") else {}
         if kwargs:  # an untimed pass draws the pool tasks of the timed passes (cached per process, as in
             vector_throughput(env_id, 64, 400, workers, **kwargs)  # a long run), so neither pays first draws
-        single, _ = vector_throughput(env_id, 64, 400, 1, **kwargs)  # 400 decisions: two whole episodes per copy
-        steps_per_s, _ = vector_throughput(env_id, 64, 400, workers, **kwargs)
+        single, _, _ = vector_throughput(env_id, 64, 400, 1, **kwargs)  # 400 decisions: two whole episodes per copy
+        steps_per_s, _, compiled = vector_throughput(env_id, 64, 400, workers, **kwargs)
         row(key, f"batched {env_id}{' on easy' if kwargs else ''}, 64 copies, {workers} threads, whole episodes"
             f"{' (tasks drawn before)' if kwargs else ''}",
             steps_per_s, "physics steps/s", f"1 thread {single:,.0f} steps/s", steps_per_s / single,
             ">= 600,000 steps/s", steps_per_s >= 600_000)
+        if not math.isnan(compiled):  # the v1 env: its compiled decisions alone bound the row above
+            row(f"{key}_compiled", "the same pass, its compiled decisions alone (`decide_batch`, Python excluded)",
+                compiled, "physics steps/s", f"whole episodes {steps_per_s:,.0f} steps/s", compiled / steps_per_s,
+                "bound on whole episodes: >= 600,000 needed", compiled >= 600_000)
     numba.set_num_threads(workers)
 
     from ffsr_gym.bench.evaluation_v1 import evaluate_v1
@@ -226,9 +274,10 @@ def dask_scaling(workers: int) -> tuple[float, float] | None:
         with cluster, distributed.Client(cluster) as client:
             executor = client.get_executor()
             evaluate_v1((0.3, 4.0), "FFSR-v1", task="easy", indices=list(range(2 * n)), executor=executor, chunk=1)
-            start = time.perf_counter()
-            evaluate_v1((0.3, 4.0), "FFSR-v1", task="easy", executor=executor, chunk=10)
-            times.append(time.perf_counter() - start)
+            with _no_gc():
+                start = time.perf_counter()
+                evaluate_v1((0.3, 4.0), "FFSR-v1", task="easy", executor=executor, chunk=10)
+                times.append(time.perf_counter() - start)
     return times[0], times[1]
 
 
