@@ -37,8 +37,8 @@ import kernel_parts  # noqa: E402  (benchmarks/kernel_parts.py, next to this scr
 def _no_gc() -> Iterator[None]:
     """A timed section without Python's cycle collector (collected first), as ``timeit`` times.
 
-    Late in a bench process (after the GA's and Dask's objects), full collections of 50-900 ms
-    landed inside single timed passes and doubled them in some runs.
+    Late in a bench process, full collections landed inside single timed passes and doubled them
+    in some runs.
     """
     gc.collect()
     gc.disable()
