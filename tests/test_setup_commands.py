@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import json
 from pathlib import Path
 
 import pytest
@@ -22,6 +23,16 @@ def test_ci_runs_the_readme_test_command_verbatim():
     lines = [line for line in (ROOT / ".ci" / "run").read_text().splitlines() if line and not line.startswith("#")]
     assert lines[-1].endswith(tests), f".ci/run must end with the README's test command: {tests}"
     assert "pip install" in tests and "pytest" in tests
+
+
+def test_readme_setup_times_are_rendered_from_the_measurement():
+    module = _setup_time()
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    results = json.loads((ROOT / "benchmarks" / "setup_time.json").read_text())
+    block = text.split(module.START + "\n")[1].split(module.END)[0]
+    assert block == module.setup_text(results), "rerun: python benchmarks/setup_time.py --readme README.md"
+    assert results["commands"]["tests"]["parts"][-1]["command"].endswith("pytest -q")
+    assert results["provenance"]["git_commit"]
 
 
 def test_setup_commands_need_the_section_and_two_one_line_blocks():
