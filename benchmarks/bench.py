@@ -38,7 +38,8 @@ def _no_gc() -> Iterator[None]:
     """A timed section without Python's cycle collector (collected first), as ``timeit`` times.
 
     Late in a bench process, full collections landed inside single timed passes and doubled them
-    in some runs.
+    in some runs. The environments leave no cyclic garbage (a test), so the collector's time is the
+    whole process's heap, not theirs.
     """
     gc.collect()
     gc.disable()
