@@ -1,0 +1,60 @@
+"""The certificate-stability study (benchmarks/certificate_stability.py): its replays and its docs table."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.tasks.splits import pool, task_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _study():
+    spec = importlib.util.spec_from_file_location("certificate_stability", ROOT / "benchmarks" / "certificate_stability.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_nudged_start_moves_every_joint_angle_by_one_ulp_and_nothing_else():
+    study = _study()
+    task = task_scenario("easy", pool("easy", "test")[0].seed, load_benchmark("v1"))
+    for direction in (np.inf, -np.inf):
+        moved = study.nudged(task, direction)
+        for field in ("mission_joints_deg", "balance_joints_deg"):
+            before, after = np.array(getattr(task.initial, field)), np.array(getattr(moved.initial, field))
+            assert np.all(np.sign(after - before) == np.sign(direction))  # moved, the right way,
+            assert np.all(np.abs(after - before) <= np.spacing(np.abs(before)))  # by at most an ulp
+        assert moved.replace(initial=task.initial).sha256() == task.sha256()
+
+
+def test_a_case_the_study_found_fragile_replays_as_recorded():
+    """A medium task whose certificate failed from a start one ulp up: its four replays again."""
+    study = _study()
+    data = json.loads((ROOT / "benchmarks" / "certificate_stability.json").read_text())
+    stored = next(r for r in data["cases"] if r["tier"] == "medium" and not r["ulp_up"]["success"])
+    row = study.run_case((stored["tier"], stored["split"], stored["index"]))
+    for variant in ("kernel", "ulp_up", "ulp_down"):  # the kernel's numbers are machine independent (§17)
+        assert row[variant] == stored[variant]
+    assert row["kernel"]["success"] and not row["ulp_up"]["success"]
+    # not compared: the Pinocchio replay, whose matrix products may differ in the last bit between
+    # machines (§17), which on a task this fragile can decide the outcome
+
+
+def test_docs_table_is_rendered_from_the_full_study():
+    study = _study()
+    data = json.loads((ROOT / "benchmarks" / "certificate_stability.json").read_text())
+    assert [(r["tier"], r["split"], r["index"]) for r in data["cases"]] == study.cases()
+    for row in data["cases"]:  # the study's kernel replays are the certified outcomes
+        assert row["kernel"]["success"]
+        assert row["kernel"]["score"] == pytest.approx(row["certificate_score"], rel=0, abs=1e-12)
+        assert row["certificate_score"] == pool(row["tier"], row["split"])[row["index"]].certificate_score
+    text = (ROOT / "docs" / "model.md").read_text(encoding="utf-8")
+    block = text.split(study.START + "\n")[1].split(study.END)[0]
+    assert block == study.docs_text(data), "rerun: python benchmarks/certificate_stability.py --docs docs/model.md"
