@@ -80,9 +80,13 @@ def run(out: Path, workers: int, limit: int | None = None) -> dict[str, Any]:
     saved: dict[str, Any] = {}
     earlier: list[dict] = []
     if out.exists():
-        saved = json.loads(out.read_text())
-        done = {_key(row): row for row in saved["cases"]}
-        earlier = [*saved.get("earlier_provenance", []), saved["provenance"]]
+        try:
+            saved = json.loads(out.read_text())
+            done = {_key(row): row for row in saved["cases"]}
+            earlier = [*saved.get("earlier_provenance", []), saved["provenance"]]
+        except (ValueError, KeyError, TypeError, AttributeError) as exc:
+            raise SystemExit(f"{out}: not results of this study ({exc.__class__.__name__}: {exc}); "
+                             "move it away or pass another --out") from None
     todo = [case for case in cases()[:limit] if _key(case) not in done]
     if not todo and saved:
         return saved  # all done: the results keep the provenance of the runs that made them

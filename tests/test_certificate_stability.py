@@ -58,3 +58,13 @@ def test_docs_table_is_rendered_from_the_full_study():
     text = (ROOT / "docs" / "model.md").read_text(encoding="utf-8")
     block = text.split(study.START + "\n")[1].split(study.END)[0]
     assert block == study.docs_text(data), "rerun: python benchmarks/certificate_stability.py --docs docs/model.md"
+
+
+def test_a_malformed_results_file_is_refused_by_name(tmp_path):
+    study = _study()
+    out = tmp_path / "results.json"
+    for text in ("not json", '{"cases": [{"x": 1}]}', "[]"):
+        out.write_text(text)
+        with pytest.raises(SystemExit, match="results.json: not results of this study"):
+            study.run(out, workers=1)
+        assert out.read_text() == text  # left as it was
