@@ -35,7 +35,7 @@ def test_nudged_start_moves_every_joint_angle_by_one_ulp_and_nothing_else():
 
 
 def test_a_case_the_study_found_fragile_replays_as_recorded():
-    """A medium task whose certificate failed from a start one ulp up: its four replays again."""
+    """A medium task whose certificate failed from a start one ulp up: its kernel replays again."""
     study = _study()
     data = json.loads((ROOT / "benchmarks" / "certificate_stability.json").read_text())
     stored = next(r for r in data["cases"] if r["tier"] == "medium" and not r["ulp_up"]["success"])
