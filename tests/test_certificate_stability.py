@@ -68,3 +68,21 @@ def test_a_malformed_results_file_is_refused_by_name(tmp_path):
         with pytest.raises(SystemExit, match="results.json: not results of this study"):
             study.run(out, workers=1)
         assert out.read_text() == text  # left as it was
+
+
+def test_fixed_parameter_entries_replay_their_board_metrics_and_stay_in_their_ci():
+    """The study's kernel replay of each fixed-parameter leaderboard entry gives the board's IQM and
+    success rate; from starts one ulp off the IQM stays in the board's CI (docs/model.md §18 says so)."""
+    study = _study()
+    data = json.loads((ROOT / "benchmarks" / "certificate_stability.json").read_text())
+    rows = {(r["tier"], r["entry"], r["variant"]): r for r in data["entries"]["rows"]}
+    assert {(tier, name) for tier, name, _ in study.planner_entries()} == {(t, e) for t, e, _ in rows}
+    for tier, name, _ in study.planner_entries():
+        board = json.loads((study.LEADERBOARDS / tier / f"{name}.json").read_text())["metrics"]
+        assert rows[(tier, name, "kernel")]["score_iqm"] == pytest.approx(board["score_iqm"], rel=0, abs=1e-12)
+        assert rows[(tier, name, "kernel")]["success_rate"] == board["success_rate"]
+        low, high = board["score_iqm_ci95"]
+        assert all(low <= rows[(tier, name, v)]["score_iqm"] <= high for v in ("ulp_up", "ulp_down"))
+    text = (ROOT / "docs" / "model.md").read_text(encoding="utf-8")
+    block = text.split(study.ENTRIES_START + "\n")[1].split(study.ENTRIES_END)[0]
+    assert block == study.entries_text(data), "rerun: python benchmarks/certificate_stability.py --docs docs/model.md"
