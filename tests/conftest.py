@@ -1,6 +1,12 @@
-"""Shared fixtures: the shipped robot, its collision model and the paper's initial state."""
+"""Shared fixtures: the shipped robot, its collision model and the paper's initial state; the
+scripts of ``benchmarks/`` as modules."""
 
 from __future__ import annotations
+
+import importlib.util
+from functools import cache
+from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 import pytest
@@ -43,3 +49,13 @@ def random_configuration(robot: Robot, rng: np.random.Generator) -> np.ndarray:
         base_quaternion_wxyz=quat / np.linalg.norm(quat),
         joints_rad=rng.uniform(-np.pi, np.pi, 12),
     )
+
+
+@cache
+def benchmark_script(name: str) -> ModuleType:
+    """``benchmarks/<name>.py`` (a script, not a package module) loaded as a module, once per session."""
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

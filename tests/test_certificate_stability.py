@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
@@ -12,18 +11,13 @@ import pytest
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.tasks.splits import pool, task_scenario
 
+from conftest import benchmark_script
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _study():
-    spec = importlib.util.spec_from_file_location("certificate_stability", ROOT / "benchmarks" / "certificate_stability.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_nudged_start_moves_every_joint_angle_by_one_ulp_and_nothing_else():
-    study = _study()
+    study = benchmark_script("certificate_stability")
     task = task_scenario("easy", pool("easy", "test")[0].seed, load_benchmark("v1"))
     for direction in (np.inf, -np.inf):
         moved = study.nudged(task, direction)
@@ -36,7 +30,7 @@ def test_nudged_start_moves_every_joint_angle_by_one_ulp_and_nothing_else():
 
 def test_a_case_the_study_found_fragile_replays_as_recorded():
     """A medium task whose certificate failed from a start one ulp up: its kernel replays again."""
-    study = _study()
+    study = benchmark_script("certificate_stability")
     data = json.loads((ROOT / "benchmarks" / "certificate_stability.json").read_text())
     stored = next(r for r in data["cases"] if r["tier"] == "medium" and not r["ulp_up"]["success"])
     row = study.run_case((stored["tier"], stored["split"], stored["index"]))
@@ -48,7 +42,7 @@ def test_a_case_the_study_found_fragile_replays_as_recorded():
 
 
 def test_docs_table_is_rendered_from_the_full_study():
-    study = _study()
+    study = benchmark_script("certificate_stability")
     data = json.loads((ROOT / "benchmarks" / "certificate_stability.json").read_text())
     assert [(r["tier"], r["split"], r["index"]) for r in data["cases"]] == study.cases()
     for row in data["cases"]:  # the study's kernel replays are the certified outcomes
@@ -61,7 +55,7 @@ def test_docs_table_is_rendered_from_the_full_study():
 
 
 def test_a_malformed_results_file_is_refused_by_name(tmp_path):
-    study = _study()
+    study = benchmark_script("certificate_stability")
     out = tmp_path / "results.json"
     for text in ("not json", '{"cases": [{"x": 1}]}', "[]"):
         out.write_text(text)
@@ -73,7 +67,7 @@ def test_a_malformed_results_file_is_refused_by_name(tmp_path):
 def test_fixed_parameter_entries_replay_their_board_metrics_and_stay_in_their_ci():
     """The study's kernel replay of each fixed-parameter leaderboard entry gives the board's IQM and
     success rate; from starts one ulp off the IQM stays in the board's CI (docs/model.md §18 says so)."""
-    study = _study()
+    study = benchmark_script("certificate_stability")
     data = json.loads((ROOT / "benchmarks" / "certificate_stability.json").read_text())
     rows = {(r["tier"], r["entry"], r["variant"]): r for r in data["entries"]["rows"]}
     assert {(tier, name) for tier, name, _ in study.planner_entries()} == {(t, e) for t, e, _ in rows}

@@ -2,31 +2,25 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
 import pytest
 
+from conftest import benchmark_script
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _setup_time():
-    spec = importlib.util.spec_from_file_location("setup_time", ROOT / "benchmarks" / "setup_time.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_ci_runs_the_readme_test_command_verbatim():
-    _, tests = _setup_time().setup_commands((ROOT / "README.md").read_text(encoding="utf-8"))
+    _, tests = benchmark_script("setup_time").setup_commands((ROOT / "README.md").read_text(encoding="utf-8"))
     lines = [line for line in (ROOT / ".ci" / "run").read_text().splitlines() if line and not line.startswith("#")]
     assert lines[-1].endswith(tests), f".ci/run must end with the README's test command: {tests}"
     assert "pip install" in tests and "pytest" in tests
 
 
 def test_readme_setup_times_are_rendered_from_the_measurement():
-    module = _setup_time()
+    module = benchmark_script("setup_time")
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     results = json.loads((ROOT / "benchmarks" / "setup_time.json").read_text())
     block = text.split(module.START + "\n")[1].split(module.END)[0]
@@ -36,7 +30,7 @@ def test_readme_setup_times_are_rendered_from_the_measurement():
 
 
 def test_setup_commands_need_the_section_and_two_one_line_blocks():
-    module = _setup_time()
+    module = benchmark_script("setup_time")
     with pytest.raises(SystemExit, match="Set-up"):
         module.setup_commands("# no set-up here\n")
     with pytest.raises(SystemExit, match="two one-line bash blocks"):
@@ -45,6 +39,6 @@ def test_setup_commands_need_the_section_and_two_one_line_blocks():
 
 
 def test_durations_read_as_minutes_and_seconds():
-    module = _setup_time()
+    module = benchmark_script("setup_time")
     assert module._duration(42.4) == "42 s"
     assert module._duration(141.0) == "2 min 21 s"

@@ -2,22 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
+
+from conftest import benchmark_script
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _bench():
-    spec = importlib.util.spec_from_file_location("bench", ROOT / "benchmarks" / "bench.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_readme_speed_table_is_rendered_from_the_results():
-    bench = _bench()
+    bench = benchmark_script("bench")
     results = json.loads((ROOT / "benchmarks" / "results.json").read_text())
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     block = text.split(bench.README_START + "\n")[1].split(bench.README_END)[0]
@@ -30,7 +24,7 @@ def test_readme_speed_table_is_rendered_from_the_results():
 
 
 def test_speed_table_ranges_and_verdicts():
-    bench = _bench()
+    bench = benchmark_script("bench")
     row = {"key": "x", "what": "w", "unit": "ms", "reference": "r", "target": "t"}
     runs = [[row | {"value": v, "ratio": q, "met": m}] for v, q, m in ((2.0, 1.5, True), (3.0, 0.5, False))]
     table = bench.speed_table({"machine": "m", "runs": runs})
