@@ -107,7 +107,9 @@ def main() -> None:
     parser.add_argument("--out", default="benchmarks/setup_time.json", help="results with provenance (default: %(default)s)")
     parser.add_argument("--readme", default=None, help="splice the set-up times between their markers in this file")
     args = parser.parse_args()
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    # the commands of the commit the clones check out, not of an edited working copy
+    readme = subprocess.run(["git", "show", "HEAD:README.md"], cwd=ROOT, capture_output=True, text=True,
+                            check=True).stdout
     start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="ffsr-setup-") as work:
         commands = measure(readme, Path(work))
