@@ -21,7 +21,8 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from ffsr_gym.bench.evaluation_v1 import evaluate_planner, planner_episode
+from ffsr_gym.bench.planner_scores import evaluate_planner
+from ffsr_gym.tasks.certificate import planner_episode
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.tasks.splits import pool, task_scenario
 from ffsr_gym.tasks.tiers import ALL_TIERS

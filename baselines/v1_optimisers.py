@@ -3,7 +3,7 @@
     python baselines/v1_optimisers.py --leaderboard leaderboards [--tasks 20] [--work runs/v1_optimisers]
 
 Both minimise the same loss, 1 − the mean v1 score over the first ``--tasks`` tasks of the tier's
-*training* pool (``ffsr_gym.bench.evaluation_v1.training_loss``), inside the FFSR-v1 action box
+*training* pool (``ffsr_gym.bench.planner_scores.training_loss``), inside the FFSR-v1 action box
 (m in [0.05, 0.6], T_c in [1, 10] s); the optimum is then scored on the tier's test pool. The GA
 checkpoints every generation in ``--work`` and an existing entry is kept, so a killed run resumes.
 Compute: episodes run during the search (evaluations x tasks) and wall time.
@@ -18,7 +18,7 @@ from pathlib import Path
 import cma
 import numpy as np
 
-from ffsr_gym.bench.evaluation_v1 import evaluate_planner, training_loss
+from ffsr_gym.bench.planner_scores import evaluate_planner, training_loss
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.optim import ga
 from ffsr_gym.tasks.tiers import ALL_TIERS

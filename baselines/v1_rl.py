@@ -4,8 +4,8 @@
                               [--scale 1.0] [--seeds 0 1 2 3 4]
 
 One study piece is one (algorithm, env id, tier): its agents train on the tier's training pool
-(budgets in ``baselines/hyperparams``, times ``--scale``), each is scored on the test pool, and
-the piece becomes one leaderboard entry (``ffsr_gym.optim.rl_v1.train_and_evaluate_v1``). Pieces
+(budgets in ``ffsr_gym/hyperparams``, times ``--scale``), each is scored on the test pool, and
+the piece becomes one leaderboard entry (``ffsr_gym.optim.rl.train_and_evaluate``). Pieces
 run in parallel on ``--workers`` processes. A piece whose entry exists is skipped, and inside a
 piece a seed whose folder in ``--work`` holds its model and scores is loaded, not retrained, so a
 killed study resumes where it stopped. The learning curve of every seed has 5 points after the
@@ -21,7 +21,7 @@ from pathlib import Path
 from tqdm.auto import tqdm
 
 from ffsr_gym.optim.rl import load_hyperparams
-from ffsr_gym.optim.rl_v1 import train_and_evaluate_v1
+from ffsr_gym.optim.rl import train_and_evaluate
 from ffsr_gym.tasks.tiers import ALL_TIERS
 
 ALGOS = ("sac", "ppo")
@@ -34,7 +34,7 @@ def entry_name(algo: str, env_id: str, tier: str) -> str:
 
 def run_piece(algo: str, env_id: str, tier: str, seeds: list[int], scale: float, work: str, root: str) -> str:
     steps = int(round(load_hyperparams(algo, env_id)["n_timesteps"] * scale))
-    report = train_and_evaluate_v1(algo, env_id, tier=tier, seeds=seeds, out=work, timesteps=steps,
+    report = train_and_evaluate(algo, env_id, task=tier, seeds=seeds, out=work, timesteps=steps,
                                    curve_every=max(1, steps // 5), progress=False)
     path = report.save(Path(root) / "v1" / tier)
     return f"{report.name}: IQM {report.metrics['score_iqm']:.3f}, success {report.metrics['success_rate']:.2f} -> {path}"

@@ -88,10 +88,10 @@ def step_budget(env_id: str, task: str, steps: int) -> dict[str, float]:
     the extra time of the episodes' last steps (final sample, trajectory, score), spread over all
     steps; ``wrappers``: Gymnasium's wrappers (wrapped minus bare env); ``python``: the rest.
     """
-    from ffsr_gym.environments import env_v1
+    from ffsr_gym.environments import engine
 
     inside = [0.0]
-    compiled = env_v1.decision.step_episode
+    compiled = engine.decision.step_episode
 
     def timed(*args):
         start = time.perf_counter()
@@ -101,13 +101,13 @@ def step_budget(env_id: str, task: str, steps: int) -> dict[str, float]:
 
     env = gym.make(env_id, task=task)
     wrapped = per_step(env, steps)
-    env_v1.decision.step_episode = timed
+    engine.decision.step_episode = timed
     try:
         inside[0] = 0.0
         bare, ends = _bare_steps(env.unwrapped, steps)
         in_decision = inside[0] / steps
     finally:
-        env_v1.decision.step_episode = compiled
+        engine.decision.step_episode = compiled
     return {"total": wrapped, "compiled": in_decision, "episode_end": ends, "wrappers": wrapped - bare,
             "python": bare - in_decision - ends}
 
@@ -167,7 +167,7 @@ def vector_throughput(env_id: str, num_envs: int, decisions: int, threads: int, 
         steps, start = 0, time.perf_counter()
         for _ in range(decisions):
             venv.step(actions)
-            steps += int(venv._rows.sum())
+            steps += int(venv.engine.out[:, 0].sum())
     elapsed = time.perf_counter() - start
     return steps / elapsed, elapsed / decisions, steps / kernel[0] if kernel[0] > 0.0 else float("nan")
 
@@ -238,7 +238,7 @@ def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
                 "bound on whole episodes: >= 600,000 needed", compiled >= 600_000)
     numba.set_num_threads(workers)
 
-    from ffsr_gym.bench.evaluation_v1 import evaluate_v1
+    from ffsr_gym.bench.evaluation import evaluate as evaluate_v1
     from ffsr_gym.tasks.tiers import ALL_TIERS
 
     for tier in ALL_TIERS:  # a fixed-parameter entry on each test pool
@@ -267,7 +267,7 @@ def dask_scaling(workers: int) -> tuple[float, float] | None:
     except ImportError:
         print("  Dask unavailable (pip install -e '.[bench]')")
         return None
-    from ffsr_gym.bench.evaluation_v1 import evaluate_v1
+    from ffsr_gym.bench.evaluation import evaluate as evaluate_v1
 
     times = []
     for n in (1, workers):

@@ -30,7 +30,8 @@ from typing import Any
 import numpy as np
 from tqdm.auto import tqdm
 
-from ffsr_gym.bench.evaluation_v1 import aggregate_v1
+from ffsr_gym.model.spec import spec_for_version
+from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic, write_text_atomic
@@ -150,7 +151,7 @@ def run_entry(job: tuple[str, str, dict, str]) -> dict[str, Any]:
                                  gain_per_s=planner["gain_per_s"])
         scores.append(result.score)
         successes.append(result.success)
-    return {"tier": tier, "entry": name, "variant": variant, **aggregate_v1(scores, successes)}
+    return {"tier": tier, "entry": name, "variant": variant, **score_rule(spec_for_version("v1")).aggregate([{"score": s, "success": ok} for s, ok in zip(scores, successes)])}
 
 
 def run_entries(workers: int) -> dict[str, Any]:

@@ -5,57 +5,68 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
-import numpy as np
 
 from ffsr_gym.exceptions import FFSRError
 
 
 def _info(args: argparse.Namespace) -> None:
-    from ffsr_gym.model.quaternion import from_rotation
     from ffsr_gym.model.scenario import load_scenario
-    from ffsr_gym.sim.setup import prepare
+    from ffsr_gym.report.scenario_info import initial_state_rows
 
-    scenario = load_scenario(args.scenario)
-    setup = prepare(scenario)
-    robot, q = setup.robot, setup.q0
-    ee = robot.transform_ee_to_world(q, 0)
-    robot.update_kinematics(q)
-    mats = robot.momentum_matrices(q)
-    clearance = setup.assets.collision.clearance(q, setup.obstacles.spheres(0.0))
-    rows = [
-        ("scenario", f"{scenario.name} ({scenario.source})"),
-        ("scenario sha256", scenario.sha256()[:16]),
-        ("robot", f"{scenario.robot}, total mass {robot.total_mass:.1f} kg"),
-        ("base CoM [m]", np.round(q[:3], 4)),
-        ("system CoM [m]", np.round(robot.system_com(q), 4)),
-        ("mission EE position [m]", np.round(ee.translation, 4)),
-        ("mission EE attitude [w x y z]", np.round(from_rotation(ee.rotation), 4)),
-        ("target position [m]", np.round(scenario.target.position_m, 4)),
-        ("sigma(J_m mission)", np.round(np.linalg.svd(robot.arm_jacobian(0), compute_uv=False), 4)),
-        ("sigma(H_bm balance)", np.round(np.linalg.svd(mats.H_bm[1], compute_uv=False), 3)),
-        ("clearance [m]", f"{clearance.distance_m:.4f} ({clearance.pair[0]} - {clearance.pair[1]})"),
-    ]
+    rows = initial_state_rows(load_scenario(args.scenario))
     width = max(len(k) for k, _ in rows)
     for key, value in rows:
         print(f"{key:<{width}}  {value}")
 
 
 def _list(args: argparse.Namespace) -> None:
-    import gymnasium
-
-    from ffsr_gym.environments.env_v1 import TASKS
     from ffsr_gym.model.resources import envs_dir, scenario_names
-    from ffsr_gym.tasks.splits import SPLITS, pool
+    from ffsr_gym.model.spec import all_specs
+    from ffsr_gym.tasks.splits import pool
 
-    ids = sorted(env_id for env_id in gymnasium.registry if env_id.startswith("FFSR-"))
     robots = sorted(p.name for p in (envs_dir() / "robots").iterdir() if p.is_dir())
-    print("environment ids:", ", ".join(ids))
-    print("v1 tasks (task=):", ", ".join(TASKS))
-    for tier in TASKS[1:]:
-        print(f"  {tier}: " + ", ".join(f"{split} pool {len(pool(tier, split))} tasks" for split in SPLITS))
-    print("scenarios (v0 scenario=):", ", ".join(scenario_names()))
+    print("environment ids:", ", ".join(env_ids()))
+    for spec in all_specs().values():
+        tasks = spec.tasks
+        print(f"{spec.version} ({spec.status}): {', '.join(spec.env_ids)}; {spec.description}")
+        print(f"  tasks ({tasks.keyword}=): " + ", ".join([*tasks.scenarios, *tasks.tiers] or ["a scenario"]))
+        for tier in tasks.tiers:
+            print(f"    {tier}: " + ", ".join(f"{split} pool {len(pool(tier, split))} tasks" for split in tasks.splits))
+    print("scenarios (scenario=):", ", ".join(scenario_names()))
     print("robots:", ", ".join(robots))
+
+
+def env_ids() -> list[str]:
+    """Every registered id of every benchmark version (the registry's, in version order)."""
+    from ffsr_gym.model.spec import all_specs
+
+    return [env_id for spec in all_specs().values() for env_id in spec.env_ids]
+
+
+def task_names() -> list[str]:
+    """Every task name a version takes besides scenarios: its named scenarios and tiers."""
+    from ffsr_gym.model.spec import all_specs
+
+    names: list[str] = []
+    for spec in all_specs().values():
+        names += [n for n in (*spec.tasks.scenarios, *spec.tasks.tiers) if n not in names]
+    return names
+
+
+def split_names() -> list[str]:
+    """Every split a version's pools have."""
+    from ffsr_gym.model.spec import all_specs
+
+    return sorted({split for spec in all_specs().values() for split in spec.tasks.splits})
+
+
+def algorithm_names() -> list[str]:
+    """The algorithms with a shipped hyperparameter file."""
+    from ffsr_gym.optim.rl import algorithms
+
+    return sorted(algorithms())
 
 
 def _reproduce(args: argparse.Namespace) -> None:
@@ -91,26 +102,21 @@ def _ga(args: argparse.Namespace) -> None:
 
 
 def _train(args: argparse.Namespace) -> None:
+    from ffsr_gym.bench.evaluation import spec_of
     from ffsr_gym.optim.rl import train_and_evaluate
-    from ffsr_gym.optim.rl_v1 import train_and_evaluate_v1
 
-    if args.env_id.endswith("-v1"):
-        report = train_and_evaluate_v1(args.algo, args.env_id, tier=args.task, seeds=args.seeds, out=args.out,
-                                       timesteps=args.timesteps, hyperparams=args.hyperparams,
-                                       curve_every=args.curve_every, progress=not args.no_progress)
-        folder = Path(args.leaderboard or ".") / "v1" / args.task
-    else:
-        report = train_and_evaluate(args.algo, args.env_id, seeds=args.seeds, out=args.out, scenario=args.scenario,
-                                    timesteps=args.timesteps, hyperparams=args.hyperparams, progress=not args.no_progress)
-        folder = Path(args.leaderboard or ".") / args.env_id
+    spec = spec_of(args.env_id)
+    task = args.task if spec.evaluation.protocol == "pool" else args.scenario
+    report = train_and_evaluate(args.algo, args.env_id, task=task, seeds=args.seeds, out=args.out,
+                                timesteps=args.timesteps, hyperparams=args.hyperparams, curve_every=args.curve_every,
+                                progress=not args.no_progress)
     print(f"{report.name}: {report.metrics}")
     if args.leaderboard:
-        print("wrote", report.save(folder))
+        print("wrote", report.save(Path(args.leaderboard) / spec.folder(args.env_id, task)))
 
 
 def _leaderboard(args: argparse.Namespace) -> int:
-    from ffsr_gym.bench.leaderboard import render_readme, write_readme
-    from ffsr_gym.bench.leaderboard_v1 import splice_summary
+    from ffsr_gym.bench.leaderboard import render_readme, splice_summary, write_readme
     from ffsr_gym.exceptions import InvalidInputError
     from ffsr_gym.provenance import write_text_atomic
 
@@ -155,88 +161,61 @@ def _leaderboard_pareto(args: argparse.Namespace) -> None:
                                 command=" ".join(["ffsr-gym", *args.argv])))
 
 
-def load_policy(spec: str, algo: str | None):
-    """A policy from the command line: ``"m,T_c"`` (fixed parameters), an SB3 ``.zip`` (with ``algo``),
-    or ``module:callable`` (imported; called with an observation, returns an action).
+def _load_policy(spec: str, algo: str | None):
+    from ffsr_gym.bench.policies import load_policy
 
-    Raises:
-        InvalidInputError: none of these, naming the accepted forms.
-    """
-    import importlib
-
-    from ffsr_gym.exceptions import InvalidInputError
-
-    parts = spec.split(",")
-    if len(parts) == 2:
-        try:
-            return float(parts[0]), float(parts[1])
-        except ValueError:
-            pass
-    if spec.endswith(".zip"):
-        from ffsr_gym.optim.rl import ALGOS, load_model
-
-        if algo not in ALGOS:
-            raise InvalidInputError(f"--algo {algo!r}: an SB3 .zip needs --algo, one of {sorted(ALGOS)}")
-        if not Path(spec).is_file():
-            raise InvalidInputError(f"--policy {spec!r}: no such file")
-        return load_model(algo, spec)
-    module, _, name = spec.partition(":")
-    if module and name:
-        try:
-            policy = getattr(importlib.import_module(module), name)
-        except (ImportError, AttributeError) as exc:
-            raise InvalidInputError(f"--policy {spec!r}: {exc}") from None
-        if callable(policy):
-            return policy
-    raise InvalidInputError(f"--policy {spec!r}; allowed: 'm,T_c' (e.g. 0.3,4), an SB3 .zip with --algo, "
-                            "or module:callable")
-
-
-ENV_IDS = ["FFSR-v0", "FFSR-Residual-v0", "FFSR-v1", "FFSR-Residual-v1"]
+    return load_policy(spec, algo)
 
 
 def _add_policy_arguments(parser: argparse.ArgumentParser, *, env_id: str | None, policy: str | None, task: str,
                           split: str, split_help: str) -> None:
     """The options that name an environment and a policy (``evaluate``, ``render``); None: required."""
-    parser.add_argument("--env-id", required=env_id is None, default=env_id, choices=ENV_IDS,
+    parser.add_argument("--env-id", required=env_id is None, default=env_id, choices=env_ids(),
                         help="environment id" + (f" (default: {env_id})" if env_id else ""))
     parser.add_argument("--policy", required=policy is None, default=policy,
                         help="'m,T_c' (fixed parameters, e.g. 0.3,4), an SB3 .zip (with --algo), or module:callable"
                              + (f" (default: {policy})" if policy else ""))
-    parser.add_argument("--algo", default=None, choices=["ppo", "sac", "td3"], help="the algorithm of an SB3 .zip")
-    parser.add_argument("--task", default=task, choices=["paper", "easy", "medium", "hard"],
-                        help=f"v1: task or tier (default: {task})")
-    parser.add_argument("--split", default=split, choices=["train", "test"], help=f"v1: {split_help} (default: {split})")
+    parser.add_argument("--algo", default=None, choices=algorithm_names(), help="the algorithm of an SB3 .zip")
+    parser.add_argument("--task", default=task, choices=task_names(),
+                        help=f"task or tier of the versions with tiers (default: {task})")
+    parser.add_argument("--split", default=split, choices=split_names(),
+                        help=f"versions with tiers: {split_help} (default: {split})")
     parser.add_argument("--scenario", default="paper", help="v0: scenario name or TOML path (default: paper)")
 
 
 def _env_kwargs(args: argparse.Namespace) -> dict:
-    """``gymnasium.make`` arguments of ``--env-id``: the v1 task and split, or the v0 scenario."""
-    return {"task": args.task, "split": args.split} if args.env_id.endswith("-v1") else {"scenario": args.scenario}
+    """``gymnasium.make`` arguments of ``--env-id``: its version's task keyword (and split)."""
+    from ffsr_gym.bench.evaluation import spec_of
+
+    spec = spec_of(args.env_id)
+    if spec.tasks.splits:
+        return {spec.tasks.keyword: args.task, "split": args.split}
+    return {spec.tasks.keyword: args.scenario}
 
 
 def _evaluate(args: argparse.Namespace) -> None:
     from concurrent.futures import ProcessPoolExecutor
 
-    from ffsr_gym.bench.evaluation import evaluate
+    from ffsr_gym.bench.evaluation import evaluate, spec_of
     from ffsr_gym.exceptions import InvalidInputError
 
-    policy = load_policy(args.policy, args.algo)
-    v1 = args.env_id.endswith("-v1")
-    if args.workers < 1 or (args.workers > 1 and not v1):
-        raise InvalidInputError(f"--workers {args.workers}; allowed: >= 1, and more than 1 only for the v1 ids")
+    policy = _load_policy(args.policy, args.algo)
+    spec = spec_of(args.env_id)
+    pooled = spec.evaluation.protocol == "pool"
+    if args.workers < 1 or (args.workers > 1 and not pooled):
+        raise InvalidInputError(f"--workers {args.workers}; allowed: >= 1, and more than 1 only for the ids scored on "
+                                "a pool")
     executor = ProcessPoolExecutor(args.workers) if args.workers > 1 else None
     try:
         report = evaluate(policy, args.env_id, name=args.name, progress=not args.no_progress,
-                          **(_env_kwargs(args) | {"training_pool": args.training_pool, "executor": executor} if v1
+                          **(_env_kwargs(args) | {"training_pool": args.training_pool, "executor": executor} if pooled
                              else {"env_kwargs": _env_kwargs(args)}))
     finally:
         if executor is not None:
             executor.shutdown()
     print(f"{report.name}: {report.metrics}")
     if args.leaderboard:
-        folder = Path(args.leaderboard) / ("v1" if v1 else args.env_id) / (args.task if v1 else "")
-        print("wrote", report.save(folder))
+        print("wrote", report.save(Path(args.leaderboard) / spec.folder(args.env_id, args.task if pooled else "")))
 
 
 def _render(args: argparse.Namespace) -> None:
@@ -248,7 +227,7 @@ def _render(args: argparse.Namespace) -> None:
 
     if args.every < 1 or args.speed <= 0:
         raise InvalidInputError(f"--every {args.every} (allowed: >= 1), --speed {args.speed} (allowed: > 0)")
-    policy = load_policy(args.policy, args.algo)
+    policy = _load_policy(args.policy, args.algo)
     env = gymnasium.make(args.env_id, render_mode="rgb_array", **_env_kwargs(args))
     obs, _ = env.reset(seed=args.seed)
     step, frames, decisions, done, info = stepper(policy, env), [env.render()], 0, False, {}
@@ -285,13 +264,8 @@ def _tasks(args: argparse.Namespace) -> None:
               f"rejected {summary['rejection_counts']}")
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``ffsr-gym`` console script."""
-    from ffsr_gym import __version__
-
-    parser = argparse.ArgumentParser(prog="ffsr-gym", description=__doc__)
-    parser.add_argument("--version", action="version", version=f"ffsr-gym {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True)
+def _add_model_commands(sub: Any) -> None:
+    """Sub-commands list, info, reproduce and ga."""
     listing = sub.add_parser("list", help="list the environment ids, v1 tasks and tiers, scenarios and robots")
     listing.set_defaults(func=_list)
     info = sub.add_parser("info", help="print the initial state of a scenario")
@@ -318,18 +292,24 @@ def main(argv: list[str] | None = None) -> int:
     ga.add_argument("--leaderboard", default=None, help="write leaderboard entries under this folder")
     ga.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ga.set_defaults(func=_ga)
+
+
+def _add_study_commands(sub: Any) -> None:
+    """Sub-commands train, tasks, evaluate and render."""
     tr = sub.add_parser("train", help="train stable-baselines3 agents and score them with ffsr_gym.evaluate")
-    tr.add_argument("--algo", required=True, choices=["ppo", "sac", "td3"])
-    tr.add_argument("--env-id", default="FFSR-v0", choices=ENV_IDS)
-    tr.add_argument("--scenario", default="paper", help="v0 only: scenario name or TOML path (default: paper)")
-    tr.add_argument("--task", default="easy", choices=["easy", "medium", "hard"],
-                    help="v1 only: the tier; trains on its training pool, scores its test pool (default: easy)")
+    tr.add_argument("--algo", required=True, choices=algorithm_names(),
+                    help="a stable-baselines3 algorithm with a shipped hyperparameter file")
+    tr.add_argument("--env-id", default="FFSR-v0", choices=env_ids(), help="environment id (default: FFSR-v0)")
+    tr.add_argument("--scenario", default="paper",
+                    help="versions scored on seeds: scenario name or TOML path (default: paper)")
+    tr.add_argument("--task", default="easy", choices=task_names(),
+                    help="versions with tiers: the tier; trains on its training pool, scores its test pool (default: easy)")
     tr.add_argument("--curve-every", type=int, default=5000,
-                    help="v1 only: env steps between learning-curve points (default: 5000)")
-    tr.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
+                    help="versions with tiers: env steps between learning-curve points (default: 5000)")
+    tr.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4], help="training seeds (default: 0 1 2 3 4)")
     tr.add_argument("--timesteps", type=int, default=None, help="default: n_timesteps of the hyperparameter file")
-    tr.add_argument("--hyperparams", default=None, help="folder with <algo>.yml (default: baselines/hyperparams)")
-    tr.add_argument("--out", default="runs/rl")
+    tr.add_argument("--hyperparams", default=None, help="folder with <algo>.yml (default: the shipped ffsr_gym/hyperparams)")
+    tr.add_argument("--out", default="runs/rl", help="folder of the models and records (default: runs/rl)")
     tr.add_argument("--leaderboard", default=None, help="write the entry under this folder")
     tr.add_argument("--no-progress", action="store_true")
     tr.set_defaults(func=_train)
@@ -365,6 +345,10 @@ def main(argv: list[str] | None = None) -> int:
     rd.add_argument("--speed", type=float, default=2.0, help="playback speed over real time (default: 2)")
     rd.add_argument("--out", default="runs/episode.gif", help="GIF file (default: runs/episode.gif)")
     rd.set_defaults(func=_render)
+
+
+def _add_board_commands(sub: Any) -> None:
+    """Sub-command leaderboard (render, plot, pareto)."""
     board = sub.add_parser("leaderboard", help="leaderboard tables and figures")
     board_sub = board.add_subparsers(dest="action", required=True)
     plot = board_sub.add_parser("plot", help="the v1 figures (IQM with CIs, performance profiles, learning curves, "
@@ -385,6 +369,17 @@ def main(argv: list[str] | None = None) -> int:
     render.add_argument("--readme", default=None,
                         help="also regenerate the v1 summary between its markers in this file (e.g. README.md)")
     render.set_defaults(func=_leaderboard)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``ffsr-gym`` console script."""
+    from ffsr_gym import __version__
+
+    parser = argparse.ArgumentParser(prog="ffsr-gym", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"ffsr-gym {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+    for add in (_add_model_commands, _add_study_commands, _add_board_commands):
+        add(sub)
     argv = sys.argv[1:] if argv is None else argv
     args = parser.parse_args(argv)
     args.argv = argv

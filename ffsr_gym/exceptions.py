@@ -25,3 +25,7 @@ class InvalidInputError(FFSRError, ValueError):
 
 class MissingDependencyError(FFSRError, ImportError):
     """An optional dependency is needed for the requested feature but is not installed."""
+
+
+class UnknownArgumentError(InvalidInputError, TypeError):
+    """A keyword argument that the function or environment does not take (never silently ignored)."""

@@ -15,7 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ffsr_gym.bench.leaderboard import END, START, render_readme
+from ffsr_gym.bench.leaderboard import render_readme
+from ffsr_gym.model.spec import spec_for_version
+
+START, END = spec_for_version("v0").leaderboard.markers()
 from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.optim import ga
 

@@ -6,7 +6,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import pytest
 
-from ffsr_gym.bench.evaluation_v1 import evaluate_v1
+from ffsr_gym.bench.evaluation import evaluate as evaluate_v1
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.tasks.certificate import planner_episode
 from ffsr_gym.tasks.generator import draw_task

@@ -1,7 +1,7 @@
 """The compiled v1 decision (``ffsr_gym.kernel.decision``) against the step-by-step path it replaces.
 
 The single v1 env steps through one compiled call on the kernel backend. With its episode
-removed (``env.unwrapped._episode = None``) the same env goes through the
+switched off (``env.unwrapped.compiled_step = False``) the same env goes through the
 :class:`~ffsr_gym.sim.rollout.Rollout` interface: physics by ``advance``, the increment from
 ``scoring.score``, the observation assembled in Python. Both must give the same numbers bit for
 bit, also when the planner step of the observation is reused by the next decision and when
@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import ffsr_gym  # noqa: F401  (registers the environments)
-from ffsr_gym.environments.env import OBS_CLIP
+from ffsr_gym.environments.actions import OBS_CLIP
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.kernel import decision
 from ffsr_gym.model.benchmark import load_benchmark
@@ -30,7 +30,7 @@ def episode(env_id, task, actions, *, compiled, seed=0, index=3, parameters=None
     env = gym.make(env_id, task=task, **kwargs)
     obs, _ = env.reset(seed=seed, options=None if task == "paper" else {"task_index": index})
     if not compiled:
-        env.unwrapped._episode = None
+        env.unwrapped.compiled_step = False
     out = [(obs,)]
     for action in actions:
         if parameters is not None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ffsr_gym.bench.evaluation import scenario_for_seed
+from ffsr_gym.bench.planner_scores import scenario_for_seed
 from ffsr_gym.kernel.collision import segment_box
 from ffsr_gym.kernel.linalg import smallest_singular_value, smallest_singular_values, svd_into
 from ffsr_gym.planning.planner import METHODS

@@ -37,7 +37,7 @@ def test_committed_entries_are_valid_and_recompute(path):
 
 
 def test_committed_tables_are_up_to_date():
-    from ffsr_gym.bench.leaderboard_v1 import splice_summary
+    from ffsr_gym.bench.leaderboard import splice_summary
 
     assert leaderboard.render_readme(ROOT) == (ROOT / "README.md").read_text(), "run: ffsr-gym leaderboard render"
     readme = (ROOT.parent / "README.md").read_text(encoding="utf-8")
@@ -81,7 +81,7 @@ V1_ENTRIES = sorted((ROOT / "v1").glob("*/*.json"))
 
 @pytest.mark.parametrize("path", V1_ENTRIES, ids=lambda p: f"{p.parent.name}/{p.stem}")
 def test_committed_v1_entries_recompute_and_name_their_pools(path):
-    from ffsr_gym.bench.leaderboard_v1 import recompute_v1
+    from ffsr_gym.bench.leaderboard import recompute as recompute_v1
     from ffsr_gym.tasks.splits import pool
 
     entry = json.loads(path.read_text())
@@ -95,7 +95,11 @@ def test_committed_v1_entries_recompute_and_name_their_pools(path):
 
 
 def test_v1_ranks_share_a_rank_when_no_ci_separates_them():
-    from ffsr_gym.bench.leaderboard_v1 import ranks, render_v1_tables
+    from ffsr_gym.bench.leaderboard import ranks, render_tables
+    from ffsr_gym.model.spec import spec_for_version
+
+    def render_v1_tables(entries):
+        return render_tables(spec_for_version("v1"), entries)
 
     cis = [[0.6, 0.7], [0.55, 0.65], [0.3, 0.5], [0.0, 0.0], [0.0, 0.0]]
     entries = [{"metrics": {"score_iqm_ci95": ci}} for ci in cis]
@@ -107,7 +111,11 @@ def test_v1_ranks_share_a_rank_when_no_ci_separates_them():
 
 
 def test_v1_figures_are_drawn_from_entries(tmp_path):
-    from ffsr_gym.bench.evaluation_v1 import aggregate_v1
+    from ffsr_gym.model.spec import spec_for_version
+    from ffsr_gym.scoring.rules import score_rule
+
+    def aggregate_v1(scores, successes):
+        return score_rule(spec_for_version("v1")).aggregate([{"score": s, "success": ok} for s, ok in zip(scores, successes)])
     from ffsr_gym.report.leaderboard_plots import plot_iqm, plot_learning_curves, plot_profiles
 
     assert plot_iqm(tmp_path) is None and plot_profiles(tmp_path) is None and plot_learning_curves(tmp_path) is None

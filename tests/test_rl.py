@@ -49,12 +49,11 @@ def test_hyperparameter_files_cover_every_id():
 
 
 def test_v1_training_records_a_curve_scores_the_test_pool_and_resumes(tmp_path):
-    from ffsr_gym.bench.leaderboard_v1 import recompute_v1
-    from ffsr_gym.optim.rl_v1 import train_and_evaluate_v1
+    from ffsr_gym.bench.leaderboard import recompute as recompute_v1
     from ffsr_gym.tasks.splits import pool
 
     def run():
-        return train_and_evaluate_v1("ppo", "FFSR-v1", tier="easy", seeds=[0], out=tmp_path, timesteps=256,
+        return train_and_evaluate("ppo", "FFSR-v1", task="easy", seeds=[0], out=tmp_path, timesteps=256,
                                      curve_every=128, curve_tasks=3, progress=False)
 
     report = run()

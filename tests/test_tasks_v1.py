@@ -224,7 +224,7 @@ def test_docs_tier_table_is_generated_from_the_pool_file():
 
 def test_training_loss_is_one_minus_the_mean_certified_score():
     """On easy tasks the default planner is the certificate: the optimisers' loss replays the stored scores."""
-    from ffsr_gym.bench.evaluation_v1 import training_loss
+    from ffsr_gym.bench.planner_scores import training_loss
 
     stored = [t.certificate_score for t in pool("easy", "train")[:5]]
     assert training_loss(0.3, 4.0, tier="easy", tasks=5) == pytest.approx(1.0 - np.mean(stored), abs=1e-12)

@@ -168,20 +168,20 @@ def test_vector_env_renders_copy_0_as_the_single_env_draws_it():
 def test_v1_vector_env_without_autoreset_holds_ended_copies():
     """``autoreset_mode="Disabled"``: an ended copy is not stepped again (same state, observation, no reward)
     while the others go on; its episode is the single env's."""
-    from ffsr_gym.environments.vector_env_v1 import FFSRV1VectorEnv
+    from ffsr_gym.environments.vector_env import FFSRVectorEnv
 
-    venv = FFSRV1VectorEnv(2, "hard", "test", autoreset_mode="Disabled")
+    venv = FFSRVectorEnv(2, "v1", task="hard", split="test", autoreset_mode="Disabled")
     venv.reset(seed=[0, 1], options={"task_index": [0, 5]})
     ended_at, held = {}, {}
     for step in range(200):
         obs, rewards, terminated, truncated, info = venv.step_with_parameters(0.1, 1.5)  # breaks the rate limit early
         for i in np.flatnonzero(terminated | truncated):
             assert i not in ended_at
-            ended_at[i], held[i] = step, (obs[i].copy(), int(venv._K[i]), info["score"][i])
+            ended_at[i], held[i] = step, (obs[i].copy(), int(venv.engine.K[i]), info["score"][i])
         for i, (obs_i, k_i, _) in held.items():
             if ended_at[i] < step:
                 np.testing.assert_array_equal(obs[i], obs_i)
-                assert venv._K[i] == k_i and rewards[i] == 0.0 and not terminated[i] and not truncated[i]
+                assert venv.engine.K[i] == k_i and rewards[i] == 0.0 and not terminated[i] and not truncated[i]
         if len(ended_at) == 2:
             break
     assert len(ended_at) == 2 and ended_at[0] != ended_at[1]
@@ -192,6 +192,6 @@ def test_v1_vector_env_without_autoreset_holds_ended_copies():
             pass
         assert step[4]["score"] == held[i][2] and single.unwrapped.rollout.k == held[i][1]
     with pytest.raises(InvalidInputError, match="autoreset_mode"):
-        FFSRV1VectorEnv(2, "hard", autoreset_mode="SameStep")
+        FFSRVectorEnv(2, "v1", task="hard", autoreset_mode="SameStep")
     with pytest.raises(InvalidInputError, match="reset_mask"):
         venv.reset(options={"reset_mask": np.array([True, False])})

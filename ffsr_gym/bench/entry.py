@@ -12,9 +12,9 @@ from typing import Any, Protocol, runtime_checkable
 import gymnasium as gym
 import numpy as np
 
-from ffsr_gym.bench.protocol import BOOTSTRAP_SAMPLES, BOOTSTRAP_SEED
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.provenance import write_json_atomic
+from ffsr_gym.scoring.aggregate import BOOTSTRAP_SAMPLES, BOOTSTRAP_SEED
 
 ENTRY_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,127}")
 V0_SCORE_RULE = "objective B if feasible else inf (null in JSON)"
@@ -82,5 +82,3 @@ def stepper(policy: Policy, env: gym.Env) -> Callable[[np.ndarray], tuple]:
     if callable(policy):
         return lambda obs: env.step(policy(obs))
     raise InvalidInputError(f"policy must be callable, have .predict, or be a (m, T_c) tuple; got {type(policy).__name__}")
-
-

@@ -1,154 +1,222 @@
-"""Scoring a policy on the benchmark: ``evaluate`` and the black-box ``objective_for_params``."""
+"""Scoring a policy on any benchmark version: ``evaluate``, one code path for every spec.
+
+The spec's evaluation protocol says which episodes make an entry: the public seeds of an id
+(``seeds``, v0) or one episode per task of a tier's split (``pool``, v1, the test pool by
+default). Every episode is scored from its trajectory by the spec's score rule
+(:mod:`ffsr_gym.scoring.rules`), never from the rewards; the env is built here, so no caller's
+wrapper can change a score.
+"""
 
 from __future__ import annotations
 
-import math
+import hashlib
 import time
 from collections.abc import Sequence
 from concurrent.futures import Executor
-from functools import lru_cache
+from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from gymnasium.utils import seeding
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.entry import EvalReport, Policy, PredictsActions, stepper
-from ffsr_gym.bench.evaluation_v1 import V1_IDS, evaluate_v1
-from ffsr_gym.bench.protocol import BOOTSTRAP_SAMPLES, BOOTSTRAP_SEED, eval_seeds
+from ffsr_gym.bench.planner_scores import objective_for_params
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.scenario import Scenario, load_scenario
+from ffsr_gym.model.spec import BenchmarkSpec, spec_for_env_id
 from ffsr_gym.provenance import provenance
-from ffsr_gym.scoring.objective import objective_terms
-from ffsr_gym.sim.simulate import simulate
-from ffsr_gym.tasks.random_family import sample_scenario
+from ffsr_gym.scoring.rules import score_rule
+from ffsr_gym.tasks.splits import pool, pool_path
 
-__all__ = ["EvalReport", "Policy", "PredictsActions", "aggregate", "evaluate", "objective_for_params"]
-
-#: The ids :func:`evaluate` scores (with the v0 objective).
-V0_IDS = ("FFSR-v0", "FFSR-Residual-v0")
+__all__ = ["EvalReport", "Policy", "PredictsActions", "evaluate", "objective_for_params"]
 
 
-def scenario_for_seed(scenario: str | Scenario, seed: int | None) -> Scenario:
-    """The scenario an env with ``scenario`` plays after ``reset(seed=seed)``."""
-    if isinstance(scenario, str):
-        return _named_scenario_for_seed(scenario, seed)
-    return _scenario_for_seed(scenario, seed)
+@dataclass
+class Plan:
+    """What an evaluation runs: the env's kwargs and one (seed, pool index or None) per episode."""
+
+    spec: BenchmarkSpec
+    env_id: str
+    kwargs: dict[str, Any]
+    episodes: list[tuple[int, int | None]]
+    extra: dict[str, Any] = field(default_factory=dict)
 
 
-@lru_cache(maxsize=256)
-def _named_scenario_for_seed(scenario: str, seed: int | None) -> Scenario:
-    """Cached per process: GA and CMA-ES evaluate one scenario thousands of times (TOML parsing, hashing)."""
-    return _scenario_for_seed(scenario, seed)
+def spec_of(env_id: Any) -> BenchmarkSpec:
+    """The spec of a registered FFSR id.
 
-
-def _scenario_for_seed(scenario: str | Scenario, seed: int | None) -> Scenario:
-    family = load_scenario(scenario)
-    if family.randomization is None:
-        return family
-    rng, _ = seeding.np_random(seed)
-    return sample_scenario(family, rng)
-
-
-def objective_for_params(m: float, T_c: float, *, scenario: str | Scenario = "paper", seed: int | None = None) -> float:
-    """Benchmark score of the reference planner with constant (m, T_c [s]) on one episode.
-
-    Picklable (a module-level function) for process pools. Returns B if the episode is feasible,
-    else +inf; never NaN. ``seed`` selects the task of a randomised scenario (as ``reset(seed=...)``).
-    The run stops at the first rate-limit violation or collision, whose score is +inf whatever
-    follows (GA populations are mostly such settings).
+    Raises:
+        InvalidInputError: not one (the known ids are listed).
     """
-    for name, value in (("m", m), ("T_c", T_c)):
-        if not isinstance(value, (int, float, np.floating)) or not math.isfinite(value):
-            raise InvalidInputError(f"{name} must be a finite number, got {value!r}")
-    played = scenario_for_seed(scenario, seed)
-    trajectory = simulate(played, m=float(m), T_c=float(T_c), stop_on_violation=True)
-    return objective_terms(trajectory, played.objective).score
+    spec = spec_for_env_id(env_id) if isinstance(env_id, str) else None
+    if spec is None:
+        from ffsr_gym.model.spec import all_specs
+
+        known = [i for s in all_specs().values() for i in s.env_ids]
+        raise InvalidInputError(f"env_id {env_id!r}; allowed: {known}")
+    return spec
 
 
-def _iqm(values: np.ndarray) -> float:
-    v = np.sort(values)
-    n = len(v)
-    lo, hi = int(math.floor(0.25 * n)), int(math.ceil(0.75 * n))
-    middle = v[lo:hi] if hi > lo else v
-    return float(np.mean(middle)) if np.all(np.isfinite(middle)) else math.inf
+def _seed_plan(spec: BenchmarkSpec, env_id: str, seeds: Sequence[int] | None, env_kwargs: dict | None,
+               pool_arguments: dict[str, Any]) -> Plan:
+    given = [name for name, value in pool_arguments.items() if value is not None]
+    if given:
+        raise InvalidInputError(f"{', '.join(f'{n}=' for n in given)}: arguments of the pool protocol; {env_id} is "
+                                f"scored on seeds and takes env_kwargs={{'{spec.tasks.keyword}': ...}}")
+    kwargs = dict(env_kwargs or {spec.tasks.keyword: spec.evaluation.default_task})
+    chosen = list(spec.eval_seeds(env_id) if seeds is None else seeds)
+    return Plan(spec, env_id, kwargs, [(int(s), None) for s in chosen])
 
 
-def aggregate(scores: Sequence[float], feasible: Sequence[bool]) -> dict[str, Any]:
-    """Mean, interquartile mean, seeded-bootstrap 95% CI of the IQM, and feasible rate.
+def _pool_plan(spec: BenchmarkSpec, env_id: str, *, task: str | None, split: str | None, indices: Sequence[int] | None,
+               env_kwargs: dict | None, training_pool: str | None) -> Plan:
+    task = spec.evaluation.default_task if task is None else task
+    split = spec.evaluation.split if split is None else split
+    if task not in (*spec.tasks.scenarios, *spec.tasks.tiers) or split not in spec.tasks.splits:
+        raise InvalidInputError(f"task {task!r}, split {split!r}; allowed: task in "
+                                f"{[*spec.tasks.scenarios, *spec.tasks.tiers]}, split in {list(spec.tasks.splits)}")
+    kwargs = {**(env_kwargs or {}), spec.tasks.keyword: task, "split": split}
+    is_pool = task in spec.tasks.tiers
+    size = len(pool(task, split)) if is_pool else 1
+    chosen = list(range(size) if indices is None else indices)
+    if not chosen or any(isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= i < size for i in chosen):
+        raise InvalidInputError(f"indices must be a non-empty list of integers in [0, {size - 1}], got {indices!r}")
+    pools = pool_path(task if is_pool else spec.tasks.tiers[0]).read_bytes()
+    extra = {"training_pool": training_pool, "evaluation_pool": f"{task}/{split}",
+             "pool_file_sha256": hashlib.sha256(pools).hexdigest()}
+    return Plan(spec, env_id, kwargs, [(int(i), int(i) if is_pool else None) for i in chosen], extra)
 
-    Infinite scores (infeasible episodes) make the mean infinite; the IQM is finite while at most
-    a quarter of the episodes are infeasible. JSON stores infinity as ``null``.
-    """
-    values = np.asarray(scores, dtype=float)
-    rng = np.random.default_rng(BOOTSTRAP_SEED)
-    boots = [_iqm(values[rng.integers(0, len(values), len(values))]) for _ in range(BOOTSTRAP_SAMPLES)]
-    return {
-        "score_mean": float(np.mean(values)),
-        "score_iqm": _iqm(values),
-        "score_ci95": [float(np.percentile(boots, 2.5, method="inverted_cdf")),
-                       float(np.percentile(boots, 97.5, method="inverted_cdf"))],
-        "feasible_rate": float(np.mean(np.asarray(feasible, dtype=float))),
-        "episodes": len(values),
-    }
+
+def _row(seed: int, index: int | None, info: dict[str, Any], rule_row: dict[str, Any], pooled: bool) -> dict[str, Any]:
+    if not pooled:
+        return {"seed": seed, **rule_row}
+    return {"seed": seed, "task_index": seed, "task_seed": info.get("task_seed"), **rule_row}
 
 
-def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None, env_kwargs: dict | None = None,
-             name: str = "submission", progress: bool = False, task: str | None = None, split: str = "test",
-             training_pool: str | None = None, executor: Executor | None = None) -> EvalReport:
-    """Score ``policy`` on ``env_id``: v0 with the paper's objective B, v1 with the v1 episode score.
-
-    The env is built here (no caller wrappers can change the score), and each episode is scored
-    from its trajectory, never from the summed reward.
-
-    Args:
-        policy: a callable obs -> action, an object with SB3-style ``predict(obs, deterministic=True)``,
-            or, for ``FFSR-v0`` / ``FFSR-v1``, a fixed ``(m, T_c)`` in physical units (applied
-            without float32 rounding).
-        env_id: ``"FFSR-v0"``, ``"FFSR-Residual-v0"``, ``"FFSR-v1"`` or ``"FFSR-Residual-v1"``.
-        seeds: v0 only: episode seeds; default: the public evaluation seeds of ``env_id``.
-        env_kwargs: keyword arguments of ``gymnasium.make`` (e.g. ``{"scenario": "random"}``).
-        name: entry name (file name of :meth:`EvalReport.save`).
-        progress: show a progress bar.
-        task, split, training_pool: v1 only: the tier (default ``"easy"``) and the pool scored
-            (default: its **test** pool, one episode per task), and what the policy was trained on
-            (recorded in the entry); see :func:`ffsr_gym.bench.evaluation_v1.evaluate_v1`.
-        executor: v1 only: score chunks of the pool on any ``concurrent.futures.Executor``
-            (processes, Dask); the policy must pickle. Same entry as without.
-    """
-    if env_id in V1_IDS:
-        if seeds is not None:
-            raise InvalidInputError("seeds: v1 scores one episode per task of a pool; choose it with task= and split=")
-        return evaluate_v1(policy, env_id, task=task or "easy", split=split, training_pool=training_pool,
-                           env_kwargs=env_kwargs, name=name, progress=progress, executor=executor)
-    if env_id not in V0_IDS:
-        raise InvalidInputError(f"env_id {env_id!r}; allowed: {list(V0_IDS + V1_IDS)}")
-    if task is not None or training_pool is not None or executor is not None:
-        raise InvalidInputError("task=, training_pool= and executor= are v1 arguments; v0 takes env_kwargs={'scenario': ...}")
-    kwargs = dict(env_kwargs or {"scenario": "paper"})
-    seeds = list(eval_seeds(env_id) if seeds is None else seeds)
-    start = time.perf_counter()
+def _episodes(policy: Any, env_id: str, kwargs: dict[str, Any], pooled: bool,
+              jobs: Sequence[tuple[int, int | None]]) -> list[tuple[dict, str, str]]:
+    """The scored episodes of ``jobs`` with each played scenario's key and hash (module level: executors run chunks)."""
     env = gym.make(env_id, **kwargs)
-    step = stepper(policy, env)
-    rows, hashes = [], {"family": env.unwrapped.family.sha256()}
-    for seed in tqdm(seeds, disable=not progress, desc=f"evaluate {env_id}", unit="episode"):
-        obs, _ = env.reset(seed=seed)
+    step, rule = stepper(policy, env), env.unwrapped.engine.rule
+    out = []
+    for seed, index in jobs:
+        obs, info = env.reset(seed=seed, options=None if index is None else {"task_index": index})
         done = False
         while not done:
             obs, _, terminated, truncated, _ = step(obs)
             done = terminated or truncated
-        played = env.unwrapped.scenario
-        traj = env.unwrapped.trajectory
-        terms = objective_terms(traj, played.objective)
-        metrics = traj.metrics()
-        key = played.name if played.randomization is None else f"{played.name}/seed={seed}"
-        if key not in hashes:  # a fixed scenario is hashed once, not once per episode
-            hashes[key] = played.sha256()
-        rows.append({"seed": seed, **terms.as_dict(), "final_ee_position_error_m": metrics["final_ee_position_error_m"],
-                     "max_joint_rate_deg_s": metrics["max_joint_rate_deg_s"], "min_clearance_m": metrics["min_clearance_m"],
-                     "duration_s": float(traj.t[-1])})
+        played, traj = env.unwrapped.scenario, env.unwrapped.trajectory
+        row = _row(seed, index, info, rule.row(rule.result(traj, played), traj), pooled)
+        key = played.name if played.randomization is None or pooled else f"{played.name}/seed={seed}"
+        out.append((row, key, played.sha256()))
     env.close()
-    scores = [math.inf if row["score"] is None else row["score"] for row in rows]
-    prov = provenance(scenarios=hashes, seeds=seeds, wall_time_s=time.perf_counter() - start)
-    return EvalReport(env_id, kwargs, aggregate(scores, [row["feasible"] for row in rows]), rows, prov, name=name)
+    return out
+
+
+def _batched_episodes(parameters: tuple[float, float], version: str, kwargs: dict[str, Any],
+                      jobs: Sequence[tuple[int, int | None]]) -> list[tuple[dict, str, str]]:
+    """:func:`_episodes` for a fixed (m, T_c): all tasks in one batched env (bit-identical rows)."""
+    from ffsr_gym.environments.vector_env import FFSRVectorEnv
+
+    venv = FFSRVectorEnv(len(jobs), version, autoreset_mode="Disabled", **kwargs)
+    indices = [index for _, index in jobs]
+    _, info = venv.reset(seed=[seed for seed, _ in jobs],
+                         options=None if indices[0] is None else {"task_index": indices})
+    results: dict[int, tuple[dict, str, str]] = {}
+    engine = venv.engine
+    while len(results) < len(jobs):
+        _, _, terminated, truncated, _ = venv.step_with_parameters(*parameters)
+        for i in np.flatnonzero(terminated | truncated):
+            if int(i) not in results:
+                played, traj = engine.scenarios[i], engine.trajectory(int(i))
+                seed = int(info["task_seed"][i])
+                row = _row(jobs[i][0], jobs[i][1], {"task_seed": None if seed < 0 else seed},
+                           engine.rule.row(engine.results[i], traj), True)
+                results[int(i)] = (row, played.name, played.sha256())
+    venv.close()
+    return [results[i] for i in range(len(jobs))]
+
+
+def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None, env_kwargs: dict | None = None,
+             name: str = "submission", progress: bool = False, task: str | None = None, split: str | None = None,
+             training_pool: str | None = None, executor: Executor | None = None, indices: Sequence[int] | None = None,
+             chunk: int = 10, batched: bool | None = None) -> EvalReport:
+    """Score ``policy`` on ``env_id`` by its version's protocol and score rule.
+
+    Args:
+        policy: a callable obs -> action, an object with SB3-style ``predict(obs, deterministic=True)``,
+            or, on an (m, T_c) id, a fixed ``(m, T_c)`` in physical units (no float32 rounding).
+        env_id: a registered id (``ffsr-gym list``).
+        seeds: protocol ``seeds`` (v0): episode seeds; default: the id's public evaluation seeds.
+        env_kwargs: other ``gymnasium.make`` arguments (v0: ``{"scenario": ...}``; never the score).
+        name: entry name (file name of :meth:`EvalReport.save`).
+        progress: show a progress bar.
+        task, split, indices, training_pool: protocol ``pool`` (v1): the tier (default ``"easy"``),
+            the pool scored (default: its **test** pool, one episode per task), the pool indices
+            (default: all), and what the policy was trained or tuned on (recorded in the entry).
+        executor: protocol ``pool``: score chunks of ``chunk`` tasks on any
+            ``concurrent.futures.Executor`` (processes, Dask); the policy must pickle. Same entry.
+        batched: a fixed (m, T_c) on a pool runs all tasks in one batched env in this process
+            (None: whenever possible without an executor; the same entry, tested bit for bit).
+    """
+    spec = spec_of(env_id)
+    if spec.evaluation.protocol == "seeds":
+        plan = _seed_plan(spec, env_id, seeds, env_kwargs, {"task": task, "split": split, "training_pool": training_pool,
+                                                            "executor": executor, "indices": indices, "batched": batched})
+    else:
+        if seeds is not None:
+            raise InvalidInputError(f"seeds: {spec.version} scores one episode per task of a pool; choose it with task= "
+                                    "and split=")
+        plan = _pool_plan(spec, env_id, task=task, split=split, indices=indices, env_kwargs=env_kwargs,
+                          training_pool=training_pool)
+    if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
+        raise InvalidInputError(f"chunk = {chunk!r}; allowed: an integer >= 1")
+    return _run(policy, plan, name=name, progress=progress, executor=executor, chunk=chunk, batched=batched)
+
+
+def _runner(policy: Any, plan: Plan, executor: Executor | None, chunk: int, batched: bool | None):
+    """How the plan's episodes run: one batched env, or chunks of single envs (serially or on ``executor``)."""
+    pooled = plan.spec.evaluation.protocol == "pool"
+    residual = plan.spec.is_residual(plan.env_id)
+    fixed = (isinstance(policy, tuple) and pooled and not residual and plan.kwargs.get("terminate_on_violation", True)
+             is True and set(plan.kwargs) <= {plan.spec.tasks.keyword, "split", "dense_shaping", "terminate_on_violation"})
+    if batched and not fixed:
+        raise InvalidInputError(f"batched=True needs a fixed (m, T_c) policy on {plan.spec.ids.parameters} with a pool, "
+                                "terminate_on_violation=True and no env_kwargs other than dense_shaping")
+    if batched and executor is not None:
+        raise InvalidInputError("batched=True runs in this process (the batched kernel's threads do not survive a fork); "
+                                "with an executor each worker runs single environments")
+    if fixed and executor is None and batched is not False:
+        return partial(_batched_episodes, policy, plan.spec.version, plan.kwargs), len(plan.episodes)
+    return partial(_episodes, policy, plan.env_id, plan.kwargs, pooled), chunk
+
+
+def _run(policy: Any, plan: Plan, *, name: str, progress: bool, executor: Executor | None, chunk: int,
+         batched: bool | None) -> EvalReport:
+    start = time.perf_counter()
+    run, size = _runner(policy, plan, executor, chunk, batched)
+    pieces = [plan.episodes[k:k + size] for k in range(0, len(plan.episodes), size)]
+    results = (map if executor is None else executor.map)(run, pieces)
+    rows, hashes = [], {}
+    if plan.spec.evaluation.protocol == "seeds":
+        hashes["family"] = _family_hash(plan)
+    label = f"evaluate {plan.env_id}" + (f" {plan.extra['evaluation_pool']}" if plan.extra else "")
+    with tqdm(total=len(plan.episodes), disable=not progress, desc=label, unit="episode") as bar:
+        for episodes in results:
+            for row, key, sha in episodes:
+                rows.append(row)
+                hashes.setdefault(key, sha)
+            bar.update(len(episodes))
+    rule = score_rule(plan.spec)
+    prov = provenance(scenarios=hashes, seeds=[seed for seed, _ in plan.episodes],
+                      wall_time_s=time.perf_counter() - start)
+    return EvalReport(plan.env_id, plan.kwargs, rule.aggregate(rows), rows, prov, name=name, extra=dict(plan.extra),
+                      score_rule=plan.spec.score.text)
+
+
+def _family_hash(plan: Plan) -> str:
+    """The hash of the scenario (family) a seeds-protocol env plays."""
+    from ffsr_gym.model.scenario import load_scenario
+
+    return load_scenario(plan.kwargs.get(plan.spec.tasks.keyword, plan.spec.tasks.default)).sha256()

@@ -21,10 +21,10 @@ from typing import Any, Callable
 import numpy as np
 from tqdm.auto import tqdm
 
-from ffsr_gym.bench.evaluation_v1 import evaluate_v1
-from ffsr_gym.bench.leaderboard_v1 import method_name
-from ffsr_gym.environments.env_v1 import v1_task
+from ffsr_gym.bench.evaluation import evaluate
+from ffsr_gym.bench.tables import method_name
 from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.provenance import provenance, write_json_atomic
 from ffsr_gym.scoring.score import EpisodeScore
 from ffsr_gym.tasks.certificate import planner_episode, planner_task
@@ -50,7 +50,7 @@ def _rl_points(entry: dict[str, Any], tier: str, models: Path | None,
         path = models / f"{algo}_{entry['env_id']}_{tier}_seed{run['seed']}" / "model.zip"
         if not path.is_file():
             return [], f"model missing: {path}"
-        row = evaluate_v1(load_model(algo, path), entry["env_id"], task="paper").episodes[0]
+        row = evaluate(load_model(algo, path), entry["env_id"], task="paper").episodes[0]
         points.append(_point(row, train_seed=run["seed"]))
     return points, None
 
@@ -65,7 +65,7 @@ def paper_pareto(root: str | Path, out: str | Path, models: str | Path | None = 
     """
     root, start = Path(root), time.perf_counter()
     benchmark = load_benchmark("v1")
-    task = v1_task("paper", benchmark)
+    task = benchmark.task(load_scenario("paper"))
     settings = [(m, T_c) for m in GRID_M for T_c in GRID_T_C_S]
     grid = [_point(planner_episode(task, benchmark, method="predefined_time", m=m, T_c=T_c), m=m, T_c_s=T_c)
             for m, T_c in tqdm(settings, desc="paper grid", disable=not progress)]

@@ -12,20 +12,15 @@ import math
 import sys
 from dataclasses import dataclass, field
 from functools import lru_cache
+from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model.resources import envs_dir
-from ffsr_gym.model.scenario import (
-    Randomization,
-    Scenario,
-    _choice,
-    _number,
-    _section,
-    _vector,
-    build_table,
-    check_action_bounds,
-)
+from ffsr_gym.model.scenario import Randomization, Scenario
+from ffsr_gym.model.schema import TEXT, build_table, check_action_bounds, choice, integer, number, section, vector
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -39,33 +34,33 @@ VERSIONS = ("v1",)
 class ScoreSettings:
     """The smoothness cost, its references and the success test (see ``v1.toml``)."""
 
-    alpha: float = field(metadata=_number(0.0, 1e6))
-    beta: float = field(metadata=_number(0.0, 1e6))
-    rate_energy_ref_rad2_s: float = field(metadata=_number(0.0, 1e9, lo_open=True))
-    rate_variation_ref_rad_s: float = field(metadata=_number(0.0, 1e9, lo_open=True))
-    max_rate_deg_s: float = field(metadata=_number(0.0, 1e5, lo_open=True))
-    ee_position_tolerance_m: float = field(metadata=_number(0.0, 10.0, lo_open=True))
-    ee_attitude_tolerance: float = field(metadata=_number(0.0, 1.0, lo_open=True))
+    alpha: float = field(metadata=number(0.0, 1e6))
+    beta: float = field(metadata=number(0.0, 1e6))
+    rate_energy_ref_rad2_s: float = field(metadata=number(0.0, 1e9, lo_open=True))
+    rate_variation_ref_rad_s: float = field(metadata=number(0.0, 1e9, lo_open=True))
+    max_rate_deg_s: float = field(metadata=number(0.0, 1e5, lo_open=True))
+    ee_position_tolerance_m: float = field(metadata=number(0.0, 10.0, lo_open=True))
+    ee_attitude_tolerance: float = field(metadata=number(0.0, 1.0, lo_open=True))
 
 
 @dataclass(frozen=True)
 class PlannerDefaults:
     """The reference planner's (m, T_c [s]) in this version."""
 
-    m: float = field(metadata=_number(0.0, 1.0, lo_open=True, hi_open=True))
-    T_c_s: float = field(metadata=_number(0.0, 1e4, lo_open=True))
+    m: float = field(metadata=number(0.0, 1.0, lo_open=True, hi_open=True))
+    T_c_s: float = field(metadata=number(0.0, 1e4, lo_open=True))
 
 
 @dataclass(frozen=True)
 class ActionSettings:
     """Action boxes, the residual fade and the optional reward and cost terms of the v1 environments."""
 
-    m_bounds: tuple[float, ...] = field(metadata=_vector(2, 0.0, 1.0))
-    T_c_bounds_s: tuple[float, ...] = field(metadata=_vector(2, 1e-3, 1000.0))
-    residual_rate_deg_s: float = field(metadata=_number(0.0, 1e4))
-    residual_fade_s: float = field(metadata=_number(0.0, 3600.0, lo_open=True))
-    shaping_position_scale_m: float = field(metadata=_number(0.0, 1e3, lo_open=True))
-    cost_clearance_scale_m: float = field(metadata=_number(0.0, 1e3, lo_open=True))
+    m_bounds: tuple[float, ...] = field(metadata=vector(2, 0.0, 1.0))
+    T_c_bounds_s: tuple[float, ...] = field(metadata=vector(2, 1e-3, 1000.0))
+    residual_rate_deg_s: float = field(metadata=number(0.0, 1e4))
+    residual_fade_s: float = field(metadata=number(0.0, 3600.0, lo_open=True))
+    shaping_position_scale_m: float = field(metadata=number(0.0, 1e3, lo_open=True))
+    cost_clearance_scale_m: float = field(metadata=number(0.0, 1e3, lo_open=True))
 
 
 @dataclass(frozen=True)
@@ -80,27 +75,27 @@ class TaskRule:
     ``residual_trials`` seeded draws does), else rejected as unsolved.
     """
 
-    family: str = field(metadata=_choice("random"))
-    min_balance_sigma: float = field(metadata=_number(0.0, 100.0))
-    min_nominal_self_clearance_m: float = field(metadata=_number(-1.0, 1.0))
-    grid_m: tuple[float, ...] = field(metadata=_vector(6, 0.0, 1.0))
-    grid_T_c_s: tuple[float, ...] = field(metadata=_vector(6, 1e-3, 1000.0))
-    residual_trials: float = field(metadata=_number(0, 1e4))
-    train_tasks: float = field(metadata=_number(1, 1e5))
-    test_tasks: float = field(metadata=_number(1, 1e5))
-    draw: Randomization = field(metadata=_section(Randomization))
+    family: str = field(metadata=choice("random"))
+    min_balance_sigma: float = field(metadata=number(0.0, 100.0))
+    min_nominal_self_clearance_m: float = field(metadata=number(-1.0, 1.0))
+    grid_m: tuple[float, ...] = field(metadata=vector(6, 0.0, 1.0))
+    grid_T_c_s: tuple[float, ...] = field(metadata=vector(6, 1e-3, 1000.0))
+    residual_trials: float = field(metadata=number(0, 1e4))
+    train_tasks: float = field(metadata=number(1, 1e5))
+    test_tasks: float = field(metadata=number(1, 1e5))
+    draw: Randomization = field(metadata=section(Randomization))
 
 
 @dataclass(frozen=True)
 class Benchmark:
     """One benchmark version's definition."""
 
-    schema_version: int = field(metadata={"kind": "integer", "options": (1,)})
-    version: str = field(metadata=_choice(*VERSIONS))
-    score: ScoreSettings = field(metadata=_section(ScoreSettings))
-    planner: PlannerDefaults = field(metadata=_section(PlannerDefaults))
-    action: ActionSettings = field(metadata=_section(ActionSettings))
-    tasks: TaskRule = field(metadata=_section(TaskRule))
+    schema_version: int = field(metadata=integer(1))
+    version: str = field(metadata=TEXT)
+    score: ScoreSettings = field(metadata=section(ScoreSettings))
+    planner: PlannerDefaults = field(metadata=section(PlannerDefaults))
+    action: ActionSettings = field(metadata=section(ActionSettings))
+    tasks: TaskRule = field(metadata=section(TaskRule))
 
     def task(self, scenario: Scenario) -> Scenario:
         """``scenario`` with this version's planner defaults, tolerances, rate limit and action box.
@@ -128,16 +123,29 @@ class Benchmark:
         return 0.5 * (1.0 + math.cos(math.pi * (t - start) / fade))
 
 
-@lru_cache(maxsize=4)
 def load_benchmark(version: str = "v1") -> Benchmark:
-    """The definition of benchmark ``version`` (shipped in ``envs/benchmark``).
+    """The rule file of benchmark ``version`` shipped in ``envs/benchmark`` (``<version>.toml``).
 
     Raises:
         ScenarioError: unknown version, unreadable file or an invalid key (named).
     """
     if version not in VERSIONS:
         raise ScenarioError(f"benchmark version {version!r}; allowed: {list(VERSIONS)}")
-    path = envs_dir() / "benchmark" / f"{version}.toml"
+    return load_rules(envs_dir() / "benchmark" / f"{version}.toml")
+
+
+def residual_rates(action: Any, rate_deg_s: float) -> Any:
+    """Joint rates [rad/s] of a (clipped) residual action: ± ``rate_deg_s`` per unit of action."""
+    return np.radians(rate_deg_s) * np.asarray(action, dtype=np.float64)
+
+
+@lru_cache(maxsize=16)
+def load_rules(path: Path) -> Benchmark:
+    """A benchmark rule file (score, planner defaults, action boxes, tier rule), validated.
+
+    Raises:
+        ScenarioError: unreadable file or an invalid key (named, with the file).
+    """
     try:
         data: dict[str, Any] = tomllib.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:

@@ -14,64 +14,44 @@ import dataclasses
 import functools
 import hashlib
 import json
-import math
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model import portable
 from ffsr_gym.model.resources import robot_dir, scenario_path
+from ffsr_gym.model.schema import (
+    BOOL,
+    TEXT,
+    TEXTS,
+    Vec,
+    build_table,
+    check_action_bounds,
+    choice,
+    integer,
+    natural,
+    number,
+    rows,
+    section,
+    vector,
+)
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
-Vec = tuple[float, ...]
 SCHEMA_VERSION = 1
-
-
-def _number(lo: float, hi: float, *, lo_open: bool = False, hi_open: bool = False) -> dict:
-    return {"kind": "number", "lo": lo, "hi": hi, "lo_open": lo_open, "hi_open": hi_open}
-
-
-def _vector(size: int, lo: float = -math.inf, hi: float = math.inf) -> dict:
-    return {"kind": "vector", "size": size, "lo": lo, "hi": hi}
-
-
-def _rows(size: int, lo: float, hi: float, max_rows: int) -> dict:
-    """A list of up to ``max_rows`` entries: numbers (``size`` 0) or ``size``-vectors, each within [lo, hi]."""
-    return {"kind": "rows", "size": size, "lo": lo, "hi": hi, "max_rows": max_rows}
-
-
-def _natural(hi: int) -> dict:
-    """An integer in [0, hi] (a seed)."""
-    return {"kind": "natural", "hi": hi}
-
-
-def _choice(*options: str) -> dict:
-    return {"kind": "choice", "options": options}
-
-
-def _section(cls: type) -> dict:
-    return {"kind": "section", "cls": cls}
-
-
-_BOOL = {"kind": "bool"}
-_TEXT = {"kind": "text"}
-_TEXTS = {"kind": "texts"}
 
 
 @dataclass(frozen=True)
 class Simulation:
     """Time settings. ``duration_s`` [s] is the episode length, ``dt_s`` [s] the planner step."""
 
-    duration_s: float = field(metadata=_number(0.0, 3600.0, lo_open=True))
-    dt_s: float = field(metadata=_number(1e-5, 0.1))
+    duration_s: float = field(metadata=number(0.0, 3600.0, lo_open=True))
+    dt_s: float = field(metadata=number(1e-5, 0.1))
 
 
 @dataclass(frozen=True)
@@ -82,36 +62,36 @@ class InitialState:
     system centre of mass [kg m^2/s], both in the inertial frame. The paper sets it to zero.
     """
 
-    base_position_m: Vec = field(metadata=_vector(3, -100.0, 100.0))
-    base_quaternion_wxyz: Vec = field(metadata=_vector(4, -1.01, 1.01))
-    mission_joints_deg: Vec = field(metadata=_vector(6, -360.0, 360.0))
-    balance_joints_deg: Vec = field(metadata=_vector(6, -360.0, 360.0))
-    momentum: Vec = field(default=(0.0,) * 6, metadata=_vector(6, -1e3, 1e3))
+    base_position_m: Vec = field(metadata=vector(3, -100.0, 100.0))
+    base_quaternion_wxyz: Vec = field(metadata=vector(4, -1.01, 1.01))
+    mission_joints_deg: Vec = field(metadata=vector(6, -360.0, 360.0))
+    balance_joints_deg: Vec = field(metadata=vector(6, -360.0, 360.0))
+    momentum: Vec = field(default=(0.0,) * 6, metadata=vector(6, -1e3, 1e3))
 
 
 @dataclass(frozen=True)
 class Target:
     """Target end-effector pose: position [m] and scalar-first attitude (normalised on load)."""
 
-    position_m: Vec = field(metadata=_vector(3, -100.0, 100.0))
-    quaternion_wxyz: Vec = field(metadata=_vector(4, -1.01, 1.01))
+    position_m: Vec = field(metadata=vector(3, -100.0, 100.0))
+    quaternion_wxyz: Vec = field(metadata=vector(4, -1.01, 1.01))
 
 
 @dataclass(frozen=True)
 class ReferencePath:
     """Trapezoidal-velocity desired path (SPEC §8): motion time t_f [s], acceleration time t_a [s]."""
 
-    motion_time_s: float = field(metadata=_number(0.0, 3600.0, lo_open=True))
-    accel_time_s: float = field(metadata=_number(0.0, 1800.0, lo_open=True))
+    motion_time_s: float = field(metadata=number(0.0, 3600.0, lo_open=True))
+    accel_time_s: float = field(metadata=number(0.0, 1800.0, lo_open=True))
 
 
 @dataclass(frozen=True)
 class Obstacle:
     """A point obstacle: position [m], physical radius [m] (0 = a point) and danger radius [m]."""
 
-    position_m: Vec = field(metadata=_vector(3, -100.0, 100.0))
-    radius_m: float = field(default=0.0, metadata=_number(0.0, 2.0))
-    danger_radius_m: float = field(default=0.2, metadata=_number(0.0, 5.0, lo_open=True))
+    position_m: Vec = field(metadata=vector(3, -100.0, 100.0))
+    radius_m: float = field(default=0.0, metadata=number(0.0, 2.0))
+    danger_radius_m: float = field(default=0.2, metadata=number(0.0, 5.0, lo_open=True))
 
 
 #: Most obstacles besides ``[obstacle]`` a scenario may list in ``[debris]`` (the kernel's fixed slots).
@@ -129,10 +109,10 @@ class Debris:
     cumulative), the μ distance the smallest, and clearance is taken to the nearest one.
     """
 
-    obstacle_velocity_m_s: Vec = field(default=(0.0,) * 3, metadata=_vector(3, -1.0, 1.0))
-    positions_m: tuple[Vec, ...] = field(default=(), metadata=_rows(3, -100.0, 100.0, MAX_DEBRIS))
-    radii_m: Vec = field(default=(), metadata=_rows(0, 0.0, 2.0, MAX_DEBRIS))
-    velocities_m_s: tuple[Vec, ...] = field(default=(), metadata=_rows(3, -1.0, 1.0, MAX_DEBRIS))
+    obstacle_velocity_m_s: Vec = field(default=(0.0,) * 3, metadata=vector(3, -1.0, 1.0))
+    positions_m: tuple[Vec, ...] = field(default=(), metadata=rows(3, -100.0, 100.0, MAX_DEBRIS))
+    radii_m: Vec = field(default=(), metadata=rows(0, 0.0, 2.0, MAX_DEBRIS))
+    velocities_m_s: tuple[Vec, ...] = field(default=(), metadata=rows(3, -1.0, 1.0, MAX_DEBRIS))
 
 
 @dataclass(frozen=True)
@@ -146,9 +126,9 @@ class Plant:
     model (the robot's URDF); momentum is conserved for the plant's parameters.
     """
 
-    mass_scale: Vec = field(default=(1.0,) * 13, metadata=_vector(13, 0.5, 2.0))
-    inertia_scale: Vec = field(default=(1.0,) * 13, metadata=_vector(13, 0.5, 2.0))
-    com_offset_m: tuple[Vec, ...] = field(default=(), metadata=_rows(3, -0.1, 0.1, 12))
+    mass_scale: Vec = field(default=(1.0,) * 13, metadata=vector(13, 0.5, 2.0))
+    inertia_scale: Vec = field(default=(1.0,) * 13, metadata=vector(13, 0.5, 2.0))
+    com_offset_m: tuple[Vec, ...] = field(default=(), metadata=rows(3, -0.1, 0.1, 12))
 
 
 @dataclass(frozen=True)
@@ -162,33 +142,33 @@ class TargetNoise:
     current estimate; the logged end-effector errors and the success test use the true target.
     """
 
-    position_bias_m: Vec = field(default=(0.0,) * 3, metadata=_vector(3, -0.01, 0.01))
-    attitude_bias_rad: Vec = field(default=(0.0,) * 3, metadata=_vector(3, -0.01, 0.01))
-    position_sigma_m: float = field(default=0.0, metadata=_number(0.0, 0.01))
-    attitude_sigma_rad: float = field(default=0.0, metadata=_number(0.0, 0.01))
-    interval_s: float = field(default=0.1, metadata=_number(0.001, 100.0))
-    seed: int = field(default=0, metadata=_natural(2**63 - 1))
+    position_bias_m: Vec = field(default=(0.0,) * 3, metadata=vector(3, -0.01, 0.01))
+    attitude_bias_rad: Vec = field(default=(0.0,) * 3, metadata=vector(3, -0.01, 0.01))
+    position_sigma_m: float = field(default=0.0, metadata=number(0.0, 0.01))
+    attitude_sigma_rad: float = field(default=0.0, metadata=number(0.0, 0.01))
+    interval_s: float = field(default=0.1, metadata=number(0.001, 100.0))
+    seed: int = field(default=0, metadata=natural(2**63 - 1))
 
 
 @dataclass(frozen=True)
 class PlannerSettings:
     """Planner parameters (SPEC §3-6). Symbols follow the paper; see docs/model.md."""
 
-    m: float = field(metadata=_number(0.0, 1.0, lo_open=True, hi_open=True))
-    T_c_s: float = field(metadata=_number(0.0, 1000.0, lo_open=True))
-    phi_form: str = field(default="sanchez_torres", metadata=_choice("sanchez_torres", "printed"))
-    phi_split: bool = field(default=False, metadata=_BOOL)
-    attitude_error: str = field(default="world", metadata=_choice("world", "body"))
-    lambda_max_mission: float = field(default=0.08, metadata=_number(0.0, 10.0))
-    lambda_max_balance: float = field(default=0.08, metadata=_number(0.0, 10.0))
-    epsilon_mission: float = field(default=0.02, metadata=_number(0.0, 10.0))
-    epsilon_balance: float = field(default=0.02, metadata=_number(0.0, 10.0))
-    proportional_gain_per_s: float = field(default=1.0, metadata=_number(0.0, 1e3, lo_open=True))
-    cdf_xi: float = field(default=0.1, metadata=_number(0.0, 1e3))
-    cdf_delta: float = field(default=17.25, metadata=_number(0.0, 1e6, lo_open=True))
-    cdf_k1: float = field(default=1.0, metadata=_number(0.0, 1e3, lo_open=True))
-    mu_law: str = field(default="cdf", metadata=_choice("cdf", "distance"))
-    balance_avoids: bool = field(default=True, metadata=_BOOL)
+    m: float = field(metadata=number(0.0, 1.0, lo_open=True, hi_open=True))
+    T_c_s: float = field(metadata=number(0.0, 1000.0, lo_open=True))
+    phi_form: str = field(default="sanchez_torres", metadata=choice("sanchez_torres", "printed"))
+    phi_split: bool = field(default=False, metadata=BOOL)
+    attitude_error: str = field(default="world", metadata=choice("world", "body"))
+    lambda_max_mission: float = field(default=0.08, metadata=number(0.0, 10.0))
+    lambda_max_balance: float = field(default=0.08, metadata=number(0.0, 10.0))
+    epsilon_mission: float = field(default=0.02, metadata=number(0.0, 10.0))
+    epsilon_balance: float = field(default=0.02, metadata=number(0.0, 10.0))
+    proportional_gain_per_s: float = field(default=1.0, metadata=number(0.0, 1e3, lo_open=True))
+    cdf_xi: float = field(default=0.1, metadata=number(0.0, 1e3))
+    cdf_delta: float = field(default=17.25, metadata=number(0.0, 1e6, lo_open=True))
+    cdf_k1: float = field(default=1.0, metadata=number(0.0, 1e3, lo_open=True))
+    mu_law: str = field(default="cdf", metadata=choice("cdf", "distance"))
+    balance_avoids: bool = field(default=True, metadata=BOOL)
 
 
 @dataclass(frozen=True)
@@ -199,26 +179,26 @@ class ObjectiveSettings:
     eq. (22) reading ``"balance_arm"``.
     """
 
-    alpha: float = field(default=0.35, metadata=_number(0.0, 1e6))
-    beta: float = field(default=0.65, metadata=_number(0.0, 1e6))
-    gamma: float = field(default=1e-4, metadata=_number(0.0, 1e6))
-    danger_rate_deg_s: float = field(default=150.0, metadata=_number(0.0, 1e5))
-    max_rate_deg_s: float = field(default=200.0, metadata=_number(0.0, 1e5, lo_open=True))
-    rate_limit_scope: str = field(default="both_arms", metadata=_choice("both_arms", "balance_arm"))
-    ee_position_tolerance_m: float = field(default=1e-6, metadata=_number(0.0, 10.0, lo_open=True))
-    ee_attitude_tolerance: float = field(default=1e-6, metadata=_number(0.0, 1.0, lo_open=True))
+    alpha: float = field(default=0.35, metadata=number(0.0, 1e6))
+    beta: float = field(default=0.65, metadata=number(0.0, 1e6))
+    gamma: float = field(default=1e-4, metadata=number(0.0, 1e6))
+    danger_rate_deg_s: float = field(default=150.0, metadata=number(0.0, 1e5))
+    max_rate_deg_s: float = field(default=200.0, metadata=number(0.0, 1e5, lo_open=True))
+    rate_limit_scope: str = field(default="both_arms", metadata=choice("both_arms", "balance_arm"))
+    ee_position_tolerance_m: float = field(default=1e-6, metadata=number(0.0, 10.0, lo_open=True))
+    ee_attitude_tolerance: float = field(default=1e-6, metadata=number(0.0, 1.0, lo_open=True))
 
 
 @dataclass(frozen=True)
 class EnvSettings:
     """Settings of the Gymnasium environments (bounds of the action mapping, decision interval)."""
 
-    m_bounds: Vec = field(default=(0.05, 0.95), metadata=_vector(2, 0.0, 1.0))
-    T_c_bounds_s: Vec = field(default=(0.5, 10.0), metadata=_vector(2, 1e-3, 1000.0))
-    decision_interval_s: float = field(default=0.1, metadata=_number(0.0, 3600.0, lo_open=True))
-    residual_rate_deg_s: float = field(default=20.0, metadata=_number(0.0, 1e4))
-    violation_penalty: float = field(default=1.0, metadata=_number(0.0, 1e9))
-    tolerance_penalty: float = field(default=1.0, metadata=_number(0.0, 1e9))
+    m_bounds: Vec = field(default=(0.05, 0.95), metadata=vector(2, 0.0, 1.0))
+    T_c_bounds_s: Vec = field(default=(0.5, 10.0), metadata=vector(2, 1e-3, 1000.0))
+    decision_interval_s: float = field(default=0.1, metadata=number(0.0, 3600.0, lo_open=True))
+    residual_rate_deg_s: float = field(default=20.0, metadata=number(0.0, 1e4))
+    violation_penalty: float = field(default=1.0, metadata=number(0.0, 1e9))
+    tolerance_penalty: float = field(default=1.0, metadata=number(0.0, 1e9))
 
 
 @dataclass(frozen=True)
@@ -233,37 +213,37 @@ class Randomization:
     radius away and the target configuration clears it by ``min_final_distance_m``.
     """
 
-    mission_joint_offsets_deg: Vec = field(metadata=_vector(6, 0.0, 180.0))
-    min_travel_m: float = field(default=0.2, metadata=_number(0.0, 10.0))
-    min_sigma_target: float = field(default=0.05, metadata=_number(0.0, 10.0))
-    path_fraction: Vec = field(default=(0.4, 0.7), metadata=_vector(2, 0.0, 1.0))
-    lateral_offset_m: float = field(default=0.02, metadata=_number(0.0, 1.0))
-    min_final_distance_m: float = field(default=0.1, metadata=_number(0.0, 10.0))
-    min_self_clearance_m: float = field(default=0.02, metadata=_number(0.0, 10.0))
-    max_attempts: float = field(default=1000, metadata=_number(1, 1e6))
+    mission_joint_offsets_deg: Vec = field(metadata=vector(6, 0.0, 180.0))
+    min_travel_m: float = field(default=0.2, metadata=number(0.0, 10.0))
+    min_sigma_target: float = field(default=0.05, metadata=number(0.0, 10.0))
+    path_fraction: Vec = field(default=(0.4, 0.7), metadata=vector(2, 0.0, 1.0))
+    lateral_offset_m: float = field(default=0.02, metadata=number(0.0, 1.0))
+    min_final_distance_m: float = field(default=0.1, metadata=number(0.0, 10.0))
+    min_self_clearance_m: float = field(default=0.02, metadata=number(0.0, 10.0))
+    max_attempts: float = field(default=1000, metadata=number(1, 1e6))
 
 
 @dataclass(frozen=True)
 class Scenario:
     """One experiment, loaded from a TOML file. See the module docstring for conventions."""
 
-    name: str = field(metadata=_TEXT)
-    description: str = field(metadata=_TEXT)
-    robot: str = field(metadata=_TEXT)
-    simulation: Simulation
-    initial: InitialState
-    target: Target
-    trajectory: ReferencePath
-    planner: PlannerSettings
-    obstacle: Obstacle | None = None
-    debris: Debris | None = None
-    plant: Plant | None = None
-    target_noise: TargetNoise | None = None
-    objective: ObjectiveSettings = ObjectiveSettings()
-    env: EnvSettings = EnvSettings()
-    randomization: Randomization | None = None
-    deviations: tuple[str, ...] = field(default=(), metadata=_TEXTS)
-    schema_version: int = field(default=SCHEMA_VERSION, metadata={"kind": "integer", "options": (1,)})
+    name: str = field(metadata=TEXT)
+    description: str = field(metadata=TEXT)
+    robot: str = field(metadata=TEXT)
+    simulation: Simulation = field(metadata=section(Simulation))
+    initial: InitialState = field(metadata=section(InitialState))
+    target: Target = field(metadata=section(Target))
+    trajectory: ReferencePath = field(metadata=section(ReferencePath))
+    planner: PlannerSettings = field(metadata=section(PlannerSettings))
+    obstacle: Obstacle | None = field(default=None, metadata=section(Obstacle))
+    debris: Debris | None = field(default=None, metadata=section(Debris))
+    plant: Plant | None = field(default=None, metadata=section(Plant))
+    target_noise: TargetNoise | None = field(default=None, metadata=section(TargetNoise))
+    objective: ObjectiveSettings = field(default=ObjectiveSettings(), metadata=section(ObjectiveSettings))
+    env: EnvSettings = field(default=EnvSettings(), metadata=section(EnvSettings))
+    randomization: Randomization | None = field(default=None, metadata=section(Randomization))
+    deviations: tuple[str, ...] = field(default=(), metadata=TEXTS)
+    schema_version: int = field(default=SCHEMA_VERSION, metadata=integer(1))
     source: str = field(default="", compare=False)
 
     @property
@@ -296,20 +276,6 @@ class Scenario:
         return cached
 
 
-_SECTIONS = {
-    "simulation": Simulation,
-    "initial": InitialState,
-    "target": Target,
-    "trajectory": ReferencePath,
-    "planner": PlannerSettings,
-    "obstacle": Obstacle,
-    "debris": Debris,
-    "plant": Plant,
-    "target_noise": TargetNoise,
-    "objective": ObjectiveSettings,
-    "env": EnvSettings,
-    "randomization": Randomization,
-}
 
 
 def to_dict(scenario: Scenario) -> dict[str, Any]:
@@ -378,105 +344,12 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
 def _from_dict(data: dict[str, Any], *, source: str) -> Scenario:
     where = f"{source}: " if source else ""
     try:
-        scenario = _build(Scenario, data, prefix="")
+        scenario = build_table(Scenario, data)
     except ScenarioError as exc:
         raise ScenarioError(where + str(exc)) from None
     scenario = dataclasses.replace(scenario, source=source)
     _check_cross_fields(scenario, where)
     return _normalised(scenario)
-
-
-def build_table(cls: type, table: Any, *, prefix: str = "") -> Any:
-    """A validated frozen dataclass ``cls`` from a TOML table (fields declare their allowed values).
-
-    Raises:
-        ScenarioError: unknown, missing, mistyped or out-of-range key (named with ``prefix``).
-    """
-    return _build(cls, table, prefix=prefix)
-
-
-def _build(cls: type, table: Any, *, prefix: str) -> Any:
-    if not isinstance(table, dict):
-        raise ScenarioError(f"key {prefix.rstrip('.') or '<root>'!r} must be a table, got {table!r}")
-    fields = {f.name: f for f in dataclasses.fields(cls) if f.name != "source"}
-    unknown = sorted(set(table) - set(fields))
-    if unknown:
-        raise ScenarioError(
-            f"unknown key {prefix + unknown[0]!r}; allowed keys here: {sorted(fields)}"
-        )
-    values = {}
-    for name, spec in fields.items():
-        key = prefix + name
-        if name not in table:
-            if spec.default is dataclasses.MISSING:
-                raise ScenarioError(f"missing key {key!r} (required)")
-            continue
-        if name in _SECTIONS or spec.metadata.get("kind") == "section":
-            section = spec.metadata["cls"] if spec.metadata.get("kind") == "section" else _SECTIONS[name]
-            values[name] = _build(section, table[name], prefix=key + ".")
-        else:
-            values[name] = _convert(key, table[name], spec.metadata)
-    return cls(**values)
-
-
-def _convert(key: str, value: Any, meta: Any) -> Any:
-    kind = meta["kind"]
-    if kind == "text":
-        if not isinstance(value, str):
-            raise ScenarioError(f"key {key!r} must be a string, got {value!r}")
-        return value
-    if kind == "texts":
-        if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
-            raise ScenarioError(f"key {key!r} must be a list of strings, got {value!r}")
-        return tuple(value)
-    if kind == "bool":
-        if not isinstance(value, bool):
-            raise ScenarioError(f"key {key!r} must be true or false, got {value!r}")
-        return value
-    if kind == "choice":
-        if value not in meta["options"]:
-            raise ScenarioError(f"key {key!r} is {value!r}; allowed: {list(meta['options'])}")
-        return value
-    if kind == "number":
-        return _check_number(key, value, meta)
-    if kind == "integer":
-        if isinstance(value, bool) or value not in meta["options"]:
-            raise ScenarioError(f"key {key!r} is {value!r}; allowed: {list(meta['options'])}")
-        return int(value)
-    if kind == "rows":
-        return _convert_rows(key, value, meta)
-    if kind == "natural":
-        if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= meta["hi"]:
-            raise ScenarioError(f"key {key!r} is {value!r}; allowed: an integer in [0, {meta['hi']}]")
-        return int(value)
-    size = meta["size"]
-    if not isinstance(value, (list, tuple)) or len(value) != size:
-        raise ScenarioError(f"key {key!r} must be a list of {size} numbers, got {value!r}")
-    return tuple(_check_number(f"{key}[{i}]", v, meta) for i, v in enumerate(value))
-
-
-def _convert_rows(key: str, value: Any, meta: dict) -> tuple:
-    size, most = meta["size"], meta["max_rows"]
-    shape = "numbers" if size == 0 else f"lists of {size} numbers"
-    if not isinstance(value, (list, tuple)) or len(value) > most:
-        raise ScenarioError(f"key {key!r} must be a list of at most {most} {shape}, got {value!r}")
-    if size == 0:
-        return tuple(_check_number(f"{key}[{i}]", v, meta) for i, v in enumerate(value))
-    row_meta = {**meta, "kind": "vector"}
-    return tuple(_convert(f"{key}[{i}]", row, row_meta) for i, row in enumerate(value))
-
-
-def _check_number(key: str, value: Any, meta: dict) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ScenarioError(f"key {key!r} must be a number, got {value!r} ({type(value).__name__})")
-    lo, hi = meta["lo"], meta["hi"]
-    below = value <= lo if meta.get("lo_open") else value < lo
-    above = value >= hi if meta.get("hi_open") else value > hi
-    if not math.isfinite(value) or below or above:
-        left = "(" if meta.get("lo_open") else "["
-        right = ")" if meta.get("hi_open") else "]"
-        raise ScenarioError(f"key {key!r} = {value!r} is out of range; allowed: {left}{lo}, {hi}{right}")
-    return float(value)
 
 
 def _check_cross_fields(s: Scenario, where: str) -> None:
@@ -515,20 +388,6 @@ def _check_cross_fields(s: Scenario, where: str) -> None:
     if s.randomization is not None and s.obstacle is None:
         raise ScenarioError(f"{where}section 'randomization' needs an 'obstacle' section (its radii are used)")
     robot_dir(s.robot)
-
-
-def residual_rates(action: Any, settings: EnvSettings) -> Any:
-    """Joint rates [rad/s] of a (clipped) residual action: ± ``residual_rate_deg_s`` per unit."""
-    return np.radians(settings.residual_rate_deg_s) * np.asarray(action, dtype=np.float64)
-
-
-def check_action_bounds(m_bounds: Vec, T_c_bounds_s: Vec, *, section: str, where: str = "") -> None:
-    """Raise :class:`ScenarioError` unless both are [low, high] with low < high, and m's inside (0, 1)."""
-    for key, (lo, hi) in ((f"{section}.m_bounds", m_bounds), (f"{section}.T_c_bounds_s", T_c_bounds_s)):
-        is_m = key.endswith("m_bounds")
-        if not lo < hi or (is_m and (lo <= 0.0 or hi >= 1.0)):
-            raise ScenarioError(f"{where}key {key!r} = {[lo, hi]} is invalid; allowed: [low, high] with low < high"
-                                + (" inside (0, 1)" if is_m else ""))
 
 
 def _normalised(s: Scenario) -> Scenario:

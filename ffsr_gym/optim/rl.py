@@ -1,8 +1,13 @@
-"""Reinforcement-learning baselines with stable-baselines3 (``ffsr-gym train``).
+"""Reinforcement-learning baselines with stable-baselines3 (``ffsr-gym train``), for every benchmark version.
 
-Agents are trained on the registered envs and scored only through :func:`ffsr_gym.evaluate`
-(same objective and public seeds as the GA and the planner). One leaderboard entry aggregates
-several training seeds. stable-baselines3 and torch are optional (``pip install "ffsr-gym[rl]"``).
+Agents train where the version's spec says tasks come from (a scenario, or a tier's **training**
+pool) and are scored only through :func:`ffsr_gym.evaluate` (the version's protocol and score
+rule, never the RL return). One leaderboard entry aggregates several training seeds. On a pool
+version, a learning curve is recorded: every ``curve_every`` environment steps the policy is
+scored on ``curve_tasks`` evenly spaced test tasks (deterministic actions). A seed whose folder
+holds ``model.zip``, ``train_record.json`` and ``evaluation.json`` is loaded, never retrained or
+rescored, so an interrupted study resumes. stable-baselines3 and torch are optional
+(``pip install "ffsr-gym[rl]"``); the hyperparameters ship in ``ffsr_gym/hyperparams``.
 """
 
 from __future__ import annotations
@@ -13,31 +18,29 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from tqdm.auto import tqdm
 
-from ffsr_gym.bench.evaluation import EvalReport, aggregate, evaluate
-from ffsr_gym.exceptions import InvalidInputError, MissingDependencyError
+from ffsr_gym.bench.entry import EvalReport
+from ffsr_gym.bench.evaluation import evaluate, spec_of
+from ffsr_gym.bench.policies import SB3_CLASSES, load_model, sb3_modules
+from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.scenario import load_scenario
+from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.provenance import provenance, write_json_atomic
+from ffsr_gym.scoring.rules import score_rule
+from ffsr_gym.tasks.splits import pool
 
-ALGOS = {"ppo": "PPO", "sac": "SAC", "td3": "TD3"}
-DEFAULT_HYPERPARAMS = Path(__file__).resolve().parents[2] / "baselines" / "hyperparams"
-
-
-def _sb3():
-    try:
-        import stable_baselines3
-        import torch
-    except ImportError as exc:
-        raise MissingDependencyError('RL baselines need: pip install "ffsr-gym[rl]" (stable-baselines3, torch==2.13.0)') from exc
-    return stable_baselines3, torch
+DEFAULT_HYPERPARAMS = Path(__file__).resolve().parents[1] / "hyperparams"
 
 
-def load_model(algo: str, path: str | Path) -> Any:
-    """A saved stable-baselines3 model of ``algo`` (a key of :data:`ALGOS`), on the CPU."""
-    if algo not in ALGOS:
-        raise InvalidInputError(f"algo {algo!r}; allowed: {sorted(ALGOS)}")
-    return getattr(_sb3()[0], ALGOS[algo]).load(path, device="cpu")
+def algorithms(folder: str | Path | None = None) -> dict[str, str]:
+    """The algorithms ``train`` offers: those with a ``<algo>.yml`` in ``folder`` (default: the shipped ones)."""
+    folder = Path(folder or DEFAULT_HYPERPARAMS)
+    return {algo: cls for algo, cls in SB3_CLASSES.items() if (folder / f"{algo}.yml").is_file()}
+
+
+ALGOS = algorithms()
 
 
 def _literal_call(text: str) -> dict[str, Any]:
@@ -52,11 +55,11 @@ def load_hyperparams(algo: str, env_id: str, folder: str | Path | None = None) -
     """Hyperparameters of ``algo`` for ``env_id`` from ``<folder>/<algo>.yml`` (rl-zoo format)."""
     import yaml
 
-    if algo not in ALGOS:
-        raise InvalidInputError(f"algo {algo!r}; allowed: {sorted(ALGOS)}")
+    offered = algorithms(folder)
+    if algo not in offered:
+        raise InvalidInputError(f"algo {algo!r}; allowed: {sorted(offered)} (a <algo>.yml in "
+                                f"{Path(folder or DEFAULT_HYPERPARAMS)})")
     path = Path(folder or DEFAULT_HYPERPARAMS) / f"{algo}.yml"
-    if not path.is_file():
-        raise InvalidInputError(f"hyperparameter file {str(path)!r} does not exist (pass --hyperparams DIR)")
     table = yaml.safe_load(path.read_text())
     if env_id not in table:
         raise InvalidInputError(f"{path} has no entry for {env_id!r}; it has {sorted(table)}")
@@ -66,82 +69,152 @@ def load_hyperparams(algo: str, env_id: str, folder: str | Path | None = None) -
     return params
 
 
-class _Progress:
+def progress_bar(total: int, desc: str, enabled: bool):
     """A tqdm progress bar as an SB3 callback."""
+    from stable_baselines3.common.callbacks import BaseCallback
 
-    def __new__(cls, total: int, desc: str, enabled: bool):
-        from stable_baselines3.common.callbacks import BaseCallback
+    class Bar(BaseCallback):
+        def _on_training_start(self) -> None:
+            self.bar = tqdm(total=total, desc=desc, unit="step", disable=not enabled)
 
-        class Bar(BaseCallback):
-            def _on_training_start(self) -> None:
-                self.bar = tqdm(total=total, desc=desc, unit="step", disable=not enabled)
+        def _on_step(self) -> bool:
+            self.bar.update(self.training_env.num_envs)
+            return True
 
-            def _on_step(self) -> bool:
-                self.bar.update(self.training_env.num_envs)
-                return True
+        def _on_training_end(self) -> None:
+            self.bar.close()
 
-            def _on_training_end(self) -> None:
-                self.bar.close()
-
-        return Bar()
+    return Bar()
 
 
-def train(algo: str, env_id: str, *, seed: int, out: str | Path, scenario: str = "paper", timesteps: int | None = None,
-          hyperparams: str | Path | None = None, progress: bool = True) -> tuple[Any, dict[str, Any]]:
-    """Train one agent; TensorBoard logs, checkpoints and ``model.zip`` go to ``out``.
+def curve_indices(tier: str, count: int, split: str = "test") -> list[int]:
+    """The tasks of the learning curve: ``count`` evenly spaced pool indices."""
+    size = len(pool(tier, split))
+    return sorted({int(i) for i in np.linspace(0, size - 1, max(1, min(count, size))).round()})
 
-    A finished run (``model.zip`` and ``train_record.json`` present) is loaded instead of retrained,
-    so an interrupted multi-seed study resumes at the seed it stopped in.
 
-    Returns:
-        ``(model, record)`` with the hyperparameters, steps and wall time.
+def _curve_callback(env_id: str, tier: str, every: int, indices: list[int], points: list[dict[str, Any]]):
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Curve(BaseCallback):
+        def _score(self) -> None:
+            report = evaluate(self.model, env_id, task=tier, split="test", indices=indices)
+            points.append({"env_steps": int(self.num_timesteps), "scores": [row["score"] for row in report.episodes]})
+
+        def _on_training_start(self) -> None:
+            self._score()  # the untrained policy, at 0 steps
+            self.next = every
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps >= self.next:
+                self._score()
+                self.next += every
+            return True
+
+        def _on_training_end(self) -> None:
+            if points[-1]["env_steps"] != self.num_timesteps:
+                self._score()
+
+    return Curve()
+
+
+def training_kwargs(spec: BenchmarkSpec, task: str) -> dict[str, Any]:
+    """The env kwargs agents train on: the scenario, or the tier's training pool."""
+    if spec.evaluation.protocol == "pool":
+        if task not in spec.tasks.tiers:
+            raise InvalidInputError(f"task {task!r}; allowed: {list(spec.tasks.tiers)} (agents train on a tier's "
+                                    "training pool)")
+        return {spec.tasks.keyword: task, "split": "train"}
+    return {spec.tasks.keyword: task}
+
+
+def train(algo: str, env_id: str, *, seed: int, out: str | Path, task: str | None = None, timesteps: int | None = None,
+          hyperparams: str | Path | None = None, curve_every: int = 5000, curve_tasks: int = 10,
+          progress: bool = True) -> tuple[Any, dict[str, Any]]:
+    """Train one agent; returns ``(model, record)`` (loaded if ``out`` holds a finished run).
+
+    TensorBoard logs, checkpoints and ``model.zip`` go to ``out``; on a pool version the record
+    holds the learning curve.
     """
-    sb3, torch = _sb3()
+    spec = spec_of(env_id)
+    task = task or spec.evaluation.default_task
+    env_kwargs = training_kwargs(spec, task)
+    sb3, torch = sb3_modules()
     from stable_baselines3.common.callbacks import CheckpointCallback
     from stable_baselines3.common.env_util import make_vec_env
 
-    torch.set_num_threads(1)
     params = load_hyperparams(algo, env_id, hyperparams)
+    cls, out = getattr(sb3, SB3_CLASSES[algo]), Path(out)
+    if (out / "model.zip").is_file() and (out / "train_record.json").is_file():
+        return cls.load(out / "model.zip", device="cpu"), json.loads((out / "train_record.json").read_text())
+    torch.set_num_threads(1)
     n_envs, steps = int(params.pop("n_envs", 1)), int(timesteps or params.pop("n_timesteps"))
     params.pop("n_timesteps", None)
     policy = params.pop("policy", "MlpPolicy")
-    out = Path(out)
-    record = {"algo": algo, "env_id": env_id, "scenario": scenario, "seed": seed, "timesteps": steps, "n_envs": n_envs,
-              "policy": policy, "hyperparams": params}
-    cls = getattr(sb3, ALGOS[algo])
-    if (out / "model.zip").is_file() and (out / "train_record.json").is_file():
-        return cls.load(out / "model.zip", device="cpu"), json.loads((out / "train_record.json").read_text())
-    start = time.perf_counter()
-    env = make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs={"scenario": scenario})
+    start, points = time.perf_counter(), []
+    env = make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs)
     model = cls(policy, env, seed=seed, device="cpu", verbose=0, tensorboard_log=str(out / "tensorboard"), **params)
-    checkpoints = CheckpointCallback(save_freq=max(1, steps // (4 * n_envs)), save_path=str(out / "checkpoints"))
-    model.learn(total_timesteps=steps, callback=[checkpoints, _Progress(steps, f"{algo} {env_id} seed {seed}", progress)])
+    callbacks = [CheckpointCallback(save_freq=max(1, steps // (4 * n_envs)), save_path=str(out / "checkpoints")),
+                 progress_bar(steps, f"{algo} {env_id} {task} seed {seed}", progress)]
+    pooled = spec.evaluation.protocol == "pool"
+    if pooled:
+        callbacks.insert(0, _curve_callback(env_id, task, curve_every, curve_indices(task, curve_tasks), points))
+    model.learn(total_timesteps=steps, callback=callbacks)
     model.save(out / "model.zip")
     env.close()
-    record["wall_time_s"] = time.perf_counter() - start
+    record = {"algo": algo, "env_id": env_id, "task": task, "training_pool": f"{task}/train" if pooled else task,
+              "seed": seed, "timesteps": steps, "n_envs": n_envs, "policy": policy, "hyperparams": params,
+              "wall_time_s": time.perf_counter() - start}
+    if pooled:
+        record["curve"] = {"test_indices": curve_indices(task, curve_tasks), "points": points}
     write_json_atomic(out / "train_record.json", record)
     return model, record
 
 
-def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | Path, scenario: str = "paper",
+def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | Path, task: str | None = None,
                        timesteps: int | None = None, hyperparams: str | Path | None = None,
-                       eval_seeds: list[int] | None = None, progress: bool = True) -> EvalReport:
+                       eval_seeds: list[int] | None = None, curve_every: int = 5000, curve_tasks: int = 10,
+                       progress: bool = True) -> EvalReport:
     """Train one agent per seed and score all of them with :func:`evaluate` as one leaderboard entry."""
     if not seeds:
         raise InvalidInputError("at least one training seed is needed")
-    start = time.perf_counter()
-    rows, runs = [], []
+    spec = spec_of(env_id)
+    task = task or spec.evaluation.default_task
+    pooled = spec.evaluation.protocol == "pool"
+    start, rows, runs = time.perf_counter(), [], []
     for seed in seeds:
-        model, record = train(algo, env_id, seed=seed, scenario=scenario, timesteps=timesteps, hyperparams=hyperparams,
-                              out=Path(out) / f"{algo}_{env_id}_{scenario}_seed{seed}", progress=progress)
-        report = evaluate(model, env_id, seeds=eval_seeds, env_kwargs={"scenario": scenario})
-        rows += [row | {"train_seed": seed} for row in report.episodes]
-        runs.append(record | {"metrics": report.metrics})
-    scores = [float("inf") if row["score"] is None else row["score"] for row in rows]
-    name = f"{algo}_{scenario}" if env_id == "FFSR-v0" else f"{algo}_residual_{scenario}"
-    prov = provenance(scenarios={"family": load_scenario(scenario).sha256()}, seeds=seeds,
+        folder = Path(out) / f"{algo}_{env_id}_{task}_seed{seed}"
+        model, record = train(algo, env_id, task=task, seed=seed, out=folder, timesteps=timesteps,
+                              hyperparams=hyperparams, curve_every=curve_every, curve_tasks=curve_tasks,
+                              progress=progress)
+        evaluation = _evaluation(model, spec, env_id, task, folder, eval_seeds)
+        rows += [row | {"train_seed": seed} for row in evaluation["episodes"]]
+        runs.append({key: record[key] for key in ("seed", "timesteps", "n_envs", "wall_time_s", "curve") if key in record}
+                    | {"metrics": evaluation["metrics"]})
+    compute = {"env_steps": sum(run["timesteps"] for run in runs), "wall_time_s": sum(run["wall_time_s"] for run in runs)}
+    extra = {"method": f"{SB3_CLASSES[algo]} (stable-baselines3), {len(seeds)} training seeds", "training_seeds": seeds,
+             "runs": runs, "compute": compute, "timesteps_per_seed": runs[0]["timesteps"]}
+    if pooled:
+        extra |= {"training_pool": f"{task}/train", "evaluation_pool": f"{task}/{spec.evaluation.split}"}
+        env_kwargs, scenarios = {spec.tasks.keyword: task, "split": spec.evaluation.split}, None
+    else:
+        env_kwargs, scenarios = {spec.tasks.keyword: task}, {"family": load_scenario(task).sha256()}
+    prov = provenance(**({"scenarios": scenarios} if scenarios else {}), seeds=seeds,
                       wall_time_s=time.perf_counter() - start)
-    extra = {"method": f"{ALGOS[algo]} (stable-baselines3), {len(seeds)} training seeds", "training_seeds": seeds,
-             "runs": runs, "timesteps_per_seed": runs[0]["timesteps"]}
-    return EvalReport(env_id, {"scenario": scenario}, aggregate(scores, [row["feasible"] for row in rows]), rows, prov,
-                      name=name, extra=extra)
+    name = f"{algo}_{'residual_' if spec.is_residual(env_id) else ''}{task}"
+    return EvalReport(env_id, env_kwargs, score_rule(spec).aggregate(rows), rows, prov, name=name, extra=extra,
+                      score_rule=spec.score.text)
+
+
+def _evaluation(model: Any, spec: BenchmarkSpec, env_id: str, task: str, folder: Path,
+                eval_seeds: list[int] | None) -> dict[str, Any]:
+    """A trained agent's entry (cached in ``folder/evaluation.json``: a resumed study never rescores)."""
+    scored = folder / "evaluation.json"
+    if scored.is_file():
+        return json.loads(scored.read_text())
+    if spec.evaluation.protocol == "pool":
+        evaluation = evaluate(model, env_id, task=task, training_pool=f"{task}/train").to_json()
+    else:
+        evaluation = evaluate(model, env_id, seeds=eval_seeds, env_kwargs={spec.tasks.keyword: task}).to_json()
+    write_json_atomic(scored, evaluation)
+    return evaluation

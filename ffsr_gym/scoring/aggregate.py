@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -14,3 +15,17 @@ def iqm(values: Array) -> float:
     v = np.sort(np.asarray(values, dtype=float))
     lo, hi = int(math.floor(0.25 * len(v))), int(math.ceil(0.75 * len(v)))
     return float(np.mean(v[lo:hi] if hi > lo else v))
+
+
+#: The bootstrap of every leaderboard CI: seed and resamples (part of each entry's protocol).
+BOOTSTRAP_SEED = 0
+BOOTSTRAP_SAMPLES = 2000
+
+
+def bootstrap_ci(values: Array, statistic: Callable[[Array], float]) -> list[float]:
+    """Seeded-bootstrap 95 % CI of ``statistic`` over ``values`` (percentiles by the inverted CDF)."""
+    values = np.asarray(values, dtype=float)
+    rng = np.random.default_rng(BOOTSTRAP_SEED)
+    boots = [statistic(values[rng.integers(0, len(values), len(values))]) for _ in range(BOOTSTRAP_SAMPLES)]
+    return [float(np.percentile(boots, 2.5, method="inverted_cdf")),
+            float(np.percentile(boots, 97.5, method="inverted_cdf"))]

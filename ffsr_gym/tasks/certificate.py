@@ -20,8 +20,8 @@ from typing import Any
 import numpy as np
 
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.benchmark import Benchmark
-from ffsr_gym.model.scenario import Scenario, residual_rates
+from ffsr_gym.model.benchmark import Benchmark, residual_rates
+from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning.planner import planner_parameters
 from ffsr_gym.scoring.score import EpisodeScore, score_episode
 from ffsr_gym.sim.simulate import make_rollout
@@ -121,7 +121,7 @@ def replay(task: Scenario, certificate: Certificate, benchmark: Benchmark, *, ba
     action = np.asarray(certificate.residual, dtype=np.float32)
     motion_time = task.trajectory.motion_time_s
     while rollout.k < rollout.n_steps:
-        residual = benchmark.residual_fade(rollout.t, motion_time) * residual_rates(action, task.env)
+        residual = benchmark.residual_fade(rollout.t, motion_time) * residual_rates(action, task.env.residual_rate_deg_s)
         _, status = rollout.advance(per_decision, residual, stop_on_violation=True)
         if status != "ok":
             break

@@ -30,7 +30,8 @@ from ffsr_gym.model import portable
 from ffsr_gym.model.benchmark import Benchmark
 from ffsr_gym.model.collision import SphereObstacle
 from ffsr_gym.model.resources import envs_dir
-from ffsr_gym.model.scenario import Debris, Plant, Scenario, TargetNoise, _number, _section, _vector, build_table
+from ffsr_gym.model.scenario import Debris, Plant, Scenario, TargetNoise
+from ffsr_gym.model.schema import build_table, number, section, vector
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.tasks.generator import draw_task
 
@@ -48,30 +49,30 @@ STREAMS = {"debris": 2, "robust": 3}
 class DebrisDraw:
     """Ranges of the ``debris`` tier (see ``v1_perturbed.toml``)."""
 
-    extra_obstacles: tuple[float, ...] = field(metadata=_vector(2, 0, 7))
-    radius_m: tuple[float, ...] = field(metadata=_vector(2, 0.0, 0.5))
-    obstacle_speed_m_s: tuple[float, ...] = field(metadata=_vector(2, 0.0, 0.5))
-    debris_speed_m_s: tuple[float, ...] = field(metadata=_vector(2, 0.0, 0.5))
-    crossing_time_fraction: tuple[float, ...] = field(metadata=_vector(2, 0.0, 1.0))
-    lateral_offset_m: tuple[float, ...] = field(metadata=_vector(2, 0.0, 1.0))
-    min_final_distance_m: float = field(metadata=_number(0.0, 2.0))
-    max_attempts: float = field(metadata=_number(1, 1e5))
+    extra_obstacles: tuple[float, ...] = field(metadata=vector(2, 0, 7))
+    radius_m: tuple[float, ...] = field(metadata=vector(2, 0.0, 0.5))
+    obstacle_speed_m_s: tuple[float, ...] = field(metadata=vector(2, 0.0, 0.5))
+    debris_speed_m_s: tuple[float, ...] = field(metadata=vector(2, 0.0, 0.5))
+    crossing_time_fraction: tuple[float, ...] = field(metadata=vector(2, 0.0, 1.0))
+    lateral_offset_m: tuple[float, ...] = field(metadata=vector(2, 0.0, 1.0))
+    min_final_distance_m: float = field(metadata=number(0.0, 2.0))
+    max_attempts: float = field(metadata=number(1, 1e5))
 
 
 @dataclass(frozen=True)
 class RobustDraw:
     """Ranges of the ``robust`` tier (see ``v1_perturbed.toml``)."""
 
-    mass_scale: tuple[float, ...] = field(metadata=_vector(2, 0.5, 2.0))
-    inertia_scale: tuple[float, ...] = field(metadata=_vector(2, 0.5, 2.0))
-    com_offset_m: float = field(metadata=_number(0.0, 0.1))
-    linear_momentum_kg_m_s: float = field(metadata=_number(0.0, 100.0))
-    angular_momentum_kg_m2_s: float = field(metadata=_number(0.0, 100.0))
-    position_bias_m: float = field(metadata=_number(0.0, 0.01))
-    attitude_bias_rad: float = field(metadata=_number(0.0, 0.01))
-    position_sigma_m: float = field(metadata=_number(0.0, 0.01))
-    attitude_sigma_rad: float = field(metadata=_number(0.0, 0.01))
-    interval_s: float = field(metadata=_number(0.001, 100.0))
+    mass_scale: tuple[float, ...] = field(metadata=vector(2, 0.5, 2.0))
+    inertia_scale: tuple[float, ...] = field(metadata=vector(2, 0.5, 2.0))
+    com_offset_m: float = field(metadata=number(0.0, 0.1))
+    linear_momentum_kg_m_s: float = field(metadata=number(0.0, 100.0))
+    angular_momentum_kg_m2_s: float = field(metadata=number(0.0, 100.0))
+    position_bias_m: float = field(metadata=number(0.0, 0.01))
+    attitude_bias_rad: float = field(metadata=number(0.0, 0.01))
+    position_sigma_m: float = field(metadata=number(0.0, 0.01))
+    attitude_sigma_rad: float = field(metadata=number(0.0, 0.01))
+    interval_s: float = field(metadata=number(0.001, 100.0))
 
 
 @dataclass(frozen=True)
@@ -79,10 +80,10 @@ class PerturbedRule:
     """``envs/benchmark/v1_perturbed.toml``: pool sizes and the draw ranges of each perturbed tier."""
 
     schema_version: int = field(metadata={"kind": "integer", "options": (1,)})
-    train_tasks: float = field(metadata=_number(1, 1e5))
-    test_tasks: float = field(metadata=_number(1, 1e5))
-    debris: DebrisDraw = field(metadata=_section(DebrisDraw))
-    robust: RobustDraw = field(metadata=_section(RobustDraw))
+    train_tasks: float = field(metadata=number(1, 1e5))
+    test_tasks: float = field(metadata=number(1, 1e5))
+    debris: DebrisDraw = field(metadata=section(DebrisDraw))
+    robust: RobustDraw = field(metadata=section(RobustDraw))
 
     def zero(self) -> PerturbedRule:
         """This rule with every perturbation range collapsed to nothing (the v1 task itself)."""

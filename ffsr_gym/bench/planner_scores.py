@@ -1,0 +1,102 @@
+"""The reference planner with constant parameters as a black box: the v0 objective of one episode,
+a version's score of a planner variant over a pool, and the training loss optimisers minimise."""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import time
+from functools import lru_cache
+
+import numpy as np
+from gymnasium.utils import seeding
+from tqdm.auto import tqdm
+
+from ffsr_gym.bench.entry import EvalReport
+from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.model.scenario import Scenario, load_scenario
+from ffsr_gym.model.spec import spec_for_version
+from ffsr_gym.provenance import provenance
+from ffsr_gym.scoring.objective import objective_terms
+from ffsr_gym.scoring.rules import score_rule
+from ffsr_gym.sim.simulate import simulate
+from ffsr_gym.tasks.certificate import planner_episode, planner_task
+from ffsr_gym.tasks.random_family import sample_scenario
+from ffsr_gym.tasks.splits import SPLITS, pool, pool_path, task_scenario
+
+
+def scenario_for_seed(scenario: str | Scenario, seed: int | None) -> Scenario:
+    """The scenario an env with ``scenario`` plays after ``reset(seed=seed)``."""
+    if isinstance(scenario, str):
+        return _named_scenario_for_seed(scenario, seed)
+    return _scenario_for_seed(scenario, seed)
+
+
+@lru_cache(maxsize=256)
+def _named_scenario_for_seed(scenario: str, seed: int | None) -> Scenario:
+    """Cached per process: GA and CMA-ES evaluate one scenario thousands of times (TOML parsing, hashing)."""
+    return _scenario_for_seed(scenario, seed)
+
+
+def _scenario_for_seed(scenario: str | Scenario, seed: int | None) -> Scenario:
+    family = load_scenario(scenario)
+    if family.randomization is None:
+        return family
+    rng, _ = seeding.np_random(seed)
+    return sample_scenario(family, rng)
+
+
+def objective_for_params(m: float, T_c: float, *, scenario: str | Scenario = "paper", seed: int | None = None) -> float:
+    """Benchmark-v0 score of the reference planner with constant (m, T_c [s]) on one episode.
+
+    Picklable (a module-level function) for process pools. Returns B if the episode is feasible,
+    else +inf; never NaN. ``seed`` selects the task of a randomised scenario (as ``reset(seed=...)``).
+    The run stops at the first rate-limit violation or collision, whose score is +inf whatever
+    follows (GA populations are mostly such settings).
+    """
+    for name, value in (("m", m), ("T_c", T_c)):
+        if not isinstance(value, (int, float, np.floating)) or not math.isfinite(value):
+            raise InvalidInputError(f"{name} must be a finite number, got {value!r}")
+    played = scenario_for_seed(scenario, seed)
+    trajectory = simulate(played, m=float(m), T_c=float(T_c), stop_on_violation=True)
+    return objective_terms(trajectory, played.objective).score
+
+
+def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | None = None, T_c: float | None = None,
+                     gain_per_s: float | None = None, training_pool: str | None = None, name: str = "planner",
+                     compute: dict | None = None, progress: bool = False, version: str = "v1") -> EvalReport:
+    """Score a reference-planner variant with constant parameters on a tier's pool (one episode per task).
+
+    The planner variants that are not an env action (``proportional``) are scored here, from the
+    trajectory with the version's score rule, exactly as :func:`ffsr_gym.evaluate` scores env episodes.
+    """
+    spec = spec_for_version(version)
+    if task not in spec.tasks.tiers or split not in SPLITS:
+        raise InvalidInputError(f"task {task!r}, split {split!r}; allowed: task in {list(spec.tasks.tiers)}, "
+                                f"split in {list(SPLITS)}")
+    rule = score_rule(spec)
+    benchmark, start, rows, hashes = rule.benchmark, time.perf_counter(), [], {}
+    for index, entry in enumerate(tqdm(pool(task, split), disable=not progress, desc=f"{name} {task}/{split}")):
+        played = task_scenario(task, entry.seed, benchmark)
+        result = planner_episode(played, benchmark, method=method, m=m, T_c=T_c, gain_per_s=gain_per_s)
+        hashes[played.name] = planner_task(played, method, gain_per_s).sha256()
+        rows.append({"seed": index, "task_index": index, "task_seed": entry.seed, **result.as_dict()})
+    extra = {"training_pool": training_pool, "evaluation_pool": f"{task}/{split}",
+             "pool_file_sha256": hashlib.sha256(pool_path(task).read_bytes()).hexdigest(),
+             "planner": {"method": method, "m": m, "T_c_s": T_c, "gain_per_s": gain_per_s}, "compute": compute or {}}
+    prov = provenance(scenarios=hashes, seeds=list(range(len(rows))), wall_time_s=time.perf_counter() - start)
+    return EvalReport("planner", {"task": task, "split": split}, rule.aggregate(rows), rows, prov, name=name, extra=extra,
+                      score_rule=spec.score.text)
+
+
+def training_loss(m: float, T_c: float, *, tier: str, tasks: int = 20, version: str = "v1") -> float:
+    """1 − the mean score of the predefined-time planner at constant (m, T_c [s]) on the first
+    ``tasks`` tasks of ``tier``'s **training** pool: the black-box loss optimisers minimise (in [0, 1]).
+
+    A module-level function: ``functools.partial(training_loss, tier=..., tasks=...)`` pickles
+    for process pools and Dask.
+    """
+    benchmark = score_rule(spec_for_version(version)).benchmark
+    episodes = [planner_episode(task_scenario(tier, t.seed, benchmark), benchmark, method="predefined_time", m=m,
+                                T_c=T_c) for t in pool(tier, "train")[:tasks]]
+    return 1.0 - float(np.mean([e.score for e in episodes]))

@@ -1,0 +1,122 @@
+"""Markdown of the leaderboards: a table's header and rows, and the summary across tiers.
+
+The columns follow the spec's ranking rule: ``feasible_then_iqm`` tables show the feasible rate
+and B's IQM; ``ci_separation`` tables show the score's IQM with its CI, the success rate, the
+paper's B, peak rates, final error, convergence time, compute and the training pool. Metric
+names come from the spec (``[leaderboard]``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from datetime import datetime
+from typing import Any
+
+import numpy as np
+
+from ffsr_gym.model.spec import BenchmarkSpec
+
+
+def header(spec: BenchmarkSpec, group: str) -> list[str]:
+    """The title and column lines of one table."""
+    if spec.leaderboard.ranking == "feasible_then_iqm":
+        return [f"### {group}", "", "| rank | entry | method | feasible rate | score IQM [95% CI] | score mean | episodes "
+                "| commit |", "|---|---|---|---|---|---|---|---|"]
+    return [f"### {group} ({spec.evaluation.split} pool)", "",
+            "| rank | entry | score IQM [95% CI] | success | paper B (median) | peak rate mission / balance "
+            "[deg/s] | final error [m], successes | convergence [s], successes | compute | trained on | commit |",
+            "|---|---|---|---|---|---|---|---|---|---|---|"]
+
+
+def commit(entry: dict[str, Any]) -> str:
+    """The short commit an entry was made at (``+dirty`` with uncommitted changes)."""
+    prov = entry["provenance"]
+    return (prov.get("git_commit") or "none")[:8] + ("+dirty" if prov.get("git_dirty") else "")
+
+
+def _g4(x: float | None) -> str:
+    return "inf" if x is None or math.isinf(x) else f"{x:.4g}"
+
+
+def _fmt(x: float | None, spec: str = ".3g") -> str:
+    return "-" if x is None else format(x, spec)
+
+
+def _median(rows: list[dict[str, Any]], key: str, index: int | None = None, *, successes: bool = False) -> float | None:
+    """Median of a per-episode value over finite values (over successful episodes only, if asked)."""
+    values = [row[key] if index is None else row[key][index] for row in rows if row["success"] or not successes]
+    finite = [v for v in values if v is not None and math.isfinite(v)]
+    return None if not finite else float(np.median(finite))
+
+
+def compute_text(compute: dict[str, Any]) -> str:
+    """The compute column: environment steps (RL) or objective evaluations (optimisers), and wall time."""
+    parts = []
+    if compute.get("env_steps"):
+        parts.append(f"{compute['env_steps']:,} env steps")
+    if compute.get("objective_evaluations"):
+        parts.append(f"{compute['objective_evaluations']:,} episodes")
+    if compute.get("wall_time_s") is not None:
+        parts.append(f"{compute['wall_time_s']:.0f} s")
+    return ", ".join(parts) or "none (fixed)"
+
+
+def row(spec: BenchmarkSpec, label: str, e: dict[str, Any]) -> str:
+    """One entry's table line."""
+    m, names = e["metrics"], spec.leaderboard
+    lo, hi = m[names.ci]
+    if names.ranking == "feasible_then_iqm":
+        method = e.get("extra", {}).get("method", "")
+        runs = " (single run)" if m["episodes"] == 1 else ""
+        return (f"| {label} | `{e['name']}` | {method} | {m[names.rate]:.2f} | {_g4(m[names.iqm])} [{_g4(lo)}, {_g4(hi)}] | "
+                f"{_g4(m['score_mean'])} | {m['episodes']}{runs} | {commit(e)} |")
+    rows, extra = e["episodes"], e.get("extra", {})
+    return (f"| {label} | `{e['name']}` | {m[names.iqm]:.3f} [{lo:.3f}, {hi:.3f}] | {m[names.rate]:.2f} | "
+            f"{_fmt(_median(rows, 'paper_B'))} | {_fmt(_median(rows, 'peak_rate_deg_s', 0), '.0f')} / "
+            f"{_fmt(_median(rows, 'peak_rate_deg_s', 1), '.0f')} | "
+            f"{_fmt(_median(rows, 'final_ee_position_error_m', successes=True), '.1e')} | "
+            f"{_fmt(_median(rows, 'convergence_time_s', successes=True), '.1f')} | {compute_text(extra.get('compute', {}))} | "
+            f"{extra.get('training_pool') or '-'} | {commit(e)} |")
+
+
+def method_name(entry: dict[str, Any], tier: str) -> str:
+    """An entry's name without its tier suffix (``ppo_residual_easy`` → ``ppo_residual``)."""
+    name = entry["name"]
+    return name[: -len(tier) - 1] if name.endswith(f"_{tier}") else name
+
+
+def summary(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]],
+            ranks: Callable[[list[dict[str, Any]], BenchmarkSpec], list[int]]) -> str:
+    """One table across tiers (a row per method, IQM [95 % CI] and rank per tier), and the RL study's compute."""
+    cells: dict[str, dict[str, str]] = {}
+    rank_sum: dict[str, float] = {}
+    tiers = [tier for tier, items in entries.items() if items]
+    names = spec.leaderboard
+    for tier in tiers:
+        items = entries[tier]
+        for rank, e in zip(ranks(items, spec), items):
+            lo, hi = e["metrics"][names.ci]
+            method = method_name(e, tier)
+            cells.setdefault(method, {})[tier] = f"{e['metrics'][names.iqm]:.3f} [{lo:.3f}, {hi:.3f}] #{rank}"
+            rank_sum[method] = rank_sum.get(method, 0.0) + rank
+    order = sorted(cells, key=lambda method: (rank_sum[method] / len(cells[method]), method))
+    lines = ["| method | " + " | ".join(f"{tier}: IQM [95% CI] #rank" for tier in tiers) + " |",
+             "|---|" + "---|" * len(tiers)]
+    lines += [f"| `{method}` | " + " | ".join(cells[method].get(tier, "-") for tier in tiers) + " |" for method in order]
+    rl = [e for items in entries.values() for e in items if e.get("extra", {}).get("compute", {}).get("env_steps")]
+    if rl:
+        lines += ["", _rl_compute(rl)]
+    return "\n".join(lines) + "\n"
+
+
+def _rl_compute(rl: list[dict[str, Any]]) -> str:
+    steps = sum(e["extra"]["compute"]["env_steps"] for e in rl)
+    seconds = sum(e["extra"]["compute"]["wall_time_s"] for e in rl)
+    agents = sum(len(e["extra"].get("runs", [])) for e in rl)
+    ends = [datetime.fromisoformat(e["provenance"]["created_utc"]).timestamp() for e in rl]
+    starts = [end - e["provenance"]["wall_time_s"] for end, e in zip(ends, rl)]
+    return (f"RL entries: {agents} trained agents, {steps:,} environment steps, {seconds / 60:.0f} min of "
+            "training on one core each (learning-curve scoring included, test-pool scoring not); "
+            f"{(max(ends) - min(starts)) / 60:.0f} min of wall time from the first entry's start to the last "
+            "one's end (entries' provenance).")

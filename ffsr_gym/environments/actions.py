@@ -1,0 +1,112 @@
+"""What the environments do with an action and how they show the state: the action check, its
+mapping ((m, T_c) or residual rates, with the spec's fade), the observation, and the compiled
+decision's settings of a task."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.kernel import decision
+from ffsr_gym.model.benchmark import residual_rates as scaled_residual
+from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.scoring.score import score_vector
+
+OBS_CLIP = {"rates": 20.0, "errors": 10.0, "relative": 10.0, "clearance": 10.0}
+
+
+def assemble_observation(angles: np.ndarray, last_rates: np.ndarray, ee_error: np.ndarray, base_error: np.ndarray,
+                         relative: np.ndarray, clearance: Any, time_fraction: Any) -> np.ndarray:
+    """The 53-dim float32 observation from its parts (docs/envs.md); leading batch axes allowed.
+
+    Args:
+        angles: joint angles [rad] (..., 12). last_rates: joint rates applied last [rad/s] (..., 12).
+        ee_error, base_error: pose errors (..., 6). relative: obstacle relative to the nearest robot
+        point [m] (..., 3). clearance: robot–obstacle clearance [m] (...). time_fraction: t / duration (...).
+    """
+    return np.concatenate([
+        np.sin(angles), np.cos(angles),
+        np.clip(last_rates, -OBS_CLIP["rates"], OBS_CLIP["rates"]),
+        np.clip(np.concatenate((ee_error, base_error), axis=-1), -OBS_CLIP["errors"], OBS_CLIP["errors"]),
+        np.clip(relative, -OBS_CLIP["relative"], OBS_CLIP["relative"]),
+        np.clip(np.asarray(clearance, dtype=float), -OBS_CLIP["clearance"], OBS_CLIP["clearance"])[..., None],
+        np.minimum(1.0, np.asarray(time_fraction, dtype=float))[..., None],
+    ], axis=-1).astype(np.float32)
+
+
+def observation_bounds() -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) of the observation's box (float32)."""
+    high = np.concatenate([np.ones(24), np.full(12, OBS_CLIP["rates"]), np.full(12, OBS_CLIP["errors"]),
+                           np.full(3, OBS_CLIP["relative"]), [OBS_CLIP["clearance"]], [1.0]]).astype(np.float32)
+    low = -high
+    low[-1] = 0.0
+    return low, high
+
+
+def check_action(action: Any, shape: tuple[int, ...]) -> tuple[np.ndarray, Any]:
+    """An action of ``shape`` (a batch of them: leading axis = copies) clipped to [-1, 1] as float32.
+
+    Returns the clipped action and whether it (each row of a batch) was clipped.
+
+    Raises:
+        InvalidInputError: wrong shape, or a NaN/inf entry (naming the copies of a batch).
+    """
+    try:
+        raw = np.asarray(action)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"action must be an array of real numbers of shape {shape} ({exc})") from None
+    if raw.dtype.kind not in "biuf":
+        raise InvalidInputError(f"action must hold real numbers (bool, int or float) of shape {shape}, got dtype "
+                                f"{raw.dtype} ({'complex' if raw.dtype.kind == 'c' else 'not numeric'})")
+    a = raw.astype(np.float64)
+    if a.shape != shape:
+        raise InvalidInputError(f"action must have shape {shape}, got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        if a.ndim == 2:
+            bad = sorted({int(i) for i in np.argwhere(~np.isfinite(a))[:, 0]})
+            raise InvalidInputError(f"actions of copies {bad} are not finite; allowed range [-1, 1] per entry")
+        raise InvalidInputError(f"action must be finite, got {a}; allowed range [-1, 1] per entry")
+    clipped = np.clip(a, -1.0, 1.0)
+    return clipped.astype(np.float32), np.any(clipped != a, axis=-1)
+
+
+def action_to_parameters(action: np.ndarray, task: Scenario) -> tuple[float, float]:
+    """Physical (m, T_c [s]) of a (clipped) (m, T_c) action, mapped linearly onto the task's box, in float64."""
+    a = np.asarray(action, dtype=np.float64)
+    (m_lo, m_hi), (t_lo, t_hi) = task.env.m_bounds, task.env.T_c_bounds_s
+    return m_lo + 0.5 * (a[0] + 1.0) * (m_hi - m_lo), t_lo + 0.5 * (a[1] + 1.0) * (t_hi - t_lo)
+
+
+def residual_rates(action: np.ndarray, task: Scenario, rule: Any, fades: bool, t: float) -> np.ndarray:
+    """Residual joint rates [rad/s] of a (clipped) residual action at time ``t`` [s].
+
+    ± ``env.residual_rate_deg_s`` per unit of action, times the rule file's fade f(t) of the
+    task's desired motion when the spec's residual fades.
+    """
+    rates = scaled_residual(action, task.env.residual_rate_deg_s)
+    if not fades:
+        return rates
+    return rule.benchmark.residual_fade(t, task.trajectory.motion_time_s) * rates
+
+
+def decision_settings(task: Scenario, rule: Any, fades: bool) -> np.ndarray:
+    """The compiled decision's settings (:data:`ffsr_gym.kernel.decision.N_DS`) of a task under a score rule.
+
+    Without a fade the residual's weight stays 1 (the fade starts at +inf). A rule whose increment
+    and cost are not the kernel's (``compiled_terms`` False) gets neutral score settings: its terms
+    are computed from the applied rates.
+    """
+    settings = np.zeros(decision.N_DS)
+    (m_lo, m_hi), (t_lo, t_hi) = task.env.m_bounds, task.env.T_c_bounds_s
+    benchmark = rule.benchmark
+    fade_s, motion_s = (benchmark.action.residual_fade_s, task.trajectory.motion_time_s) if fades else (1.0, np.inf)
+    clearance_scale = benchmark.action.cost_clearance_scale_m if rule.compiled_terms else 1.0
+    settings[:decision.D_SCORE] = (float(np.radians(task.env.residual_rate_deg_s)), fade_s, motion_s, m_lo, m_hi, t_lo,
+                                   t_hi, task.objective.max_rate_deg_s, clearance_scale)
+    if rule.compiled_terms:
+        settings[decision.D_SCORE:] = score_vector(benchmark.score)
+    else:
+        settings[decision.D_SCORE:decision.D_SCORE + 4] = (0.0, 0.0, 1.0, 1.0)
+    return settings

@@ -1,0 +1,336 @@
+"""The episode engine: N copies of one benchmark version's episodes, stepped decision by decision.
+
+The engine owns everything an environment step computes: the action's mapping, the decision's
+physics, its reward, the episode's end, the final score and the info keys. It draws its tasks from
+a :class:`~ffsr_gym.environments.task_source.TaskSource` and scores with the spec's rule
+(:mod:`ffsr_gym.scoring.rules`). It knows nothing of Gymnasium: the single environment is an
+adapter over one copy, the batched environment an adapter over N.
+
+Two pipelines compute a decision, written once for every version:
+
+* compiled (the kernel backend): one call of :func:`ffsr_gym.kernel.decision.decide` per copy:
+  :func:`~ffsr_gym.kernel.decision.step_episode` for one copy (a microsecond of dispatch),
+  :func:`~ffsr_gym.kernel.batch.decide_batch` for N (thread-parallel); same numbers;
+* reference (any backend, one copy): the :class:`~ffsr_gym.sim.rollout.Rollout` interface, the
+  increment from the score rule in numpy, the observation assembled in Python. It gives the
+  compiled pipeline's numbers bit for bit on the kernel backend (tested), and runs the Pinocchio
+  reference.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ffsr_gym.environments import actions as act
+from ffsr_gym.environments.task_source import TaskSource
+from ffsr_gym.exceptions import FFSRError, InvalidInputError
+from ffsr_gym.kernel import batch as kernel_batch
+from ffsr_gym.kernel import decision
+from ffsr_gym.kernel import planner as kp
+from ffsr_gym.model import portable
+from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.sim.compiled import LOG_FIELDS, KernelRollout, new_log
+from ffsr_gym.sim.rollout import BACKENDS, STATUS, Rollout
+from ffsr_gym.sim.simulate import kernel_available, make_rollout
+from ffsr_gym.sim.trajectory import Trajectory
+
+
+class EpisodeEngine:
+    """``copies`` episodes of ``source``'s tasks under one spec's rule (see the module docstring).
+
+    Per-copy state lives in stacked arrays (row i = copy i); ``obs`` (N, 53) float32 holds each
+    copy's current observation, ``clearance`` and ``ee_error`` its last clearance and end-effector
+    position error [m].
+    """
+
+    def __init__(self, source: TaskSource, *, residual: bool, copies: int = 1, backend: str = "auto",
+                 terminate_on_violation: bool = True, dense_shaping: bool = False) -> None:
+        self.source, self.rule, self.spec = source, source.rule, source.spec
+        self.residual, self.backend, self.n = residual, backend, int(copies)
+        self.terminate, self.shaping = terminate_on_violation, dense_shaping and self.rule.shaping
+        family = source.family
+        self.dt, self.n_steps = family.simulation.dt_s, family.n_steps
+        self.steps_per_decision = max(1, int(round(family.env.decision_interval_s / self.dt)))
+        self.action_shape = (12 if residual else 2,)
+        if backend not in BACKENDS:
+            raise InvalidInputError(f"backend {backend!r}; allowed: {list(BACKENDS)}")
+        self.compiled = backend == "kernel" or (backend == "auto" and kernel_available())
+        N = self.n
+        self.scenarios: list[Scenario | None] = [None] * N
+        self.rollouts: list[Rollout | None] = [None] * N
+        self.results: list[Any] = [None] * N  # each copy's last finished episode's result (the rule's)
+        self.obs = np.zeros((N, decision.N_OBS), dtype=np.float32)
+        self.last_rates, self.clipped = np.zeros((N, 12)), np.zeros(N, dtype=np.int64)
+        self.cost_so_far, self.potential = np.zeros(N), np.zeros(N)
+        self.clearance, self.ee_error = np.zeros(N), np.zeros(N)
+        self.X, self.K = np.zeros((N, 19)), np.zeros(N, dtype=np.int64)
+        self.FP, self.IP = np.zeros((N, kp.N_FP)), np.zeros((N, kp.N_IP), dtype=np.int64)
+        self.plants = (np.zeros((N, 13)), np.zeros((N, 13, 3)), np.zeros((N, 13, 3, 3)))
+        self.DS, self.scratch = np.zeros((N, decision.N_DS)), np.zeros((N, decision.N_SCRATCH))
+        self.logs = new_log(self.n_steps + 1, N) if self.compiled else None
+        self.out = np.zeros((N, 7))
+        self.mdl, self.episode, self.workspaces = None, None, None
+
+    # ------------------------------------------------------------------------------ resets
+    def reset_copy(self, i: int, rng: np.random.Generator, options: dict | None = None) -> dict[str, int]:
+        """Copy ``i``'s next episode, drawn from ``rng``; returns the task source's info."""
+        scenario, info = self.source.draw(rng, options)
+        self.scenarios[i], self.results[i] = scenario, None
+        if self.compiled:
+            self._load_copy(i, scenario)
+            rollout = self.rollouts[i]
+        else:
+            rollout = self.rollouts[i] = make_rollout(scenario, backend=self.backend)
+        self.last_rates[i], self.clipped[i], self.cost_so_far[i] = 0.0, 0, 0.0
+        angles, e1, e0, rel, clear = rollout.observation()
+        self.obs[i] = act.assemble_observation(angles, self.last_rates[i], e1, e0, rel, clear, 0.0)
+        self.clearance[i], self.ee_error[i] = clear, portable.norm(e1[:3])
+        self.out[i, 5], self.out[i, 6] = self.clearance[i], self.ee_error[i]
+        self.potential[i] = self._potential(self.ee_error[i])
+        return info
+
+    def _load_copy(self, i: int, scenario: Scenario) -> None:
+        """Put copy ``i``'s new episode into the stacked kernel arrays."""
+        if scenario.n_steps != self.n_steps or scenario.simulation.dt_s != self.dt:
+            raise FFSRError("a task changed dt_s or duration_s; the copies need them fixed")
+        rollout = KernelRollout(scenario, log={key: self.logs[key][i] for key in LOG_FIELDS})
+        self.rollouts[i], self.mdl = rollout, rollout._mdl
+        if len(rollout.fp) > self.FP.shape[1]:  # more target estimates than any copy so far: widen the rows
+            wider = np.zeros((self.n, len(rollout.fp)))
+            wider[:, :self.FP.shape[1]] = self.FP
+            self.FP = wider
+        self.X[i], self.K[i], self.IP[i] = rollout.x, 0, rollout.ip
+        self.FP[i, :len(rollout.fp)], self.FP[i, len(rollout.fp):] = rollout.fp, 0.0
+        for stacked, own in zip(self.plants, rollout.plant):
+            stacked[i] = own
+        decision.forget_plan(self.scratch[i])
+        self.DS[i] = act.decision_settings(scenario, self.rule, self.spec.actions.residual_fades)
+        if self.n == 1:
+            self.episode = self._new_episode()
+
+    def _new_episode(self) -> decision.Episode:
+        """Copy 0's arrays as one kernel structure (the single environment's compiled step)."""
+        logs = tuple(self.logs[key][0] for key in LOG_FIELDS)
+        rollout = self.rollouts[0]
+        return decision.new_episode(rollout._mdl, tuple(p[0] for p in self.plants), self.X[0], self.FP[0], self.IP[0],
+                                    self.DS[0], logs, self.last_rates[0])
+
+    def use_reference_pipeline(self) -> None:
+        """Step copy 0 through the :class:`Rollout` interface from now on (right after a reset; one copy only).
+
+        The compiled and the reference pipelines give the same numbers bit for bit on the kernel backend:
+        this switch is how the tests show it.
+        """
+        if self.n != 1 or any(self.K):
+            raise InvalidInputError("the reference pipeline steps one copy, from the start of an episode")
+        self.compiled, self.episode = False, None
+
+    def _potential(self, ee_error: Any) -> Any:
+        return -ee_error / self.rule.benchmark.action.shaping_position_scale_m if self.shaping else 0.0
+
+    # --------------------------------------------------------------------- one copy (N = 1)
+    def step_one(self, action: Any, parameters: tuple[float, float] | None = None) -> tuple:
+        """One decision of copy 0: ``(obs, reward, terminated, truncated, info)``.
+
+        ``action``: a float32 C-ordered array of the action's shape is passed to the compiled step
+        as it is (clipped and counted there); anything else is checked here. ``parameters``: a
+        physical (m, T_c [s]) instead (the (m, T_c) ids; validated, no float32 rounding).
+        """
+        clipped = 0
+        if parameters is None and not (self.compiled and type(action) is np.ndarray and action.dtype == np.float32
+                                       and action.shape == self.action_shape and action.flags.c_contiguous):
+            action, was_clipped = act.check_action(action, self.action_shape)
+            clipped = int(was_clipped)
+        if self.compiled:
+            status, increment, cost = self._decide_one(action, parameters)
+            obs = self.obs[0].copy()
+        else:
+            status, increment, cost, obs = self._advance_one(action, parameters)
+        self.clipped[0] += clipped
+        return self._finish_one(status, increment, cost, obs)
+
+    def _decide_one(self, action: np.ndarray, parameters: tuple[float, float] | None) -> tuple[int, float, float]:
+        """The compiled decision of copy 0."""
+        mode = decision.MODE_RESIDUAL if self.residual else decision.MODE_PARAMETERS
+        if parameters is not None:
+            self._set_parameters(0, parameters)
+            action, mode = np.zeros(2, dtype=np.float32), decision.MODE_SET
+        k = int(self.K[0])
+        rows, status, was_clipped, increment, cost, clearance, ee_error = decision.step_episode(
+            self.episode, action, mode, self.terminate, k, k, self.n_steps, self.steps_per_decision, self.obs[0])
+        if status == decision.STATUS_BAD_ACTION:
+            act.check_action(action, self.action_shape)  # raises, naming the problem
+            raise InvalidInputError(f"action must be finite, got {action}; allowed range [-1, 1] per entry")
+        if status == decision.STATUS_NONFINITE:
+            raise FFSRError(f"planner produced non-finite joint rates at t = {(k + rows) * self.dt:.3f} s")
+        self.K[0] = k + rows
+        self.clipped[0] += int(was_clipped)
+        self.clearance[0], self.ee_error[0] = clearance, ee_error
+        if not self.rule.compiled_terms:
+            applied = self.logs["dq"][0][k:k + rows]
+            increment = self.rule.increment(applied, self.dt, None, self.scenarios[0])
+            cost = self.rule.cost(applied, 0.0, status != 0, self.scenarios[0])
+        return status, increment, cost
+
+    def _advance_one(self, action: np.ndarray, parameters: tuple[float, float] | None) -> tuple:
+        """The reference decision of copy 0, through the :class:`Rollout` interface."""
+        rollout, scenario = self.rollout(0), self.scenarios[0]
+        residual = None
+        if parameters is not None:
+            rollout.set_parameters(*parameters)
+        elif self.residual:
+            residual = act.residual_rates(action, scenario, self.rule, self.spec.actions.residual_fades, rollout.t)
+        else:
+            rollout.set_parameters(*act.action_to_parameters(action, scenario))
+        applied, status = rollout.advance(self.steps_per_decision, residual, stop_on_violation=self.terminate)
+        code = STATUS.index(status)
+        increment = self.rule.increment(applied, self.dt, self.last_rates[0], scenario)
+        cost = self.rule.cost(applied, rollout.min_clearance(len(applied)), code != 0, scenario)
+        self.last_rates[0] = applied[-1]
+        self.K[0] = rollout.k
+        angles, e1, e0, rel, clear = rollout.observation()
+        self.clearance[0], self.ee_error[0] = float(clear), portable.norm(e1[:3])
+        obs = act.assemble_observation(angles, self.last_rates[0], e1, e0, rel, clear, rollout.k / rollout.n_steps)
+        return code, increment, cost, obs
+
+    def _finish_one(self, status: int, increment: float, cost: float, obs: np.ndarray) -> tuple:
+        """Episode end (the rule's result of the whole trajectory), reward, shaping and info."""
+        terminated = bool(status != 0)
+        truncated = bool(not terminated and self.K[0] >= self.n_steps)
+        info: dict[str, Any] = {self.rule.increment_key: increment, "cost": cost, "clipped_actions": int(self.clipped[0])}
+        result = None
+        if terminated or truncated:
+            result = self.end_copy(0)
+            info.update({key: getattr(result, key) for key in self.rule.end_keys})
+        before = float(self.cost_so_far[0])
+        reward, penalty = self.rule.reward(before, increment, result, terminated=terminated, truncated=truncated,
+                                           scenario=self.scenarios[0])
+        self.cost_so_far[0] = before + increment
+        info["penalty"] = penalty
+        if self.rule.shaping:
+            shaping = 0.0
+            if self.shaping:
+                potential = self._potential(float(self.ee_error[0]))
+                shaping, self.potential[0] = potential - float(self.potential[0]), potential
+            info["shaping"] = shaping
+            reward += shaping
+        info["clearance_m"], info["ee_position_error_m"] = float(self.clearance[0]), float(self.ee_error[0])
+        return obs, float(reward), terminated, truncated, info
+
+    # ------------------------------------------------------------------------ N copies
+    def step_copies(self, actions: np.ndarray, active: np.ndarray, parameters: tuple[float, float] | None = None):
+        """One decision of every ``active`` copy (checked, clipped float32 ``actions`` (N, size)).
+
+        Returns ``(rewards, terminated, truncated, info)``, arrays over the copies (inactive: 0);
+        ``info`` has the rule's end keys with their ``_key`` masks and the per-decision keys.
+        """
+        mode = decision.MODE_RESIDUAL if self.residual else decision.MODE_PARAMETERS
+        if parameters is not None:
+            for i in np.flatnonzero(active):
+                self._set_parameters(i, parameters)
+            mode = decision.MODE_SET
+        out, start = self.out, self.K.copy()
+        out[~active, :5] = 0.0  # no steps, no cost; clearance and EE error of the reset (or held) state stay
+        if self.workspaces is None:
+            self.workspaces = kernel_batch.workspaces(self.n, len(self.mdl[13]))
+        kernel_batch.decide_batch(self.mdl, self.plants, self.workspaces, self.X, self.K, active, self.n_steps,
+                                  self.steps_per_decision, self.FP, self.IP, self.DS, actions, mode,
+                                  tuple(self.logs[key] for key in LOG_FIELDS), self.last_rates, self.scratch,
+                                  self.obs, out, kernel_batch.groups(self.n))
+        rows, status = out[:, 0].astype(np.int64), out[:, 1].astype(np.int64)
+        if np.any(status == decision.STATUS_NONFINITE):
+            bad = np.flatnonzero(status == decision.STATUS_NONFINITE).tolist()
+            raise FFSRError(f"planner produced non-finite joint rates in copies {bad}")
+        terminated = active & (status != 0)
+        truncated = active & ~terminated & (self.K >= self.n_steps)
+        increments, costs = self._batch_terms(active, start, rows, terminated)
+        self.clearance[:], self.ee_error[:] = out[:, 5], out[:, 6]
+        return self._batch_rewards(active, terminated, truncated, increments, costs)
+
+    def _batch_terms(self, active: np.ndarray, start: np.ndarray, rows: np.ndarray, terminated: np.ndarray):
+        """Each copy's increment and cost: the kernel's, or the rule's from the applied rates (zero-padded)."""
+        if self.rule.compiled_terms:
+            return self.out[:, 3].copy(), self.out[:, 4].copy()
+        applied = np.zeros((self.n, self.steps_per_decision, 12))
+        for i in np.flatnonzero(active):
+            applied[i, :rows[i]] = self.logs["dq"][i, start[i]:start[i] + rows[i]]
+        increments = np.where(active, self.rule.increment(applied, self.dt, None, self.source.family), 0.0)
+        return increments, terminated.astype(float)
+
+    def _batch_rewards(self, active, terminated, truncated, increments, costs):
+        """Rewards, shaping and info of a batched decision; ends score their whole trajectory."""
+        N, ended = self.n, terminated | truncated
+        results = {int(i): self.end_copy(int(i)) for i in np.flatnonzero(ended)}
+        info: dict[str, Any] = {}
+        for key, dtype in self.rule.end_keys.items():
+            values = np.zeros(N, dtype=dtype)
+            for i, result in results.items():
+                values[i] = getattr(result, key)
+            info[key], info[f"_{key}"] = values, ended.copy()
+        before = self.cost_so_far
+        rewards, penalties = np.where(active, self.rule.running_rewards(before, increments), 0.0), np.zeros(N)
+        for i, result in results.items():
+            rewards[i], penalties[i] = self.rule.reward(before[i], increments[i], result, terminated=bool(terminated[i]),
+                                                        truncated=bool(truncated[i]), scenario=self.scenarios[i])
+        self.cost_so_far = np.where(active, before + increments, before)
+        info.update({self.rule.increment_key: increments, "penalty": penalties})
+        if self.rule.shaping:
+            potential = self._potential(self.ee_error)
+            shaping = np.where(active, potential - self.potential, 0.0) if self.shaping else np.zeros(N)
+            self.potential = np.where(active, potential, self.potential)
+            info["shaping"] = shaping
+            rewards = np.where(active, rewards + shaping, 0.0)
+        info.update({"cost": costs, "clearance_m": self.clearance.copy(), "ee_position_error_m": self.ee_error.copy(),
+                     "clipped_actions": self.clipped.copy()})
+        return rewards, terminated, truncated, info
+
+    # ------------------------------------------------------------------------ per copy
+    def _set_parameters(self, i: int, parameters: tuple[float, float]) -> None:
+        """Validated physical (m, T_c [s]) for copy ``i``'s next decisions."""
+        rollout = self.rollouts[i]
+        rollout.set_parameters(*parameters)
+        self.FP[i, kp.F_M], self.FP[i, kp.F_TC] = rollout.fp[kp.F_M], rollout.fp[kp.F_TC]
+
+    def end_copy(self, i: int) -> Any:
+        """Record copy ``i``'s final sample and score its whole trajectory with the rule."""
+        rollout = self.rollout(i)
+        rollout.finish()
+        self.results[i] = self.rule.result(rollout.trajectory(), self.scenarios[i])
+        return self.results[i]
+
+    def rollout(self, i: int) -> Rollout:
+        """Copy ``i``'s rollout with the engine's state (an unfinished compiled episode: one logged row per step)."""
+        rollout = self.rollouts[i]
+        if rollout is None:
+            raise InvalidInputError("no episode yet: call reset()")
+        if self.compiled and not rollout.finished:
+            rollout.x, rollout.k, rollout.rows = self.X[i].copy(), int(self.K[i]), int(self.K[i])
+            rollout.fp[:] = self.FP[i, :len(rollout.fp)]  # (m, T_c) the decisions set
+        return rollout
+
+    def trajectory(self, i: int) -> Trajectory:
+        """Copy ``i``'s :class:`Trajectory` so far."""
+        return self.rollout(i).trajectory()
+
+    def finished(self, i: int) -> bool:
+        """Whether copy ``i``'s episode has ended."""
+        rollout = self.rollouts[i]
+        return rollout is not None and rollout.finished
+
+    # ------------------------------------------------------------------------- pickling
+    def __getstate__(self) -> dict:
+        """Pickled without the kernel structures (numba objects): a clone makes new ones, and its copies'
+        next decisions plan afresh (same numbers)."""
+        state = self.__dict__.copy()
+        state["episode"], state["workspaces"], state["scratch"] = None, None, self.scratch.copy()
+        decision.forget_plan(state["scratch"])
+        state["_rebuild"] = self.episode is not None
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        rebuild = state.pop("_rebuild", False)
+        self.__dict__.update(state)
+        if rebuild:
+            self.episode = self._new_episode()

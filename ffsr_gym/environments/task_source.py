@@ -1,0 +1,85 @@
+"""Where an environment's episodes come from, as its benchmark spec says (``[tasks]``).
+
+* ``scenario``: one scenario (a shipped name, a TOML path or a :class:`Scenario`); a scenario with
+  a ``[randomization]`` section is a seeded family, drawn anew at every reset.
+* ``tiers``: the certified pools of a tier (``split`` = train or test), one task drawn uniformly
+  per reset or picked with ``reset(options={"task_index": i})``; the spec's named scenarios
+  (``paper``) and a :class:`Scenario` are accepted as single tasks.
+
+Every task is played as the score rule transforms it (``rule.task``: v1's planner defaults,
+tolerances and action box).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.model.scenario import Scenario, load_scenario
+from ffsr_gym.model.spec import BenchmarkSpec
+from ffsr_gym.scoring.rules import ScoreRule
+from ffsr_gym.tasks.random_family import sample_scenario
+from ffsr_gym.tasks.splits import PoolTask, pool, task_scenario
+
+
+class TaskSource:
+    """The tasks of one environment: a fixed scenario, a seeded family, or a tier's pool.
+
+    Attributes:
+        name: the task's name (tier, scenario name).
+        family: the scenario played (fixed task), the family drawn from, or the pool's first task.
+        pool: the pool's tasks (tiers only), else None.
+    """
+
+    def __init__(self, spec: BenchmarkSpec, rule: ScoreRule, task: Any = None, split: str | None = None) -> None:
+        self.spec, self.rule = spec, rule
+        task = spec.tasks.default if task is None else task
+        self.split = self._check_split(split)
+        self.pool: tuple[PoolTask, ...] | None = None
+        if isinstance(task, str) and task in spec.tasks.tiers:
+            self.name, self.pool = task, pool(task, self.split)
+            self.family = task_scenario(task, self.pool[0].seed, rule.benchmark)
+        else:
+            self.name = task if isinstance(task, str) else getattr(task, "name", str(task))
+            self.family = rule.task(self._scenario(task))
+        self.randomised = self.family.randomization is not None and self.pool is None
+
+    def _check_split(self, split: str | None) -> str | None:
+        splits = self.spec.tasks.splits
+        if not splits:
+            if split is not None:
+                raise InvalidInputError(f"split = {split!r}: {self.spec.ids.parameters} has no task splits")
+            return None
+        split = splits[0] if split is None else split
+        if split not in splits:
+            raise InvalidInputError(f"split {split!r}; allowed: {list(splits)}")
+        return split
+
+    def _scenario(self, task: Any) -> Scenario:
+        """The scenario of a task that is not a tier (the spec decides what names it accepts)."""
+        tasks = self.spec.tasks
+        if isinstance(task, Scenario) or tasks.kind == "scenario":
+            return load_scenario(task)
+        if task in tasks.scenarios:
+            return load_scenario(task)
+        raise InvalidInputError(f"task {task!r}; allowed: {[*tasks.scenarios, *tasks.tiers]} or a Scenario")
+
+    def draw(self, rng: np.random.Generator, options: dict | None) -> tuple[Scenario, dict[str, int]]:
+        """The next episode's scenario (drawn from ``rng``) and what ``reset``'s info says about it.
+
+        Raises:
+            InvalidInputError: ``options`` not a dict, or a ``task_index`` outside the pool.
+        """
+        if options is not None and not isinstance(options, dict):
+            raise InvalidInputError(f"options must be a dict or None, got {type(options).__name__}")
+        if self.pool is None:
+            return (sample_scenario(self.family, rng) if self.randomised else self.family), {}
+        index = (options or {}).get("task_index")
+        if index is None:
+            index = int(rng.integers(len(self.pool)))
+        elif isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not 0 <= index < len(self.pool):
+            raise InvalidInputError(f"options['task_index'] = {index!r}; allowed: an integer in [0, {len(self.pool) - 1}]")
+        seed = self.pool[int(index)].seed
+        return task_scenario(self.name, seed, self.rule.benchmark), {"task_index": int(index), "task_seed": seed}

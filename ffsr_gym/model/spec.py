@@ -1,0 +1,273 @@
+"""Benchmark versions as data: the spec files ``envs/benchmark/spec_<version>.toml``.
+
+A spec names everything that makes a benchmark version: its environment ids, its score rule and
+the rule file that holds its numbers, the action boxes and the residual law, the reward, where
+its tasks come from (one scenario, a seeded family, or tiered pools), the evaluation protocol,
+the metric names and the ranking rule of its leaderboard. One code path (the episode engine, the
+environments, ``evaluate``, the leaderboard renderer, ``train`` and the command line) serves every
+version by reading its spec; a new version is a new spec file (``register_spec`` takes one from
+anywhere), never a new module.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+from ffsr_gym.exceptions import ScenarioError
+from ffsr_gym.model.benchmark import Benchmark, load_rules
+from ffsr_gym.model.resources import envs_dir
+from ffsr_gym.model.schema import BOOL, TEXT, TEXTS, build_table, choice, integer, natural, section
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+#: Score rules the engine knows (``ffsr_gym.scoring.rules``): the paper's objective B (lower is
+#: better, +inf when infeasible) and the bounded episode score 1 / (1 + C) (higher is better).
+SCORE_RULES = ("paper_objective", "bounded_smoothness")
+#: Rankings the leaderboard renderer knows: by feasible rate then IQM (ascending), or by IQM with
+#: ranks that only a non-overlapping bootstrap CI separates.
+RANKINGS = ("feasible_then_iqm", "ci_separation")
+
+
+@dataclass(frozen=True)
+class Ids:
+    """The registered ids: one per action mode, and the episode length of the registration (0: none)."""
+
+    parameters: str = field(metadata=TEXT)
+    residual: str = field(metadata=TEXT)
+    max_episode_steps: int = field(default=0, metadata=natural(10**7))
+
+
+@dataclass(frozen=True)
+class ScoreSpec:
+    """The score rule, the rule file with its numbers ("" = the scenario's own sections) and its text."""
+
+    rule: str = field(metadata=choice(*SCORE_RULES))
+    rules_file: str = field(default="", metadata=TEXT)
+    text: str = field(default="", metadata=TEXT)
+
+
+@dataclass(frozen=True)
+class ActionSpec:
+    """Where the action boxes come from (the scenario's [env] or the rule file's [action]) and the residual law."""
+
+    boxes: str = field(metadata=choice("scenario", "rules"))
+    residual_fades: bool = field(metadata=BOOL)
+
+
+@dataclass(frozen=True)
+class RewardSpec:
+    """The reward: minus B's increments and penalties, or the change of the episode's bounded value."""
+
+    kind: str = field(metadata=choice("objective_increment", "score_change"))
+    options: tuple[str, ...] = field(default=(), metadata=TEXTS)
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """Where tasks come from: ``scenario`` (a scenario, or its seeded family) or ``tiers`` (certified pools)."""
+
+    kind: str = field(metadata=choice("scenario", "tiers"))
+    keyword: str = field(metadata=choice("scenario", "task"))
+    default: str = field(metadata=TEXT)
+    scenarios: tuple[str, ...] = field(default=(), metadata=TEXTS)
+    tiers: tuple[str, ...] = field(default=(), metadata=TEXTS)
+    splits: tuple[str, ...] = field(default=(), metadata=TEXTS)
+
+
+@dataclass(frozen=True)
+class EvaluationSpec:
+    """The evaluation protocol: public seeds per id, or one episode per task of a tier's split."""
+
+    protocol: str = field(metadata=choice("seeds", "pool"))
+    default_task: str = field(metadata=TEXT)
+    split: str = field(default="test", metadata=TEXT)
+    parameters_seeds: tuple[int, ...] = field(default=(), metadata={"kind": "rows", "size": 0, "lo": 0, "hi": 2**31,
+                                                                      "max_rows": 2})
+    residual_seeds: tuple[int, ...] = field(default=(), metadata={"kind": "rows", "size": 0, "lo": 0, "hi": 2**31,
+                                                                    "max_rows": 2})
+
+
+@dataclass(frozen=True)
+class LeaderboardSpec:
+    """Where entries live (``{env_id}``, ``{task}``, ``{version}`` are filled in), metric names, ranking."""
+
+    folder: str = field(metadata=TEXT)
+    ranking: str = field(metadata=choice(*RANKINGS))
+    title: str = field(metadata=TEXT)
+    iqm: str = field(default="score_iqm", metadata=TEXT)
+    ci: str = field(metadata=TEXT, default="score_ci95")
+    rate: str = field(metadata=TEXT, default="feasible_rate")
+    rate_column: str = field(metadata=TEXT, default="feasible")
+    marker: str = field(metadata=TEXT, default="")
+
+    def markers(self, suffix: str = "") -> tuple[str, str]:
+        """The README markers between which the generated tables (``suffix`` "-summary": the summary) go."""
+        name = f"{self.marker}{suffix}"
+        command = "ffsr-gym leaderboard render" + (" --readme README.md" if suffix else "")
+        return f"<!-- {name}:start (generated by `{command}`) -->", f"<!-- {name}:end -->"
+
+
+@dataclass(frozen=True)
+class BenchmarkSpec:
+    """One benchmark version (see the module docstring and ``envs/benchmark/spec_*.toml``)."""
+
+    schema_version: int = field(metadata=integer(1))
+    version: str = field(metadata=TEXT)
+    description: str = field(metadata=TEXT)
+    status: str = field(metadata=choice("live", "frozen"))
+    ids: Ids = field(metadata=section(Ids))
+    score: ScoreSpec = field(metadata=section(ScoreSpec))
+    actions: ActionSpec = field(metadata=section(ActionSpec))
+    reward: RewardSpec = field(metadata=section(RewardSpec))
+    tasks: TaskSpec = field(metadata=section(TaskSpec))
+    evaluation: EvaluationSpec = field(metadata=section(EvaluationSpec))
+    leaderboard: LeaderboardSpec = field(metadata=section(LeaderboardSpec))
+    source: str = field(default="", compare=False)
+
+    @property
+    def env_ids(self) -> tuple[str, str]:
+        """(parameters id, residual id)."""
+        return self.ids.parameters, self.ids.residual
+
+    def is_residual(self, env_id: str) -> bool:
+        """Whether ``env_id`` (of this version) is its residual id."""
+        return env_id.split(":")[-1] == self.ids.residual
+
+    @property
+    def rules(self) -> Benchmark | None:
+        """The rule file's numbers (score, planner defaults, action boxes, tier rule), or None."""
+        if not self.score.rules_file:
+            return None
+        return load_rules(_resolve(self.score.rules_file, self.source))
+
+    def eval_seeds(self, env_id: str) -> tuple[int, ...]:
+        """The public evaluation seeds of ``env_id`` (protocol ``seeds``): a [start, stop) range."""
+        start, stop = self.evaluation.residual_seeds if self.is_residual(env_id) else self.evaluation.parameters_seeds
+        return tuple(range(int(start), int(stop)))
+
+    def folder(self, env_id: str, task: str) -> str:
+        """The leaderboard folder of an entry (relative to the leaderboard root)."""
+        return self.leaderboard.folder.format(env_id=env_id.split(":")[-1], task=task, version=self.version)
+
+
+def _resolve(name: str, source: str) -> Path:
+    """A rule file named in a spec: next to the spec file, else a shipped one in ``envs/benchmark``."""
+    if source:
+        beside = Path(source).parent / name
+        if beside.is_file():
+            return beside
+    return envs_dir() / "benchmark" / name
+
+
+def read_spec(path: str | Path) -> BenchmarkSpec:
+    """Load and validate a spec file.
+
+    Raises:
+        ScenarioError: unreadable file, or an invalid key (named, with the file).
+    """
+    path = Path(path)
+    try:
+        data: dict[str, Any] = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise ScenarioError(f"{path}: not a readable TOML file ({exc})") from None
+    try:
+        spec = build_table(BenchmarkSpec, data)
+    except ScenarioError as exc:
+        raise ScenarioError(f"{path}: {exc}") from None
+    spec = dataclasses.replace(spec, source=str(path))
+    _check(spec, path)
+    return spec
+
+
+def _check(spec: BenchmarkSpec, path: Path) -> None:
+    """Cross-field rules of a spec (each error names the key)."""
+    if spec.score.rule == "bounded_smoothness" and not spec.score.rules_file:
+        raise ScenarioError(f"{path}: key 'score.rules_file' is empty; the rule 'bounded_smoothness' needs a rule file")
+    if spec.actions.boxes == "rules" and not spec.score.rules_file:
+        raise ScenarioError(f"{path}: key 'actions.boxes' = 'rules' needs 'score.rules_file'")
+    if spec.tasks.kind == "tiers" and not (spec.tasks.tiers and spec.tasks.splits):
+        raise ScenarioError(f"{path}: keys 'tasks.tiers' and 'tasks.splits' must list the tiers and splits")
+    if spec.evaluation.protocol == "seeds" and not (len(spec.evaluation.parameters_seeds) == 2
+                                                    and len(spec.evaluation.residual_seeds) == 2):
+        raise ScenarioError(f"{path}: keys 'evaluation.parameters_seeds' and 'evaluation.residual_seeds' must each be "
+                            "[start, stop) for the protocol 'seeds'")
+    if spec.evaluation.protocol == "pool" and spec.tasks.kind != "tiers":
+        raise ScenarioError(f"{path}: key 'evaluation.protocol' = 'pool' needs 'tasks.kind' = 'tiers'")
+    if spec.ids.parameters == spec.ids.residual:
+        raise ScenarioError(f"{path}: keys 'ids.parameters' and 'ids.residual' must differ")
+    if spec.score.rules_file:
+        spec.rules  # noqa: B018 - loads and validates the rule file now, naming it on error
+
+
+def shipped_spec_paths() -> list[Path]:
+    """The spec files shipped in ``envs/benchmark``, in version order."""
+    return sorted((envs_dir() / "benchmark").glob("spec_*.toml"))
+
+
+_REGISTERED: dict[str, BenchmarkSpec] = {}
+
+
+@lru_cache(maxsize=1)
+def _shipped() -> dict[str, BenchmarkSpec]:
+    specs = [read_spec(path) for path in shipped_spec_paths()]
+    return {spec.version: spec for spec in specs}
+
+
+def all_specs() -> dict[str, BenchmarkSpec]:
+    """Every known version: the shipped specs, then those added with :func:`add_spec`."""
+    return {**_shipped(), **_REGISTERED}
+
+
+def add_spec(spec: BenchmarkSpec) -> None:
+    """Make ``spec`` known (its ids resolve through :func:`spec_for_env_id`).
+
+    Raises:
+        ScenarioError: its version or one of its ids is taken by another spec.
+    """
+    for other in all_specs().values():
+        if other.version == spec.version and other.source != spec.source:
+            raise ScenarioError(f"{spec.source}: version {spec.version!r} is taken by {other.source}")
+        taken = set(other.env_ids) & set(spec.env_ids)
+        if taken and other.version != spec.version:
+            raise ScenarioError(f"{spec.source}: env ids {sorted(taken)} are taken by version {other.version!r}")
+    _REGISTERED[spec.version] = spec
+
+
+def spec_for_version(version: str) -> BenchmarkSpec:
+    """The spec of ``version``.
+
+    Raises:
+        ScenarioError: unknown version (the known ones are listed).
+    """
+    specs = all_specs()
+    if version not in specs:
+        raise ScenarioError(f"benchmark version {version!r}; allowed: {sorted(specs)}")
+    return specs[version]
+
+
+def spec_for_env_id(env_id: str) -> BenchmarkSpec | None:
+    """The spec that registers ``env_id`` (a ``module:`` prefix is ignored), or None."""
+    key = env_id.split(":")[-1]
+    for spec in all_specs().values():
+        if key in spec.env_ids:
+            return spec
+    return None
+
+
+def remove_spec(version: str) -> BenchmarkSpec:
+    """Forget a version added with :func:`add_spec` (shipped versions stay).
+
+    Raises:
+        ScenarioError: ``version`` was not added.
+    """
+    if version not in _REGISTERED:
+        raise ScenarioError(f"benchmark version {version!r} was not added; added: {sorted(_REGISTERED)}")
+    return _REGISTERED.pop(version)

@@ -1,0 +1,181 @@
+"""The score rules a benchmark spec names: what an episode is worth, decision by decision and at its end.
+
+A rule turns the applied rates of a decision into the reward's increment and the info's cost, a
+finished trajectory into the episode's result, that result into the episode-end info, the
+reward's penalty and a leaderboard row, and rows into the aggregate metrics. The engine, the
+environments, ``evaluate`` and the leaderboard renderer all go through :func:`score_rule`, so one
+code path computes every version's score:
+
+* ``paper_objective`` (v0): B of the paper (:mod:`ffsr_gym.scoring.objective`) from the
+  scenario's ``[objective]`` section; reward = −(B's finite-part increment) − penalties.
+* ``bounded_smoothness`` (v1): 1 / (1 + C) on success (:mod:`ffsr_gym.scoring.score`) from the
+  spec's rule file; reward = the change of the episode's value.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ffsr_gym.model.benchmark import Benchmark
+from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.model.spec import BenchmarkSpec
+from ffsr_gym.scoring.aggregate import bootstrap_ci, iqm
+from ffsr_gym.scoring.objective import ObjectiveTerms, objective_terms, rate_terms, smooth_part
+from ffsr_gym.scoring.score import (
+    EpisodeScore,
+    running_reward,
+    score_episode,
+    score_reward,
+    smoothness_cost,
+    smoothness_terms,
+)
+from ffsr_gym.sim.trajectory import Trajectory
+from ffsr_gym.types import Array
+
+
+class PaperObjective:
+    """The paper's B: lower is better, +inf when infeasible (``FFSR-v0``)."""
+
+    name = "paper_objective"
+    increment_key = "objective_increment"
+    #: Episode-end ``info`` keys (attributes of :class:`ObjectiveTerms`) and their dtypes in a batch.
+    end_keys: dict[str, type] = {"objective": float, "feasible": bool, "score": float, "rate_violation": bool,
+                                 "collided": bool}
+    #: Whether the compiled decision's increment and cost are this rule's (else recomputed from the rates).
+    compiled_terms = False
+    shaping = False
+    benchmark = None  # its numbers are the scenario's own sections
+
+    def __init__(self, spec: BenchmarkSpec) -> None:
+        self.spec = spec
+
+    def task(self, scenario: Scenario) -> Scenario:
+        """The scenario as this version plays it (v0: as it is)."""
+        return scenario
+
+    def increment(self, applied: Array, dt: float, last_rates: Array, scenario: Scenario) -> Any:
+        """γ (α ∫Ψ¹ + β ∫Ψ²) of the applied rates (n, 12), or of a batch (N, n, 12) (zero rows add nothing)."""
+        objective = scenario.objective
+        return smooth_part(*rate_terms(applied, dt, objective)[:2], objective)
+
+    def cost(self, applied: Array, min_clearance: float, terminated: bool, scenario: Scenario) -> float:
+        """The safety cost of a decision: 1.0 when it ended the episode by a violation."""
+        return 1.0 if terminated else 0.0
+
+    def result(self, traj: Trajectory, scenario: Scenario) -> ObjectiveTerms:
+        """B, feasibility and score of a finished trajectory."""
+        return objective_terms(traj, scenario.objective)
+
+    def reward(self, cost_before: float, increment: float, result: ObjectiveTerms | None, *, terminated: bool,
+               truncated: bool, scenario: Scenario) -> tuple[float, float]:
+        """(reward, penalty): −increment − penalty; a violation and a missed final tolerance are penalised."""
+        env = scenario.env
+        penalty = env.violation_penalty if terminated else 0.0
+        if truncated and result is not None and not result.final_errors_ok:
+            penalty += env.tolerance_penalty
+        return -increment - penalty, penalty
+
+    @staticmethod
+    def running_rewards(cost_before: Array, increments: Array) -> Array:
+        """Rewards of decisions that did not end their episodes: −increment."""
+        return -increments
+
+    def row(self, result: ObjectiveTerms, traj: Trajectory) -> dict[str, Any]:
+        """The leaderboard row of an episode (besides its seed)."""
+        metrics = traj.metrics()
+        return {**result.as_dict(), "final_ee_position_error_m": metrics["final_ee_position_error_m"],
+                "max_joint_rate_deg_s": metrics["max_joint_rate_deg_s"], "min_clearance_m": metrics["min_clearance_m"],
+                "duration_s": float(traj.t[-1])}
+
+    def row_values(self, rows: Sequence[dict[str, Any]]) -> tuple[Array, Array]:
+        """(scores, feasible flags) of rows (a JSON null score is +inf)."""
+        scores = np.array([math.inf if row["score"] is None else float(row["score"]) for row in rows])
+        return scores, np.array([bool(row["feasible"]) for row in rows])
+
+    def aggregate(self, rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
+        """Mean, IQM, seeded-bootstrap 95 % CI of the IQM, feasible rate (metric names of the spec)."""
+        scores, rates = self.row_values(rows)
+        names = self.spec.leaderboard
+        return {"score_mean": float(np.mean(scores)), names.iqm: _iqm_or_inf(scores),
+                names.ci: bootstrap_ci(scores, _iqm_or_inf), names.rate: float(np.mean(rates.astype(float))),
+                "episodes": len(scores)}
+
+
+class BoundedSmoothness:
+    """1 / (1 + C) on success, 0 on failure: higher is better (``FFSR-v1``)."""
+
+    name = "bounded_smoothness"
+    increment_key = "smoothness_increment"
+    end_keys: dict[str, type] = {"score": float, "success": bool, "failure": object, "smoothness_cost": float,
+                                 "paper_B": float}
+    compiled_terms = True
+    shaping = True
+
+    def __init__(self, spec: BenchmarkSpec) -> None:
+        self.spec = spec
+        self.benchmark: Benchmark = spec.rules
+
+    def task(self, scenario: Scenario) -> Scenario:
+        """``scenario`` with the rule file's planner defaults, tolerances, rate limit and action box."""
+        return self.benchmark.task(scenario)
+
+    def increment(self, applied: Array, dt: float, last_rates: Array, scenario: Scenario) -> float:
+        """The smoothness cost C of the applied rates (n, 12), continuing from ``last_rates``."""
+        return smoothness_cost(*smoothness_terms(applied, dt, last_rates), self.benchmark.score)
+
+    def cost(self, applied: Array, min_clearance: float, terminated: bool, scenario: Scenario) -> float:
+        """0 without violation; penetration depth / scale + relative excess of the peak rate."""
+        limit = self.benchmark.score.max_rate_deg_s
+        peak = float(np.degrees(np.max(np.abs(applied)))) if len(applied) else 0.0
+        depth = max(0.0, -min_clearance) / self.benchmark.action.cost_clearance_scale_m
+        return depth + max(0.0, peak / limit - 1.0)
+
+    def result(self, traj: Trajectory, scenario: Scenario) -> EpisodeScore:
+        """The episode score of a finished trajectory (:func:`ffsr_gym.scoring.score.score_episode`)."""
+        return score_episode(traj, scenario, self.benchmark)
+
+    def reward(self, cost_before: float, increment: float, result: EpisodeScore | None, *, terminated: bool,
+               truncated: bool, scenario: Scenario) -> tuple[float, float]:
+        """(reward, penalty) of :func:`ffsr_gym.scoring.score.score_reward`."""
+        return score_reward(cost_before, cost_before + increment, result)
+
+    @staticmethod
+    def running_rewards(cost_before: Array, increments: Array) -> Array:
+        """Rewards of decisions that did not end their episodes (elementwise, as one at a time)."""
+        return running_reward(cost_before, cost_before + increments)
+
+    def row(self, result: EpisodeScore, traj: Trajectory) -> dict[str, Any]:
+        """The leaderboard row of an episode (besides its seed and task)."""
+        return result.as_dict()
+
+    def row_values(self, rows: Sequence[dict[str, Any]]) -> tuple[Array, Array]:
+        """(scores, success flags) of rows."""
+        return (np.array([float(row["score"]) for row in rows]), np.array([bool(row["success"]) for row in rows]))
+
+    def aggregate(self, rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
+        """Mean, IQM and its seeded-bootstrap 95 % CI, success rate (metric names of the spec)."""
+        scores, rates = self.row_values(rows)
+        names = self.spec.leaderboard
+        return {"score_mean": float(np.mean(scores)), names.iqm: iqm(scores), names.ci: bootstrap_ci(scores, iqm),
+                names.rate: float(np.mean(rates.astype(float))), "episodes": len(scores)}
+
+
+def _iqm_or_inf(values: Array) -> float:
+    """The IQM, or +inf when an infinite (infeasible) score lies in the middle half."""
+    v = np.sort(values)
+    lo, hi = int(math.floor(0.25 * len(v))), int(math.ceil(0.75 * len(v)))
+    middle = v[lo:hi] if hi > lo else v
+    return float(np.mean(middle)) if np.all(np.isfinite(middle)) else math.inf
+
+
+RULES = {PaperObjective.name: PaperObjective, BoundedSmoothness.name: BoundedSmoothness}
+ScoreRule = PaperObjective | BoundedSmoothness
+
+
+def score_rule(spec: BenchmarkSpec) -> ScoreRule:
+    """The score rule ``spec`` names, with its numbers."""
+    return RULES[spec.score.rule](spec)
