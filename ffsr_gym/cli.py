@@ -153,7 +153,7 @@ def _leaderboard_plot(args: argparse.Namespace) -> None:
 
 def _leaderboard_pareto(args: argparse.Namespace) -> None:
     from ffsr_gym.bench.pareto import paper_pareto
-    from ffsr_gym.optim.rl import load_model
+    from ffsr_gym.bench.policies import load_model
     from ffsr_gym.report.leaderboard_plots import PARETO_FILE
 
     out = Path(args.root) / "v1" / PARETO_FILE

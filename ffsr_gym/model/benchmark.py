@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import sys
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -20,12 +19,7 @@ import numpy as np
 from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.scenario import Randomization, Scenario
-from ffsr_gym.model.schema import TEXT, build_table, check_action_bounds, choice, integer, number, section, vector
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - exercised on Python 3.10 only
-    import tomli as tomllib
+from ffsr_gym.model.schema import TEXT, load_table, check_action_bounds, choice, integer, number, section, vector
 
 VERSIONS = ("v1",)
 
@@ -146,13 +140,6 @@ def load_rules(path: Path) -> Benchmark:
     Raises:
         ScenarioError: unreadable file or an invalid key (named, with the file).
     """
-    try:
-        data: dict[str, Any] = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise ScenarioError(f"{path}: not a readable TOML file ({exc})") from exc
-    try:
-        bench = build_table(Benchmark, data)
-    except ScenarioError as exc:
-        raise ScenarioError(f"{path}: {exc}") from None
+    bench = load_table(Benchmark, path)
     check_action_bounds(bench.action.m_bounds, bench.action.T_c_bounds_s, section="action", where=f"{path}: ")
     return bench

@@ -11,9 +11,16 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
+from pathlib import Path
 from typing import Any
 
 from ffsr_gym.exceptions import ScenarioError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
 
 Vec = tuple[float, ...]
 BOOL = {"kind": "bool"}
@@ -82,6 +89,23 @@ def build_table(cls: type, table: Any, *, prefix: str = "") -> Any:
         else:
             values[name] = convert(key, table[name], spec.metadata)
     return cls(**values)
+
+
+def load_table(cls: type, path: str | Path) -> Any:
+    """A validated frozen dataclass ``cls`` from a TOML file; every error names the file.
+
+    Raises:
+        ScenarioError: unreadable file, or an invalid key (named, with the file).
+    """
+    path = Path(path)
+    try:
+        data: dict[str, Any] = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise ScenarioError(f"{path}: not a readable TOML file ({exc})") from None
+    try:
+        return build_table(cls, data)
+    except ScenarioError as exc:
+        raise ScenarioError(f"{path}: {exc}") from None
 
 
 def convert(key: str, value: Any, meta: Any) -> Any:

@@ -12,21 +12,14 @@ anywhere), never a new module.
 from __future__ import annotations
 
 import dataclasses
-import sys
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
 
 from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model.benchmark import Benchmark, load_rules
 from ffsr_gym.model.resources import envs_dir
-from ffsr_gym.model.schema import BOOL, TEXT, TEXTS, build_table, choice, integer, natural, section
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - exercised on Python 3.10 only
-    import tomli as tomllib
+from ffsr_gym.model.schema import BOOL, TEXT, TEXTS, choice, integer, load_table, natural, section
 
 #: Score rules the engine knows (``ffsr_gym.scoring.rules``): the paper's objective B (lower is
 #: better, +inf when infeasible) and the bounded episode score 1 / (1 + C) (higher is better).
@@ -174,15 +167,7 @@ def read_spec(path: str | Path) -> BenchmarkSpec:
         ScenarioError: unreadable file, or an invalid key (named, with the file).
     """
     path = Path(path)
-    try:
-        data: dict[str, Any] = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise ScenarioError(f"{path}: not a readable TOML file ({exc})") from None
-    try:
-        spec = build_table(BenchmarkSpec, data)
-    except ScenarioError as exc:
-        raise ScenarioError(f"{path}: {exc}") from None
-    spec = dataclasses.replace(spec, source=str(path))
+    spec = dataclasses.replace(load_table(BenchmarkSpec, path), source=str(path))
     _check(spec, path)
     return spec
 
