@@ -37,6 +37,14 @@ from ffsr_gym.sim.simulate import kernel_available, make_rollout
 from ffsr_gym.sim.trajectory import Trajectory
 
 
+_FLOAT32 = np.dtype(np.float32)
+
+
+def _scalars(n: int, kind: type) -> Any:
+    """``n`` zeros of ``kind``: a list for one copy, an array for several (see :class:`EpisodeEngine`)."""
+    return [0 if kind is np.int64 else 0.0] if n == 1 else np.zeros(n, dtype=kind)
+
+
 class EpisodeEngine:
     """``copies`` episodes of ``source``'s tasks under one spec's rule (see the module docstring).
 
@@ -62,10 +70,16 @@ class EpisodeEngine:
         self.rollouts: list[Rollout | None] = [None] * N
         self.results: list[Any] = [None] * N  # each copy's last finished episode's result (the rule's)
         self.obs = np.zeros((N, decision.N_OBS), dtype=np.float32)
-        self.last_rates, self.clipped = np.zeros((N, 12)), np.zeros(N, dtype=np.int64)
-        self.cost_so_far, self.potential = np.zeros(N), np.zeros(N)
-        self.clearance, self.ee_error = np.zeros(N), np.zeros(N)
-        self.X, self.K = np.zeros((N, 19)), np.zeros(N, dtype=np.int64)
+        self._obs0 = self.obs[0]  # copy 0's row (the single env's compiled step writes it)
+        self._mode = decision.MODE_RESIDUAL if residual else decision.MODE_PARAMETERS
+        self._no_action = np.zeros(2, dtype=np.float32)  # the action of a decision with (m, T_c) already set
+        self.last_rates, self.X = np.zeros((N, 12)), np.zeros((N, 19))
+        # Per-copy scalars: step k, clipped actions, smoothness cost so far, shaping potential, clearance [m] and
+        # EE position error [m]. One copy keeps them in lists (a Python element access costs a third of numpy's,
+        # which the single env's microsecond budget notices); N copies in arrays for the vectorised bookkeeping.
+        self.K, self.clipped = _scalars(N, np.int64), _scalars(N, np.int64)
+        self.cost_so_far, self.potential = _scalars(N, float), _scalars(N, float)
+        self.clearance, self.ee_error = _scalars(N, float), _scalars(N, float)
         self.FP, self.IP = np.zeros((N, kp.N_FP)), np.zeros((N, kp.N_IP), dtype=np.int64)
         self.plants = (np.zeros((N, 13)), np.zeros((N, 13, 3)), np.zeros((N, 13, 3, 3)))
         self.DS, self.scratch = np.zeros((N, decision.N_DS)), np.zeros((N, decision.N_SCRATCH))
@@ -139,13 +153,13 @@ class EpisodeEngine:
         physical (m, T_c [s]) instead (the (m, T_c) ids; validated, no float32 rounding).
         """
         clipped = 0
-        if parameters is None and not (self.compiled and type(action) is np.ndarray and action.dtype == np.float32
+        if parameters is None and not (self.compiled and type(action) is np.ndarray and action.dtype is _FLOAT32
                                        and action.shape == self.action_shape and action.flags.c_contiguous):
             action, was_clipped = act.check_action(action, self.action_shape)
             clipped = int(was_clipped)
         if self.compiled:
             status, increment, cost = self._decide_one(action, parameters)
-            obs = self.obs[0].copy()
+            obs = self._obs0.copy()
         else:
             status, increment, cost, obs = self._advance_one(action, parameters)
         self.clipped[0] += clipped
@@ -153,13 +167,13 @@ class EpisodeEngine:
 
     def _decide_one(self, action: np.ndarray, parameters: tuple[float, float] | None) -> tuple[int, float, float]:
         """The compiled decision of copy 0."""
-        mode = decision.MODE_RESIDUAL if self.residual else decision.MODE_PARAMETERS
+        mode = self._mode
         if parameters is not None:
             self._set_parameters(0, parameters)
-            action, mode = np.zeros(2, dtype=np.float32), decision.MODE_SET
-        k = int(self.K[0])
+            action, mode = self._no_action, decision.MODE_SET
+        k = self.K[0]
         rows, status, was_clipped, increment, cost, clearance, ee_error = decision.step_episode(
-            self.episode, action, mode, self.terminate, k, k, self.n_steps, self.steps_per_decision, self.obs[0])
+            self.episode, action, mode, self.terminate, k, k, self.n_steps, self.steps_per_decision, self._obs0)
         if status == decision.STATUS_BAD_ACTION:
             act.check_action(action, self.action_shape)  # raises, naming the problem
             raise InvalidInputError(f"action must be finite, got {action}; allowed range [-1, 1] per entry")

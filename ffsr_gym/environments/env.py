@@ -115,7 +115,8 @@ class FFSREnv(gym.Env):
         return self.engine.obs[0].copy(), info
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
-        self._check_running()
+        if not self._started or self.engine.rollouts[0].finished:
+            self._check_running()  # raises, naming the problem
         out = self.engine.step_one(action)
         if self.render_mode == "human":
             self.render()
