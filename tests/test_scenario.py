@@ -41,6 +41,7 @@ def test_plain_data_equals_the_standard_library_conversion():
         expected = dataclasses.asdict(scenario)
         del expected["source"]
         expected = {key: value for key, value in expected.items() if value is not None}
+        expected["trajectory"] = expected.pop("desired_path")  # the attribute's key in the file
         assert to_dict(scenario) == expected
 
 

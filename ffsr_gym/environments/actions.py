@@ -88,7 +88,7 @@ def residual_rates(action: np.ndarray, task: Scenario, rule: Any, fades: bool, t
     rates = scaled_residual(action, task.env.residual_rate_deg_s)
     if not fades:
         return rates
-    return rule.benchmark.residual_fade(t, task.trajectory.motion_time_s) * rates
+    return rule.benchmark.residual_fade(t, task.desired_path.motion_time_s) * rates
 
 
 def decision_settings(task: Scenario, rule: Any, fades: bool) -> np.ndarray:
@@ -101,7 +101,7 @@ def decision_settings(task: Scenario, rule: Any, fades: bool) -> np.ndarray:
     settings = np.zeros(decision.N_DS)
     (m_lo, m_hi), (t_lo, t_hi) = task.env.m_bounds, task.env.T_c_bounds_s
     benchmark = rule.benchmark
-    fade_s, motion_s = (benchmark.action.residual_fade_s, task.trajectory.motion_time_s) if fades else (1.0, np.inf)
+    fade_s, motion_s = (benchmark.action.residual_fade_s, task.desired_path.motion_time_s) if fades else (1.0, np.inf)
     clearance_scale = benchmark.action.cost_clearance_scale_m if rule.compiled_terms else 1.0
     settings[:decision.D_SCORE] = (float(np.radians(task.env.residual_rate_deg_s)), fade_s, motion_s, m_lo, m_hi, t_lo,
                                    t_hi, task.objective.max_rate_deg_s, clearance_scale)

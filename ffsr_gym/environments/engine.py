@@ -40,9 +40,9 @@ from ffsr_gym.sim.trajectory import Trajectory
 _FLOAT32 = np.dtype(np.float32)
 
 
-def _scalars(n: int, kind: type) -> Any:
-    """``n`` zeros of ``kind``: a list for one copy, an array for several (see :class:`EpisodeEngine`)."""
-    return [0 if kind is np.int64 else 0.0] if n == 1 else np.zeros(n, dtype=kind)
+def _scalars(n: int, kind: type, single: bool) -> Any:
+    """``n`` zeros of ``kind``: a list for the single env's copy, an array for a batch (see :class:`EpisodeEngine`)."""
+    return [0 if kind is np.int64 else 0.0] if single else np.zeros(n, dtype=kind)
 
 
 class EpisodeEngine:
@@ -54,7 +54,7 @@ class EpisodeEngine:
     """
 
     def __init__(self, source: TaskSource, *, residual: bool, copies: int = 1, backend: str = "auto",
-                 terminate_on_violation: bool = True, dense_shaping: bool = False) -> None:
+                 terminate_on_violation: bool = True, dense_shaping: bool = False, batched: bool = False) -> None:
         self.source, self.rule, self.spec = source, source.rule, source.spec
         self.residual, self.backend, self.n = residual, backend, int(copies)
         self.terminate, self.shaping = terminate_on_violation, dense_shaping and self.rule.shaping
@@ -66,6 +66,7 @@ class EpisodeEngine:
             raise InvalidInputError(f"backend {backend!r}; allowed: {list(BACKENDS)}")
         self.compiled = backend == "kernel" or (backend == "auto" and kernel_available())
         N = self.n
+        self.single = N == 1 and not batched  # stepped by step_one (else by step_copies)
         self.scenarios: list[Scenario | None] = [None] * N
         self.rollouts: list[Rollout | None] = [None] * N
         self.results: list[Any] = [None] * N  # each copy's last finished episode's result (the rule's)
@@ -77,9 +78,9 @@ class EpisodeEngine:
         # Per-copy scalars: step k, clipped actions, smoothness cost so far, shaping potential, clearance [m] and
         # EE position error [m]. One copy keeps them in lists (a Python element access costs a third of numpy's,
         # which the single env's microsecond budget notices); N copies in arrays for the vectorised bookkeeping.
-        self.K, self.clipped = _scalars(N, np.int64), _scalars(N, np.int64)
-        self.cost_so_far, self.potential = _scalars(N, float), _scalars(N, float)
-        self.clearance, self.ee_error = _scalars(N, float), _scalars(N, float)
+        self.K, self.clipped = _scalars(N, np.int64, self.single), _scalars(N, np.int64, self.single)
+        self.cost_so_far, self.potential = _scalars(N, float, self.single), _scalars(N, float, self.single)
+        self.clearance, self.ee_error = _scalars(N, float, self.single), _scalars(N, float, self.single)
         self.FP, self.IP = np.zeros((N, kp.N_FP)), np.zeros((N, kp.N_IP), dtype=np.int64)
         self.plants = (np.zeros((N, 13)), np.zeros((N, 13, 3)), np.zeros((N, 13, 3, 3)))
         self.DS, self.scratch = np.zeros((N, decision.N_DS)), np.zeros((N, decision.N_SCRATCH))
@@ -121,7 +122,7 @@ class EpisodeEngine:
             stacked[i] = own
         decision.forget_plan(self.scratch[i])
         self.DS[i] = act.decision_settings(scenario, self.rule, self.spec.actions.residual_fades)
-        if self.n == 1:
+        if self.single:
             self.episode = self._new_episode()
 
     def _new_episode(self) -> decision.Episode:
@@ -137,7 +138,7 @@ class EpisodeEngine:
         The compiled and the reference pipelines give the same numbers bit for bit on the kernel backend:
         this switch is how the tests show it.
         """
-        if self.n != 1 or any(self.K):
+        if not self.single or any(self.K):
             raise InvalidInputError("the reference pipeline steps one copy, from the start of an episode")
         self.compiled, self.episode = False, None
 
@@ -248,7 +249,7 @@ class EpisodeEngine:
         out, start = self.out, self.K.copy()
         out[~active, :5] = 0.0  # no steps, no cost; clearance and EE error of the reset (or held) state stay
         if self.workspaces is None:
-            self.workspaces = kernel_batch.workspaces(self.n, len(self.mdl[13]))
+            self.workspaces = kernel_batch.workspaces(self.n, len(self.mdl.cap_radius))
         kernel_batch.decide_batch(self.mdl, self.plants, self.workspaces, self.X, self.K, active, self.n_steps,
                                   self.steps_per_decision, self.FP, self.IP, self.DS, actions, mode,
                                   tuple(self.logs[key] for key in LOG_FIELDS), self.last_rates, self.scratch,

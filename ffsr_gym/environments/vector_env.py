@@ -72,7 +72,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         self.benchmark_spec, self.num_envs = spec, int(num_envs)
         self.source = TaskSource(spec, score_rule(spec), options.get(spec.tasks.keyword), options.get("split"))
         self.engine = EpisodeEngine(self.source, residual=self.residual, copies=self.num_envs, backend="kernel",
-                                    dense_shaping=options.get("dense_shaping", False))
+                                    dense_shaping=options.get("dense_shaping", False), batched=True)
         self.family = self.source.family
         self.n_steps, self.dt = self.engine.n_steps, self.engine.dt
         self.steps_per_decision = self.engine.steps_per_decision

@@ -8,7 +8,8 @@ Pinocchio's ``q``/``v`` layout.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections import namedtuple
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -62,9 +63,14 @@ class KernelModel:
     axis_code: np.ndarray
     subtree: np.ndarray
 
-    def arrays(self) -> tuple:
-        """The arrays in declaration order (the kernel's positional arguments)."""
-        return tuple(getattr(self, name) for name in self.__dataclass_fields__)
+    def arrays(self) -> ModelArrays:
+        """The arrays as the kernel takes them: a :data:`ModelArrays` named tuple (same names, same order)."""
+        return ModelArrays(*(getattr(self, name) for name in self.__dataclass_fields__))
+
+
+#: The kernel's model argument: :class:`KernelModel`'s arrays as a named tuple, which numba passes and reads by
+#: name (``mdl.cap_radius``) at the cost of a plain tuple.
+ModelArrays = namedtuple("ModelArrays", [f.name for f in fields(KernelModel)])
 
 
 def extract(robot: Robot, collision: CollisionModel) -> KernelModel:

@@ -39,7 +39,7 @@ def run_batch(mdl, plants, X, K, active, n_total, n_max, FP, IP, residuals, logs
     LX, LV, LDQ, LERR, LCLEAR, LSELF, LMU, LCDF, LSMIN = logs
     n = X.shape[0]
     for g in prange(n_groups):
-        ws = workspace(len(mdl[13]))
+        ws = workspace(len(mdl.cap_radius))
         for e in range(g, n, n_groups):
             rows[e], status[e] = 0, 0
             applied[e, :, :] = 0.0
@@ -59,7 +59,7 @@ def observe_batch(mdl, X, K, FP, IP, E1, E0, REL, CLEAR, n_groups):
     """EE errors (N, 6), base errors (N, 6), obstacle-relative vectors (N, 3), clearances (N,) at the current states."""
     n = X.shape[0]
     for g in prange(n_groups):
-        ws = workspace(len(mdl[13]))
+        ws = workspace(len(mdl.cap_radius))
         for e in range(g, n, n_groups):
             CLEAR[e] = observe_into(mdl, ws, X[e], K[e] * FP[e, F_DT], FP[e], IP[e], REL[e])
             E1[e, :], E0[e, :] = ws.e1, ws.e0

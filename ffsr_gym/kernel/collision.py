@@ -16,7 +16,7 @@ from numba import njit
 @njit(cache=True, error_model="numpy", inline="always")
 def capsule_ends_into(mdl, ws, p_b):
     """World end points of every capsule axis into ``ws.cap_A`` / ``ws.cap_B`` (kinematics in ``ws``)."""
-    _capsule_ends(mdl[10], mdl[11], mdl[12], ws.R_b, ws.Rj, ws.pj, p_b, ws.cap_A, ws.cap_B)
+    _capsule_ends(mdl.cap_parent, mdl.cap_a, mdl.cap_b, ws.R_b, ws.Rj, ws.pj, p_b, ws.cap_A, ws.cap_B)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -202,7 +202,7 @@ def obstacle_clearance(mdl, ws, p_b, p_o, r_o):
 
     Needs :func:`capsule_ends_into` done at the current state.
     """
-    return _obstacle_clearance(mdl[13], mdl[16], ws.R_b, p_b, ws.cap_A, ws.cap_B, p_o, r_o, ws.rel)
+    return _obstacle_clearance(mdl.cap_radius, mdl.box_half, ws.R_b, p_b, ws.cap_A, ws.cap_B, p_o, r_o, ws.rel)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -235,7 +235,7 @@ def self_clearance(mdl, ws, p_b):
     distances are computed only while a bound can still beat the best so far. Needs
     :func:`capsule_ends_into` done at the current state.
     """
-    return _self_clearance(mdl[13], mdl[14], mdl[15], mdl[16], ws.R_b, p_b, ws.cap_A, ws.cap_B, ws.cap_mid, ws.cap_hl,
+    return _self_clearance(mdl.cap_radius, mdl.cap_arm, mdl.cap_vs_base, mdl.box_half, ws.R_b, p_b, ws.cap_A, ws.cap_B, ws.cap_mid, ws.cap_hl,
                            ws.bound, ws.first, ws.second, ws.cand)
 
 

@@ -196,7 +196,7 @@ def step_episode(episode, action, mode, stop, k, row0, n_total, n_max, obs):
 @njit(cache=True, error_model="numpy")
 def new_episode(mdl, plant, x, fp, ip, ds, logs, last_rates):
     """An :class:`Episode` over the given arrays, with a fresh workspace and scratch."""
-    return Episode(mdl, plant, workspace(len(mdl[13])), x, fp, ip, ds, logs, last_rates, np.zeros(N_SCRATCH))
+    return Episode(mdl, plant, workspace(len(mdl.cap_radius)), x, fp, ip, ds, logs, last_rates, np.zeros(N_SCRATCH))
 
 
 @njit(cache=True, error_model="numpy")

@@ -7,6 +7,7 @@ import math
 import numpy as np
 from numba import njit
 
+from ffsr_gym.kernel.arrays import ModelArrays
 from ffsr_gym.kernel.borrow import borrowed
 from ffsr_gym.kernel.collision import capsule_ends_into, obstacle_clearance, self_clearance
 from ffsr_gym.kernel.physics import midpoint_into, momentum_into, velocity_into, workspace
@@ -78,7 +79,7 @@ def run(mdl, plant, x_start, k0, n_total, n_max, fp, ip, residual, stop_on_viola
     Writes one sample per step into the ``out_*`` arrays (from row 0) and returns
     ``(x_next, rows, status)``: status 0 ok, 1 rate-limit violation, 2 collision, 3 non-finite rates.
     """
-    return run_into(mdl, plant, workspace(len(mdl[13])), x_start.copy(), k0, n_total, n_max, fp, ip, residual,
+    return run_into(mdl, plant, workspace(len(mdl.cap_radius)), x_start.copy(), k0, n_total, n_max, fp, ip, residual,
                     stop_on_violation, record_only, False, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf,
                     out_smin)
 
@@ -94,7 +95,10 @@ def run_into(mdl_owner, plant_owner, ws_owner, x_owner, k0, n_total, n_max, fp_o
     settings (an observation just computed it), so the first step reuses it.
     """
     mdl, ws, x, fp, ip = borrowed(mdl_owner), borrowed(ws_owner), borrowed(x_owner), borrowed(fp_owner), borrowed(ip_owner)
-    body = mdl[:4] + borrowed(plant_owner) + mdl[7:]  # the plant: the planner's kinematics, its own inertias
+    mass, lever, inertia = borrowed(plant_owner)  # the plant: the planner's kinematics, its own inertias
+    body = ModelArrays(mdl.parent, mdl.placement_R, mdl.placement_p, mdl.axis, mass, lever, inertia, mdl.ee_parent,
+                       mdl.ee_R, mdl.ee_p, mdl.cap_parent, mdl.cap_a, mdl.cap_b, mdl.cap_radius, mdl.cap_arm,
+                       mdl.cap_vs_base, mdl.box_half, mdl.q_index, mdl.v_index, mdl.axis_code, mdl.subtree)
     mismatch = ip[I_PLANT] == 1
     dt, h = fp[F_DT], fp[F_H:F_H + 6]
     rows = 0
@@ -144,7 +148,7 @@ def run_into(mdl_owner, plant_owner, ws_owner, x_owner, k0, n_total, n_max, fp_o
 @njit(cache=True, error_model="numpy")
 def observe(mdl, x, t, fp, ip):
     """EE error (6), base error (6), obstacle-relative vector (3) and clearance [m] at (t, x)."""
-    ws, rel = workspace(len(mdl[13])), np.zeros(3)
+    ws, rel = workspace(len(mdl.cap_radius)), np.zeros(3)
     clear = observe_into(mdl, ws, x, t, fp, ip, rel)
     return ws.e1, ws.e0, rel, clear
 

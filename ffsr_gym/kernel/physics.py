@@ -115,8 +115,8 @@ def _rotate_inertia_into(out, R, I):
 @njit(cache=True, error_model="numpy", inline="always")
 def kinematics_into(mdl, x, ws):
     """Forward kinematics into the workspace: joint rotations/origins, base rotation, EE poses, axes."""
-    parent, pl_R, pl_p, axis = mdl[0], mdl[1], mdl[2], mdl[3]
-    ee_parent, ee_R, ee_p, axis_code = mdl[7], mdl[8], mdl[9], mdl[19]
+    parent, pl_R, pl_p, axis = mdl.parent, mdl.placement_R, mdl.placement_p, mdl.axis
+    ee_parent, ee_R, ee_p, axis_code = mdl.ee_parent, mdl.ee_R, mdl.ee_p, mdl.axis_code
     Rj, pj, R_b, Re, pe, z, tmp, rot = ws.Rj, ws.pj, ws.R_b, ws.Re, ws.pe, ws.z, ws.tmp, ws.rot
     quat_into(R_b, x[3], x[4], x[5], x[6])
     for k in range(12):
@@ -151,7 +151,7 @@ def kinematics_into(mdl, x, ws):
 @njit(cache=True, error_model="numpy", inline="always")
 def momentum_into(mdl, x, ws):
     """H_b, H_bm (about the base CoM, world frame; SPEC §2.3) and the system CoM, into the workspace."""
-    mass, lever, inertia, subtree = mdl[4], mdl[5], mdl[6], mdl[20]
+    mass, lever, inertia, subtree = mdl.mass, mdl.lever, mdl.inertia, mdl.subtree
     Rj, pj, z, H_b, H_bm, rg, r, Iw = ws.Rj, ws.pj, ws.z, ws.H_b, ws.H_bm, ws.rg, ws.r, ws.Iw
     M = mass[0]
     g0, g1, g2 = mass[0] * x[0], mass[0] * x[1], mass[0] * x[2]

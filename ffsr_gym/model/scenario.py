@@ -23,6 +23,7 @@ from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model import portable
 from ffsr_gym.model.resources import robot_dir, scenario_path
 from ffsr_gym.model.schema import (
+    file_key,
     BOOL,
     TEXT,
     TEXTS,
@@ -79,7 +80,8 @@ class Target:
 
 @dataclass(frozen=True)
 class ReferencePath:
-    """Trapezoidal-velocity desired path (SPEC §8): motion time t_f [s], acceleration time t_a [s]."""
+    """The desired end-effector path (file section ``[trajectory]``): trapezoidal velocity, motion time t_f [s],
+    acceleration time t_a [s] (docs/model.md)."""
 
     motion_time_s: float = field(metadata=number(0.0, 3600.0, lo_open=True))
     accel_time_s: float = field(metadata=number(0.0, 1800.0, lo_open=True))
@@ -233,7 +235,7 @@ class Scenario:
     simulation: Simulation = field(metadata=section(Simulation))
     initial: InitialState = field(metadata=section(InitialState))
     target: Target = field(metadata=section(Target))
-    trajectory: ReferencePath = field(metadata=section(ReferencePath))
+    desired_path: ReferencePath = field(metadata=section(ReferencePath, key="trajectory"))
     planner: PlannerSettings = field(metadata=section(PlannerSettings))
     obstacle: Obstacle | None = field(default=None, metadata=section(Obstacle))
     debris: Debris | None = field(default=None, metadata=section(Debris))
@@ -301,15 +303,16 @@ def _plain(value: Any) -> Any:
     if kind is tuple or kind is list:
         return kind(_plain(item) for item in value)
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {name: _plain(getattr(value, name)) for name in _field_names(kind)}
+        return {key: _plain(getattr(value, name)) for name, key in _field_keys(kind)}
     if kind is dict:
         return {_plain(key): _plain(item) for key, item in value.items()}
     return copy.deepcopy(value)
 
 
 @functools.lru_cache(maxsize=None)
-def _field_names(cls: type) -> tuple[str, ...]:
-    return tuple(f.name for f in dataclasses.fields(cls))
+def _field_keys(cls: type) -> tuple[tuple[str, str], ...]:
+    """(attribute, key in the file) of each field: the plain data uses the file's layout."""
+    return tuple((f.name, file_key(f)) for f in dataclasses.fields(cls))
 
 
 def load_scenario(name_or_path: str | Path) -> Scenario:
@@ -353,7 +356,7 @@ def _from_dict(data: dict[str, Any], *, source: str) -> Scenario:
 
 
 def _check_cross_fields(s: Scenario, where: str) -> None:
-    path = s.trajectory
+    path = s.desired_path
     if path.accel_time_s > path.motion_time_s / 2:
         raise ScenarioError(
             f"{where}key 'trajectory.accel_time_s' = {path.accel_time_s} is out of range; "

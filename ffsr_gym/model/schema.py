@@ -58,9 +58,15 @@ def choice(*options: str) -> dict:
     return {"kind": "choice", "options": options}
 
 
-def section(cls: type) -> dict:
-    """A nested table, validated as the frozen dataclass ``cls``."""
-    return {"kind": "section", "cls": cls}
+def section(cls: type, *, key: str | None = None) -> dict:
+    """A nested table, validated as the frozen dataclass ``cls``; ``key``: its name in the file, when the
+    attribute's name differs."""
+    return {"kind": "section", "cls": cls, **({"key": key} if key else {})}
+
+
+def file_key(f: dataclasses.Field) -> str:
+    """A field's key in the data file (its ``key`` metadata, else its name)."""
+    return f.metadata.get("key", f.name)
 
 
 def build_table(cls: type, table: Any, *, prefix: str = "") -> Any:
@@ -73,7 +79,7 @@ def build_table(cls: type, table: Any, *, prefix: str = "") -> Any:
     """
     if not isinstance(table, dict):
         raise ScenarioError(f"key {prefix.rstrip('.') or '<root>'!r} must be a table, got {table!r}")
-    fields = {f.name: f for f in dataclasses.fields(cls) if f.name != "source"}
+    fields = {file_key(f): f for f in dataclasses.fields(cls) if f.name != "source"}
     unknown = sorted(set(table) - set(fields))
     if unknown:
         raise ScenarioError(f"unknown key {prefix + unknown[0]!r}; allowed keys here: {sorted(fields)}")
@@ -85,9 +91,9 @@ def build_table(cls: type, table: Any, *, prefix: str = "") -> Any:
                 raise ScenarioError(f"missing key {key!r} (required)")
             continue
         if spec.metadata.get("kind") == "section":
-            values[name] = build_table(spec.metadata["cls"], table[name], prefix=key + ".")
+            values[spec.name] = build_table(spec.metadata["cls"], table[name], prefix=key + ".")
         else:
-            values[name] = convert(key, table[name], spec.metadata)
+            values[spec.name] = convert(key, table[name], spec.metadata)
     return cls(**values)
 
 

@@ -77,7 +77,7 @@ def reference_targets(robot: Robot, scenario: Scenario, initial_q: Array) -> tup
     path = DesiredPath.between(
         ee.translation, from_rotation(ee.rotation), np.array(scenario.target.position_m),
         np.array(scenario.target.quaternion_wxyz),
-        motion_time=scenario.trajectory.motion_time_s, accel_time=scenario.trajectory.accel_time_s,
+        motion_time=scenario.desired_path.motion_time_s, accel_time=scenario.desired_path.accel_time_s,
     )
     return path, robot.base_pose(initial_q)
 

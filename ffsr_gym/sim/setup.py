@@ -13,7 +13,7 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 
-from ffsr_gym.kernel.arrays import KernelModel, extract
+from ffsr_gym.kernel.arrays import KernelModel, ModelArrays, extract
 from ffsr_gym.model.collision import CollisionModel
 from ffsr_gym.model.obstacles import ObstacleField, obstacle_field
 from ffsr_gym.model.robot import Robot, load_robot
@@ -43,8 +43,8 @@ class RobotAssets:
         return extract(self.robot, self.collision)
 
     @cached_property
-    def kernel_arrays(self) -> tuple:
-        """``kernel.arrays()``, the kernel's positional model arguments."""
+    def kernel_arrays(self) -> ModelArrays:
+        """``kernel.arrays()``, the kernel's model argument (a named tuple of arrays)."""
         return self.kernel.arrays()
 
 

@@ -119,7 +119,7 @@ def replay(task: Scenario, certificate: Certificate, benchmark: Benchmark, *, ba
     rollout = make_rollout(task, backend=backend, m=m, T_c=T_c)
     per_decision = max(1, int(round(task.env.decision_interval_s / task.simulation.dt_s)))
     action = np.asarray(certificate.residual, dtype=np.float32)
-    motion_time = task.trajectory.motion_time_s
+    motion_time = task.desired_path.motion_time_s
     while rollout.k < rollout.n_steps:
         residual = benchmark.residual_fade(rollout.t, motion_time) * residual_rates(action, task.env.residual_rate_deg_s)
         _, status = rollout.advance(per_decision, residual, stop_on_violation=True)
