@@ -13,11 +13,12 @@ same at dt and dt/4, the Spearman rank correlation of per-task scores between dt
 IQM at each step, the median peak rate and the median clearance of successful episodes. Each
 episode is scored by the v1 score (``ffsr_gym.scoring.score.score_episode``), from the trajectory.
 
-    python benchmarks/dt_sensitivity.py --out benchmarks/dt_sensitivity.json [--tasks 100] [--workers 2]
-    python benchmarks/dt_sensitivity.py --out benchmarks/dt_sensitivity.json --docs docs/model.md
+    python benchmarks/dt_sensitivity.py --out runs/dt_sensitivity.json --summary benchmarks/dt_sensitivity.json \
+        --docs docs/model.md [--tasks 100] [--workers 2]
 
-Resumable: finished (law, tier, planner, dt) pieces are kept in the output file (written
-atomically), and a rerun computes only the missing ones.
+Resumable: finished (law, tier, planner, dt) pieces, with every episode's row, are kept in
+``--out`` (written atomically; a run folder, about 2 MB), and a rerun computes only the missing
+ones. ``--summary`` gets the per-(law, tier, planner) rows and the provenance (committed).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from tqdm.auto import tqdm
 
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.scenario import Scenario
-from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic
+from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic, write_text_atomic
 from ffsr_gym.scoring.aggregate import iqm
 from ffsr_gym.tasks.certificate import planner_episode
 from ffsr_gym.tasks.splits import pool, task_scenario
@@ -79,8 +80,9 @@ def run_piece(piece: tuple[str, str, str, dict, int, list[int]]) -> dict:
     return {"law": law, "tier": tier, "planner": name, "divisor": divisor, "rows": rows}
 
 
-def spearman(a: np.ndarray, b: np.ndarray) -> float:
-    """Spearman rank correlation (average ranks for ties); 1.0 when both are constant and equal."""
+def spearman(a: np.ndarray, b: np.ndarray) -> float | None:
+    """Spearman rank correlation (average ranks for ties); 1.0 when both are constant and equal, None when
+    only one is constant (undefined: every task scores the same at one step, e.g. all fail)."""
     def ranks(x: np.ndarray) -> np.ndarray:
         order = np.argsort(x, kind="mergesort")
         r = np.empty(len(x))
@@ -91,7 +93,7 @@ def spearman(a: np.ndarray, b: np.ndarray) -> float:
 
     ra, rb = ranks(a), ranks(b)
     if ra.std() == 0.0 or rb.std() == 0.0:
-        return 1.0 if np.array_equal(a, b) else float("nan")
+        return 1.0 if np.array_equal(a, b) else None
     return float(np.corrcoef(ra, rb)[0, 1])
 
 
@@ -117,6 +119,17 @@ def summary(pieces: list[dict]) -> list[dict]:
     return out
 
 
+def sample(pieces: list[dict], count: int = 3) -> list[dict]:
+    """The first ``count`` episodes' scores of every piece: what a test replays."""
+    return [{key: p[key] for key in ("law", "tier", "planner", "divisor")}
+            | {"seeds": [r["seed"] for r in p["rows"][:count]], "scores": [r["score"] for r in p["rows"][:count]]}
+            for p in pieces]
+
+
+def _num(x: float | None) -> str:
+    return "undefined" if x is None else f"{x:.2f}"
+
+
 def table(rows: list[dict], law: str) -> str:
     """Markdown of one law's rows."""
     lines = ["| tier | planner | tasks | verdicts equal dt / dt/4 | Spearman dt / dt/4 | IQM dt, dt/2, dt/4 | "
@@ -126,7 +139,7 @@ def table(rows: list[dict], law: str) -> str:
         iqms = ", ".join("-" if v is None else f"{v:.3f}" for v in r["iqm"])
         rates = ", ".join("-" if v is None else f"{v:.2f}" for v in r["success"])
         clear = "-" if r["median_success_clearance_m"] is None else f"{r['median_success_clearance_m']:.4f}"
-        lines.append(f"| {r['tier']} | {r['planner']} | {r['tasks']} | {r['agreement']:.2f} | {r['spearman']:.2f} | "
+        lines.append(f"| {r['tier']} | {r['planner']} | {r['tasks']} | {r['agreement']:.2f} | {_num(r['spearman'])} | "
                      f"{iqms} | {rates} | {r['median_peak_rate_deg_s'][0]:.0f} / {r['median_peak_rate_deg_s'][1]:.0f} | "
                      f"{clear} |")
     return "\n".join(lines)
@@ -134,7 +147,8 @@ def table(rows: list[dict], law: str) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--out", default="benchmarks/dt_sensitivity.json", help="results file (resumable)")
+    parser.add_argument("--out", default="runs/dt_sensitivity.json", help="per-episode results (resumable)")
+    parser.add_argument("--summary", default="benchmarks/dt_sensitivity.json", help="summary file with provenance")
     parser.add_argument("--tasks", type=int, default=100, help="test tasks per tier (default: 100, the whole pool)")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default: 2)")
     parser.add_argument("--root", default="leaderboards", help="leaderboard root with the v1 planner entries")
@@ -143,6 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.tasks < 1 or args.workers < 1:
         parser.error(f"--tasks {args.tasks} and --workers {args.workers}: each must be >= 1")
     out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
     data = json.loads(out.read_text()) if out.is_file() else {"pieces": []}
     done = {(p["law"], p["tier"], p["planner"], p["divisor"]) for p in data["pieces"]}
     todo = []
@@ -158,17 +173,24 @@ def main(argv: list[str] | None = None) -> int:
             data["provenance"] = provenance(command=" ".join(["python", *sys.argv]))
             write_json_atomic(out, data)
     data["summary"] = summary(data["pieces"])
+    write_json_atomic(Path(args.summary), {"summary": data["summary"], "sample": sample(data["pieces"]),
+                                           "provenance": data.get("provenance", {}), "tasks_per_tier": args.tasks,
+                                           "episodes_file": str(out)})
     if args.docs:
         docs = Path(args.docs)
         commit = data.get("provenance", {}).get("git_commit", "none")[:8]
-        text = (f"Generated from `{out}` (made at {commit}; test pools of the v1 pool files, "
-                f"{args.tasks} tasks per tier, v1 score).\n\nLaw `cdf` (μ = min(1, Δ / CDF), benchmark v1):\n\n"
-                f"{table(data['summary'], 'cdf')}\n\nLaw `distance` (μ = min(1, d / d_s)²):\n\n"
-                f"{table(data['summary'], 'distance')}\n")
-        docs.write_text(splice_generated(docs.read_text(encoding="utf-8"), START, END, text), encoding="utf-8")
+        text = docs_text(data["summary"], args.summary, commit, args.tasks)
+        write_text_atomic(docs, splice_generated(docs.read_text(encoding="utf-8"), START, END, text))
     for law in LAWS:
         print(f"\n{law}:\n{table(data['summary'], law)}")
     return 0
+
+
+def docs_text(rows: list[dict], source: str, commit: str, tasks: int) -> str:
+    """What goes between the docs markers."""
+    return (f"Generated from `{source}` (made at {commit}; test pools of the v1 pool files, "
+            f"{tasks} tasks per tier, v1 score).\n\nLaw `cdf` (μ = min(1, Δ / CDF), benchmark v1):\n\n"
+            f"{table(rows, 'cdf')}\n\nLaw `distance` (μ = min(1, d / d_s)²):\n\n{table(rows, 'distance')}\n")
 
 
 if __name__ == "__main__":

@@ -39,27 +39,28 @@ def _list(args: argparse.Namespace) -> None:
 
 
 def env_ids() -> list[str]:
-    """Every registered id of every benchmark version (the registry's, in version order)."""
-    from ffsr_gym.model.spec import all_specs
+    from ffsr_gym.model.spec import registered_ids
 
-    return [env_id for spec in all_specs().values() for env_id in spec.env_ids]
+    return registered_ids()
 
 
 def task_names() -> list[str]:
-    """Every task name a version takes besides scenarios: its named scenarios and tiers."""
-    from ffsr_gym.model.spec import all_specs
+    from ffsr_gym.model.spec import all_task_names
 
-    names: list[str] = []
-    for spec in all_specs().values():
-        names += [n for n in (*spec.tasks.scenarios, *spec.tasks.tiers) if n not in names]
-    return names
+    return all_task_names()
 
 
 def split_names() -> list[str]:
-    """Every split a version's pools have."""
-    from ffsr_gym.model.spec import all_specs
+    from ffsr_gym.model.spec import all_splits
 
-    return sorted({split for spec in all_specs().values() for split in spec.tasks.splits})
+    return all_splits()
+
+
+def build_targets() -> list[str]:
+    """What ``tasks build --tier`` builds (the pool build's targets)."""
+    from ffsr_gym.tasks.build import TARGETS
+
+    return list(TARGETS)
 
 
 def algorithm_names() -> list[str]:
@@ -156,7 +157,9 @@ def _leaderboard_pareto(args: argparse.Namespace) -> None:
     from ffsr_gym.bench.policies import load_model
     from ffsr_gym.report.leaderboard_plots import PARETO_FILE
 
-    out = Path(args.root) / "v1" / PARETO_FILE
+    from ffsr_gym.model.spec import ranked_spec
+
+    out = Path(args.root) / ranked_spec().version / PARETO_FILE
     print("wrote", paper_pareto(args.root, out, args.models, load_model=load_model, progress=not args.no_progress,
                                 command=" ".join(["ffsr-gym", *args.argv])))
 
@@ -317,7 +320,7 @@ def _add_study_commands(sub: Any) -> None:
     tasks_sub = tasks.add_subparsers(dest="action", required=True)
     tb = tasks_sub.add_parser("build", help="apply the tier rule to candidate seeds and write the pool file "
                                             "(resumable: finished chunks in --work are kept)")
-    tb.add_argument("--tier", default="v1", choices=("v1", "debris", "robust"),
+    tb.add_argument("--tier", default="v1", choices=build_targets(),
                     help="v1: the easy, medium and hard pools; debris or robust: that perturbed tier, on top of the v1 "
                          "pool file's tier tasks (default: v1)")
     tb.add_argument("--work", default="runs/tasks-v1", help="folder of the finished chunks (default: runs/tasks-v1; "

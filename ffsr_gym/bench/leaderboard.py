@@ -22,7 +22,7 @@ from ffsr_gym.bench import tables
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.model.resources import scenario_names
 from ffsr_gym.model.scenario import load_scenario
-from ffsr_gym.model.spec import BenchmarkSpec, all_specs, spec_for_env_id
+from ffsr_gym.model.spec import BenchmarkSpec, all_specs, ranked_spec, spec_for_env_id
 from ffsr_gym.provenance import splice_generated, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
 
@@ -97,15 +97,9 @@ def is_stale(entry: dict[str, Any]) -> bool:
 
 def ranks(entries: list[dict[str, Any]], spec: BenchmarkSpec | None = None) -> list[int]:
     """``ci_separation``: 1 + the number of entries whose CI lower bound is above this entry's CI upper bound."""
-    key = (spec or _ci_spec()).leaderboard.ci
+    key = (spec or ranked_spec()).leaderboard.ci
     bounds = [e["metrics"][key] for e in entries]
     return [1 + sum(lo > hi for lo, _ in bounds) for _, hi in bounds]
-
-
-def _ci_spec() -> BenchmarkSpec:
-    """The newest live version ranked by CI separation (the default of :func:`ranks` and the summary)."""
-    live = [s for s in all_specs().values() if s.leaderboard.ranking == "ci_separation" and s.status == "live"]
-    return sorted(live, key=lambda s: s.version)[-1]
 
 
 def ordered(spec: BenchmarkSpec, items: list[dict[str, Any]]) -> list[tuple[str, dict[str, Any]]]:
@@ -183,6 +177,6 @@ def splice_summary(text: str, root: str | Path, spec: BenchmarkSpec | None = Non
     Raises:
         FFSRError: the markers are missing.
     """
-    spec = spec or _ci_spec()
+    spec = spec or ranked_spec()
     start, end = spec.leaderboard.markers("-summary")
     return splice_generated(text, start, end, tables.summary(spec, load_entries(root, spec), ranks))

@@ -23,9 +23,10 @@ from tqdm.auto import tqdm
 
 from ffsr_gym.bench.evaluation import evaluate
 from ffsr_gym.bench.tables import method_name
-from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.model.spec import ranked_spec
 from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.provenance import provenance, write_json_atomic
+from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.scoring.score import EpisodeScore
 from ffsr_gym.tasks.certificate import planner_episode, planner_task
 
@@ -64,14 +65,14 @@ def paper_pareto(root: str | Path, out: str | Path, models: str | Path | None = 
     it or ``models``, RL entries are listed as not run.
     """
     root, start = Path(root), time.perf_counter()
-    benchmark = load_benchmark("v1")
+    benchmark = score_rule(ranked_spec()).benchmark
     task = benchmark.task(load_scenario("paper"))
     settings = [(m, T_c) for m in GRID_M for T_c in GRID_T_C_S]
     grid = [_point(planner_episode(task, benchmark, method="predefined_time", m=m, T_c=T_c), m=m, T_c_s=T_c)
             for m, T_c in tqdm(settings, desc="paper grid", disable=not progress)]
     baselines: list[dict[str, Any]] = []
     fixed: dict[str, dict[str, Any]] = {}  # a planner setting that several tiers' entries share: one point
-    for path in tqdm(sorted((root / "v1").glob("*/*.json")), desc="baselines on paper", disable=not progress):
+    for path in tqdm(sorted((root / ranked_spec().version).glob("*/*.json")), desc="baselines on paper", disable=not progress):
         entry, tier = json.loads(path.read_text()), path.parent.name
         planner = entry.get("extra", {}).get("planner")
         if planner is not None:

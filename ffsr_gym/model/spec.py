@@ -238,6 +238,31 @@ def spec_for_version(version: str) -> BenchmarkSpec:
     return specs[version]
 
 
+def registered_ids() -> list[str]:
+    """Every id of every known version, in version order."""
+    return [env_id for spec in all_specs().values() for env_id in spec.env_ids]
+
+
+def all_task_names() -> list[str]:
+    """Every task name a version takes besides scenario paths: its named scenarios and tiers."""
+    names: list[str] = []
+    for spec in all_specs().values():
+        names += [n for n in (*spec.tasks.scenarios, *spec.tasks.tiers) if n not in names]
+    return names
+
+
+def all_splits() -> list[str]:
+    """Every split of a version's pools."""
+    return sorted({split for spec in all_specs().values() for split in spec.tasks.splits})
+
+
+def ranked_spec() -> BenchmarkSpec:
+    """The newest live version ranked by CI separation: the one the README summary, the leaderboard
+    figures and the Pareto study show."""
+    live = [s for s in all_specs().values() if s.leaderboard.ranking == "ci_separation" and s.status == "live"]
+    return sorted(live, key=lambda s: s.version)[-1]
+
+
 def spec_for_env_id(env_id: str) -> BenchmarkSpec | None:
     """The spec that registers ``env_id`` (a ``module:`` prefix is ignored), or None."""
     key = env_id.split(":")[-1]

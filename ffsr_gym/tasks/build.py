@@ -32,8 +32,10 @@ from ffsr_gym.tasks.perturbation import PERTURBED_TIERS, load_perturbed_rule, pe
 from ffsr_gym.tasks.splits import LABEL_CODES, SEED_RANGES, SPLITS, load_pools, pool_path
 from ffsr_gym.tasks.tiers import PERTURBED_REJECTIONS, REJECTIONS, TIERS, Verdict, classify, classify_perturbed
 
-#: What ``--tier`` builds: the v1 tiers together, or one perturbed tier.
-TARGETS = ("v1", *PERTURBED_TIERS)
+#: The rule file whose tiers the build applies (its hash is the pools' ``rule_sha256``).
+RULES = "v1"
+#: What ``--tier`` builds: the rule file's tiers together (named after it), or one perturbed tier.
+TARGETS = (RULES, *PERTURBED_TIERS)
 _ADMITTED = {LABEL_CODES[tier] for tier in TIERS}
 
 
@@ -42,12 +44,12 @@ def _check_target(target: str) -> None:
         raise FFSRError(f"tier {target!r}; allowed: {list(TARGETS)}")
 
 
-def rule_sha256(target: str = "v1") -> str:
+def rule_sha256(target: str = RULES) -> str:
     """Hash of the rule a pool file was built under (``v1.toml``; a perturbed tier: also ``v1_perturbed.toml``
     and the v1 pool file its candidates come from)."""
     _check_target(target)
-    digest = hashlib.sha256((envs_dir() / "benchmark" / "v1.toml").read_bytes())
-    if target != "v1":
+    digest = hashlib.sha256((envs_dir() / "benchmark" / f"{RULES}.toml").read_bytes())
+    if target in PERTURBED_TIERS:
         digest.update(perturbed_rule_sha256().encode())
         digest.update(pool_path().read_bytes())
     return digest.hexdigest()
@@ -67,10 +69,10 @@ def base_admitted(split: str, start: int, stop: int) -> list[bool]:
     return [labels[seed - first] in _ADMITTED for seed in range(start, stop)]
 
 
-def classify_chunk(split: str, start: int, stop: int, target: str = "v1") -> list[dict[str, Any]]:
+def classify_chunk(split: str, start: int, stop: int, target: str = RULES) -> list[dict[str, Any]]:
     """Verdicts (as dicts) of the candidate seeds [start, stop) (a worker's unit of work)."""
-    benchmark = load_benchmark("v1")
-    if target == "v1":
+    benchmark = load_benchmark(RULES)
+    if target not in PERTURBED_TIERS:
         return [classify(seed, benchmark).as_dict() for seed in range(start, stop)]
     rule = load_perturbed_rule()
     return [classify_perturbed(target, seed, benchmark, base_admitted=admitted, rule=rule).as_dict()
@@ -78,7 +80,7 @@ def classify_chunk(split: str, start: int, stop: int, target: str = "v1") -> lis
 
 
 def _work_dir(work: Path, target: str) -> Path:
-    return work if target == "v1" else work / target
+    return work / target if target in PERTURBED_TIERS else work
 
 
 def _chunk_path(work: Path, split: str, start: int) -> Path:
@@ -95,13 +97,13 @@ def _load_chunk(path: Path, sha: str) -> list[Verdict] | None:
     return [Verdict.from_dict(v) for v in data["verdicts"]]
 
 
-def _needed(benchmark: Benchmark, split: str, target: str = "v1") -> int:
-    rule = benchmark.tasks if target == "v1" else load_perturbed_rule()
+def _needed(benchmark: Benchmark, split: str, target: str = RULES) -> int:
+    rule = load_perturbed_rule() if target in PERTURBED_TIERS else benchmark.tasks
     return int(rule.train_tasks if split == "train" else rule.test_tasks)
 
 
 def _tiers(target: str) -> tuple[str, ...]:
-    return TIERS if target == "v1" else (target,)
+    return (target,) if target in PERTURBED_TIERS else TIERS
 
 
 def _complete(verdicts: list[Verdict], needed: int, tiers: tuple[str, ...]) -> bool:
@@ -109,7 +111,7 @@ def _complete(verdicts: list[Verdict], needed: int, tiers: tuple[str, ...]) -> b
     return all(counts[tier] >= needed for tier in tiers)
 
 
-def build_split(work: Path, split: str, *, target: str = "v1", chunk: int = 100, max_candidates: int = 50_000,
+def build_split(work: Path, split: str, *, target: str = RULES, chunk: int = 100, max_candidates: int = 50_000,
                 executor: Executor | None = None, workers: int = 1, progress: bool = True) -> list[Verdict]:
     """Classify the candidates of ``split`` chunk by chunk until every tier's pool is full.
 
@@ -120,7 +122,7 @@ def build_split(work: Path, split: str, *, target: str = "v1", chunk: int = 100,
             work folder was built under another rule.
     """
     _check_target(target)
-    benchmark, sha, tiers = load_benchmark("v1"), rule_sha256(target), _tiers(target)
+    benchmark, sha, tiers = load_benchmark(RULES), rule_sha256(target), _tiers(target)
     needed, first, work = _needed(benchmark, split, target), SEED_RANGES[split][0], _work_dir(Path(work), target)
     verdicts: list[Verdict] = []
     with tqdm(desc=f"tasks {target} {split}", unit="task", disable=not progress) as bar:
@@ -146,10 +148,10 @@ def build_split(work: Path, split: str, *, target: str = "v1", chunk: int = 100,
     return verdicts
 
 
-def summarise_split(verdicts: list[Verdict], needed: int, target: str = "v1") -> dict[str, Any]:
+def summarise_split(verdicts: list[Verdict], needed: int, target: str = RULES) -> dict[str, Any]:
     """The pools, labels and counts of a split from its consecutive verdicts (trimmed to the last pool seed)."""
     tiers = _tiers(target)
-    rejections = REJECTIONS if target == "v1" else PERTURBED_REJECTIONS
+    rejections = PERTURBED_REJECTIONS if target in PERTURBED_TIERS else REJECTIONS
     pools: dict[str, list[Verdict]] = {tier: [] for tier in tiers}
     last = 0
     for i, v in enumerate(verdicts):
@@ -175,20 +177,20 @@ def summarise_split(verdicts: list[Verdict], needed: int, target: str = "v1") ->
     }
 
 
-def build(work: str | Path, *, target: str = "v1", out: str | Path | None = None, chunk: int = 100,
+def build(work: str | Path, *, target: str = RULES, out: str | Path | None = None, chunk: int = 100,
           max_candidates: int = 50_000, executor: Executor | None = None, workers: int = 1,
           progress: bool = True) -> dict[str, Any]:
     """Build both splits of ``target`` (``v1``: easy, medium and hard; or a perturbed tier), resuming from
     ``work``, and write the pool file ``out`` (default: the shipped one)."""
     _check_target(target)
     began, work = time.perf_counter(), Path(work)
-    benchmark = load_benchmark("v1")
+    benchmark = load_benchmark(RULES)
     splits = {}
     for split in SPLITS:
         verdicts = build_split(work, split, target=target, chunk=chunk, max_candidates=max_candidates,
                                executor=executor, workers=workers, progress=progress)
         splits[split] = summarise_split(verdicts, _needed(benchmark, split, target), target)
-    data = {"version": "v1", "tiers": list(_tiers(target)), "rule_sha256": rule_sha256(target),
+    data = {"version": RULES, "tiers": list(_tiers(target)), "rule_sha256": rule_sha256(target),
             "seed_ranges": SEED_RANGES, "label_codes": LABEL_CODES,
             "provenance": provenance(wall_time_s=time.perf_counter() - began), "splits": splits}
     write_json_atomic(pool_path(_tiers(target)[0]) if out is None else out, data)

@@ -1,0 +1,53 @@
+"""The dt-sensitivity study (docs/model.md §19): a sample of its episodes replays, and the docs hold its tables.
+
+CI replays one sampled task of each (law, tier, planner, step) combination of a sample; the slow
+test replays every stored sample.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import benchmark_script
+
+ROOT = Path(__file__).resolve().parent.parent
+STUDY = json.loads((ROOT / "benchmarks" / "dt_sensitivity.json").read_text())
+study = benchmark_script("dt_sensitivity")
+
+
+def _replay(entry: dict, count: int) -> None:
+    kwargs = study.planners(entry["tier"], ROOT / "leaderboards")[entry["planner"]]
+    piece = study.run_piece((entry["law"], entry["tier"], entry["planner"], kwargs, entry["divisor"],
+                             entry["seeds"][:count]))
+    assert [row["score"] for row in piece["rows"]] == entry["scores"][:count]
+
+
+@pytest.mark.parametrize("index", [0, 25, 59, 97, 118])  # both laws, several tiers and steps
+def test_sampled_episodes_replay(index):
+    _replay(STUDY["sample"][index], 1)
+
+
+@pytest.mark.slow
+def test_every_sampled_episode_replays():
+    for entry in STUDY["sample"]:
+        _replay(entry, len(entry["seeds"]))
+
+
+def test_docs_hold_the_generated_tables():
+    text = (ROOT / "docs" / "model.md").read_text(encoding="utf-8")
+    block = text[text.index(study.START) + len(study.START):text.index(study.END)]
+    commit = STUDY["provenance"]["git_commit"][:8]
+    assert block.strip() == study.docs_text(STUDY["summary"], "benchmarks/dt_sensitivity.json", commit,
+                                            STUDY["tasks_per_tier"]).strip()
+
+
+def test_spearman_against_an_independent_computation():
+    scipy_stats = pytest.importorskip("scipy.stats")
+    rng = np.random.default_rng(0)
+    a, b = rng.integers(0, 5, 40).astype(float), rng.normal(size=40)
+    assert study.spearman(a, b) == pytest.approx(scipy_stats.spearmanr(a, b).statistic, abs=1e-12)
+    assert study.spearman(np.zeros(5), np.arange(5.0)) is None
