@@ -104,15 +104,18 @@ def _current_umask() -> int:
 def write_text_atomic(path: str | Path, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file and an atomic rename.
 
-    The file keeps the user's umask (not mkstemp's 0600). A writer killed mid-write leaves the
-    previous file intact and a hidden ``.<name>.*.tmp``, which the next write of ``path`` removes
-    (one writer per path).
+    The file keeps the user's umask (not mkstemp's 0600). The temporary's name carries the
+    writer's process id (``.<name>.<pid>.<random>.tmp``): a writer killed mid-write leaves the
+    previous file intact and its temporary, which the next write of ``path`` removes once that
+    process is gone; a live writer's temporary is never touched, so concurrent writers of one file
+    each land whole (the last rename wins).
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     for stale in path.parent.glob(f".{glob.escape(path.name)}.*.tmp"):  # left by a writer killed mid-write
-        stale.unlink(missing_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        if not _writer_alive(stale, path.name):
+            stale.unlink(missing_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.{os.getpid()}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as handle:
             handle.write(text)
@@ -124,6 +127,23 @@ def write_text_atomic(path: str | Path, text: str) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def _writer_alive(temporary: Path, name: str) -> bool:
+    """Whether the process that made ``temporary`` (``.<name>.<pid>.<random>.tmp``) still runs."""
+    pid_text = temporary.name[len(name) + 2:].split(".", 1)[0]
+    if not pid_text.isdigit():
+        return False  # not made by this scheme: an older writer's, long gone
+    pid = int(pid_text)
+    if pid == os.getpid():
+        return True  # this process: another thread may be writing
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # alive, owned by someone else
+    return True
 
 
 def splice_generated(text: str, start: str, end: str, body: str, *, where: str = "the file") -> str:

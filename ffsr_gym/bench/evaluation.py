@@ -58,6 +58,23 @@ def spec_of(env_id: Any) -> BenchmarkSpec:
     return spec
 
 
+#: Environment arguments an evaluation may pass besides the task: they change nothing the score reads.
+NEUTRAL_KWARGS = ("backend", "render_mode")
+
+
+def _check_protocol(spec: BenchmarkSpec, kwargs: dict[str, Any]) -> None:
+    """Refuse env arguments that change the evaluation protocol (episode length, step, task set).
+
+    Raises:
+        InvalidInputError: naming the argument and the ones allowed.
+    """
+    allowed = {spec.tasks.keyword, *(("split",) if spec.tasks.splits else ()), *spec.reward.options, *NEUTRAL_KWARGS}
+    for name in kwargs:
+        if name not in allowed:
+            raise InvalidInputError(f"env_kwargs[{name!r}] would change the evaluation protocol of {spec.version} "
+                                    f"(an entry plays the spec's whole episodes of its tasks); allowed: {sorted(allowed)}")
+
+
 def _seed_plan(spec: BenchmarkSpec, env_id: str, seeds: Sequence[int] | None, env_kwargs: dict | None,
                pool_arguments: dict[str, Any]) -> Plan:
     given = [name for name, value in pool_arguments.items() if value is not None]
@@ -172,6 +189,7 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
                           training_pool=training_pool)
     if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
         raise InvalidInputError(f"chunk = {chunk!r}; allowed: an integer >= 1")
+    _check_protocol(spec, plan.kwargs)
     return _run(policy, plan, name=name, progress=progress, executor=executor, chunk=chunk, batched=batched)
 
 

@@ -14,6 +14,7 @@ code path computes every version's score:
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from typing import Any
@@ -67,8 +68,11 @@ class PaperObjective:
         return 1.0 if terminated else 0.0
 
     def result(self, traj: Trajectory, scenario: Scenario) -> ObjectiveTerms:
-        """B, feasibility and score of a finished trajectory."""
-        return objective_terms(traj, scenario.objective)
+        """B, feasibility and score of a trajectory; one cut short without a violation is infeasible."""
+        terms = objective_terms(traj, scenario.objective)
+        if incomplete(traj, scenario, terms.rate_violation or terms.collided):
+            return dataclasses.replace(terms, feasible=False, score=math.inf)
+        return terms
 
     def reward(self, cost_before: float, increment: float, result: ObjectiveTerms | None, *, terminated: bool,
                truncated: bool, scenario: Scenario) -> tuple[float, float]:
@@ -135,8 +139,12 @@ class BoundedSmoothness:
         return depth + max(0.0, peak / limit - 1.0)
 
     def result(self, traj: Trajectory, scenario: Scenario) -> EpisodeScore:
-        """The episode score of a finished trajectory (:func:`ffsr_gym.scoring.score.score_episode`)."""
-        return score_episode(traj, scenario, self.benchmark)
+        """The episode score of a trajectory (:func:`ffsr_gym.scoring.score.score_episode`); one cut short
+        without a violation fails as ``incomplete``."""
+        result = score_episode(traj, scenario, self.benchmark)
+        if incomplete(traj, scenario, result.failure in ("rate_limit", "collision")):
+            return dataclasses.replace(result, score=0.0, success=False, failure="incomplete")
+        return result
 
     def reward(self, cost_before: float, increment: float, result: EpisodeScore | None, *, terminated: bool,
                truncated: bool, scenario: Scenario) -> tuple[float, float]:
@@ -162,6 +170,13 @@ class BoundedSmoothness:
         names = self.spec.leaderboard
         return {"score_mean": float(np.mean(scores)), names.iqm: iqm(scores), names.ci: bootstrap_ci(scores, iqm),
                 names.rate: float(np.mean(rates.astype(float))), "episodes": len(scores)}
+
+
+def incomplete(traj: Trajectory, scenario: Scenario, violated: bool) -> bool:
+    """Whether an episode ended before its horizon without a violation (cut short by a wrapper, a time limit
+    or a caller): such an episode is never scored as complete. A complete one holds every step's sample
+    and the final one (``n_steps + 1`` rows)."""
+    return not violated and len(traj.t) < scenario.n_steps + 1
 
 
 def _iqm_or_inf(values: Array) -> float:
