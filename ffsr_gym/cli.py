@@ -9,6 +9,8 @@ from typing import Any
 
 
 from ffsr_gym.exceptions import FFSRError
+from ffsr_gym.bench.options import natural, positive_float, positive_int
+from ffsr_gym.model.spec import all_splits, all_task_names, registered_ids
 
 
 def _info(args: argparse.Namespace) -> None:
@@ -22,38 +24,9 @@ def _info(args: argparse.Namespace) -> None:
 
 
 def _list(args: argparse.Namespace) -> None:
-    from ffsr_gym.model.resources import envs_dir, scenario_names
-    from ffsr_gym.model.spec import all_specs
-    from ffsr_gym.tasks.splits import pool
+    from ffsr_gym.report.scenario_info import registry_lines
 
-    robots = sorted(p.name for p in (envs_dir() / "robots").iterdir() if p.is_dir())
-    print("environment ids:", ", ".join(env_ids()))
-    for spec in all_specs().values():
-        tasks = spec.tasks
-        print(f"{spec.version} ({spec.status}): {', '.join(spec.env_ids)}; {spec.description}")
-        print(f"  tasks ({tasks.keyword}=): " + ", ".join([*tasks.scenarios, *tasks.tiers] or ["a scenario"]))
-        for tier in tasks.tiers:
-            print(f"    {tier}: " + ", ".join(f"{split} pool {len(pool(tier, split))} tasks" for split in tasks.splits))
-    print("scenarios (scenario=):", ", ".join(scenario_names()))
-    print("robots:", ", ".join(robots))
-
-
-def env_ids() -> list[str]:
-    from ffsr_gym.model.spec import registered_ids
-
-    return registered_ids()
-
-
-def task_names() -> list[str]:
-    from ffsr_gym.model.spec import all_task_names
-
-    return all_task_names()
-
-
-def split_names() -> list[str]:
-    from ffsr_gym.model.spec import all_splits
-
-    return all_splits()
+    print("\n".join(registry_lines()))
 
 
 def build_targets() -> list[str]:
@@ -106,18 +79,25 @@ def _train(args: argparse.Namespace) -> None:
     from ffsr_gym.bench.evaluation import spec_of
     from ffsr_gym.optim.rl import train_and_evaluate
 
+    from ffsr_gym.bench.options import free_entry, unique_seeds
+    from ffsr_gym.optim.rl import entry_name
+
     spec = spec_of(args.env_id)
     task = args.task if spec.evaluation.protocol == "pool" else args.scenario
+    folder = Path(args.leaderboard or ".") / spec.folder(args.env_id, task)
+    unique_seeds(args.seeds)
+    if args.leaderboard:  # before any training: a committed entry is never replaced by accident
+        free_entry(folder, entry_name(args.algo, spec, args.env_id, task), force=args.force)
     report = train_and_evaluate(args.algo, args.env_id, task=task, seeds=args.seeds, out=args.out,
                                 timesteps=args.timesteps, hyperparams=args.hyperparams, curve_every=args.curve_every,
                                 progress=not args.no_progress)
     print(f"{report.name}: {report.metrics}")
     if args.leaderboard:
-        print("wrote", report.save(Path(args.leaderboard) / spec.folder(args.env_id, task)))
+        print("wrote", report.save(folder))
 
 
 def _leaderboard(args: argparse.Namespace) -> int:
-    from ffsr_gym.bench.leaderboard import render_readme, splice_summary, write_readme
+    from ffsr_gym.bench.leaderboard import splice_summary, write_readme
     from ffsr_gym.exceptions import InvalidInputError
     from ffsr_gym.provenance import write_text_atomic
 
@@ -125,19 +105,24 @@ def _leaderboard(args: argparse.Namespace) -> int:
     if readme is not None and not readme.is_file():
         raise InvalidInputError(f"--readme {args.readme!r} is not a file")
     if args.check:
-        stale = [f"{args.root}/README.md"] if render_readme(args.root) != (Path(args.root) / "README.md").read_text() else []
-        if readme is not None and splice_summary(readme.read_text(encoding="utf-8"), args.root) != readme.read_text(encoding="utf-8"):
-            stale.append(str(readme))
-        if stale:
-            print(f"out of date: {', '.join(stale)}; run ffsr-gym leaderboard render", file=sys.stderr)
-            return 1
-        print("leaderboard tables are up to date")
-        return 0
+        return _check_leaderboard(args.root, readme)
     print("updated" if write_readme(args.root) else "already up to date", f"{args.root}/README.md")
     if readme is not None:
         write_text_atomic(readme, splice_summary(readme.read_text(encoding="utf-8"), args.root))
         print("updated the v1 summary in", readme)
     return 0
+
+
+def _check_leaderboard(root: str, readme: Path | None) -> int:
+    """``leaderboard render --check``: 1 when an entry is refused or a table is out of date."""
+    from ffsr_gym.bench.leaderboard import check
+
+    problems = check(root, readme)
+    for line in problems:
+        print(line, file=sys.stderr)
+    if not problems:
+        print("leaderboard tables are up to date, and every entry verifies")
+    return 1 if problems else 0
 
 
 def _leaderboard_plot(args: argparse.Namespace) -> None:
@@ -164,26 +149,28 @@ def _leaderboard_pareto(args: argparse.Namespace) -> None:
                                 command=" ".join(["ffsr-gym", *args.argv])))
 
 
-def _load_policy(spec: str, algo: str | None):
+def _load_policy(spec: str, algo: str | None, trust: bool):
     from ffsr_gym.bench.policies import load_policy
 
-    return load_policy(spec, algo)
+    return load_policy(spec, algo, trust=trust)
 
 
 def _add_policy_arguments(parser: argparse.ArgumentParser, *, env_id: str | None, policy: str | None, task: str,
                           split: str, split_help: str) -> None:
     """The options that name an environment and a policy (``evaluate``, ``render``); None: required."""
-    parser.add_argument("--env-id", required=env_id is None, default=env_id, choices=env_ids(),
+    parser.add_argument("--env-id", required=env_id is None, default=env_id, choices=registered_ids(),
                         help="environment id" + (f" (default: {env_id})" if env_id else ""))
     parser.add_argument("--policy", required=policy is None, default=policy,
                         help="'m,T_c' (fixed parameters, e.g. 0.3,4), an SB3 .zip (with --algo), or module:callable"
                              + (f" (default: {policy})" if policy else ""))
     parser.add_argument("--algo", default=None, choices=algorithm_names(), help="the algorithm of an SB3 .zip")
-    parser.add_argument("--task", default=task, choices=task_names(),
+    parser.add_argument("--task", default=task, choices=all_task_names(),
                         help=f"task or tier of the versions with tiers (default: {task})")
-    parser.add_argument("--split", default=split, choices=split_names(),
+    parser.add_argument("--split", default=split, choices=all_splits(),
                         help=f"versions with tiers: {split_help} (default: {split})")
     parser.add_argument("--scenario", default="paper", help="v0: scenario name or TOML path (default: paper)")
+    parser.add_argument("--trust-model", action="store_true",
+                        help="load an SB3 .zip from outside the working folder (loading unpickles: it can run code)")
 
 
 def _env_kwargs(args: argparse.Namespace) -> dict:
@@ -202,12 +189,16 @@ def _evaluate(args: argparse.Namespace) -> None:
     from ffsr_gym.bench.evaluation import evaluate, spec_of
     from ffsr_gym.exceptions import InvalidInputError
 
-    policy = _load_policy(args.policy, args.algo)
+    from ffsr_gym.bench.options import free_entry
+
     spec = spec_of(args.env_id)
     pooled = spec.evaluation.protocol == "pool"
-    if args.workers < 1 or (args.workers > 1 and not pooled):
-        raise InvalidInputError(f"--workers {args.workers}; allowed: >= 1, and more than 1 only for the ids scored on "
-                                "a pool")
+    if args.workers > 1 and not pooled:
+        raise InvalidInputError(f"--workers {args.workers}; more than 1 only for the ids scored on a pool")
+    folder = Path(args.leaderboard or ".") / spec.folder(args.env_id, args.task if pooled else "")
+    if args.leaderboard:
+        free_entry(folder, args.name, force=args.force)  # before any work: a late error would lose the run
+    policy = _load_policy(args.policy, args.algo, args.trust_model)
     executor = ProcessPoolExecutor(args.workers) if args.workers > 1 else None
     try:
         report = evaluate(policy, args.env_id, name=args.name, progress=not args.no_progress,
@@ -216,35 +207,34 @@ def _evaluate(args: argparse.Namespace) -> None:
     finally:
         if executor is not None:
             executor.shutdown()
+    if not isinstance(policy, tuple):  # what `ffsr-gym leaderboard verify` re-runs
+        report.extra["policy"] = {"sb3": args.policy, "algo": args.algo} if args.policy.endswith(".zip") \
+            else {"callable": args.policy}
     print(f"{report.name}: {report.metrics}")
     if args.leaderboard:
-        print("wrote", report.save(Path(args.leaderboard) / spec.folder(args.env_id, args.task if pooled else "")))
+        print("wrote", report.save(folder))
+
+
+def _verify(args: argparse.Namespace) -> int:
+    from ffsr_gym.bench.replay import replay_entry
+
+    same, what = replay_entry(args.entry, trust=args.trust_model)
+    print(f"{args.entry}: {what}", file=sys.stdout if same else sys.stderr)
+    return 0 if same else 1
 
 
 def _render(args: argparse.Namespace) -> None:
     import gymnasium
-    from PIL import Image
 
     from ffsr_gym.bench.entry import stepper
-    from ffsr_gym.exceptions import InvalidInputError
+    from ffsr_gym.report.episode_gif import check_gif_path, record_episode, write_gif
 
-    if args.every < 1 or args.speed <= 0:
-        raise InvalidInputError(f"--every {args.every} (allowed: >= 1), --speed {args.speed} (allowed: > 0)")
-    policy = _load_policy(args.policy, args.algo)
+    out = check_gif_path(args.out)  # before the episode runs
+    policy = _load_policy(args.policy, args.algo, args.trust_model)
     env = gymnasium.make(args.env_id, render_mode="rgb_array", **_env_kwargs(args))
-    obs, _ = env.reset(seed=args.seed)
-    step, frames, decisions, done, info = stepper(policy, env), [env.render()], 0, False, {}
-    while not done:
-        obs, _, terminated, truncated, info = step(obs)
-        decisions, done = decisions + 1, terminated or truncated
-        if decisions % args.every == 0 or done:
-            frames.append(env.render())
+    frames, decisions, info = record_episode(env, stepper(policy, env), seed=args.seed, every=args.every)
     env.close()
-    interval_ms = 1000.0 * args.every * env.unwrapped.family.env.decision_interval_s / args.speed
-    images = [Image.fromarray(frame) for frame in frames]
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    images[0].save(out, save_all=True, append_images=images[1:], duration=round(interval_ms), loop=0)
+    write_gif(frames, out, 1000.0 * args.every * env.unwrapped.family.env.decision_interval_s / args.speed)
     outcome = {k: info.get(k) for k in ("score", "success", "failure") if k in info}
     print(f"wrote {out}: {len(frames)} frames, {decisions} decisions, {outcome}")
 
@@ -252,10 +242,10 @@ def _render(args: argparse.Namespace) -> None:
 def _tasks(args: argparse.Namespace) -> None:
     from concurrent.futures import ProcessPoolExecutor
 
-    from ffsr_gym.tasks.build import build
+    from ffsr_gym.tasks.build import build, die_with_parent
 
-    workers = max(1, args.workers)
-    executor = ProcessPoolExecutor(workers) if workers > 1 else None
+    workers = args.workers
+    executor = ProcessPoolExecutor(workers, initializer=die_with_parent) if workers > 1 else None
     try:
         data = build(args.work, target=args.tier, out=args.out, chunk=args.chunk, max_candidates=args.max_candidates, executor=executor,
                      workers=workers, progress=not args.no_progress)
@@ -276,22 +266,22 @@ def _add_model_commands(sub: Any) -> None:
     info.set_defaults(func=_info)
     rep = sub.add_parser("reproduce", help="run the paper's Section 5 and write figures and a metrics table")
     rep.add_argument("--out", required=True, help="output folder, e.g. runs/paper")
-    rep.add_argument("--duration", type=float, default=None, help="shorten every run to this many seconds")
+    rep.add_argument("--duration", type=positive_float, default=None, help="shorten every run to this many seconds")
     rep.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     rep.add_argument("--readme", default=None, help="also write the claims and gain-sweep tables into this README (between their markers)")
     rep.set_defaults(func=_reproduce)
     ga = sub.add_parser("ga", help="the paper's GA over (m, T_c): both modes, figures, table, leaderboard entries")
     ga.add_argument("--out", required=True, help="output folder; checkpoints there make a killed run resume")
     ga.add_argument("--modes", nargs="+", default=["reproduction", "full"], choices=["reproduction", "full"])
-    ga.add_argument("--population", type=int, default=100, help="individuals per generation (default: 100, the paper's)")
-    ga.add_argument("--generations", type=int, default=100, help="generations (default: 100, the paper's)")
-    ga.add_argument("--seed", type=int, default=0, help="random seed of the GA (default: 0)")
+    ga.add_argument("--population", type=positive_int, default=100, help="individuals per generation (default: 100, the paper's)")
+    ga.add_argument("--generations", type=positive_int, default=100, help="generations (default: 100, the paper's)")
+    ga.add_argument("--seed", type=natural, default=0, help="random seed of the GA (default: 0)")
     ga.add_argument("--selection", default="inverse", choices=["inverse", "literal"],
                     help="roulette weights: 1/B ('inverse', default) or B as printed ('literal')")
     ga.add_argument("--scenario", default="paper", help="scenario name or TOML path (default: paper)")
     ga.add_argument("--executor", default="process", choices=["process", "dask", "none"],
                     help="where objective evaluations run (default: process pool)")
-    ga.add_argument("--workers", type=int, default=None, help="worker processes (default: all cores)")
+    ga.add_argument("--workers", type=positive_int, default=None, help="worker processes (default: all cores)")
     ga.add_argument("--leaderboard", default=None, help="write leaderboard entries under this folder")
     ga.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ga.set_defaults(func=_ga)
@@ -302,18 +292,19 @@ def _add_study_commands(sub: Any) -> None:
     tr = sub.add_parser("train", help="train stable-baselines3 agents and score them with ffsr_gym.evaluate")
     tr.add_argument("--algo", required=True, choices=algorithm_names(),
                     help="a stable-baselines3 algorithm with a shipped hyperparameter file")
-    tr.add_argument("--env-id", default="FFSR-v0", choices=env_ids(), help="environment id (default: FFSR-v0)")
+    tr.add_argument("--env-id", default="FFSR-v0", choices=registered_ids(), help="environment id (default: FFSR-v0)")
     tr.add_argument("--scenario", default="paper",
                     help="versions scored on seeds: scenario name or TOML path (default: paper)")
-    tr.add_argument("--task", default="easy", choices=task_names(),
+    tr.add_argument("--task", default="easy", choices=all_task_names(),
                     help="versions with tiers: the tier; trains on its training pool, scores its test pool (default: easy)")
-    tr.add_argument("--curve-every", type=int, default=5000,
+    tr.add_argument("--curve-every", type=positive_int, default=5000,
                     help="versions with tiers: env steps between learning-curve points (default: 5000)")
-    tr.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4], help="training seeds (default: 0 1 2 3 4)")
-    tr.add_argument("--timesteps", type=int, default=None, help="default: n_timesteps of the hyperparameter file")
+    tr.add_argument("--seeds", type=natural, nargs="+", default=[0, 1, 2, 3, 4], help="training seeds (default: 0 1 2 3 4)")
+    tr.add_argument("--timesteps", type=positive_int, default=None, help="default: n_timesteps of the hyperparameter file")
     tr.add_argument("--hyperparams", default=None, help="folder with <algo>.yml (default: the shipped ffsr_gym/hyperparams)")
     tr.add_argument("--out", default="runs/rl", help="folder of the models and records (default: runs/rl)")
     tr.add_argument("--leaderboard", default=None, help="write the entry under this folder")
+    tr.add_argument("--force", action="store_true", help="replace an entry of the same name (default: refuse)")
     tr.add_argument("--no-progress", action="store_true")
     tr.set_defaults(func=_train)
     tasks = sub.add_parser("tasks", help="benchmark v1 task tiers")
@@ -327,25 +318,26 @@ def _add_study_commands(sub: Any) -> None:
                                                             "a perturbed tier uses <work>/<tier>)")
     tb.add_argument("--out", default=None, help="pool file to write (default: the shipped envs/benchmark/v1_tasks.json, "
                                                 "or v1_<tier>_tasks.json)")
-    tb.add_argument("--chunk", type=int, default=100, help="candidates per chunk (default: 100)")
-    tb.add_argument("--workers", type=int, default=2, help="worker processes (default: 2)")
-    tb.add_argument("--max-candidates", type=int, default=50_000, help="give up after this many per split (default: 50000)")
+    tb.add_argument("--chunk", type=positive_int, default=100, help="candidates per chunk (default: 100)")
+    tb.add_argument("--workers", type=positive_int, default=2, help="worker processes (default: 2)")
+    tb.add_argument("--max-candidates", type=positive_int, default=50_000, help="give up after this many per split (default: 50000)")
     tb.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     tb.set_defaults(func=_tasks)
     ev = sub.add_parser("evaluate", help="score a policy with ffsr_gym.evaluate and optionally write a leaderboard entry")
     _add_policy_arguments(ev, env_id=None, policy=None, task="easy", split="test", split_help="pool scored")
     ev.add_argument("--training-pool", default=None, help="v1: what the policy was trained or tuned on (recorded)")
     ev.add_argument("--name", default="submission", help="entry name (default: submission)")
-    ev.add_argument("--workers", type=int, default=1,
+    ev.add_argument("--workers", type=positive_int, default=1,
                     help="v1: score the pool on this many processes; the same entry as with 1 (default: 1)")
     ev.add_argument("--leaderboard", default=None, help="write the entry under this leaderboard root")
+    ev.add_argument("--force", action="store_true", help="replace an entry of the same name (default: refuse)")
     ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ev.set_defaults(func=_evaluate)
     rd = sub.add_parser("render", help="an episode of a policy as an animated GIF")
     _add_policy_arguments(rd, env_id="FFSR-v1", policy="0.3,4", task="paper", split="train", split_help="pool of a tier")
-    rd.add_argument("--seed", type=int, default=0, help="reset seed: picks a tier's task (default: 0)")
-    rd.add_argument("--every", type=int, default=2, help="one frame every N decisions of 0.1 s (default: 2)")
-    rd.add_argument("--speed", type=float, default=2.0, help="playback speed over real time (default: 2)")
+    rd.add_argument("--seed", type=natural, default=0, help="reset seed: picks a tier's task (default: 0)")
+    rd.add_argument("--every", type=positive_int, default=2, help="one frame every N decisions of 0.1 s (default: 2)")
+    rd.add_argument("--speed", type=positive_float, default=2.0, help="playback speed over real time (default: 2)")
     rd.add_argument("--out", default="runs/episode.gif", help="GIF file (default: runs/episode.gif)")
     rd.set_defaults(func=_render)
 
@@ -366,6 +358,10 @@ def _add_board_commands(sub: Any) -> None:
                              "without it RL entries are listed as not run (default: none)")
     pareto.add_argument("--no-progress", action="store_true", help="hide the progress bars")
     pareto.set_defaults(func=_leaderboard_pareto)
+    verify = board_sub.add_parser("verify", help="re-run what an entry names and compare its rows exactly (exit 1: differ)")
+    verify.add_argument("entry", help="the entry's JSON file")
+    verify.add_argument("--trust-model", action="store_true", help="load an SB3 model from outside the working folder")
+    verify.set_defaults(func=_verify)
     render = board_sub.add_parser("render", help="regenerate the tables in <root>/README.md from the JSON entries")
     render.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
     render.add_argument("--check", action="store_true", help="exit 1 if the tables are out of date, write nothing")
@@ -384,7 +380,12 @@ def main(argv: list[str] | None = None) -> int:
     for add in (_add_model_commands, _add_study_commands, _add_board_commands):
         add(sub)
     argv = sys.argv[1:] if argv is None else argv
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # argparse's named errors (a bad option, a number out of range) return 2
+        if not stop.code:
+            raise  # --help, --version
+        return int(stop.code)
     args.argv = argv
     try:
         code = args.func(args)

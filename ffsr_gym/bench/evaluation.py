@@ -75,6 +75,27 @@ def _check_protocol(spec: BenchmarkSpec, kwargs: dict[str, Any]) -> None:
                                     f"(an entry plays the spec's whole episodes of its tasks); allowed: {sorted(allowed)}")
 
 
+def _check_parameters(policy: tuple, plan: Plan) -> None:
+    """A fixed (m, T_c [s]) must be two real numbers inside the version's action box.
+
+    Raises:
+        InvalidInputError: naming the value and the box.
+    """
+    rule = score_rule(plan.spec)
+    if rule.benchmark is not None and plan.spec.actions.boxes == "rules":
+        m_box, t_box = rule.benchmark.action.m_bounds, rule.benchmark.action.T_c_bounds_s
+    else:
+        from ffsr_gym.model.scenario import load_scenario
+
+        env = load_scenario(plan.kwargs.get(plan.spec.tasks.keyword, plan.spec.tasks.default)).env
+        m_box, t_box = env.m_bounds, env.T_c_bounds_s
+    numbers = len(policy) == 2 and all(isinstance(x, (int, float, np.floating)) and not isinstance(x, bool)
+                                       and np.isfinite(x) for x in policy)
+    if not numbers or not (m_box[0] <= policy[0] <= m_box[1] and t_box[0] <= policy[1] <= t_box[1]):
+        raise InvalidInputError(f"fixed parameters (m, T_c) = {policy!r}; allowed: two numbers with m in "
+                                f"[{m_box[0]}, {m_box[1]}] and T_c in [{t_box[0]}, {t_box[1]}] s (the action box)")
+
+
 def _seed_plan(spec: BenchmarkSpec, env_id: str, seeds: Sequence[int] | None, env_kwargs: dict | None,
                pool_arguments: dict[str, Any]) -> Plan:
     given = [name for name, value in pool_arguments.items() if value is not None]
@@ -190,6 +211,8 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
     if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
         raise InvalidInputError(f"chunk = {chunk!r}; allowed: an integer >= 1")
     _check_protocol(spec, plan.kwargs)
+    if isinstance(policy, tuple):
+        _check_parameters(policy, plan)
     return _run(policy, plan, name=name, progress=progress, executor=executor, chunk=chunk, batched=batched)
 
 
@@ -229,7 +252,10 @@ def _run(policy: Any, plan: Plan, *, name: str, progress: bool, executor: Execut
     rule = score_rule(plan.spec)
     prov = provenance(scenarios=hashes, seeds=[seed for seed, _ in plan.episodes],
                       wall_time_s=time.perf_counter() - start)
-    return EvalReport(plan.env_id, plan.kwargs, rule.aggregate(rows), rows, prov, name=name, extra=dict(plan.extra),
+    extra = dict(plan.extra)
+    if isinstance(policy, tuple):  # what `ffsr-gym leaderboard verify` re-runs
+        extra["policy"] = {"fixed": [float(x) for x in policy]}
+    return EvalReport(plan.env_id, plan.kwargs, rule.aggregate(rows), rows, prov, name=name, extra=extra,
                       score_rule=plan.spec.score.text)
 
 

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from ffsr_gym.bench import tables
+from ffsr_gym.bench.verify import entry_problems
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.model.resources import scenario_names
 from ffsr_gym.model.scenario import load_scenario
@@ -40,15 +41,34 @@ def folder_of(spec: BenchmarkSpec, root: str | Path, group: str) -> Path:
 
 
 def load_entries(root: str | Path, spec: BenchmarkSpec) -> dict[str, list[dict[str, Any]]]:
-    """A version's entries by table (env id or tier), each sorted by file name; missing folders are empty."""
+    """A version's entries by table (env id or tier), each sorted by file name; missing folders are empty.
+
+    Each entry carries ``_file``, ``_folder`` and ``_problems`` (:func:`ffsr_gym.bench.verify.entry_problems`;
+    an unreadable file is an entry with that problem).
+    """
     out = {}
     for group in groups(spec):
         folder = folder_of(spec, root, group)
         if "{task}" not in spec.leaderboard.folder and not folder.is_dir():
             continue  # an env id's table is shown once its folder exists
-        out[group] = [json.loads(p.read_text()) | {"_file": p.name, "_folder": str(folder)}
-                      for p in sorted(folder.glob("*.json"))]
+        out[group] = [_load(path, spec, group) for path in sorted(folder.glob("*.json"))]
     return out
+
+
+def _load(path: Path, spec: BenchmarkSpec, group: str) -> dict[str, Any]:
+    """One entry file, verified; never raises for its content."""
+    try:
+        entry = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        return {"_file": path.name, "_folder": str(path.parent), "_problems": [f"not a readable JSON file ({exc})"]}
+    if not isinstance(entry, dict):
+        entry = {"_not_an_object": True}
+    return entry | {"_file": path.name, "_folder": str(path.parent), "_problems": entry_problems(entry, spec, group)}
+
+
+def refused(entries: dict[str, list[dict[str, Any]]]) -> list[tuple[str, str, list[str]]]:
+    """(table, file, reasons) of every refused entry."""
+    return [(group, e["_file"], e["_problems"]) for group, items in entries.items() for e in items if e["_problems"]]
 
 
 def spec_of_entry(entry: dict[str, Any]) -> BenchmarkSpec:
@@ -121,15 +141,24 @@ def _inf(x: float | None) -> float:
 
 
 def render_tables(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> str:
-    """Markdown tables of one version, one per group with entries (v0: every env id, even empty)."""
+    """Markdown tables of one version, one per group with entries (v0: every env id, even empty).
+
+    Refused entries (``_problems``) are never ranked: they are listed under the table with their reasons.
+    """
     out = []
     every = spec.leaderboard.ranking == "feasible_then_iqm"
     for group, items in entries.items():
         if not items and not every:
             continue
+        ranked = [e for e in items if not e.get("_problems")]
         out += tables.header(spec, group)
-        out += [tables.row(spec, label, e) for label, e in ordered(spec, items)]
+        out += [tables.row(spec, label, e) for label, e in ordered(spec, ranked)]
         out.append("")
+        for e in items:
+            if e.get("_problems"):
+                out.append(f"* refused, not ranked: `{tables.safe(e['_file'])}`: {tables.safe('; '.join(e['_problems']))}")
+        if len(ranked) < len(items):
+            out.append("")
     return "\n".join(out)
 
 
@@ -179,4 +208,19 @@ def splice_summary(text: str, root: str | Path, spec: BenchmarkSpec | None = Non
     """
     spec = spec or ranked_spec()
     start, end = spec.leaderboard.markers("-summary")
-    return splice_generated(text, start, end, tables.summary(spec, load_entries(root, spec), ranks))
+    verified = {group: [e for e in items if not e["_problems"]] for group, items in load_entries(root, spec).items()}
+    return splice_generated(text, start, end, tables.summary(spec, verified, ranks))
+
+
+def check(root: str | Path, readme: str | Path | None = None) -> list[str]:
+    """Why the leaderboard under ``root`` cannot be published as it is: every refused entry (with its
+    reasons) and every generated text that is out of date; empty when all is well."""
+    problems = [f"refused: {spec.version} {group}/{name}: {'; '.join(reasons)}" for spec in all_specs().values()
+                for group, name, reasons in refused(load_entries(root, spec))]
+    if render_readme(root) != (Path(root) / "README.md").read_text():
+        problems.append(f"out of date: {Path(root) / 'README.md'}; run ffsr-gym leaderboard render")
+    if readme is not None:
+        text = Path(readme).read_text(encoding="utf-8")
+        if splice_summary(text, root) != text:
+            problems.append(f"out of date: {readme}; run ffsr-gym leaderboard render --readme {readme}")
+    return problems

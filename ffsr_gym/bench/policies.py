@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import importlib
+import importlib.util
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -28,17 +31,18 @@ def load_model(algo: str, path: str | Path) -> Any:
     return getattr(sb3_modules()[0], SB3_CLASSES[algo]).load(path, device="cpu")
 
 
-def load_policy(spec: str, algo: str | None):
+def load_policy(spec: str, algo: str | None, *, trust: bool = False):
     """A policy from the command line: ``"m,T_c"`` (fixed parameters), an SB3 ``.zip`` (with ``algo``),
-    or ``module:callable`` (imported; called with an observation, returns an action).
+    or ``module:callable`` / ``path/to/file.py:callable`` (called with an observation, returns an action).
+
+    A stable-baselines3 ``.zip`` is unpickled when it loads, so loading one runs code of its maker's
+    choosing: only a model inside the working folder loads, unless ``trust`` (``--trust-model``) says
+    that one from elsewhere is trusted.
 
     Raises:
-        InvalidInputError: none of these, naming the accepted forms.
+        InvalidInputError: none of these forms, an untrusted or unreadable model, a policy file that
+            fails to import (each named).
     """
-    import importlib
-
-    from ffsr_gym.exceptions import InvalidInputError
-
     parts = spec.split(",")
     if len(parts) == 2:
         try:
@@ -46,21 +50,46 @@ def load_policy(spec: str, algo: str | None):
         except ValueError:
             pass
     if spec.endswith(".zip"):
-
-        if algo not in SB3_CLASSES:
-            raise InvalidInputError(f"--algo {algo!r}: an SB3 .zip needs --algo, one of {sorted(SB3_CLASSES)}")
-        if not Path(spec).is_file():
-            raise InvalidInputError(f"--policy {spec!r}: no such file")
-        return load_model(algo, spec)
-    module, _, name = spec.partition(":")
-    if module and name:
-        try:
-            policy = getattr(importlib.import_module(module), name)
-        except (ImportError, AttributeError) as exc:
-            raise InvalidInputError(f"--policy {spec!r}: {exc}") from None
+        return _load_zip(spec, algo, trust)
+    target, _, name = spec.rpartition(":")
+    if target and name:
+        policy = getattr(_import(target, spec), name, None)
         if callable(policy):
             return policy
+        raise InvalidInputError(f"--policy {spec!r}: {target!r} has no callable {name!r}")
     raise InvalidInputError(f"--policy {spec!r}; allowed: 'm,T_c' (e.g. 0.3,4), an SB3 .zip with --algo, "
-                            "or module:callable")
+                            "module:callable or path/to/file.py:callable")
 
 
+def _load_zip(spec: str, algo: str | None, trust: bool) -> Any:
+    if algo not in SB3_CLASSES:
+        raise InvalidInputError(f"--algo {algo!r}: an SB3 .zip needs --algo, one of {sorted(SB3_CLASSES)}")
+    path = Path(spec).resolve()
+    if not path.is_file():
+        raise InvalidInputError(f"--policy {spec!r}: no such file")
+    if not trust and not path.is_relative_to(Path.cwd().resolve()):
+        raise InvalidInputError(f"--policy {spec!r} lies outside the working folder; loading an SB3 model unpickles "
+                                "it, which can run any code: pass --trust-model if you trust its source")
+    try:
+        return load_model(algo, path)
+    except (OSError, ValueError, KeyError, EOFError, RuntimeError, zipfile.BadZipFile) as exc:
+        raise InvalidInputError(f"--policy {spec!r}: not a stable-baselines3 {algo} model "
+                                f"({type(exc).__name__}: {exc})") from None
+
+
+def _import(target: str, spec: str) -> Any:
+    """A module by name, or a ``.py`` file by path."""
+    try:
+        if target.endswith(".py"):
+            path = Path(target)
+            if not path.is_file():
+                raise InvalidInputError(f"--policy {spec!r}: no such file {target!r}")
+            module_spec = importlib.util.spec_from_file_location(path.stem, path)
+            module = importlib.util.module_from_spec(module_spec)
+            module_spec.loader.exec_module(module)
+            return module
+        return importlib.import_module(target)
+    except InvalidInputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a user's file: whatever it raises is reported by name
+        raise InvalidInputError(f"--policy {spec!r}: {target!r} failed to import ({type(exc).__name__}: {exc})") from None

@@ -18,6 +18,11 @@ import numpy as np
 from ffsr_gym.model.spec import BenchmarkSpec
 
 
+def safe(text: str) -> str:
+    """``text`` as one table-safe line: no line breaks, pipes or backticks (a file name, a reason)."""
+    return " ".join(str(text).split()).replace("|", "/").replace("`", "'")
+
+
 def header(spec: BenchmarkSpec, group: str) -> list[str]:
     """The title and column lines of one table."""
     if spec.leaderboard.ranking == "feasible_then_iqm":

@@ -72,6 +72,21 @@ def check_action(action: Any, shape: tuple[int, ...]) -> tuple[np.ndarray, Any]:
     return clipped.astype(np.float32), np.any(clipped != a, axis=-1)
 
 
+def physical_parameters(m: Any, T_c: Any) -> tuple[float, float]:
+    """(m, T_c [s]) given to ``step_with_parameters`` as floats.
+
+    Raises:
+        InvalidInputError: not real numbers, or not finite (the planner checks the ranges m ∈ (0, 1), T_c > 0).
+    """
+    values = []
+    for name, value in (("m", m), ("T_c", T_c)):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                or not np.isfinite(value):
+            raise InvalidInputError(f"{name} = {value!r}; allowed: a finite real number (m in (0, 1), T_c > 0 [s])")
+        values.append(float(value))
+    return values[0], values[1]
+
+
 def action_to_parameters(action: np.ndarray, task: Scenario) -> tuple[float, float]:
     """Physical (m, T_c [s]) of a (clipped) (m, T_c) action, mapped linearly onto the task's box, in float64."""
     a = np.asarray(action, dtype=np.float64)

@@ -7,7 +7,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ffsr_gym.environments.actions import action_to_parameters, observation_bounds
+from ffsr_gym.environments.actions import action_to_parameters, observation_bounds, physical_parameters
 from ffsr_gym.environments.engine import EpisodeEngine
 from ffsr_gym.environments.task_source import TaskSource
 from ffsr_gym.exceptions import InvalidInputError, UnknownArgumentError
@@ -127,7 +127,7 @@ class FFSREnv(gym.Env):
         if self.residual:
             raise InvalidInputError("step_with_parameters is for the (m, T_c) envs (FFSR-v0, FFSR-v1), not a residual env")
         self._check_running()
-        out = self.engine.step_one(None, parameters=(float(m), float(T_c)))
+        out = self.engine.step_one(None, parameters=physical_parameters(m, T_c))
         if self.render_mode == "human":
             self.render()
         return out

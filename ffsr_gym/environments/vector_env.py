@@ -18,7 +18,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from ffsr_gym.environments.actions import check_action, observation_bounds
+from ffsr_gym.environments.actions import check_action, observation_bounds, physical_parameters
 from ffsr_gym.environments.engine import EpisodeEngine
 from ffsr_gym.environments.env import task_options
 from ffsr_gym.environments.task_source import TaskSource
@@ -147,7 +147,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         """A step of every copy with physical (m, T_c [s]), no float32 rounding (the (m, T_c) ids only)."""
         if self.residual:
             raise InvalidInputError("step_with_parameters is for the (m, T_c) envs (FFSR-v0, FFSR-v1), not a residual env")
-        return self._step(np.zeros((self.num_envs, 2), dtype=np.float32), (float(m), float(T_c)))
+        return self._step(np.zeros((self.num_envs, 2), dtype=np.float32), physical_parameters(m, T_c))
 
     def _step(self, actions: Any, parameters: tuple[float, float] | None):
         if not self._started:

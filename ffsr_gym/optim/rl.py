@@ -15,6 +15,7 @@ from __future__ import annotations
 import ast
 import json
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -60,7 +61,12 @@ def load_hyperparams(algo: str, env_id: str, folder: str | Path | None = None) -
         raise InvalidInputError(f"algo {algo!r}; allowed: {sorted(offered)} (a <algo>.yml in "
                                 f"{Path(folder or DEFAULT_HYPERPARAMS)})")
     path = Path(folder or DEFAULT_HYPERPARAMS) / f"{algo}.yml"
-    table = yaml.safe_load(path.read_text())
+    try:
+        table = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise InvalidInputError(f"{path}: not a readable hyperparameter file ({type(exc).__name__}: {exc})") from None
+    if not isinstance(table, dict) or not isinstance(table.get(env_id, {}), dict):
+        raise InvalidInputError(f"{path}: allowed: a mapping from env ids to mappings of hyperparameters")
     if env_id not in table:
         raise InvalidInputError(f"{path} has no entry for {env_id!r}; it has {sorted(table)}")
     params = dict(table[env_id])
@@ -118,6 +124,11 @@ def _curve_callback(env_id: str, tier: str, every: int, indices: list[int], poin
     return Curve()
 
 
+def entry_name(algo: str, spec: BenchmarkSpec, env_id: str, task: str) -> str:
+    """The leaderboard entry name of a training study (``ppo_residual_easy``)."""
+    return f"{algo}_{'residual_' if spec.is_residual(env_id) else ''}{task}"
+
+
 def training_kwargs(spec: BenchmarkSpec, task: str) -> dict[str, Any]:
     """The env kwargs agents train on: the scenario, or the tier's training pool."""
     if spec.evaluation.protocol == "pool":
@@ -146,7 +157,12 @@ def train(algo: str, env_id: str, *, seed: int, out: str | Path, task: str | Non
     params = load_hyperparams(algo, env_id, hyperparams)
     cls, out = getattr(sb3, SB3_CLASSES[algo]), Path(out)
     if (out / "model.zip").is_file() and (out / "train_record.json").is_file():
-        return cls.load(out / "model.zip", device="cpu"), json.loads((out / "train_record.json").read_text())
+        record = json.loads((out / "train_record.json").read_text())
+        wanted = int(timesteps or params["n_timesteps"])
+        if record.get("timesteps") != wanted:
+            warnings.warn(f"{out}: resumed a finished seed trained for {record.get('timesteps')} steps, not the "
+                          f"{wanted} asked for; use another --out to train anew", stacklevel=2)
+        return cls.load(out / "model.zip", device="cpu"), record
     torch.set_num_threads(1)
     n_envs, steps = int(params.pop("n_envs", 1)), int(timesteps or params.pop("n_timesteps"))
     params.pop("n_timesteps", None)
@@ -201,7 +217,7 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
         env_kwargs, scenarios = {spec.tasks.keyword: task}, {"family": load_scenario(task).sha256()}
     prov = provenance(**({"scenarios": scenarios} if scenarios else {}), seeds=seeds,
                       wall_time_s=time.perf_counter() - start)
-    name = f"{algo}_{'residual_' if spec.is_residual(env_id) else ''}{task}"
+    name = entry_name(algo, spec, env_id, task)
     return EvalReport(env_id, env_kwargs, score_rule(spec).aggregate(rows), rows, prov, name=name, extra=extra,
                       score_rule=spec.score.text)
 

@@ -1,4 +1,4 @@
-"""What ``ffsr-gym info`` prints of a scenario's initial state."""
+"""What ``ffsr-gym info`` prints of a scenario's initial state, and ``ffsr-gym list`` of the registry."""
 
 from __future__ import annotations
 
@@ -7,8 +7,11 @@ from typing import Any
 import numpy as np
 
 from ffsr_gym.model.quaternion import from_rotation
+from ffsr_gym.model.resources import envs_dir, scenario_names
 from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.model.spec import all_specs, registered_ids
 from ffsr_gym.sim.setup import prepare
+from ffsr_gym.tasks.splits import pool
 
 
 def initial_state_rows(scenario: Scenario) -> list[tuple[str, Any]]:
@@ -32,3 +35,17 @@ def initial_state_rows(scenario: Scenario) -> list[tuple[str, Any]]:
         ("sigma(H_bm balance)", np.round(np.linalg.svd(mats.H_bm[1], compute_uv=False), 3)),
         ("clearance [m]", f"{clearance.distance_m:.4f} ({clearance.pair[0]} - {clearance.pair[1]})"),
     ]
+
+
+def registry_lines() -> list[str]:
+    """Every id, each version's tasks and pools, the shipped scenarios and robots."""
+    lines = ["environment ids: " + ", ".join(registered_ids())]
+    for spec in all_specs().values():
+        tasks = spec.tasks
+        lines.append(f"{spec.version} ({spec.status}): {', '.join(spec.env_ids)}; {spec.description}")
+        lines.append(f"  tasks ({tasks.keyword}=): " + ", ".join([*tasks.scenarios, *tasks.tiers] or ["a scenario"]))
+        for tier in tasks.tiers:
+            lines.append(f"    {tier}: " + ", ".join(f"{split} pool {len(pool(tier, split))} tasks" for split in tasks.splits))
+    lines.append("scenarios (scenario=): " + ", ".join(scenario_names()))
+    lines.append("robots: " + ", ".join(sorted(p.name for p in (envs_dir() / "robots").iterdir() if p.is_dir())))
+    return lines

@@ -124,6 +124,7 @@ def build_split(work: Path, split: str, *, target: str = RULES, chunk: int = 100
     _check_target(target)
     benchmark, sha, tiers = load_benchmark(RULES), rule_sha256(target), _tiers(target)
     needed, first, work = _needed(benchmark, split, target), SEED_RANGES[split][0], _work_dir(Path(work), target)
+    _check_chunking(work, split, chunk)
     verdicts: list[Verdict] = []
     with tqdm(desc=f"tasks {target} {split}", unit="task", disable=not progress) as bar:
         start = first
@@ -146,6 +147,31 @@ def build_split(work: Path, split: str, *, target: str = RULES, chunk: int = 100
             bar.set_postfix({tier: f"{counts[tier]}/{needed}" for tier in tiers})
             start += len(starts) * chunk
     return verdicts
+
+
+def _check_chunking(work: Path, split: str, chunk: int) -> None:
+    """Refuse to resume a work folder built with another chunk size (its chunks would skip or repeat seeds).
+
+    Raises:
+        FFSRError: naming both chunk sizes.
+    """
+    for path in sorted((work / split).glob("*.json"))[:1]:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        if data.get("stop", 0) - data.get("start", 0) != chunk:
+            raise FFSRError(f"{work}: its chunks hold {data.get('stop', 0) - data.get('start', 0)} candidates each, "
+                            f"this run --chunk {chunk}; resume with the same --chunk, or use a new --work folder")
+
+
+def die_with_parent() -> None:
+    """Process-pool initializer: on Linux, the worker is killed when its parent dies (a ``kill -9`` of a build
+    leaves no orphaned workers); elsewhere nothing."""
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
 
 
 def summarise_split(verdicts: list[Verdict], needed: int, target: str = RULES) -> dict[str, Any]:

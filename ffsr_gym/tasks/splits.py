@@ -19,12 +19,12 @@ from pathlib import Path
 from typing import Any
 
 from ffsr_gym.exceptions import InvalidInputError, ScenarioError
-from ffsr_gym.model.benchmark import Benchmark
+from ffsr_gym.model.benchmark import Benchmark, load_benchmark
 from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.tasks.certificate import Certificate
 from ffsr_gym.tasks.generator import draw_task
-from ffsr_gym.tasks.perturbation import PERTURBED_TIERS, perturbed_task
+from ffsr_gym.tasks.perturbation import PERTURBED_TIERS, load_perturbed_rule, perturbed_task
 from ffsr_gym.tasks.tiers import ALL_TIERS, PERTURBED_REJECTIONS, REJECTIONS, TIERS
 
 SPLITS = ("train", "test")
@@ -75,8 +75,9 @@ def load_pools(path: str | None = None, tiers: tuple[str, ...] = TIERS) -> dict[
     source = pool_path(tiers[0]) if path is None else Path(path)
     try:
         data = json.loads(source.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ScenarioError(f"{source}: not a readable pool file ({exc}); rebuild it with 'ffsr-gym tasks build'") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        raise ScenarioError(f"{source}: not a readable pool file ({type(exc).__name__}: {str(exc)[:200]}); rebuild it "
+                            "with 'ffsr-gym tasks build'") from None
     try:
         for split in SPLITS:
             for tier in tiers:
@@ -110,14 +111,39 @@ def pool(tier: str, split: str, *, path: str | None = None) -> tuple[PoolTask, .
         ScenarioError: malformed pool file, or a seed outside the split's range.
     """
     check_tier_split(tier, split)
+    data = load_pools(path, file_tiers(tier))["splits"][split]
+    tasks = tuple(_pool_task(entry, tier, split) for entry in data["pools"][tier])
+    seeds = [task.seed for task in tasks]
+    if len(set(seeds)) != len(seeds):
+        raise ScenarioError(f"pool {tier}/{split}: seed {next(s for s in seeds if seeds.count(s) > 1)} is listed twice")
+    labels, first = data.get("labels"), data.get("first_seed")
+    if isinstance(labels, str) and isinstance(first, int):
+        for seed in seeds:
+            code = labels[seed - first] if 0 <= seed - first < len(labels) else None
+            if code != LABEL_CODES[tier]:
+                raise ScenarioError(f"pool {tier}/{split}: seed {seed} is labelled {code!r} in the same file, not "
+                                    f"{LABEL_CODES[tier]!r} ({tier})")
+    if len(tasks) != expected_count(tier, split):
+        raise ScenarioError(f"pool {tier}/{split}: {len(tasks)} tasks; the rule asks for {expected_count(tier, split)}")
+    return tasks
+
+
+def _pool_task(entry: Any, tier: str, split: str) -> PoolTask:
+    """One pool entry, checked: an integer seed in the split's range, a certificate that parses."""
     lo, hi = SEED_RANGES[split]
-    tasks = []
-    for entry in load_pools(path, file_tiers(tier))["splits"][split]["pools"][tier]:
-        try:
-            task = PoolTask(int(entry["seed"]), Certificate.from_dict(entry["certificate"]), float(entry["certificate_score"]))
-        except (KeyError, TypeError, ValueError, InvalidInputError) as exc:
-            raise ScenarioError(f"pool {tier}/{split}: malformed entry {entry!r} ({exc})") from None
-        if not lo <= task.seed < hi:
-            raise ScenarioError(f"pool {tier}/{split}: seed {task.seed} outside the split's range [{lo}, {hi})")
-        tasks.append(task)
-    return tuple(tasks)
+    try:
+        seed = entry["seed"]
+        if type(seed) is not int:
+            raise TypeError(f"seed {seed!r} is not an integer")
+        task = PoolTask(seed, Certificate.from_dict(entry["certificate"]), float(entry["certificate_score"]))
+    except (KeyError, TypeError, ValueError, InvalidInputError) as exc:
+        raise ScenarioError(f"pool {tier}/{split}: malformed entry {str(entry)[:200]} ({exc})") from None
+    if not lo <= task.seed < hi:
+        raise ScenarioError(f"pool {tier}/{split}: seed {task.seed} outside the split's range [{lo}, {hi})")
+    return task
+
+
+def expected_count(tier: str, split: str) -> int:
+    """How many tasks the rule file asks for in ``tier``'s ``split`` pool."""
+    rule = load_perturbed_rule() if tier in PERTURBED_TIERS else load_benchmark("v1").tasks
+    return int(rule.train_tasks if split == "train" else rule.test_tasks)

@@ -1,0 +1,96 @@
+"""Checks of command-line options and output places, made before any work starts.
+
+The ``argparse`` types (:func:`positive_int`, :func:`natural`, :func:`positive_float`) make a bad
+number an ``ffsr-gym: error: argument --x: ...`` line naming the option and the allowed range;
+:func:`writable_folder` and :func:`free_entry` refuse an output place that would lose the run's
+result at its end (a file where a folder is needed, a folder without write permission, an entry
+that a previous run saved).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from pathlib import Path
+
+from ffsr_gym.exceptions import InvalidInputError
+
+
+def _integer(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+
+
+def positive_int(text: str) -> int:
+    """An integer >= 1 (chunks, workers, steps, intervals)."""
+    value = _integer(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value}; allowed: an integer >= 1")
+    return value
+
+
+def natural(text: str) -> int:
+    """An integer >= 0 (a seed)."""
+    value = _integer(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value}; allowed: an integer >= 0")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """A finite number > 0 (a speed)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value) or value <= 0.0:
+        raise argparse.ArgumentTypeError(f"{value}; allowed: a finite number > 0")
+    return value
+
+
+def writable_folder(path: str | Path, option: str) -> Path:
+    """``path`` as a folder this process can write into (created if missing).
+
+    Raises:
+        InvalidInputError: it is a file, or it (or its nearest existing parent) cannot be written.
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise InvalidInputError(f"{option} {str(path)!r} is a file; allowed: a folder")
+    existing = path
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        raise InvalidInputError(f"{option} {str(path)!r}: {str(existing)!r} is a file; allowed: a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InvalidInputError(f"{option} {str(path)!r}: {str(existing)!r} is not writable")
+    return path
+
+
+def free_entry(folder: str | Path, name: str, *, force: bool, option: str = "--leaderboard") -> Path:
+    """The path an entry named ``name`` would take in ``folder``, checked before any work.
+
+    Raises:
+        InvalidInputError: an entry of that name exists (and ``force`` is off), or the folder cannot be written.
+    """
+    folder = writable_folder(folder, option)
+    path = folder / f"{name}.json"
+    if path.exists() and not force:
+        raise InvalidInputError(f"{str(path)!r} exists: a previous result would be replaced; choose another --name, "
+                                "or pass --force to replace it")
+    return path
+
+
+def unique_seeds(seeds: list[int]) -> list[int]:
+    """Training seeds, each once.
+
+    Raises:
+        InvalidInputError: a seed given twice (one agent would count twice in the entry).
+    """
+    repeated = sorted({s for s in seeds if seeds.count(s) > 1})
+    if repeated:
+        raise InvalidInputError(f"--seeds {seeds}: {repeated} given more than once; allowed: distinct seeds >= 0")
+    return seeds
