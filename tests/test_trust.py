@@ -58,6 +58,7 @@ def _tampered_board(tmp_path):
     bad("train_split", lambda e: e["extra"].update(evaluation_pool="easy/train"))
     bad("forged_name", lambda e: e.update(name="x |\n| 1 | `forged`"))
     shutil.copy(medium / "reference_best_constant.json", easy / "from_medium.json")
+    (easy / "truncated.json").write_text(json.dumps(good)[:5000])
     return root
 
 
@@ -70,10 +71,11 @@ def test_a_tampered_leaderboard_refuses_every_bad_entry_by_name_and_check_fails(
     reasons = {name: " ".join(why) for _, name, why in leaderboard.refused(leaderboard.load_entries(root,
                                                                                           spec_for_version("v1")))}
     assert set(reasons) == {"edited_metric.json", "nan_metric.json", "subset.json", "train_split.json",
-                            "forged_name.json", "from_medium.json"}
+                            "forged_name.json", "from_medium.json", "truncated.json"}
     assert "metrics.score_iqm" in reasons["edited_metric.json"] and "metrics.score_mean" in reasons["nan_metric.json"]
     assert "exactly once" in reasons["subset.json"] and "easy/test" in reasons["train_split.json"]
     assert "name" in reasons["forged_name.json"] and "evaluation_pool 'medium/test'" in reasons["from_medium.json"]
+    assert "not a readable JSON file" in reasons["truncated.json"]
     leaderboard.write_readme(root)
     text = (root / "README.md").read_text()
     assert "`forged`" not in text and "x |" not in text  # the forged row never reaches the table
@@ -235,3 +237,17 @@ def test_verify_re_runs_what_an_entry_names(tmp_path, monkeypatch, capsys):
     assert main([*argv, "--policy", "0.3,4", "--name", "fixed"]) == 0
     for name in ("callable", "fixed"):
         assert main(["leaderboard", "verify", f"lb/v1/paper/{name}.json"]) == 0
+
+
+def test_a_training_pool_that_cannot_be_saved_is_refused_before_the_run():
+    with pytest.raises(InvalidInputError, match="training_pool"):
+        ffsr_gym.evaluate((0.3, 4.0), "FFSR-v1", task="paper", training_pool=object())
+
+
+def test_the_committed_leaderboards_pass_the_check():
+    from pathlib import Path
+
+    from ffsr_gym.bench import leaderboard
+
+    root = Path(ffsr_gym.__file__).resolve().parent.parent
+    assert leaderboard.check(root / "leaderboards", root / "README.md") == []

@@ -111,6 +111,8 @@ def _pool_plan(spec: BenchmarkSpec, env_id: str, *, task: str | None, split: str
                env_kwargs: dict | None, training_pool: str | None) -> Plan:
     task = spec.evaluation.default_task if task is None else task
     split = spec.evaluation.split if split is None else split
+    if training_pool is not None and not isinstance(training_pool, str):
+        raise InvalidInputError(f"training_pool = {training_pool!r}; allowed: None or a text such as 'easy/train'")
     if task not in (*spec.tasks.scenarios, *spec.tasks.tiers) or split not in spec.tasks.splits:
         raise InvalidInputError(f"task {task!r}, split {split!r}; allowed: task in "
                                 f"{[*spec.tasks.scenarios, *spec.tasks.tiers]}, split in {list(spec.tasks.splits)}")
