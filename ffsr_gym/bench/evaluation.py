@@ -68,7 +68,7 @@ def _check_protocol(spec: BenchmarkSpec, kwargs: dict[str, Any]) -> None:
     Raises:
         InvalidInputError: naming the argument and the ones allowed.
     """
-    allowed = {spec.tasks.keyword, *(("split",) if spec.tasks.splits else ()), *spec.reward.options, *NEUTRAL_KWARGS}
+    allowed = spec.env_options() | set(NEUTRAL_KWARGS)
     for name in kwargs:
         if name not in allowed:
             raise InvalidInputError(f"env_kwargs[{name!r}] would change the evaluation protocol of {spec.version} "

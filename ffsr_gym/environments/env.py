@@ -24,7 +24,7 @@ def task_options(spec: BenchmarkSpec, options: dict[str, Any], *, extra: tuple[s
         UnknownArgumentError: a keyword the version does not take (named, with the allowed ones).
         InvalidInputError: a flag that is not a bool.
     """
-    allowed = {spec.tasks.keyword, *(("split",) if spec.tasks.splits else ()), *spec.reward.options, *extra}
+    allowed = spec.env_options() | set(extra)
     for name in options:
         if name not in allowed:
             raise UnknownArgumentError(f"{spec.ids.parameters} got an unexpected keyword argument {name!r}; "

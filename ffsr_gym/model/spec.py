@@ -141,6 +141,11 @@ class BenchmarkSpec:
             return None
         return load_rules(_resolve(self.score.rules_file, self.source))
 
+    def env_options(self) -> set[str]:
+        """The keyword arguments this version's environments take: the task keyword, the split (tiers), the
+        reward's options."""
+        return {self.tasks.keyword, *(("split",) if self.tasks.splits else ()), *self.reward.options}
+
     def eval_seeds(self, env_id: str) -> tuple[int, ...]:
         """The public evaluation seeds of ``env_id`` (protocol ``seeds``): a [start, stop) range."""
         start, stop = self.evaluation.residual_seeds if self.is_residual(env_id) else self.evaluation.parameters_seeds
