@@ -98,7 +98,7 @@ class EpisodeEngine:
             rollout = self.rollouts[i]
         else:
             rollout = self.rollouts[i] = make_rollout(scenario, backend=self.backend)
-        self.last_rates[i], self.clipped[i], self.cost_so_far[i] = 0.0, 0, 0.0
+        self.last_rates[i], self.clipped[i], self.cost_so_far[i], self.K[i] = 0.0, 0, 0.0, 0
         angles, e1, e0, rel, clear = rollout.observation()
         self.obs[i] = act.assemble_observation(angles, self.last_rates[i], e1, e0, rel, clear, 0.0)
         self.clearance[i], self.ee_error[i] = clear, portable.norm(e1[:3])
