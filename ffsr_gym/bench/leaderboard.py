@@ -162,8 +162,11 @@ def render_tables(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]])
     return "\n".join(out)
 
 
-def render_readme(root: str | Path) -> str:
-    """The leaderboard README with every version's tables between its markers."""
+def render_readme(root: str | Path, loaded: dict[str, dict[str, list[dict[str, Any]]]] | None = None) -> str:
+    """The leaderboard README with every version's tables between its markers.
+
+    ``loaded``: each version's :func:`load_entries` by version, when the caller has them already.
+    """
     path = Path(root) / "README.md"
     if not path.is_file():
         raise FFSRError(f"{path} does not exist; 'ffsr-gym leaderboard render --root {root}' creates it")
@@ -171,7 +174,8 @@ def render_readme(root: str | Path) -> str:
     for spec in all_specs().values():
         start, end = spec.leaderboard.markers()
         if start in text and end in text:
-            text = splice_generated(text, start, end, render_tables(spec, load_entries(root, spec)), where=str(path))
+            entries = loaded[spec.version] if loaded else load_entries(root, spec)
+            text = splice_generated(text, start, end, render_tables(spec, entries), where=str(path))
     return text
 
 
@@ -200,7 +204,8 @@ def write_readme(root: str | Path) -> bool:
     return True
 
 
-def splice_summary(text: str, root: str | Path, spec: BenchmarkSpec | None = None) -> str:
+def splice_summary(text: str, root: str | Path, spec: BenchmarkSpec | None = None,
+                   entries: dict[str, list[dict[str, Any]]] | None = None) -> str:
     """``text`` (a README) with the live version's summary table between its summary markers.
 
     Raises:
@@ -208,19 +213,23 @@ def splice_summary(text: str, root: str | Path, spec: BenchmarkSpec | None = Non
     """
     spec = spec or ranked_spec()
     start, end = spec.leaderboard.markers("-summary")
-    verified = {group: [e for e in items if not e["_problems"]] for group, items in load_entries(root, spec).items()}
+    entries = load_entries(root, spec) if entries is None else entries
+    verified = {group: [e for e in items if not e["_problems"]] for group, items in entries.items()}
     return splice_generated(text, start, end, tables.summary(spec, verified, ranks))
 
 
 def check(root: str | Path, readme: str | Path | None = None) -> list[str]:
     """Why the leaderboard under ``root`` cannot be published as it is: every refused entry (with its
     reasons) and every generated text that is out of date; empty when all is well."""
-    problems = [f"refused: {spec.version} {group}/{name}: {'; '.join(reasons)}" for spec in all_specs().values()
-                for group, name, reasons in refused(load_entries(root, spec))]
-    if render_readme(root) != (Path(root) / "README.md").read_text():
+    specs = all_specs()
+    loaded = {version: load_entries(root, spec) for version, spec in specs.items()}  # read and verified once
+    problems = [f"refused: {version} {group}/{name}: {'; '.join(reasons)}" for version, entries in loaded.items()
+                for group, name, reasons in refused(entries)]
+    if render_readme(root, loaded) != (Path(root) / "README.md").read_text():
         problems.append(f"out of date: {Path(root) / 'README.md'}; run ffsr-gym leaderboard render")
     if readme is not None:
         text = Path(readme).read_text(encoding="utf-8")
-        if splice_summary(text, root) != text:
+        ranked = ranked_spec()
+        if splice_summary(text, root, ranked, loaded[ranked.version]) != text:
             problems.append(f"out of date: {readme}; run ffsr-gym leaderboard render --readme {readme}")
     return problems

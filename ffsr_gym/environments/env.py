@@ -17,14 +17,14 @@ from ffsr_gym.sim.rollout import Rollout
 from ffsr_gym.sim.trajectory import Trajectory
 
 
-def task_options(spec: BenchmarkSpec, options: dict[str, Any], *, extra: tuple[str, ...] = ()) -> dict[str, Any]:
+def task_options(spec: BenchmarkSpec, options: dict[str, Any]) -> dict[str, Any]:
     """The task and reward options an environment of ``spec`` takes, checked.
 
     Raises:
         UnknownArgumentError: a keyword the version does not take (named, with the allowed ones).
         InvalidInputError: a flag that is not a bool.
     """
-    allowed = spec.env_options() | set(extra)
+    allowed = spec.env_options()
     for name in options:
         if name not in allowed:
             raise UnknownArgumentError(f"{spec.ids.parameters} got an unexpected keyword argument {name!r}; "

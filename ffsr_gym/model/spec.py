@@ -19,7 +19,7 @@ from pathlib import Path
 from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model.benchmark import Benchmark, load_rules
 from ffsr_gym.model.resources import envs_dir
-from ffsr_gym.model.schema import BOOL, TEXT, TEXTS, choice, integer, load_table, natural, section
+from ffsr_gym.model.schema import BOOL, TEXT, TEXTS, choice, integer, load_table, natural, rows, section
 
 #: Score rules the engine knows (``ffsr_gym.scoring.rules``): the paper's objective B (lower is
 #: better, +inf when infeasible) and the bounded episode score 1 / (1 + C) (higher is better).
@@ -82,10 +82,8 @@ class EvaluationSpec:
     protocol: str = field(metadata=choice("seeds", "pool"))
     default_task: str = field(metadata=TEXT)
     split: str = field(default="test", metadata=TEXT)
-    parameters_seeds: tuple[int, ...] = field(default=(), metadata={"kind": "rows", "size": 0, "lo": 0, "hi": 2**31,
-                                                                      "max_rows": 2})
-    residual_seeds: tuple[int, ...] = field(default=(), metadata={"kind": "rows", "size": 0, "lo": 0, "hi": 2**31,
-                                                                    "max_rows": 2})
+    parameters_seeds: tuple[int, ...] = field(default=(), metadata=rows(0, 0, 2**31, 2))
+    residual_seeds: tuple[int, ...] = field(default=(), metadata=rows(0, 0, 2**31, 2))
 
 
 @dataclass(frozen=True)

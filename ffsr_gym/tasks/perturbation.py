@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import sys
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any
@@ -31,14 +30,10 @@ from ffsr_gym.model.benchmark import Benchmark
 from ffsr_gym.model.collision import SphereObstacle
 from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.scenario import Debris, Plant, Scenario, TargetNoise
-from ffsr_gym.model.schema import build_table, number, section, vector
+from ffsr_gym.model.schema import load_table, number, section, vector
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.tasks.generator import draw_task
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - exercised on Python 3.10 only
-    import tomli as tomllib
 
 PERTURBED_TIERS = ("debris", "robust")
 #: The generator stream of each tier (stream 1 draws the residual trials of the tier rule).
@@ -115,14 +110,7 @@ def load_perturbed_rule() -> PerturbedRule:
         ScenarioError: unreadable file, or a key missing, unknown or out of range (named).
     """
     path = rule_path()
-    try:
-        with open(path, "rb") as handle:
-            data: dict[str, Any] = tomllib.load(handle)
-        rule = build_table(PerturbedRule, data)
-    except (OSError, tomllib.TOMLDecodeError) as exc:
-        raise ScenarioError(f"{path}: not a readable TOML file ({exc})") from None
-    except ScenarioError as exc:
-        raise ScenarioError(f"{path}: {exc}") from None
+    rule = load_table(PerturbedRule, path)
     if any(v != int(v) for v in rule.debris.extra_obstacles):
         raise ScenarioError(f"{path}: key 'debris.extra_obstacles' = {list(rule.debris.extra_obstacles)}; "
                             "allowed: two integers in [0, 7]")
