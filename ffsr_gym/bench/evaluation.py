@@ -128,7 +128,8 @@ def _pool_plan(spec: BenchmarkSpec, env_id: str, *, task: str | None, split: str
     return Plan(spec, env_id, kwargs, [(int(i), int(i) if is_pool else None) for i in chosen], extra)
 
 
-def _row(seed: int, index: int | None, info: dict[str, Any], rule_row: dict[str, Any], pooled: bool) -> dict[str, Any]:
+def _row(seed: int, info: dict[str, Any], rule_row: dict[str, Any], pooled: bool) -> dict[str, Any]:
+    """An entry's row: the seed (a pool's: also the task's index and seed), then the rule's row."""
     if not pooled:
         return {"seed": seed, **rule_row}
     return {"seed": seed, "task_index": seed, "task_seed": info.get("task_seed"), **rule_row}
@@ -138,7 +139,7 @@ def _episodes(policy: Any, env_id: str, kwargs: dict[str, Any], pooled: bool,
               jobs: Sequence[tuple[int, int | None]]) -> list[tuple[dict, str, str]]:
     """The scored episodes of ``jobs`` with each played scenario's key and hash (module level: executors run chunks)."""
     env = gym.make(env_id, **kwargs)
-    step, rule = stepper(policy, env), env.unwrapped.engine.rule
+    step, engine = stepper(policy, env), env.unwrapped.engine
     out = []
     for seed, index in jobs:
         obs, info = env.reset(seed=seed, options=None if index is None else {"task_index": index})
@@ -147,7 +148,8 @@ def _episodes(policy: Any, env_id: str, kwargs: dict[str, Any], pooled: bool,
             obs, _, terminated, truncated, _ = step(obs)
             done = terminated or truncated
         played, traj = env.unwrapped.scenario, env.unwrapped.trajectory
-        row = _row(seed, index, info, rule.row(rule.result(traj, played), traj), pooled)
+        result = engine.results[0] or engine.rule.result(traj, played)  # scored at the episode's end already
+        row = _row(seed, info, engine.rule.row(result, traj), pooled)
         key = played.name if played.randomization is None or pooled else f"{played.name}/seed={seed}"
         out.append((row, key, played.sha256()))
     env.close()
@@ -171,7 +173,7 @@ def _batched_episodes(parameters: tuple[float, float], version: str, kwargs: dic
             if int(i) not in results:
                 played, traj = engine.scenarios[i], engine.trajectory(int(i))
                 seed = int(info["task_seed"][i])
-                row = _row(jobs[i][0], jobs[i][1], {"task_seed": None if seed < 0 else seed},
+                row = _row(jobs[i][0], {"task_seed": None if seed < 0 else seed},
                            engine.rule.row(engine.results[i], traj), True)
                 results[int(i)] = (row, played.name, played.sha256())
     venv.close()
