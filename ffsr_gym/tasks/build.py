@@ -25,11 +25,11 @@ from typing import Any
 from tqdm.auto import tqdm
 
 from ffsr_gym.exceptions import FFSRError
-from ffsr_gym.model.benchmark import Benchmark, load_benchmark
+from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.provenance import provenance, write_json_atomic
 from ffsr_gym.tasks.perturbation import PERTURBED_TIERS, load_perturbed_rule, perturbed_rule_sha256
-from ffsr_gym.tasks.splits import LABEL_CODES, SEED_RANGES, SPLITS, load_pools, pool_path
+from ffsr_gym.tasks.splits import LABEL_CODES, SEED_RANGES, SPLITS, expected_count, load_pools, pool_path
 from ffsr_gym.tasks.tiers import PERTURBED_REJECTIONS, REJECTIONS, TIERS, Verdict, classify, classify_perturbed
 
 #: The rule file whose tiers the build applies (its hash is the pools' ``rule_sha256``).
@@ -97,11 +97,6 @@ def _load_chunk(path: Path, sha: str) -> list[Verdict] | None:
     return [Verdict.from_dict(v) for v in data["verdicts"]]
 
 
-def _needed(benchmark: Benchmark, split: str, target: str = RULES) -> int:
-    rule = load_perturbed_rule() if target in PERTURBED_TIERS else benchmark.tasks
-    return int(rule.train_tasks if split == "train" else rule.test_tasks)
-
-
 def _tiers(target: str) -> tuple[str, ...]:
     return (target,) if target in PERTURBED_TIERS else TIERS
 
@@ -122,8 +117,8 @@ def build_split(work: Path, split: str, *, target: str = RULES, chunk: int = 100
             work folder was built under another rule.
     """
     _check_target(target)
-    benchmark, sha, tiers = load_benchmark(RULES), rule_sha256(target), _tiers(target)
-    needed, first, work = _needed(benchmark, split, target), SEED_RANGES[split][0], _work_dir(Path(work), target)
+    sha, tiers = rule_sha256(target), _tiers(target)
+    needed, first, work = expected_count(tiers[0], split), SEED_RANGES[split][0], _work_dir(Path(work), target)
     _check_chunking(work, split, chunk)
     verdicts: list[Verdict] = []
     with tqdm(desc=f"tasks {target} {split}", unit="task", disable=not progress) as bar:
@@ -210,12 +205,11 @@ def build(work: str | Path, *, target: str = RULES, out: str | Path | None = Non
     ``work``, and write the pool file ``out`` (default: the shipped one)."""
     _check_target(target)
     began, work = time.perf_counter(), Path(work)
-    benchmark = load_benchmark(RULES)
     splits = {}
     for split in SPLITS:
         verdicts = build_split(work, split, target=target, chunk=chunk, max_candidates=max_candidates,
                                executor=executor, workers=workers, progress=progress)
-        splits[split] = summarise_split(verdicts, _needed(benchmark, split, target), target)
+        splits[split] = summarise_split(verdicts, expected_count(_tiers(target)[0], split), target)
     data = {"version": RULES, "tiers": list(_tiers(target)), "rule_sha256": rule_sha256(target),
             "seed_ranges": SEED_RANGES, "label_codes": LABEL_CODES,
             "provenance": provenance(wall_time_s=time.perf_counter() - began), "splits": splits}
