@@ -235,7 +235,8 @@ class EpisodeEngine:
         return obs, float(reward), terminated, truncated, info
 
     # ------------------------------------------------------------------------ N copies
-    def step_copies(self, actions: np.ndarray, active: np.ndarray, parameters: tuple[float, float] | None = None):
+    def step_copies(self, actions: np.ndarray, active: np.ndarray,
+                    parameters: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
         """One decision of every ``active`` copy (checked, clipped float32 ``actions`` (N, size)).
 
         Returns ``(rewards, terminated, truncated, info)``, arrays over the copies (inactive: 0);
@@ -264,7 +265,8 @@ class EpisodeEngine:
         self.clearance[:], self.ee_error[:] = out[:, 5], out[:, 6]
         return self._batch_rewards(active, terminated, truncated, increments, costs)
 
-    def _batch_terms(self, active: np.ndarray, start: np.ndarray, rows: np.ndarray, terminated: np.ndarray):
+    def _batch_terms(self, active: np.ndarray, start: np.ndarray, rows: np.ndarray,
+                     terminated: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each copy's increment and cost: the kernel's, or the rule's from the applied rates (zero-padded)."""
         if self.rule.compiled_terms:
             return self.out[:, 3].copy(), self.out[:, 4].copy()
@@ -274,7 +276,8 @@ class EpisodeEngine:
         increments = np.where(active, self.rule.increment(applied, self.dt, None, self.source.family), 0.0)
         return increments, terminated.astype(float)
 
-    def _batch_rewards(self, active, terminated, truncated, increments, costs):
+    def _batch_rewards(self, active: np.ndarray, terminated: np.ndarray, truncated: np.ndarray, increments: np.ndarray,
+                       costs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
         """Rewards, shaping and info of a batched decision; ends score their whole trajectory."""
         N, ended = self.n, terminated | truncated
         results = {int(i): self.end_copy(int(i)) for i in np.flatnonzero(ended)}
