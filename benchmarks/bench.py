@@ -134,7 +134,7 @@ def _bare_steps(env, steps: int) -> tuple[float, float]:
 
 @contextmanager
 def _kernel_time() -> Iterator[list[float]]:
-    """Seconds spent in the batched v1 kernel (``kernel.batch.decide_batch``) while the block runs, in ``[0]``."""
+    """Seconds spent in the batched v2 kernel (``kernel.batch.decide_batch``) while the block runs, in ``[0]``."""
     original, spent = kernel_batch.decide_batch, [0.0]
 
     def timed(*args):
@@ -174,7 +174,7 @@ def vector_throughput(env_id: str, num_envs: int, decisions: int, threads: int, 
 
 def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
     """One run of every measurement: rows of (what, value, reference measured in this run, ratio, target),
-    and the step budget of ``FFSR-Residual-v1``."""
+    and the step budget of ``FFSR-Residual-v2``."""
     rows = []
 
     def row(key: str, what: str, value: float, unit: str, reference: str, ratio: float | None, target: str,
@@ -195,14 +195,14 @@ def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
     except Exception as exc:  # noqa: BLE001 - MuJoCo is optional
         print(f"  Pusher-v5 unavailable ({exc.__class__.__name__}: pip install -e '.[bench]')")
         pusher = None
-    budget = step_budget("FFSR-Residual-v1", "easy", 2000)
+    budget = step_budget("FFSR-Residual-v2", "easy", 2000)
     v0 = per_step(gym.make("FFSR-Residual-v0"), 2000)
     singles = (("step_v0", "one FFSR-Residual-v0 step (10 physics steps)", v0),
-               ("step_v1", "one FFSR-Residual-v1 step on easy (10 physics steps)", budget["total"]),
-               ("step_v1_parameters", "one FFSR-v1 step on easy (10 physics steps)",
-                per_step(gym.make("FFSR-v1", task="easy"), 2000)))
-    _, vector_step, _ = vector_throughput("FFSR-Residual-v1", 64, 200, workers, task="easy")
-    for key, name, value in (*singles, ("step_batched", f"one batched FFSR-Residual-v1 step per copy (64 copies, "
+               ("step_pool", "one FFSR-Residual-v2 step on easy (10 physics steps)", budget["total"]),
+               ("step_pool_parameters", "one FFSR-v2 step on easy (10 physics steps)",
+                per_step(gym.make("FFSR-v2", task="easy"), 2000)))
+    _, vector_step, _ = vector_throughput("FFSR-Residual-v2", 64, 200, workers, task="easy")
+    for key, name, value in (*singles, ("step_batched", f"one batched FFSR-Residual-v2 step per copy (64 copies, "
                                                          f"{workers} threads)", vector_step / 64)):
         ratio = None if pusher is None else value / pusher
         row(key, name, value * 1e6, "us", "Pusher-v5 " + ("n/a" if pusher is None else f"{pusher * 1e6:.0f} us"), ratio,
@@ -222,8 +222,8 @@ def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
     row("ga", f"{what}, 100 x 100, genes m and T_c, {workers} processes", ga_time, "s",
         f"Pinocchio without cache {serial:.0f} s", serial / ga_time, "<= 60 s", ga_time <= 60)
 
-    for env_id, key in (("FFSR-Residual-v1", "batched"), ("FFSR-Residual-v0", "batched_v0")):
-        kwargs = {"task": "easy"} if env_id.endswith("v1") else {}
+    for env_id, key in (("FFSR-Residual-v2", "batched"), ("FFSR-Residual-v0", "batched_v0")):
+        kwargs = {"task": "easy"} if env_id.endswith("v2") else {}
         if kwargs:  # an untimed pass draws the pool tasks of the timed passes (cached per process, as in
             vector_throughput(env_id, 64, 400, workers, **kwargs)  # a long run), so neither pays first draws
         single, _, _ = vector_throughput(env_id, 64, 400, 1, **kwargs)  # 400 decisions: two whole episodes per copy
@@ -232,21 +232,21 @@ def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
             f"{' (tasks drawn before)' if kwargs else ''}",
             steps_per_s, "physics steps/s", f"1 thread {single:,.0f} steps/s", steps_per_s / single,
             ">= 600,000 steps/s", steps_per_s >= 600_000)
-        if not math.isnan(compiled):  # the v1 env: its compiled decisions alone bound the row above
+        if not math.isnan(compiled):  # the v2 env: its compiled decisions alone bound the row above
             row(f"{key}_compiled", "the same pass, its compiled decisions alone (`decide_batch`, Python excluded)",
                 compiled, "physics steps/s", f"whole episodes {steps_per_s:,.0f} steps/s", compiled / steps_per_s,
                 "bound on whole episodes: >= 600,000 needed", compiled >= 600_000)
     numba.set_num_threads(workers)
 
-    from ffsr_gym.bench.evaluation import evaluate as evaluate_v1
+    from ffsr_gym.bench.evaluation import evaluate as evaluate_pool
     from ffsr_gym.tasks.tiers import ALL_TIERS
 
     for tier in ALL_TIERS:  # a fixed-parameter entry on each test pool
-        alone = best_of(lambda tier=tier: evaluate_v1((0.3, 4.0), "FFSR-v1", task=tier, batched=False), 1)
-        batched = best_of(lambda tier=tier: evaluate_v1((0.3, 4.0), "FFSR-v1", task=tier, batched=True), 1)
+        alone = best_of(lambda tier=tier: evaluate_pool((0.3, 4.0), "FFSR-v2", task=tier, batched=False), 1)
+        batched = best_of(lambda tier=tier: evaluate_pool((0.3, 4.0), "FFSR-v2", task=tier, batched=True), 1)
         with ProcessPoolExecutor(workers) as pool:
-            evaluate_v1((0.3, 4.0), "FFSR-v1", task=tier, indices=list(range(2 * workers)), executor=pool, chunk=1)  # warm
-            spread = best_of(lambda tier=tier, pool=pool: evaluate_v1((0.3, 4.0), "FFSR-v1", task=tier, executor=pool), 1)
+            evaluate_pool((0.3, 4.0), "FFSR-v2", task=tier, indices=list(range(2 * workers)), executor=pool, chunk=1)  # warm
+            spread = best_of(lambda tier=tier, pool=pool: evaluate_pool((0.3, 4.0), "FFSR-v2", task=tier, executor=pool), 1)
         row(f"pool_{tier}_batched", f"(0.3, 4 s) on the {tier} test pool, batched env", batched, "s",
             f"single env {alone:.2f} s", alone / batched, "faster than single env", batched < alone)
         row(f"pool_{tier}_workers", f"(0.3, 4 s) on the {tier} test pool, {workers} worker processes", spread, "s",
@@ -267,17 +267,17 @@ def dask_scaling(workers: int) -> tuple[float, float] | None:
     except ImportError:
         print("  Dask unavailable (pip install -e '.[bench]')")
         return None
-    from ffsr_gym.bench.evaluation import evaluate as evaluate_v1
+    from ffsr_gym.bench.evaluation import evaluate as evaluate_pool
 
     times = []
     for n in (1, workers):
         cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
         with cluster, distributed.Client(cluster) as client:
             executor = client.get_executor()
-            evaluate_v1((0.3, 4.0), "FFSR-v1", task="easy", indices=list(range(2 * n)), executor=executor, chunk=1)
+            evaluate_pool((0.3, 4.0), "FFSR-v2", task="easy", indices=list(range(2 * n)), executor=executor, chunk=1)
             with _no_gc():
                 start = time.perf_counter()
-                evaluate_v1((0.3, 4.0), "FFSR-v1", task="easy", executor=executor, chunk=10)
+                evaluate_pool((0.3, 4.0), "FFSR-v2", task="easy", executor=executor, chunk=10)
                 times.append(time.perf_counter() - start)
     return times[0], times[1]
 
@@ -318,10 +318,10 @@ def speed_table(results: dict) -> str:
 
 
 def budget_table(results: dict) -> str:
-    """The README table of where one ``FFSR-Residual-v1`` step's microseconds go (ranges over the runs)."""
+    """The README table of where one ``FFSR-Residual-v2`` step's microseconds go (ranges over the runs)."""
     budgets = results["budgets"]
     totals = [b["total"] for b in budgets]
-    lines = [f"One `FFSR-Residual-v1` step on `easy` with random actions: {_span([t * 1e6 for t in totals], '.0f')} us "
+    lines = [f"One `FFSR-Residual-v2` step on `easy` with random actions: {_span([t * 1e6 for t in totals], '.0f')} us "
              f"over {len(budgets)} runs.", "", "| part | us per step | share |", "|---|---|---|"]
     for key, name in BUDGET_PARTS.items():
         values = [b[key] * 1e6 for b in budgets]

@@ -30,10 +30,17 @@ def _list(args: argparse.Namespace) -> None:
 
 
 def build_targets() -> list[str]:
-    """What ``tasks build --tier`` builds (the pool build's targets)."""
-    from ffsr_gym.tasks.build import TARGETS
+    """What ``tasks build --tier`` builds: ``base`` (easy, medium and hard together) or one perturbed tier."""
+    from ffsr_gym.tasks.perturbation import PERTURBED_TIERS
 
-    return list(TARGETS)
+    return ["base", *PERTURBED_TIERS]
+
+
+def tier_versions() -> list[str]:
+    """The benchmark versions with task tiers (a rule file), newest last."""
+    from ffsr_gym.model.benchmark import VERSIONS
+
+    return list(VERSIONS)
 
 
 def algorithm_names() -> list[str]:
@@ -109,7 +116,7 @@ def _leaderboard(args: argparse.Namespace) -> int:
     print("updated" if write_readme(args.root) else "already up to date", f"{args.root}/README.md")
     if readme is not None:
         write_text_atomic(readme, splice_summary(readme.read_text(encoding="utf-8"), args.root))
-        print("updated the v1 summary in", readme)
+        print("updated the leaderboard summary in", readme)
     return 0
 
 
@@ -129,24 +136,24 @@ def _leaderboard_plot(args: argparse.Namespace) -> None:
     from ffsr_gym.report.leaderboard_plots import plot_iqm, plot_learning_curves, plot_pareto, plot_profiles
 
     for path in (plot_iqm(args.root), plot_profiles(args.root), plot_learning_curves(args.root)):
-        print("wrote" if path else "no v1 entries under", path or args.root)
+        print("wrote" if path else "no entries of the ranked version under", path or args.root)
     pareto = plot_pareto(args.root)
     if pareto is None:
-        print("no paper_pareto.json yet: run ffsr-gym leaderboard pareto")
+        print("no pareto.json yet: run ffsr-gym leaderboard pareto")
     else:
         print("wrote", pareto)
 
 
 def _leaderboard_pareto(args: argparse.Namespace) -> None:
-    from ffsr_gym.bench.pareto import paper_pareto
+    from ffsr_gym.bench.pareto import task_pareto
     from ffsr_gym.bench.policies import load_model
     from ffsr_gym.report.leaderboard_plots import PARETO_FILE
 
     from ffsr_gym.model.spec import ranked_spec
 
     out = Path(args.root) / ranked_spec().version / PARETO_FILE
-    print("wrote", paper_pareto(args.root, out, args.models, load_model=load_model, progress=not args.no_progress,
-                                command=" ".join(["ffsr-gym", *args.argv])))
+    print("wrote", task_pareto(args.root, out, args.models, load_model=load_model, progress=not args.no_progress,
+                               command=" ".join(["ffsr-gym", *args.argv])))
 
 
 def _load_policy(spec: str, algo: str | None, trust: bool):
@@ -247,8 +254,11 @@ def _tasks(args: argparse.Namespace) -> None:
     workers = args.workers
     executor = ProcessPoolExecutor(workers, initializer=die_with_parent) if workers > 1 else None
     try:
-        data = build(args.work, target=args.tier, out=args.out, chunk=args.chunk, max_candidates=args.max_candidates, executor=executor,
-                     workers=workers, progress=not args.no_progress)
+        version = args.version
+        work = args.work or f"runs/tasks-{version}"
+        data = build(work, version=version, target=version if args.tier == "base" else args.tier, out=args.out,
+                     chunk=args.chunk, max_candidates=args.max_candidates, executor=executor, workers=workers,
+                     progress=not args.no_progress)
     finally:
         if executor is not None:
             executor.shutdown()
@@ -257,9 +267,22 @@ def _tasks(args: argparse.Namespace) -> None:
               f"rejected {summary['rejection_counts']}")
 
 
+def _tasks_tables(args: argparse.Namespace) -> None:
+    from ffsr_gym.provenance import write_text_atomic
+    from ffsr_gym.tasks.build import docs_tables, splice_docs_tables
+
+    if args.docs is None:
+        for name, table in docs_tables(args.version).items():
+            print(f"{name}:\n{table}")
+        return
+    path = Path(args.docs)
+    write_text_atomic(path, splice_docs_tables(path.read_text(encoding="utf-8"), args.version, where=str(path)))
+    print("wrote the tier tables into", path)
+
+
 def _add_model_commands(sub: Any) -> None:
     """Sub-commands list, info, reproduce and ga."""
-    listing = sub.add_parser("list", help="list the environment ids, v1 tasks and tiers, scenarios and robots")
+    listing = sub.add_parser("list", help="list the environment ids, each version's tasks and tiers, scenarios and robots")
     listing.set_defaults(func=_list)
     info = sub.add_parser("info", help="print the initial state of a scenario")
     info.add_argument("--scenario", default="paper", help="scenario name or TOML path (default: paper)")
@@ -307,34 +330,41 @@ def _add_study_commands(sub: Any) -> None:
     tr.add_argument("--force", action="store_true", help="replace an entry of the same name (default: refuse)")
     tr.add_argument("--no-progress", action="store_true")
     tr.set_defaults(func=_train)
-    tasks = sub.add_parser("tasks", help="benchmark v1 task tiers")
+    tasks = sub.add_parser("tasks", help="a benchmark version's task tiers")
     tasks_sub = tasks.add_subparsers(dest="action", required=True)
     tb = tasks_sub.add_parser("build", help="apply the tier rule to candidate seeds and write the pool file "
                                             "(resumable: finished chunks in --work are kept)")
-    tb.add_argument("--tier", default="v1", choices=build_targets(),
-                    help="v1: the easy, medium and hard pools; debris or robust: that perturbed tier, on top of the v1 "
-                         "pool file's tier tasks (default: v1)")
-    tb.add_argument("--work", default="runs/tasks-v1", help="folder of the finished chunks (default: runs/tasks-v1; "
-                                                            "a perturbed tier uses <work>/<tier>)")
-    tb.add_argument("--out", default=None, help="pool file to write (default: the shipped envs/benchmark/v1_tasks.json, "
-                                                "or v1_<tier>_tasks.json)")
+    tb.add_argument("--version", default=tier_versions()[-1], choices=tier_versions(),
+                    help=f"benchmark version whose rule files apply (default: {tier_versions()[-1]})")
+    tb.add_argument("--tier", default="base", choices=build_targets(),
+                    help="base: the easy, medium and hard pools; debris or robust: that perturbed tier, on top of the "
+                         "version's pool file's tier tasks (default: base)")
+    tb.add_argument("--work", default=None, help="folder of the finished chunks (default: runs/tasks-<version>; "
+                                                 "a perturbed tier uses <work>/<tier>)")
+    tb.add_argument("--out", default=None, help="pool file to write (default: the shipped "
+                                                "envs/benchmark/<version>_tasks.json, or <version>_<tier>_tasks.json)")
     tb.add_argument("--chunk", type=positive_int, default=100, help="candidates per chunk (default: 100)")
     tb.add_argument("--workers", type=positive_int, default=2, help="worker processes (default: 2)")
     tb.add_argument("--max-candidates", type=positive_int, default=50_000, help="give up after this many per split (default: 50000)")
     tb.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     tb.set_defaults(func=_tasks)
+    tt = tasks_sub.add_parser("tables", help="the tier tables of a version's pool files (docs/envs.md shows them)")
+    tt.add_argument("--version", default=tier_versions()[-1], choices=tier_versions(),
+                    help=f"benchmark version (default: {tier_versions()[-1]})")
+    tt.add_argument("--docs", default=None, help="write them between their markers in this file (default: print)")
+    tt.set_defaults(func=_tasks_tables)
     ev = sub.add_parser("evaluate", help="score a policy with ffsr_gym.evaluate and optionally write a leaderboard entry")
     _add_policy_arguments(ev, env_id=None, policy=None, task="easy", split="test", split_help="pool scored")
-    ev.add_argument("--training-pool", default=None, help="v1: what the policy was trained or tuned on (recorded)")
+    ev.add_argument("--training-pool", default=None, help="pool versions: what the policy was trained or tuned on (recorded)")
     ev.add_argument("--name", default="submission", help="entry name (default: submission)")
     ev.add_argument("--workers", type=positive_int, default=1,
-                    help="v1: score the pool on this many processes; the same entry as with 1 (default: 1)")
+                    help="pool versions: score the pool on this many processes; the same entry as with 1 (default: 1)")
     ev.add_argument("--leaderboard", default=None, help="write the entry under this leaderboard root")
     ev.add_argument("--force", action="store_true", help="replace an entry of the same name (default: refuse)")
     ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ev.set_defaults(func=_evaluate)
     rd = sub.add_parser("render", help="an episode of a policy as an animated GIF")
-    _add_policy_arguments(rd, env_id="FFSR-v1", policy="0.3,4", task="paper", split="train", split_help="pool of a tier")
+    _add_policy_arguments(rd, env_id="FFSR-v2", policy="0.3,4", task="easy", split="train", split_help="pool of a tier")
     rd.add_argument("--seed", type=natural, default=0, help="reset seed: picks a tier's task (default: 0)")
     rd.add_argument("--every", type=positive_int, default=2, help="one frame every N decisions of 0.1 s (default: 2)")
     rd.add_argument("--speed", type=positive_float, default=2.0, help="playback speed over real time (default: 2)")
@@ -346,12 +376,12 @@ def _add_board_commands(sub: Any) -> None:
     """Sub-command leaderboard (render, plot, pareto)."""
     board = sub.add_parser("leaderboard", help="leaderboard tables and figures")
     board_sub = board.add_subparsers(dest="action", required=True)
-    plot = board_sub.add_parser("plot", help="the v1 figures (IQM with CIs, performance profiles, learning curves, "
-                                             "the paper Pareto plot) under <root>/v1/, from the JSON only")
+    plot = board_sub.add_parser("plot", help="the ranked version's figures (IQM with CIs, performance profiles, learning "
+                                             "curves, the Pareto plot) under <root>/<version>/, from the JSON only")
     plot.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
     plot.set_defaults(func=_leaderboard_plot)
-    pareto = board_sub.add_parser("pareto", help="run the planner grid and every v1 baseline on the paper task; "
-                                                 "writes <root>/v1/paper_pareto.json")
+    pareto = board_sub.add_parser("pareto", help="run the planner grid and every baseline on the first easy test task; "
+                                                 "writes <root>/<version>/pareto.json")
     pareto.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
     pareto.add_argument("--models", default=None,
                         help="folder of the RL study's models (<algo>_<env id>_<tier>_seed<s>/model.zip); "
@@ -366,7 +396,7 @@ def _add_board_commands(sub: Any) -> None:
     render.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
     render.add_argument("--check", action="store_true", help="exit 1 if the tables are out of date, write nothing")
     render.add_argument("--readme", default=None,
-                        help="also regenerate the v1 summary between its markers in this file (e.g. README.md)")
+                        help="also regenerate the leaderboard summary between its markers in this file (e.g. README.md)")
     render.set_defaults(func=_leaderboard)
 
 

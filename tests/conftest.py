@@ -59,3 +59,18 @@ def benchmark_script(name: str) -> ModuleType:
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+@cache
+def retired_v1_rules():
+    """Benchmark v1's rule file (retired) as v2's with v1's blend law, contact as the collision test and no
+    ensemble or validation pool: v2.toml differs from v1.toml in exactly these keys (checked equal when v1 was
+    retired). For the tests that keep v1's documented history regenerable; no environment plays v1."""
+    import dataclasses
+
+    from ffsr_gym.model.benchmark import load_benchmark
+
+    v2 = load_benchmark("v2")
+    return dataclasses.replace(v2, version="v1", score=dataclasses.replace(v2.score, keep_out_m=0.0),
+                               planner=dataclasses.replace(v2.planner, mu_law="cdf"),
+                               tasks=dataclasses.replace(v2.tasks, ensemble=None, validation_tasks=0))

@@ -83,7 +83,7 @@ def test_kill_during_entry_save_keeps_the_previous_entry(tmp_path):
 def test_kill_during_leaderboard_render_keeps_the_previous_readme(tmp_path):
     root = tmp_path / "board"
     for folder in (ROOT / "leaderboards").iterdir():
-        if folder.is_dir() and folder.name != "v1":
+        if folder.is_dir() and folder.name != "v2":
             (root / folder.name).mkdir(parents=True)
             for p in folder.glob("*.json"):
                 (root / folder.name / p.name).write_bytes(p.read_bytes())

@@ -20,9 +20,9 @@ study = benchmark_script("dt_sensitivity")
 
 
 def _replay(entry: dict, count: int) -> None:
-    kwargs = study.planners(entry["tier"], ROOT / "leaderboards")[entry["planner"]]
+    kwargs = study.planners(entry["tier"], ROOT / "leaderboards", STUDY["version"])[entry["planner"]]
     piece = study.run_piece((entry["law"], entry["tier"], entry["planner"], kwargs, entry["divisor"],
-                             entry["seeds"][:count]))
+                             entry["seeds"][:count], STUDY["version"]))
     assert [row["score"] for row in piece["rows"]] == entry["scores"][:count]
 
 
@@ -42,7 +42,7 @@ def test_docs_hold_the_generated_tables():
     block = text[text.index(study.START) + len(study.START):text.index(study.END)]
     commit = STUDY["provenance"]["git_commit"][:8]
     assert block.strip() == study.docs_text(STUDY["summary"], "benchmarks/dt_sensitivity.json", commit,
-                                            STUDY["tasks_per_tier"]).strip()
+                                            STUDY["tasks_per_tier"], STUDY["version"]).strip()
 
 
 def test_spearman_against_an_independent_computation():
@@ -51,3 +51,17 @@ def test_spearman_against_an_independent_computation():
     a, b = rng.integers(0, 5, 40).astype(float), rng.normal(size=40)
     assert study.spearman(a, b) == pytest.approx(scipy_stats.spearmanr(a, b).statistic, abs=1e-12)
     assert study.spearman(np.zeros(5), np.arange(5.0)) is None
+
+
+def test_every_v2_row_meets_the_bar_and_v1s_rule_misses_it():
+    """The must-show of v2: on every tier's test pool, for each fixed planner, verdicts agree between dt and dt/4 on
+    >= 98 % of the tasks, Spearman >= 0.95, |IQM(dt) - IQM(dt/4)| <= 0.01 (recomputed here from the stored rows'
+    aggregates); v1's rule on the same tasks misses it on most rows."""
+    rows = STUDY["summary"]
+    v2 = [r for r in rows if r["law"] == "distance"]
+    assert len(v2) == 20 and {r["tasks"] for r in v2} == {100}
+    for r in v2:
+        gap = abs(r["iqm"][0] - r["iqm"][2])
+        assert r["agreement"] >= 0.98 and r["spearman"] >= 0.95 and gap <= 0.01, (r["tier"], r["planner"])
+        assert r["meets_bar"]
+    assert sum(not r["meets_bar"] for r in rows if r["law"] == "cdf") >= 10

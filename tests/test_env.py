@@ -41,7 +41,7 @@ def test_gymnasium_check_env(env_id, scenario):
 def test_sb3_check_env(env_id, scenario):
     from stable_baselines3.common.env_checker import check_env
 
-    env = gym.make(env_id, scenario=_short(scenario))  # v0 ids warn that v1 exists (Gymnasium's versioning)
+    env = gym.make(env_id, scenario=_short(scenario))  # v0 ids warn that v2 exists (Gymnasium's versioning)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         check_env(env.unwrapped, warn=True)
@@ -196,8 +196,8 @@ def test_env_pickles_mid_episode(env_id):
     assert np.array_equal(a[0], b[0]) and a[1] == b[1]
 
 
-@pytest.mark.parametrize("env_id", ["FFSR-v1", "FFSR-Residual-v1"])
-def test_v1_env_pickles_mid_episode(env_id):
+@pytest.mark.parametrize("env_id", ["FFSR-v2", "FFSR-Residual-v2"])
+def test_v2_env_pickles_mid_episode(env_id):
     env = gym.make(env_id, task="easy")
     env.reset(seed=3)
     action = np.full(env.action_space.shape, 0.1, np.float32)

@@ -1,4 +1,4 @@
-"""Scoring a v1 pool on executors (processes, a Dask cluster) gives the entry of the serial run."""
+"""Scoring a pool on executors (processes, a Dask cluster) gives the entry of the serial run."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import pytest
 
-from ffsr_gym.bench.evaluation import evaluate as evaluate_v1
+from ffsr_gym.bench.evaluation import evaluate as evaluate_pool
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.tasks.certificate import planner_episode
 from ffsr_gym.tasks.generator import draw_task
@@ -21,14 +21,14 @@ def _same(a, b):
 
 
 def test_process_pool_gives_the_serial_entry_and_the_planner_episodes():
-    serial = evaluate_v1((0.3, 4.0), "FFSR-v1", task="easy", indices=INDICES)
+    serial = evaluate_pool((0.3, 4.0), "FFSR-v2", task="easy", indices=INDICES)
     with ProcessPoolExecutor(2) as executor:
-        parallel = evaluate_v1((0.3, 4.0), "FFSR-v1", task="easy", indices=INDICES, executor=executor, chunk=2)
+        parallel = evaluate_pool((0.3, 4.0), "FFSR-v2", task="easy", indices=INDICES, executor=executor, chunk=2)
     _same(serial, parallel)
     assert [row["task_index"] for row in parallel.episodes] == INDICES
     from ffsr_gym.model.benchmark import load_benchmark
 
-    benchmark = load_benchmark("v1")
+    benchmark = load_benchmark("v2")
     for row in parallel.episodes:  # the env episodes, replayed by the planner alone
         task = draw_task(pool("easy", "test")[row["task_index"]].seed, benchmark)
         assert row["score"] == planner_episode(task, benchmark, method="predefined_time", m=0.3, T_c=4.0).score
@@ -38,23 +38,23 @@ def test_dask_cluster_gives_the_serial_entry():
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
             distributed.Client(cluster) as client:
-        remote = evaluate_v1((0.3, 4.0), "FFSR-v1", task="medium", indices=INDICES, executor=client.get_executor(), chunk=3)
-    _same(evaluate_v1((0.3, 4.0), "FFSR-v1", task="medium", indices=INDICES), remote)
+        remote = evaluate_pool((0.3, 4.0), "FFSR-v2", task="medium", indices=INDICES, executor=client.get_executor(), chunk=3)
+    _same(evaluate_pool((0.3, 4.0), "FFSR-v2", task="medium", indices=INDICES), remote)
 
 
 def test_chunk_is_checked():
     with pytest.raises(InvalidInputError, match="chunk"):
-        evaluate_v1((0.3, 4.0), "FFSR-v1", task="easy", indices=[0], chunk=0)
+        evaluate_pool((0.3, 4.0), "FFSR-v2", task="easy", indices=[0], chunk=0)
 
 
-@pytest.mark.parametrize("task", ["paper", "easy", "hard"])
+@pytest.mark.parametrize("task", ["easy", "hard", "debris"])
 def test_batched_fixed_parameters_give_the_serial_entry(task):
-    """A fixed (m, T_c) on FFSR-v1 runs all tasks in one batched env: rows equal the single env's, bit for bit."""
-    indices = [0] if task == "paper" else INDICES
+    """A fixed (m, T_c) on FFSR-v2 runs all tasks in one batched env: rows equal the single env's, bit for bit."""
+    indices = INDICES
     for m, T_c in ((0.3, 4.0), (0.1, 1.5)):  # (0.1, 1.5 s) breaks the rate limit: early ends in the batch
-        serial = evaluate_v1((m, T_c), "FFSR-v1", task=task, indices=indices, batched=False)
-        _same(serial, evaluate_v1((m, T_c), "FFSR-v1", task=task, indices=indices, batched=True))
+        serial = evaluate_pool((m, T_c), "FFSR-v2", task=task, indices=indices, batched=False)
+        _same(serial, evaluate_pool((m, T_c), "FFSR-v2", task=task, indices=indices, batched=True))
     with ProcessPoolExecutor(2) as executor:
-        _same(serial, evaluate_v1((0.1, 1.5), "FFSR-v1", task=task, indices=indices, executor=executor, chunk=4))
+        _same(serial, evaluate_pool((0.1, 1.5), "FFSR-v2", task=task, indices=indices, executor=executor, chunk=4))
     with pytest.raises(InvalidInputError, match="batched"):
-        evaluate_v1((0.3, 4.0), "FFSR-Residual-v1", task=task, indices=indices, batched=True)
+        evaluate_pool((0.3, 4.0), "FFSR-Residual-v2", task=task, indices=indices, batched=True)

@@ -1,6 +1,6 @@
-"""The compiled v1 decision (``ffsr_gym.kernel.decision``) against the step-by-step path it replaces.
+"""The compiled v2 decision (``ffsr_gym.kernel.decision``) against the step-by-step path it replaces.
 
-The single v1 env steps through one compiled call on the kernel backend. With its episode
+The single v2 env steps through one compiled call on the kernel backend. With its episode
 switched off (``env.unwrapped.compiled_step = False``) the same env goes through the
 :class:`~ffsr_gym.sim.rollout.Rollout` interface: physics by ``advance``, the increment from
 ``scoring.score``, the observation assembled in Python. Both must give the same numbers bit for
@@ -22,13 +22,13 @@ from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.kernel import decision
 from ffsr_gym.model.benchmark import load_benchmark
 
-BENCH = load_benchmark("v1")
+BENCH = load_benchmark("v2")
 
 
 def episode(env_id, task, actions, *, compiled, seed=0, index=3, parameters=None, **kwargs):
     """Observations, rewards, ends and infos of one episode (or ``len(actions)`` decisions)."""
     env = gym.make(env_id, task=task, **kwargs)
-    obs, _ = env.reset(seed=seed, options=None if task == "paper" else {"task_index": index})
+    obs, _ = env.reset(seed=seed, options={"task_index": index})
     if not compiled:
         env.unwrapped.compiled_step = False
     out = [(obs,)]
@@ -55,8 +55,8 @@ def assert_same(a, b):
             assert info_a[key] == info_b[key] or (info_a[key] != info_a[key] and info_b[key] != info_b[key]), key
 
 
-CASES = [("FFSR-Residual-v1", "easy", 0.4), ("FFSR-Residual-v1", "debris", 0.4), ("FFSR-Residual-v1", "robust", 0.4),
-         ("FFSR-v1", "paper", 1.3), ("FFSR-v1", "hard", 1.0), ("FFSR-Residual-v1", "medium", 1.5)]
+CASES = [("FFSR-Residual-v2", "easy", 0.4), ("FFSR-Residual-v2", "debris", 0.4), ("FFSR-Residual-v2", "robust", 0.4),
+         ("FFSR-v2", "easy", 1.3), ("FFSR-v2", "hard", 1.0), ("FFSR-Residual-v2", "medium", 1.5)]
 
 
 @pytest.mark.parametrize(("env_id", "task", "scale"), CASES)
@@ -77,18 +77,18 @@ def test_compiled_step_equals_the_step_by_step_path_in_the_other_modes():
     rng = np.random.default_rng(3)
     actions = [rng.uniform(-1, 1, 12) * 2.0 for _ in range(200)]  # float64: the checks in Python
     for kwargs in ({"terminate_on_violation": False}, {"dense_shaping": True}):
-        compiled = episode("FFSR-Residual-v1", "hard", actions, compiled=True, **kwargs)
-        assert_same(compiled, episode("FFSR-Residual-v1", "hard", actions, compiled=False, **kwargs))
+        compiled = episode("FFSR-Residual-v2", "hard", actions, compiled=True, **kwargs)
+        assert_same(compiled, episode("FFSR-Residual-v2", "hard", actions, compiled=False, **kwargs))
     lists = [list(map(float, a)) for a in actions[:30]]
-    assert_same(episode("FFSR-Residual-v1", "easy", lists, compiled=True),
-                episode("FFSR-Residual-v1", "easy", lists, compiled=False))
+    assert_same(episode("FFSR-Residual-v2", "easy", lists, compiled=True),
+                episode("FFSR-Residual-v2", "easy", lists, compiled=False))
     fixed = [None] * 200
-    assert_same(episode("FFSR-v1", "medium", fixed, compiled=True, parameters=(0.45, 5.0)),
-                episode("FFSR-v1", "medium", fixed, compiled=False, parameters=(0.45, 5.0)))
+    assert_same(episode("FFSR-v2", "medium", fixed, compiled=True, parameters=(0.45, 5.0)),
+                episode("FFSR-v2", "medium", fixed, compiled=False, parameters=(0.45, 5.0)))
 
 
 def test_non_finite_action_raises_the_project_error_and_changes_nothing():
-    env = gym.make("FFSR-Residual-v1", task="easy")
+    env = gym.make("FFSR-Residual-v2", task="easy")
     env.reset(seed=0)
     before = env.unwrapped.rollout.x.copy()
     bad = np.zeros(12, dtype=np.float32)
@@ -104,8 +104,8 @@ def test_non_finite_action_raises_the_project_error_and_changes_nothing():
 def test_reference_backend_keeps_the_python_path_and_agrees():
     """``backend="pinocchio"`` has no compiled episode; its rewards agree with the kernel's to 1e-9."""
     actions = [np.full(12, 0.1, dtype=np.float32)] * 6
-    reference = episode("FFSR-Residual-v1", "paper", actions, compiled=True, backend="pinocchio")
-    kernel = episode("FFSR-Residual-v1", "paper", actions, compiled=True)
+    reference = episode("FFSR-Residual-v2", "easy", actions, compiled=True, backend="pinocchio")
+    kernel = episode("FFSR-Residual-v2", "easy", actions, compiled=True)
     for (obs_r, r_r, *_), (obs_k, r_k, *_) in zip(reference[1:], kernel[1:]):
         assert r_r == pytest.approx(r_k, rel=0, abs=1e-9)
         np.testing.assert_allclose(obs_r, obs_k, rtol=0, atol=1e-6)
@@ -135,8 +135,8 @@ def test_observation_is_the_documented_layout():
 
 def test_batched_step_with_parameters_equals_single_envs():
     """``step_with_parameters`` in the batch (mode: (m, T_c) already set) against single envs, to the end."""
-    venv = gym.make_vec("FFSR-v1", num_envs=2, task="hard", vectorization_mode="vector_entry_point")
-    singles = [gym.make("FFSR-v1", task="hard") for _ in range(2)]
+    venv = gym.make_vec("FFSR-v2", num_envs=2, task="hard", vectorization_mode="vector_entry_point")
+    singles = [gym.make("FFSR-v2", task="hard") for _ in range(2)]
     obs, _ = venv.reset(seed=4)
     np.testing.assert_array_equal(obs, np.stack([env.reset(seed=4 + i)[0] for i, env in enumerate(singles)]))
     done = [False, False]

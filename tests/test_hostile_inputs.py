@@ -20,7 +20,7 @@ from ffsr_gym.provenance import write_json_atomic
 from ffsr_gym.tasks.certificate import Certificate
 
 
-@pytest.mark.parametrize("env_id", ["FFSR-v1", "FFSR-Residual-v0"])
+@pytest.mark.parametrize("env_id", ["FFSR-v2", "FFSR-Residual-v0"])
 def test_step_after_the_episode_ended_is_an_error_not_more_physics(env_id):
     env = gym.make(env_id).unwrapped
     env.reset(seed=0)
@@ -55,14 +55,14 @@ def test_binary_scenario_file_is_a_scenario_error(tmp_path):
 
 @pytest.mark.parametrize("action", [{"a": 1}, object(), np.zeros(12) + 1j, ["0.1"] * 12, "0.1", [[0.1], [0.1, 0.2]]])
 def test_odd_actions_are_named_errors(action):
-    env = gym.make("FFSR-Residual-v1")
+    env = gym.make("FFSR-Residual-v2")
     env.reset(seed=0)
     with pytest.raises(InvalidInputError, match="action"):
         env.step(action)
 
 
 def test_vector_env_seeds_of_any_integer_type_and_named_errors():
-    venv = gym.make_vec("FFSR-Residual-v1", num_envs=2, vectorization_mode="vector_entry_point")
+    venv = gym.make_vec("FFSR-Residual-v2", num_envs=2, vectorization_mode="vector_entry_point")
     np.testing.assert_array_equal(venv.reset(seed=np.int64(3))[0], venv.reset(seed=3)[0])
     for bad in ("abc", [1], 1.5, True, -1):
         with pytest.raises(InvalidInputError, match="seed"):
@@ -100,12 +100,12 @@ def test_result_files_follow_the_umask(tmp_path):
     assert json.loads((tmp_path / "result.json").read_text()) == {"a": 1}
 
 
-def _soak_v1(env_id: str, tier: str, steps: int) -> int:
+def _soak_pool(env_id: str, tier: str, steps: int) -> int:
     """Random actions (some out of range), and every third episode a certificate: all finite, in space.
 
-    A certificate is played where the env can play it: a constant (m, T_c) on FFSR-v1, a residual
-    on FFSR-Residual-v1, and the default setting as a zero residual. Medium tasks on the residual
-    env and hard tasks on FFSR-v1 have none (by the tier rule). Returns (successes, certificate
+    A certificate is played where the env can play it: a constant (m, T_c) on FFSR-v2, a residual
+    on FFSR-Residual-v2, and the default setting as a zero residual. Medium tasks on the residual
+    env and hard tasks on FFSR-v2 have none (by the tier rule). Returns (successes, certificate
     episodes); every certificate episode must succeed.
     """
     import math
@@ -143,19 +143,19 @@ def _soak_v1(env_id: str, tier: str, steps: int) -> int:
     return successes, played
 
 
-@pytest.mark.parametrize("env_id", ["FFSR-v1", "FFSR-Residual-v1"])
+@pytest.mark.parametrize("env_id", ["FFSR-v2", "FFSR-Residual-v2"])
 @pytest.mark.parametrize("tier", ["easy", "medium", "hard"])
-def test_v1_soak_short(env_id, tier):
-    _soak_v1(env_id, tier, 450)
+def test_pool_soak_short(env_id, tier):
+    _soak_pool(env_id, tier, 450)
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("env_id", ["FFSR-v1", "FFSR-Residual-v1"])
+@pytest.mark.parametrize("env_id", ["FFSR-v2", "FFSR-Residual-v2"])
 @pytest.mark.parametrize("tier", ["easy", "medium", "hard"])
-def test_v1_soak_long(env_id, tier):
-    successes, played = _soak_v1(env_id, tier, 30_000)
+def test_pool_soak_long(env_id, tier):
+    successes, played = _soak_pool(env_id, tier, 30_000)
     assert successes >= played
-    assert (played > 0) == ((env_id, tier) not in {("FFSR-v1", "hard"), ("FFSR-Residual-v1", "medium")})
+    assert (played > 0) == ((env_id, tier) not in {("FFSR-v2", "hard"), ("FFSR-Residual-v2", "medium")})
 
 
 def test_provenance_finds_a_commit_or_says_why_not(tmp_path, monkeypatch):
@@ -182,7 +182,7 @@ def test_cli_version_list_and_a_new_leaderboard_folder(tmp_path, capsys):
     assert capsys.readouterr().out.strip() == f"ffsr-gym {ffsr_gym.__version__}"
     assert main(["list"]) == 0
     listed = capsys.readouterr().out
-    assert "FFSR-v1" in listed and "hard: train pool 200 tasks, test pool 100 tasks" in listed and "paper" in listed
+    assert "FFSR-v2" in listed and "hard: train pool 200 tasks, validation pool 50 tasks, test pool 100 tasks" in listed and "paper" in listed
     assert main(["leaderboard", "render", "--root", str(tmp_path / "missing")]) == 2
     assert "not a folder" in capsys.readouterr().err
     (tmp_path / "mine").mkdir()
@@ -193,12 +193,12 @@ def test_cli_version_list_and_a_new_leaderboard_folder(tmp_path, capsys):
 def test_cli_evaluate_writes_an_entry_and_names_bad_policies(tmp_path, capsys):
     from ffsr_gym.cli import main
 
-    assert main(["evaluate", "--env-id", "FFSR-v1", "--policy", "0.3,4", "--task", "easy", "--name", "default",
+    assert main(["evaluate", "--env-id", "FFSR-v2", "--policy", "0.3,4", "--task", "easy", "--name", "default",
                  "--leaderboard", str(tmp_path), "--no-progress"]) == 0
-    entry = json.loads((tmp_path / "v1" / "easy" / "default.json").read_text())
+    entry = json.loads((tmp_path / "v2" / "easy" / "default.json").read_text())
     assert entry["metrics"]["success_rate"] == 1.0 and entry["extra"]["evaluation_pool"] == "easy/test"
     for bad in ("0.3", "nowhere.zip", "math:nothing", "lambda"):
-        assert main(["evaluate", "--env-id", "FFSR-v1", "--policy", bad, "--no-progress"]) == 2
+        assert main(["evaluate", "--env-id", "FFSR-v2", "--policy", bad, "--no-progress"]) == 2
         assert "--policy" in capsys.readouterr().err or bad == "nowhere.zip"
 
 

@@ -15,7 +15,7 @@ import ffsr_gym
 from ffsr_gym.bench import leaderboard
 
 ROOT = Path(__file__).resolve().parent.parent / "leaderboards"
-ENTRIES = sorted(p for p in ROOT.glob("*/*.json") if p.parent.name != "v1")  # v0 entries
+ENTRIES = sorted(p for p in ROOT.glob("*/*.json") if p.parent.name != "v2")  # v0 entries
 
 
 def _close(a, b):
@@ -76,46 +76,46 @@ def test_tampered_aggregate_is_caught(board):
     assert not _close(entry["metrics"]["score_iqm"], leaderboard.recompute(entry)["score_iqm"])
 
 
-V1_ENTRIES = sorted((ROOT / "v1").glob("*/*.json"))
+POOL_ENTRIES = sorted((ROOT / "v2").glob("*/*.json"))
 
 
-@pytest.mark.parametrize("path", V1_ENTRIES, ids=lambda p: f"{p.parent.name}/{p.stem}")
-def test_committed_v1_entries_recompute_and_name_their_pools(path):
-    from ffsr_gym.bench.leaderboard import recompute as recompute_v1
+@pytest.mark.parametrize("path", POOL_ENTRIES, ids=lambda p: f"{p.parent.name}/{p.stem}")
+def test_committed_v2_entries_recompute_and_name_their_pools(path):
+    from ffsr_gym.bench.leaderboard import recompute as recompute_entry
     from ffsr_gym.tasks.splits import pool
 
     entry = json.loads(path.read_text())
-    recomputed = recompute_v1(entry)
+    recomputed = recompute_entry(entry)
     assert entry["metrics"].keys() == recomputed.keys()
     for key, value in recomputed.items():
         assert entry["metrics"][key] == pytest.approx(value, rel=1e-12), key
-    assert entry["extra"]["evaluation_pool"] == f"{path.parent.name}/test"
+    assert entry["extra"]["evaluation_pool"] == f"{path.parent.name}/test" and entry["extra"]["dt_s"] == 0.01
     assert len(entry["episodes"]) % len(pool(path.parent.name, "test")) == 0  # one per test task (per training seed)
     assert all(0.0 <= row["score"] <= 1.0 and (row["score"] > 0) == row["success"] for row in entry["episodes"])
 
 
-def test_v1_ranks_share_a_rank_when_no_ci_separates_them():
+def test_ranks_share_a_rank_when_no_ci_separates_them():
     from ffsr_gym.bench.leaderboard import ranks, render_tables
     from ffsr_gym.model.spec import spec_for_version
 
-    def render_v1_tables(entries):
-        return render_tables(spec_for_version("v1"), entries)
+    def render_v2_tables(entries):
+        return render_tables(spec_for_version("v2"), entries)
 
     cis = [[0.6, 0.7], [0.55, 0.65], [0.3, 0.5], [0.0, 0.0], [0.0, 0.0]]
     entries = [{"metrics": {"score_iqm_ci95": ci}} for ci in cis]
     assert ranks(entries) == [1, 1, 3, 4, 4]
     full = [{"name": f"e{i}", "episodes": [], "provenance": {}, "extra": {},
              "metrics": {"score_iqm": ci[1], "score_iqm_ci95": ci, "success_rate": 1.0, "score_mean": ci[1]}} for i, ci in enumerate(cis)]
-    table = render_v1_tables({"easy": full})
+    table = render_v2_tables({"easy": full})
     assert table.count("| 1 (tied) |") == 2 and "| 3 | `e2`" in table and table.count("| 4 (tied) |") == 2
 
 
-def test_v1_figures_are_drawn_from_entries(tmp_path):
+def test_figures_are_drawn_from_entries(tmp_path):
     from ffsr_gym.model.spec import spec_for_version
     from ffsr_gym.scoring.rules import score_rule
 
-    def aggregate_v1(scores, successes):
-        return score_rule(spec_for_version("v1")).aggregate([{"score": s, "success": ok} for s, ok in zip(scores, successes)])
+    def aggregate(scores, successes):
+        return score_rule(spec_for_version("v2")).aggregate([{"score": s, "success": ok} for s, ok in zip(scores, successes)])
     from ffsr_gym.report.leaderboard_plots import plot_iqm, plot_learning_curves, plot_profiles
 
     assert plot_iqm(tmp_path) is None and plot_profiles(tmp_path) is None and plot_learning_curves(tmp_path) is None
@@ -123,44 +123,49 @@ def test_v1_figures_are_drawn_from_entries(tmp_path):
     for tier in ("easy", "hard"):
         for name in ("a", "b"):
             scores = list(rng.uniform(0, 1, 20))
-            curve = {"test_indices": [0, 50, 99], "points": [{"env_steps": k * 100, "scores": list(rng.uniform(0, 1, 3))}
+            curve = {"split": "validation", "indices": [0, 24, 49], "points": [{"env_steps": k * 100, "scores": list(rng.uniform(0, 1, 3))}
                                                               for k in range(4)]}
-            entry = {"name": name, "provenance": {"git_commit": "abc"}, "metrics": aggregate_v1(scores, [True] * 20),
+            entry = {"name": name, "provenance": {"git_commit": "abc"}, "metrics": aggregate(scores, [True] * 20),
                      "episodes": [{"score": s} for s in scores], "extra": {"runs": [{"curve": curve}] * 3}}
-            (tmp_path / "v1" / tier).mkdir(parents=True, exist_ok=True)
-            (tmp_path / "v1" / tier / f"{name}.json").write_text(json.dumps(entry))
+            (tmp_path / "v2" / tier).mkdir(parents=True, exist_ok=True)
+            (tmp_path / "v2" / tier / f"{name}.json").write_text(json.dumps(entry))
     for path in (plot_iqm(tmp_path), plot_profiles(tmp_path), plot_learning_curves(tmp_path)):
         assert path.is_file() and path.stat().st_size > 10_000
 
 
-def test_committed_v1_figures_regenerate_byte_identically_from_the_json(tmp_path):
+def test_committed_figures_regenerate_byte_identically_from_the_json(tmp_path):
     from ffsr_gym.report.leaderboard_plots import plot_iqm, plot_learning_curves, plot_pareto, plot_profiles
 
-    shutil.copytree(ROOT / "v1", tmp_path / "v1", ignore=shutil.ignore_patterns("*.png"))
+    shutil.copytree(ROOT / "v2", tmp_path / "v2", ignore=shutil.ignore_patterns("*.png"))
     for plot in (plot_iqm, plot_profiles, plot_learning_curves, plot_pareto):
         path = plot(tmp_path)
-        committed = ROOT / "v1" / path.name
+        if path is None:  # no RL entries yet: no learning curves
+            assert plot is plot_learning_curves and not (ROOT / "v2" / "learning_curves.png").exists()
+            continue
+        committed = ROOT / "v2" / path.name
         assert path.read_bytes() == committed.read_bytes(), f"{committed} is out of date: run ffsr-gym leaderboard plot"
 
 
 def test_pareto_points_are_the_env_episodes_and_the_front_is_non_dominated(tmp_path):
     import gymnasium as gym
 
-    from ffsr_gym.bench.pareto import paper_pareto
+    from ffsr_gym.bench.pareto import task_pareto
+    from ffsr_gym.tasks.splits import pool
     from ffsr_gym.report.leaderboard_plots import PARETO_FILE, _front, plot_pareto
     from ffsr_gym.scoring.score import score_episode
 
     assert plot_pareto(tmp_path) is None
-    (tmp_path / "v1" / "easy").mkdir(parents=True)
-    for name in ("reference_v1_default.json",):
-        shutil.copy(ROOT / "v1" / "easy" / name, tmp_path / "v1" / "easy" / name)
-    rl = {"name": "sac_residual_easy", "env_id": "FFSR-Residual-v1", "extra": {"runs": [{"seed": 0}]}}
-    (tmp_path / "v1" / "easy" / "sac_residual_easy.json").write_text(json.dumps(rl))
-    data = json.loads(paper_pareto(tmp_path, tmp_path / "v1" / PARETO_FILE, tmp_path / "no-models",
-                                   load_model=lambda algo, path: None, progress=False).read_text())
-    assert (tmp_path / "v1" / PARETO_FILE).is_file() and len(data["grid"]["points"]) == 120
-    env = gym.make("FFSR-v1", task="paper")  # the same setting played through the env, scored independently
-    env.reset(seed=0)
+    (tmp_path / "v2" / "easy").mkdir(parents=True)
+    for name in ("reference_v2_default.json",):
+        shutil.copy(ROOT / "v2" / "easy" / name, tmp_path / "v2" / "easy" / name)
+    rl = {"name": "sac_residual_easy", "env_id": "FFSR-Residual-v2", "extra": {"runs": [{"seed": 0}]}}
+    (tmp_path / "v2" / "easy" / "sac_residual_easy.json").write_text(json.dumps(rl))
+    data = json.loads(task_pareto(tmp_path, tmp_path / "v2" / PARETO_FILE, tmp_path / "no-models",
+                                  load_model=lambda algo, path: None, progress=False).read_text())
+    assert (tmp_path / "v2" / PARETO_FILE).is_file() and len(data["grid"]["points"]) == 120
+    assert data["task"] == "easy/test[0]" and data["task_name"] == f"v2-{pool('easy', 'test')[0].seed}"
+    env = gym.make("FFSR-v2", task="easy", split="test")  # the same setting through the env, scored independently
+    env.reset(seed=0, options={"task_index": 0})
     done = False
     while not done:
         _, _, terminated, truncated, _ = env.unwrapped.step_with_parameters(0.3, 4.0)

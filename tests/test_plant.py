@@ -63,7 +63,7 @@ def test_kernel_matches_reference_with_a_plant(scenario):
 
 def test_mismatch_moves_the_base_and_the_base_feedback_takes_it_back(scenario):
     """Without initial momentum the base-pose feedback absorbs the mismatch (EE still converges to 1e-6 m);
-    with both, an error remains, but within v1's 1 mm tolerance (docs/model.md §15)."""
+    with both, an error remains, but within the 1 mm tolerance of v2 (docs/model.md §15)."""
     at_rest = scenario.replace(initial=load_scenario("paper").initial)
     matched, mismatched = simulate(at_rest.replace(plant=None), backend="kernel"), simulate(at_rest, backend="kernel")
     assert np.max(mismatched.base_position_error_m) > 10 * np.max(matched.base_position_error_m)

@@ -42,7 +42,7 @@ for tier in ALL_TIERS:
         for array in (rollout.x, rollout.fp, rollout.ip, *rollout.plant, *rollout._mdl):
             digest.update(np.ascontiguousarray(array, dtype=float).tobytes())
         out[f"{tier}/{index}"] = digest.hexdigest()
-env = gym.make("FFSR-v1", task="hard", split="test")
+env = gym.make("FFSR-v2", task="hard", split="test")
 env.reset(seed=0, options={"task_index": 0})
 while True:
     *_, terminated, truncated, info = env.unwrapped.step_with_parameters(0.3, 4.0)

@@ -43,29 +43,30 @@ def test_same_seed_same_evaluation(tmp_path):
 
 def test_hyperparameter_files_cover_every_id():
     for algo in ("ppo", "sac"):
-        for env_id in ("FFSR-v0", "FFSR-Residual-v0", "FFSR-v1", "FFSR-Residual-v1"):
+        for env_id in ("FFSR-v0", "FFSR-Residual-v0", "FFSR-v2", "FFSR-Residual-v2"):
             params = load_hyperparams(algo, env_id)
             assert params["n_timesteps"] > 0 and isinstance(params["policy_kwargs"], dict)
 
 
-def test_v1_training_records_a_curve_scores_the_test_pool_and_resumes(tmp_path):
-    from ffsr_gym.bench.leaderboard import recompute as recompute_v1
+def test_pool_training_records_a_validation_curve_scores_the_test_pool_and_resumes(tmp_path):
+    from ffsr_gym.bench.leaderboard import recompute as recompute_entry
     from ffsr_gym.tasks.splits import pool
 
     def run():
-        return train_and_evaluate("ppo", "FFSR-v1", task="easy", seeds=[0], out=tmp_path, timesteps=256,
+        return train_and_evaluate("ppo", "FFSR-v2", task="easy", seeds=[0], out=tmp_path, timesteps=256,
                                      curve_every=128, curve_tasks=3, progress=False)
 
     report = run()
     entry = report.to_json()
     curve = entry["extra"]["runs"][0]["curve"]
     assert [p["env_steps"] for p in curve["points"]][:2] == [0, 128] and len(curve["points"][0]["scores"]) == 3
+    assert curve["split"] == "validation" and curve["indices"] == [0, 24, 49]  # never the test pool
     assert len(entry["episodes"]) == len(pool("easy", "test"))
     assert entry["extra"]["training_pool"] == "easy/train" and entry["extra"]["compute"]["env_steps"] == 256
-    recomputed = recompute_v1(entry)
+    recomputed = recompute_entry(entry)
     assert entry["metrics"].keys() == recomputed.keys()
     for key, value in recomputed.items():
         assert entry["metrics"][key] == pytest.approx(value, rel=1e-12), key
-    started = (tmp_path / "ppo_FFSR-v1_easy_seed0" / "train_record.json").stat().st_mtime_ns
+    started = (tmp_path / "ppo_FFSR-v2_easy_seed0" / "train_record.json").stat().st_mtime_ns
     assert run().episodes == report.episodes  # resumed from the folder, not retrained
-    assert (tmp_path / "ppo_FFSR-v1_easy_seed0" / "train_record.json").stat().st_mtime_ns == started
+    assert (tmp_path / "ppo_FFSR-v2_easy_seed0" / "train_record.json").stat().st_mtime_ns == started

@@ -11,7 +11,7 @@ import pytest
 
 from ffsr_gym.exceptions import RobotFileError, ScenarioError
 from ffsr_gym.model.resources import scenario_path
-from ffsr_gym.model.scenario import load_scenario
+from ffsr_gym.model.scenario import ADDED_KEYS, load_scenario
 
 
 @pytest.mark.parametrize("name", ["paper", "paper_as_printed", "free_space"])
@@ -30,7 +30,7 @@ def test_plain_data_equals_the_standard_library_conversion():
     from ffsr_gym.tasks.generator import draw_task
     from ffsr_gym.tasks.perturbation import perturbed_task
 
-    benchmark = load_benchmark("v1")
+    benchmark = load_benchmark("v2")
     scenarios = [load_scenario(name) for name in ("paper", "paper_as_printed", "free_space", "random")]
     scenarios += [draw_task(seed, benchmark) for seed in range(5)]
     for tier in ("debris", "robust"):
@@ -42,6 +42,9 @@ def test_plain_data_equals_the_standard_library_conversion():
         del expected["source"]
         expected = {key: value for key, value in expected.items() if value is not None}
         expected["trajectory"] = expected.pop("desired_path")  # the attribute's key in the file
+        for (table, key), default in ADDED_KEYS.items():  # left out at their default: older hashes hold
+            if expected[table][key] == default:
+                del expected[table][key]
         assert to_dict(scenario) == expected
 
 

@@ -22,7 +22,7 @@ NOISE = TargetNoise(position_bias_m=(3e-4, -2e-4, 1e-4), attitude_bias_rad=(2e-4
 
 @pytest.fixture(scope="module")
 def scenario():
-    return load_benchmark("v1").task(load_scenario("paper")).replace(target_noise=NOISE)
+    return load_benchmark("v2").task(load_scenario("paper")).replace(target_noise=NOISE)
 
 
 def test_kernel_matches_reference_with_a_noisy_target(scenario):

@@ -1,6 +1,6 @@
-"""Perturbed tiers ``debris`` and ``robust``: zero perturbation is v1, pools are the first certified
-v1 tier tasks, draws stay in the documented ranges. Their certificates are replayed through the
-environments with the v1 tiers' (``tests/test_tasks_v1.py``: a sample in CI, all with ``-m slow``).
+"""Perturbed tiers ``debris`` and ``robust``: zero perturbation is the base task, pools are the first certified
+base tier tasks, draws stay in the documented ranges. Their certificates are replayed through the
+environments and the ensemble with the base tiers' (``tests/test_tasks.py``: a sample in CI, all with ``-m slow``).
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_tasks_v1 import CODES
+from test_tasks import CODES
 from test_vector_env import lockstep, make_vec
 
 import ffsr_gym  # noqa: F401  (registers the environments)
@@ -19,7 +19,7 @@ from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.sim.simulate import make_rollout
 from ffsr_gym.tasks.generator import draw_task
 from ffsr_gym.tasks.perturbation import PERTURBED_TIERS, load_perturbed_rule, perturbed_task
-from ffsr_gym.tasks.splits import SEED_RANGES, SPLITS, load_pools, pool
+from ffsr_gym.tasks.splits import SEED_RANGES, load_pools, pool
 from ffsr_gym.tasks.tiers import certify, classify_perturbed
 
 if sys.version_info >= (3, 11):
@@ -27,9 +27,10 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-BENCH = load_benchmark("v1")
-RANGES = tomllib.loads((envs_dir() / "benchmark" / "v1_perturbed.toml").read_text())
-V1_LABELS = {split: load_pools()["splits"][split] for split in SPLITS}
+BENCH = load_benchmark("v2")
+SPLITS = BENCH.tasks.splits
+RANGES = tomllib.loads((envs_dir() / "benchmark" / "v2_perturbed.toml").read_text())
+BASE_LABELS = {split: load_pools()["splits"][split] for split in SPLITS}
 LOGGED = ("q", "v", "dq_joints", "ee_position_error_m", "ee_attitude_error", "clearance_m", "self_clearance_m", "mu",
           "cdf")
 
@@ -42,10 +43,10 @@ def _trajectory(task, certificate):
 
 
 @pytest.mark.parametrize("tier", PERTURBED_TIERS)
-def test_zero_perturbation_reproduces_the_v1_medium_tier_bit_for_bit(tier):
+def test_zero_perturbation_reproduces_the_medium_tier_bit_for_bit(tier):
     """With every range collapsed, the perturbed code paths (debris section, plant, momentum, noise)
-    find the v1 certificate and its score, and move exactly as the v1 task."""
-    zero = load_perturbed_rule().zero()
+    find the base task's certificate and its score, and move exactly as the base task."""
+    zero = load_perturbed_rule("v2").zero()
     for entry in pool("medium", "test")[:3]:
         task = perturbed_task(tier, entry.seed, BENCH, zero)
         assert (task.debris is not None) == (tier == "debris") and (task.target_noise is not None) == (tier == "robust")
@@ -60,18 +61,18 @@ def test_zero_perturbation_reproduces_the_v1_medium_tier_bit_for_bit(tier):
 
 
 @pytest.mark.parametrize("tier", PERTURBED_TIERS)
-def test_pools_are_the_first_certified_v1_tier_tasks_disjoint_and_full(tier):
+def test_pools_are_the_first_certified_base_tier_tasks_disjoint_and_full(tier):
     data = load_pools(None, (tier,))
     seen: set[int] = set()
     for split in SPLITS:
-        summary, v1 = data["splits"][split], V1_LABELS[split]
+        summary, base = data["splits"][split], BASE_LABELS[split]
         labels = [CODES[c] for c in summary["labels"]]
         seeds = range(summary["first_seed"], summary["first_seed"] + len(labels))
-        assert summary["first_seed"] == SEED_RANGES[split][0] == v1["first_seed"]
-        for seed, label in zip(seeds, labels):  # candidates are exactly the v1 tier tasks
-            in_v1_tier = CODES[v1["labels"][seed - v1["first_seed"]]] in ("easy", "medium", "hard")
-            assert (label != "base_rejected") == in_v1_tier, seed
-        expected = int(RANGES["train_tasks"] if split == "train" else RANGES["test_tasks"])
+        assert summary["first_seed"] == SEED_RANGES[split][0] == base["first_seed"]
+        for seed, label in zip(seeds, labels):  # candidates are exactly the base tier tasks
+            in_base_tier = CODES[base["labels"][seed - base["first_seed"]]] in ("easy", "medium", "hard")
+            assert (label != "base_rejected") == in_base_tier, seed
+        expected = int(RANGES[f"{split}_tasks"])
         pool_seeds = [t.seed for t in pool(tier, split)]
         assert pool_seeds == [s for s, label in zip(seeds, labels) if label == tier][:expected]
         assert len(pool_seeds) == expected and not seen & set(pool_seeds)
@@ -81,9 +82,9 @@ def test_pools_are_the_first_certified_v1_tier_tasks_disjoint_and_full(tier):
 @pytest.mark.parametrize("tier", PERTURBED_TIERS)
 def test_the_rule_reruns_to_the_stored_labels(tier):
     summary = load_pools(None, (tier,))["splits"]["test"]
-    first, v1 = summary["first_seed"], V1_LABELS["test"]["labels"]
+    first, base = summary["first_seed"], BASE_LABELS["test"]["labels"]
     for offset in range(8):
-        admitted = CODES[v1[offset]] in ("easy", "medium", "hard")
+        admitted = CODES[base[offset]] in ("easy", "medium", "hard")
         verdict = classify_perturbed(tier, first + offset, BENCH, base_admitted=admitted)
         assert (verdict.tier or verdict.rejection) == CODES[summary["labels"][offset]], first + offset
 
@@ -128,8 +129,8 @@ def test_batched_env_on_a_perturbed_tier_equals_single_envs(tier):
     import gymnasium as gym
 
     n = 2
-    venv = make_vec("FFSR-Residual-v1", n, task=tier)
-    singles = [gym.make("FFSR-Residual-v1", task=tier) for _ in range(n)]
+    venv = make_vec("FFSR-Residual-v2", n, task=tier)
+    singles = [gym.make("FFSR-Residual-v2", task=tier) for _ in range(n)]
     obs, info = venv.reset(seed=5)
     resets = [env.reset(seed=5 + i) for i, env in enumerate(singles)]
     np.testing.assert_array_equal(obs, np.stack([r[0] for r in resets]))
@@ -141,8 +142,8 @@ def test_pool_files_record_the_rule_they_were_built_under():
     from ffsr_gym.tasks.build import rule_sha256
 
     for tier in PERTURBED_TIERS:
-        assert load_pools(None, (tier,))["rule_sha256"] == rule_sha256(tier)
-        assert Path(envs_dir() / "benchmark" / f"v1_{tier}_tasks.json").is_file()
+        assert load_pools(None, (tier,))["rule_sha256"] == rule_sha256(tier, "v2")
+        assert Path(envs_dir() / "benchmark" / f"v2_{tier}_tasks.json").is_file()
 
 
 @pytest.mark.parametrize("tier", PERTURBED_TIERS)
@@ -189,11 +190,11 @@ def test_what_the_perturbations_change_for_the_reference_planner():
 
 
 @pytest.mark.parametrize("old, new, message", [
-    ("mass_scale = [0.9, 1.1]", "mass_scale = [0.9, 3.0]",
+    ("mass_scale = [0.8, 1.2]", "mass_scale = [0.8, 3.0]",
      "'robust.mass_scale[1]' = 3.0 is out of range; allowed: [0.5, 2.0]"),
     ("extra_obstacles = [1, 3]", "extra_obstacles = [1.5, 3]",
      "'debris.extra_obstacles' = [1.5, 3.0]; allowed: two integers"),
-    ("radius_m = [0.0, 0.05]", "radius_m = [0.05, 0.0]", "'debris.radius_m' = [0.05, 0.0]; allowed: [low, high]"),
+    ("radius_m = [0.02, 0.08]", "radius_m = [0.08, 0.02]", "'debris.radius_m' = [0.08, 0.02]; allowed: [low, high]"),
     ("interval_s = 0.1", "interval_s = 0.1\nspin = 1", "unknown key 'robust.spin'"),
 ])
 def test_malformed_perturbed_rule_is_named(tmp_path, monkeypatch, old, new, message):
@@ -202,15 +203,15 @@ def test_malformed_perturbed_rule_is_named(tmp_path, monkeypatch, old, new, mess
     from ffsr_gym.exceptions import ScenarioError
     from ffsr_gym.tasks import perturbation
 
-    path = tmp_path / "v1_perturbed.toml"
-    text = (envs_dir() / "benchmark" / "v1_perturbed.toml").read_text()
+    path = tmp_path / "v2_perturbed.toml"
+    text = (envs_dir() / "benchmark" / "v2_perturbed.toml").read_text()
     assert old in text
     path.write_text(text.replace(old, new))
-    monkeypatch.setattr(perturbation, "rule_path", lambda: str(path))
+    monkeypatch.setattr(perturbation, "rule_path", lambda version: str(path))
     perturbation.load_perturbed_rule.cache_clear()
     try:
         with pytest.raises(ScenarioError, match=re.escape(message)):
-            perturbation.load_perturbed_rule()
+            perturbation.load_perturbed_rule("v2")
     finally:
         monkeypatch.undo()
         perturbation.load_perturbed_rule.cache_clear()

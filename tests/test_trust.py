@@ -20,10 +20,10 @@ def zero_policy(_obs):
 
 
 def test_a_cut_short_episode_never_outscores_the_full_one():
-    full = ffsr_gym.evaluate(zero_policy, "FFSR-v1", task="easy", indices=INDICES)
+    full = ffsr_gym.evaluate(zero_policy, "FFSR-v2", task="easy", indices=INDICES)
     with pytest.raises(InvalidInputError, match="max_episode_steps.*protocol"):
-        ffsr_gym.evaluate(zero_policy, "FFSR-v1", task="easy", indices=INDICES, env_kwargs={"max_episode_steps": 5})
-    env = gym.make("FFSR-v1", task="easy", split="test", max_episode_steps=5)  # cut after 0.5 s
+        ffsr_gym.evaluate(zero_policy, "FFSR-v2", task="easy", indices=INDICES, env_kwargs={"max_episode_steps": 5})
+    env = gym.make("FFSR-v2", task="easy", split="test", max_episode_steps=5)  # cut after 0.5 s
     rule = env.unwrapped.engine.rule
     for index, row in zip(INDICES, full.episodes):
         env.reset(seed=index, options={"task_index": index})
@@ -37,15 +37,15 @@ def test_a_cut_short_episode_never_outscores_the_full_one():
 
 
 def _tampered_board(tmp_path):
-    """A copy of the committed leaderboards with five bad entries added to v1/easy."""
+    """A copy of the committed leaderboards with five bad entries added to v2/easy."""
     import json
     import shutil
     from pathlib import Path
 
     root = tmp_path / "leaderboards"
     shutil.copytree(Path(__file__).resolve().parent.parent / "leaderboards", root)
-    easy, medium = root / "v1" / "easy", root / "v1" / "medium"
-    good = json.loads((easy / "reference_v1_default.json").read_text())
+    easy, medium = root / "v2" / "easy", root / "v2" / "medium"
+    good = json.loads((easy / "reference_v2_default.json").read_text())
 
     def bad(name: str, change) -> None:
         entry = json.loads(json.dumps(good))
@@ -69,7 +69,7 @@ def test_a_tampered_leaderboard_refuses_every_bad_entry_by_name_and_check_fails(
 
     root = _tampered_board(tmp_path)
     reasons = {name: " ".join(why) for _, name, why in leaderboard.refused(leaderboard.load_entries(root,
-                                                                                          spec_for_version("v1")))}
+                                                                                          spec_for_version("v2")))}
     assert set(reasons) == {"edited_metric.json", "nan_metric.json", "subset.json", "train_split.json",
                             "forged_name.json", "from_medium.json", "truncated.json"}
     assert "metrics.score_iqm" in reasons["edited_metric.json"] and "metrics.score_mean" in reasons["nan_metric.json"]
@@ -88,7 +88,7 @@ def test_a_tampered_leaderboard_refuses_every_bad_entry_by_name_and_check_fails(
     ["tasks", "build", "--chunk", "0"], ["tasks", "build", "--chunk", "-5"], ["tasks", "build", "--workers", "0"],
     ["train", "--algo", "ppo", "--timesteps", "0"], ["train", "--algo", "ppo", "--timesteps", "-5"],
     ["train", "--algo", "ppo", "--curve-every", "0"], ["train", "--algo", "ppo", "--seeds", "-1"],
-    ["render", "--speed", "nan"], ["render", "--every", "0"], ["evaluate", "--env-id", "FFSR-v1", "--policy", "0.3,4",
+    ["render", "--speed", "nan"], ["render", "--every", "0"], ["evaluate", "--env-id", "FFSR-v2", "--policy", "0.3,4",
                                                               "--workers", "0"],
 ])
 def test_bad_numbers_are_named_before_any_work(argv, capsys):
@@ -109,7 +109,7 @@ def test_outputs_are_checked_before_the_run(tmp_path, capsys, monkeypatch):
     assert main(["train", "--algo", "ppo", "--seeds", "0", "0"]) == 2 and "more than once" in capsys.readouterr().err
     blocker = tmp_path / "board"
     blocker.write_text("a file")
-    argv = ["evaluate", "--env-id", "FFSR-v1", "--policy", "0.3,4", "--task", "paper", "--no-progress"]
+    argv = ["evaluate", "--env-id", "FFSR-v2", "--policy", "0.3,4", "--task", "easy", "--no-progress"]
     assert main([*argv, "--leaderboard", str(blocker)]) == 2 and "is a file" in capsys.readouterr().err
     assert main([*argv, "--leaderboard", "lb", "--name", "twice"]) == 0
     assert main([*argv, "--leaderboard", "lb", "--name", "twice"]) == 2 and "--force" in capsys.readouterr().err
@@ -121,7 +121,7 @@ def test_outputs_are_checked_before_the_run(tmp_path, capsys, monkeypatch):
 def test_fixed_parameters_outside_the_action_box_or_not_numbers_are_refused():
     for policy in ((0.9, 50.0), ("0.3", "4"), (0.3, float("nan"))):
         with pytest.raises(InvalidInputError, match="action box"):
-            ffsr_gym.evaluate(policy, "FFSR-v1", task="paper")
+            ffsr_gym.evaluate(policy, "FFSR-v2", task="easy")
 
 
 def test_policies_from_files_and_untrusted_models(tmp_path, monkeypatch):
@@ -143,7 +143,7 @@ def test_policies_from_files_and_untrusted_models(tmp_path, monkeypatch):
 
 
 def test_bad_arguments_of_the_environments_are_named():
-    env = gym.make("FFSR-v1", task="paper").unwrapped
+    env = gym.make("FFSR-v2", task="easy").unwrapped
     with pytest.raises(InvalidInputError, match="reset"):
         env.step(np.zeros(2, dtype=np.float32))
     env.reset(seed=0)
@@ -151,14 +151,14 @@ def test_bad_arguments_of_the_environments_are_named():
         env.step_with_parameters("abc", 3.0)
     for task in (1, b"easy", 2.5):
         with pytest.raises(InvalidInputError, match="task"):
-            gym.make("FFSR-v1", task=task)
+            gym.make("FFSR-v2", task=task)
 
 
 def _pool_copy(tmp_path, change):
     import json
     from pathlib import Path
 
-    data = json.loads((Path(ffsr_gym.__file__).resolve().parent.parent / "envs" / "benchmark" / "v1_tasks.json")
+    data = json.loads((Path(ffsr_gym.__file__).resolve().parent.parent / "envs" / "benchmark" / "v2_tasks.json")
                       .read_text())
     change(data["splits"]["test"])
     path = tmp_path / f"{change.__name__}.json"  # load_pools caches per path
@@ -202,19 +202,19 @@ def test_a_build_resumed_with_another_chunk_is_refused(tmp_path):
     chunk.parent.mkdir(parents=True)
     chunk.write_text(json.dumps({"split": "train", "start": 0, "stop": 100, "rule_sha256": "x", "verdicts": []}))
     with pytest.raises(FFSRError, match="100 candidates each.*--chunk 50"):
-        build_split(tmp_path, "train", chunk=50, progress=False)
+        build_split(tmp_path, "train", version="v2", chunk=50, progress=False)
 
 
 def test_a_corrupt_hyperparameter_file_is_named(tmp_path):
     pytest.importorskip("yaml")
     from ffsr_gym.optim.rl import load_hyperparams
 
-    (tmp_path / "ppo.yml").write_text("FFSR-v1: [unclosed\n")
+    (tmp_path / "ppo.yml").write_text("FFSR-v2: [unclosed\n")
     with pytest.raises(InvalidInputError, match="ppo.yml: not a readable hyperparameter file"):
-        load_hyperparams("ppo", "FFSR-v1", tmp_path)
+        load_hyperparams("ppo", "FFSR-v2", tmp_path)
     (tmp_path / "ppo.yml").write_text("- a list\n")
     with pytest.raises(InvalidInputError, match="ppo.yml: allowed: a mapping"):
-        load_hyperparams("ppo", "FFSR-v1", tmp_path)
+        load_hyperparams("ppo", "FFSR-v2", tmp_path)
 
 
 def test_verify_re_runs_what_an_entry_names(tmp_path, monkeypatch, capsys):
@@ -232,16 +232,16 @@ def test_verify_re_runs_what_an_entry_names(tmp_path, monkeypatch, capsys):
     (tmp_path / "edited.json").write_text(json.dumps(entry))
     assert main(["leaderboard", "verify", "edited.json"]) == 1 and "row 3 differs in ['score']" in capsys.readouterr().err
     (tmp_path / "zero.py").write_text("import numpy as np\n\ndef policy(obs):\n    return np.zeros(2, 'float32')\n")
-    argv = ["evaluate", "--env-id", "FFSR-v1", "--task", "paper", "--no-progress", "--leaderboard", "lb"]
+    argv = ["evaluate", "--env-id", "FFSR-v2", "--task", "easy", "--no-progress", "--leaderboard", "lb"]
     assert main([*argv, "--policy", "zero.py:policy", "--name", "callable"]) == 0
     assert main([*argv, "--policy", "0.3,4", "--name", "fixed"]) == 0
     for name in ("callable", "fixed"):
-        assert main(["leaderboard", "verify", f"lb/v1/paper/{name}.json"]) == 0
+        assert main(["leaderboard", "verify", f"lb/v2/easy/{name}.json"]) == 0
 
 
 def test_a_training_pool_that_cannot_be_saved_is_refused_before_the_run():
     with pytest.raises(InvalidInputError, match="training_pool"):
-        ffsr_gym.evaluate((0.3, 4.0), "FFSR-v1", task="paper", training_pool=object())
+        ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task="easy", training_pool=object())
 
 
 def test_the_committed_leaderboards_pass_the_check():

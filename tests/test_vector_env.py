@@ -103,10 +103,10 @@ def test_vector_env_episode_trajectory_scores_like_simulate():
     np.testing.assert_allclose(trajectory.q, reference.q[:len(trajectory.t)], rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize(("env_id", "task", "steps"), [("FFSR-Residual-v1", "paper", 230), ("FFSR-v1", "paper", 230),
-                                                       ("FFSR-Residual-v1", "hard", 230)])
-def test_v1_vector_env_equals_single_envs(env_id, task, steps):
-    """Batched v1: same observations, rewards, ends, scores and task draws as single envs seeded s, s+1, ..."""
+@pytest.mark.parametrize(("env_id", "task", "steps"), [("FFSR-Residual-v2", "easy", 230), ("FFSR-v2", "medium", 230),
+                                                       ("FFSR-Residual-v2", "hard", 230)])
+def test_v2_vector_env_equals_single_envs(env_id, task, steps):
+    """Batched v2: same observations, rewards, ends, scores and task draws as single envs seeded s, s+1, ..."""
     n = 3
     venv = make_vec(env_id, n, task=task, dense_shaping=True)
     singles = [gym.make(env_id, task=task, dense_shaping=True) for _ in range(n)]
@@ -126,8 +126,8 @@ def test_v1_vector_env_equals_single_envs(env_id, task, steps):
     assert ends >= 3
 
 
-def test_v1_vector_env_pickles_mid_episode():
-    venv = make_vec("FFSR-Residual-v1", 3, task="easy")
+def test_v2_vector_env_pickles_mid_episode():
+    venv = make_vec("FFSR-Residual-v2", 3, task="easy")
     venv.reset(seed=5)
     rng = np.random.default_rng(0)
     venv.step(rng.uniform(-1, 1, venv.action_space.shape).astype(np.float32))
@@ -139,18 +139,18 @@ def test_v1_vector_env_pickles_mid_episode():
             np.testing.assert_array_equal(x, y)
 
 
-def test_v1_vector_env_refuses_what_it_cannot_batch():
+def test_v2_vector_env_refuses_what_it_cannot_batch():
     with pytest.raises(InvalidInputError, match="terminate_on_violation"):
-        make_vec("FFSR-v1", 2, terminate_on_violation=False)
+        make_vec("FFSR-v2", 2, terminate_on_violation=False)
     with pytest.raises(InvalidInputError, match="split"):
-        make_vec("FFSR-v1", 2, task="easy", split="dev")
+        make_vec("FFSR-v2", 2, task="easy", split="dev")
 
 
 def test_vector_env_renders_copy_0_as_the_single_env_draws_it():
     """``render_mode="rgb_array"``: one frame, copy 0's, pixel for pixel the single env's frame after the same steps."""
-    venv = gym.make_vec("FFSR-v1", num_envs=2, task="easy", vectorization_mode="vector_entry_point",
+    venv = gym.make_vec("FFSR-v2", num_envs=2, task="easy", vectorization_mode="vector_entry_point",
                         render_mode="rgb_array")
-    single = gym.make("FFSR-v1", task="easy", backend="kernel", render_mode="rgb_array")
+    single = gym.make("FFSR-v2", task="easy", backend="kernel", render_mode="rgb_array")
     venv.reset(seed=3)
     single.reset(seed=3)
     actions = np.array([[0.1, -0.2], [0.5, 0.5]], dtype=np.float32)
@@ -162,15 +162,15 @@ def test_vector_env_renders_copy_0_as_the_single_env_draws_it():
     assert np.array_equal(frames[0], single.render())
     venv.close()
     with pytest.raises(InvalidInputError, match="rgb_array"):
-        make_vec("FFSR-v1", 2, render_mode="human")
+        make_vec("FFSR-v2", 2, render_mode="human")
 
 
-def test_v1_vector_env_without_autoreset_holds_ended_copies():
+def test_v2_vector_env_without_autoreset_holds_ended_copies():
     """``autoreset_mode="Disabled"``: an ended copy is not stepped again (same state, observation, no reward)
     while the others go on; its episode is the single env's."""
     from ffsr_gym.environments.vector_env import FFSRVectorEnv
 
-    venv = FFSRVectorEnv(2, "v1", task="hard", split="test", autoreset_mode="Disabled")
+    venv = FFSRVectorEnv(2, "v2", task="hard", split="test", autoreset_mode="Disabled")
     venv.reset(seed=[0, 1], options={"task_index": [0, 5]})
     ended_at, held = {}, {}
     for step in range(200):
@@ -186,12 +186,12 @@ def test_v1_vector_env_without_autoreset_holds_ended_copies():
             break
     assert len(ended_at) == 2 and ended_at[0] != ended_at[1]
     for i, index in enumerate((0, 5)):
-        single = gym.make("FFSR-v1", task="hard", split="test")
+        single = gym.make("FFSR-v2", task="hard", split="test")
         single.reset(seed=i, options={"task_index": index})
         while not any((step := single.unwrapped.step_with_parameters(0.1, 1.5))[2:4]):
             pass
         assert step[4]["score"] == held[i][2] and single.unwrapped.rollout.k == held[i][1]
     with pytest.raises(InvalidInputError, match="autoreset_mode"):
-        FFSRVectorEnv(2, "v1", task="hard", autoreset_mode="SameStep")
+        FFSRVectorEnv(2, "v2", task="hard", autoreset_mode="SameStep")
     with pytest.raises(InvalidInputError, match="reset_mask"):
         venv.reset(options={"reset_mask": np.array([True, False])})

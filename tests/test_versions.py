@@ -26,7 +26,7 @@ from ffsr_gym.scoring.score import score_episode
 SPEC = """
 schema_version = 1
 version = "v9"
-description = "a test version: the v1 score on the free-space scenario, scored on two seeds"
+description = "a test version: the v2 score on the free-space scenario, scored on two seeds"
 status = "live"
 
 [ids]
@@ -36,7 +36,7 @@ max_episode_steps = 200
 
 [score]
 rule = "bounded_smoothness"
-rules_file = "v1.toml"
+rules_file = "v2.toml"
 text = "test score"
 
 [actions]
@@ -88,9 +88,9 @@ def test_a_spec_file_is_a_version_that_steps_evaluates_and_renders(version_v9, t
         obs, reward, terminated, truncated, info = env.step(np.zeros(12, dtype=np.float32))
         rewards.append(reward)
         done = terminated or truncated
-    # The v1 rule, applied by hand to the trajectory, and the rewards' sum (score minus 1).
-    task = load_benchmark("v1").task(load_scenario("free_space"))
-    expected = score_episode(env.unwrapped.trajectory, task, load_benchmark("v1"))
+    # The v2 rule, applied by hand to the trajectory, and the rewards' sum (score minus 1).
+    task = load_benchmark("v2").task(load_scenario("free_space"))
+    expected = score_episode(env.unwrapped.trajectory, task, load_benchmark("v2"))
     assert info["score"] == expected.score and info["success"] == expected.success
     assert sum(rewards) == pytest.approx(expected.score - 1.0, abs=1e-12)
 
@@ -120,8 +120,8 @@ def test_a_malformed_spec_names_its_key(tmp_path):
     with pytest.raises(ScenarioError, match=r"leaderboard.ranking.*by_vibes"):
         ffsr_gym.register_spec(path)
     taken = tmp_path / "spec_taken.toml"
-    taken.write_text(SPEC.replace('parameters = "FFSR-Test-v9"', 'parameters = "FFSR-v1"'))
-    with pytest.raises(ScenarioError, match="FFSR-v1"):
+    taken.write_text(SPEC.replace('parameters = "FFSR-Test-v9"', 'parameters = "FFSR-v2"'))
+    with pytest.raises(ScenarioError, match="FFSR-v2"):
         ffsr_gym.register_spec(taken)
     assert not (envs_dir() / "benchmark" / "spec_v9.toml").exists()
 
@@ -130,3 +130,14 @@ def test_shipped_versions_are_registered_from_their_specs():
     for spec in all_specs().values():
         for env_id in spec.env_ids:
             assert gym.spec(env_id).kwargs["version"] == spec.version
+
+
+@pytest.mark.parametrize(("retired", "live"), [("FFSR-v1", "FFSR-v2"), ("FFSR-Residual-v1", "FFSR-Residual-v2")])
+def test_the_retired_v1_ids_name_v2_in_gymnasiums_own_error(retired, live):
+    from gymnasium.error import DeprecatedEnv
+
+    assert retired not in gym.registry and live in gym.registry
+    with pytest.raises(DeprecatedEnv, match=f"Please use `{live}`"):
+        gym.make(retired)
+    assert "v1" not in all_specs()
+    assert not (envs_dir() / "benchmark" / "v1.toml").exists()  # nothing of v1 stays runnable

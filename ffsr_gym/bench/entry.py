@@ -75,7 +75,7 @@ def stepper(policy: Policy, env: gym.Env) -> Callable[[np.ndarray], tuple]:
     """One env step for ``policy`` given the last observation (fixed parameters bypass float32 actions)."""
     if isinstance(policy, tuple):
         if env.unwrapped.residual:
-            raise InvalidInputError("a fixed (m, T_c) policy only applies to FFSR-v0 and FFSR-v1")
+            raise InvalidInputError("a fixed (m, T_c) policy only applies to FFSR-v0 and FFSR-v2")
         return lambda _obs: env.unwrapped.step_with_parameters(*policy)
     if isinstance(policy, PredictsActions):
         return lambda obs: env.step(policy.predict(obs, deterministic=True)[0])

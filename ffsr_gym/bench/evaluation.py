@@ -1,7 +1,7 @@
 """Scoring a policy on any benchmark version: ``evaluate``, one code path for every spec.
 
 The spec's evaluation protocol says which episodes make an entry: the public seeds of an id
-(``seeds``, v0) or one episode per task of a tier's split (``pool``, v1, the test pool by
+(``seeds``, v0) or one episode per task of a tier's split (``pool``, v2, the test pool by
 default). Every episode is scored from its trajectory by the spec's score rule
 (:mod:`ffsr_gym.scoring.rules`), never from the rewards; the env is built here, so no caller's
 wrapper can change a score.
@@ -118,13 +118,16 @@ def _pool_plan(spec: BenchmarkSpec, env_id: str, *, task: str | None, split: str
                                 f"{[*spec.tasks.scenarios, *spec.tasks.tiers]}, split in {list(spec.tasks.splits)}")
     kwargs = {**(env_kwargs or {}), spec.tasks.keyword: task, "split": split}
     is_pool = task in spec.tasks.tiers
-    size = len(pool(task, split)) if is_pool else 1
+    version = spec.rules.version
+    size = len(pool(task, split, version=version)) if is_pool else 1
     chosen = list(range(size) if indices is None else indices)
     if not chosen or any(isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= i < size for i in chosen):
         raise InvalidInputError(f"indices must be a non-empty list of integers in [0, {size - 1}], got {indices!r}")
-    pools = pool_path(task if is_pool else spec.tasks.tiers[0]).read_bytes()
+    pools = pool_path(task if is_pool else spec.tasks.tiers[0], version).read_bytes()
     extra = {"training_pool": training_pool, "evaluation_pool": f"{task}/{split}",
              "pool_file_sha256": hashlib.sha256(pools).hexdigest()}
+    if spec.tasks.step_option:  # the step the episodes ran at; the leaderboard ranks the benchmark's own only
+        extra["dt_s"] = float(kwargs.get("dt_s", spec.rules.dt_s))
     return Plan(spec, env_id, kwargs, [(int(i), int(i) if is_pool else None) for i in chosen], extra)
 
 
@@ -194,7 +197,7 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
         env_kwargs: other ``gymnasium.make`` arguments (v0: ``{"scenario": ...}``; never the score).
         name: entry name (file name of :meth:`EvalReport.save`).
         progress: show a progress bar.
-        task, split, indices, training_pool: protocol ``pool`` (v1): the tier (default ``"easy"``),
+        task, split, indices, training_pool: protocol ``pool`` (v2): the tier (default ``"easy"``),
             the pool scored (default: its **test** pool, one episode per task), the pool indices
             (default: all), and what the policy was trained or tuned on (recorded in the entry).
         executor: protocol ``pool``: score chunks of ``chunk`` tasks on any
@@ -225,7 +228,8 @@ def _runner(policy: Any, plan: Plan, executor: Executor | None, chunk: int, batc
     pooled = plan.spec.evaluation.protocol == "pool"
     residual = plan.spec.is_residual(plan.env_id)
     fixed = (isinstance(policy, tuple) and pooled and not residual and plan.kwargs.get("terminate_on_violation", True)
-             is True and set(plan.kwargs) <= {plan.spec.tasks.keyword, "split", "dense_shaping", "terminate_on_violation"})
+             is True and set(plan.kwargs) <= {plan.spec.tasks.keyword, "split", "dense_shaping", "terminate_on_violation",
+                                              "dt_s"})
     if batched and not fixed:
         raise InvalidInputError(f"batched=True needs a fixed (m, T_c) policy on {plan.spec.ids.parameters} with a pool, "
                                 "terminate_on_violation=True and no env_kwargs other than dense_shaping")

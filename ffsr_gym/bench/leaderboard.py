@@ -5,7 +5,7 @@ root), the names of its metrics and its ranking rule:
 
 * ``feasible_then_iqm`` (v0): feasible rate (descending), then the IQM of B (ascending); an entry
   whose scenario hash differs from the current scenario file is *stale*: shown, not ranked.
-* ``ci_separation`` (v1): the rank of an entry is 1 + the number of entries whose 95 % CI lies
+* ``ci_separation`` (v2): the rank of an entry is 1 + the number of entries whose 95 % CI lies
   entirely above its own; entries with the same rank are marked tied.
 
 Every aggregate is recomputed from the rows by the spec's score rule (:mod:`ffsr_gym.scoring.rules`).
@@ -190,7 +190,7 @@ def write_readme(root: str | Path) -> bool:
     root = Path(root)
     if not root.is_dir():
         raise InvalidInputError(f"leaderboard root {str(root)!r} is not a folder; create it and put entries in "
-                                "the folders the benchmark specs name (e.g. <root>/FFSR-v0/ or <root>/v1/<tier>/)")
+                                "the folders the benchmark specs name (e.g. <root>/FFSR-v0/ or <root>/v2/<tier>/)")
     path = root / "README.md"
     created = not path.exists()
     if created:

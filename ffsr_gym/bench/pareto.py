@@ -1,14 +1,15 @@
-"""Smoothness against convergence time on the ``paper`` task: the planner over the FFSR-v1 action box and every v1 baseline.
+"""Smoothness against convergence time on one task: the planner over the (m, T_c) action box and every baseline.
 
-``ffsr-gym leaderboard pareto --root leaderboards --models runs/rl_v1_study`` runs, on the v1
-``paper`` task, the predefined-time planner at every (m, T_c) of :data:`GRID_M` × :data:`GRID_T_C_S`
-and every baseline of ``<root>/v1/<tier>/*.json``: a planner entry at its recorded parameters, an
-RL entry with each training seed's model (``<models>/<algo>_<env id>_<tier>_seed<s>/model.zip``,
-deterministic actions). Every episode is scored by :func:`ffsr_gym.scoring.score.score_episode`;
-the points go to ``<root>/v1/paper_pareto.json`` (with provenance; the name is
-``ffsr_gym.report.leaderboard_plots.PARETO_FILE``), from which
-``ffsr-gym leaderboard plot`` draws ``pareto.png``. An RL entry whose models are missing is listed
-as such, never dropped silently.
+``ffsr-gym leaderboard pareto --root leaderboards --models runs/rl_study`` runs, on the first
+task of the ranked version's easy test pool (:data:`PARETO_TIER`, index 0), the predefined-time
+planner at every (m, T_c) of :data:`GRID_M` × :data:`GRID_T_C_S` and every baseline of
+``<root>/<version>/<tier>/*.json``: a planner entry at its recorded parameters, an RL entry with
+each training seed's model (``<models>/<algo>_<env id>_<tier>_seed<s>/model.zip``, deterministic
+actions). Every episode is scored by :func:`ffsr_gym.scoring.score.score_episode`; the points go
+to ``<root>/<version>/pareto.json`` (with provenance; the name is
+``ffsr_gym.report.leaderboard_plots.PARETO_FILE``), from which ``ffsr-gym leaderboard plot``
+draws ``pareto.png``. An RL entry whose models are missing is listed as such, never dropped
+silently. (v1 drew it on ``paper``; under v2's blend law no (m, T_c) reaches the target there.)
 """
 
 from __future__ import annotations
@@ -24,13 +25,15 @@ from tqdm.auto import tqdm
 from ffsr_gym.bench.evaluation import evaluate
 from ffsr_gym.bench.tables import method_name
 from ffsr_gym.model.spec import ranked_spec
-from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.provenance import provenance, write_json_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.scoring.score import EpisodeScore
 from ffsr_gym.tasks.certificate import planner_episode, planner_task
+from ffsr_gym.tasks.splits import pool, task_scenario
 
-#: The planner grid: 12 values of m and 10 of T_c [s] spanning the FFSR-v1 action box.
+#: The task of the study: index 0 of this tier's test pool.
+PARETO_TIER = "easy"
+#: The planner grid: 12 values of m and 10 of T_c [s] spanning the (m, T_c) action box.
 GRID_M = tuple(float(x) for x in np.round(np.linspace(0.05, 0.6, 12), 4))
 GRID_T_C_S = tuple(float(x) for x in np.linspace(1.0, 10.0, 10))
 
@@ -51,28 +54,31 @@ def _rl_points(entry: dict[str, Any], tier: str, models: Path | None,
         path = models / f"{algo}_{entry['env_id']}_{tier}_seed{run['seed']}" / "model.zip"
         if not path.is_file():
             return [], f"model missing: {path}"
-        row = evaluate(load_model(algo, path), entry["env_id"], task="paper").episodes[0]
+        row = evaluate(load_model(algo, path), entry["env_id"], task=PARETO_TIER, indices=[0]).episodes[0]
         points.append(_point(row, train_seed=run["seed"]))
     return points, None
 
 
-def paper_pareto(root: str | Path, out: str | Path, models: str | Path | None = None, *,
-                 load_model: Callable[[str, Path], Any] | None = None, progress: bool = True,
-                 command: str | None = None) -> Path:
-    """Compute the grid and the points of the baselines under ``<root>/v1/`` on ``paper``; write them to ``out``.
+def task_pareto(root: str | Path, out: str | Path, models: str | Path | None = None, *,
+                load_model: Callable[[str, Path], Any] | None = None, progress: bool = True,
+                command: str | None = None) -> Path:
+    """Compute the grid and the points of the baselines under ``<root>/<version>/`` on the study's task; write
+    them to ``out``.
 
     ``load_model(algo, path)`` loads an RL entry's model (``ffsr_gym.optim.rl.load_model``); without
     it or ``models``, RL entries are listed as not run.
     """
     root, start = Path(root), time.perf_counter()
     benchmark = score_rule(ranked_spec()).benchmark
-    task = benchmark.task(load_scenario("paper"))
+    first = pool(PARETO_TIER, "test", version=benchmark.version)[0]
+    task, label = task_scenario(PARETO_TIER, first.seed, benchmark), f"{PARETO_TIER}/test[0]"
     settings = [(m, T_c) for m in GRID_M for T_c in GRID_T_C_S]
     grid = [_point(planner_episode(task, benchmark, method="predefined_time", m=m, T_c=T_c), m=m, T_c_s=T_c)
-            for m, T_c in tqdm(settings, desc="paper grid", disable=not progress)]
+            for m, T_c in tqdm(settings, desc=f"{label} grid", disable=not progress)]
     baselines: list[dict[str, Any]] = []
     fixed: dict[str, dict[str, Any]] = {}  # a planner setting that several tiers' entries share: one point
-    for path in tqdm(sorted((root / ranked_spec().version).glob("*/*.json")), desc="baselines on paper", disable=not progress):
+    for path in tqdm(sorted((root / ranked_spec().version).glob("*/*.json")), desc=f"baselines on {label}",
+                     disable=not progress):
         entry, tier = json.loads(path.read_text()), path.parent.name
         planner = entry.get("extra", {}).get("planner")
         if planner is not None:
@@ -92,7 +98,8 @@ def paper_pareto(root: str | Path, out: str | Path, models: str | Path | None = 
                               "points": points,
                               "missing": missing, "task_sha256": task.sha256()})
     out = Path(out)
-    prov = provenance(scenarios={"paper": task.sha256()}, command=command, wall_time_s=time.perf_counter() - start)
-    write_json_atomic(out, {"task": "paper", "grid": {"m": list(GRID_M), "T_c_s": list(GRID_T_C_S), "points": grid},
+    prov = provenance(scenarios={task.name: task.sha256()}, command=command, wall_time_s=time.perf_counter() - start)
+    write_json_atomic(out, {"task": label, "task_name": task.name,
+                            "grid": {"m": list(GRID_M), "T_c_s": list(GRID_T_C_S), "points": grid},
                             "baselines": baselines, "provenance": prov})
     return out

@@ -22,7 +22,7 @@ from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.sim.simulate import simulate
 from ffsr_gym.tasks.certificate import planner_episode, planner_task
 from ffsr_gym.tasks.random_family import sample_scenario
-from ffsr_gym.tasks.splits import SPLITS, pool, pool_path, task_scenario
+from ffsr_gym.tasks.splits import pool, pool_path, task_scenario
 
 
 def scenario_for_seed(scenario: str | Scenario, seed: int | None) -> Scenario:
@@ -64,32 +64,35 @@ def objective_for_params(m: float, T_c: float, *, scenario: str | Scenario = "pa
 
 def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | None = None, T_c: float | None = None,
                      gain_per_s: float | None = None, training_pool: str | None = None, name: str = "planner",
-                     compute: dict | None = None, progress: bool = False, version: str = "v1") -> EvalReport:
+                     compute: dict | None = None, progress: bool = False, version: str = "v2") -> EvalReport:
     """Score a reference-planner variant with constant parameters on a tier's pool (one episode per task).
 
     The planner variants that are not an env action (``proportional``) are scored here, from the
     trajectory with the version's score rule, exactly as :func:`ffsr_gym.evaluate` scores env episodes.
     """
     spec = spec_for_version(version)
-    if task not in spec.tasks.tiers or split not in SPLITS:
+    if task not in spec.tasks.tiers or split not in spec.tasks.splits:
         raise InvalidInputError(f"task {task!r}, split {split!r}; allowed: task in {list(spec.tasks.tiers)}, "
-                                f"split in {list(SPLITS)}")
+                                f"split in {list(spec.tasks.splits)}")
     rule = score_rule(spec)
     benchmark, start, rows, hashes = rule.benchmark, time.perf_counter(), [], {}
-    for index, entry in enumerate(tqdm(pool(task, split), disable=not progress, desc=f"{name} {task}/{split}")):
+    tasks = pool(task, split, version=benchmark.version)
+    for index, entry in enumerate(tqdm(tasks, disable=not progress, desc=f"{name} {task}/{split}")):
         played = task_scenario(task, entry.seed, benchmark)
         result = planner_episode(played, benchmark, method=method, m=m, T_c=T_c, gain_per_s=gain_per_s)
         hashes[played.name] = planner_task(played, method, gain_per_s).sha256()
         rows.append({"seed": index, "task_index": index, "task_seed": entry.seed, **result.as_dict()})
     extra = {"training_pool": training_pool, "evaluation_pool": f"{task}/{split}",
-             "pool_file_sha256": hashlib.sha256(pool_path(task).read_bytes()).hexdigest(),
+             "pool_file_sha256": hashlib.sha256(pool_path(task, benchmark.version).read_bytes()).hexdigest(),
              "planner": {"method": method, "m": m, "T_c_s": T_c, "gain_per_s": gain_per_s}, "compute": compute or {}}
+    if spec.tasks.step_option:
+        extra["dt_s"] = benchmark.dt_s
     prov = provenance(scenarios=hashes, seeds=list(range(len(rows))), wall_time_s=time.perf_counter() - start)
     return EvalReport("planner", {"task": task, "split": split}, rule.aggregate(rows), rows, prov, name=name, extra=extra,
                       score_rule=spec.score.text)
 
 
-def training_loss(m: float, T_c: float, *, tier: str, tasks: int = 20, version: str = "v1") -> float:
+def training_loss(m: float, T_c: float, *, tier: str, tasks: int = 20, version: str = "v2") -> float:
     """1 − the mean score of the predefined-time planner at constant (m, T_c [s]) on the first
     ``tasks`` tasks of ``tier``'s **training** pool: the black-box loss optimisers minimise (in [0, 1]).
 
@@ -98,5 +101,5 @@ def training_loss(m: float, T_c: float, *, tier: str, tasks: int = 20, version: 
     """
     benchmark = score_rule(spec_for_version(version)).benchmark
     episodes = [planner_episode(task_scenario(tier, t.seed, benchmark), benchmark, method="predefined_time", m=m,
-                                T_c=T_c) for t in pool(tier, "train")[:tasks]]
+                                T_c=T_c) for t in pool(tier, "train", version=benchmark.version)[:tasks]]
     return 1.0 - float(np.mean([e.score for e in episodes]))

@@ -9,7 +9,9 @@ An entry is refused, with every reason named, when
 * a row's score or success flag is out of range or inconsistent with the rule;
 * its rows are not exactly the protocol's episodes: the folder's tier pool on the spec's split,
   each task once per training seed (with the pool file's current hash when the entry records
-  one), or (v0) the seeds its protocol names, each once per training seed.
+  one), or (v0) the seeds its protocol names, each once per training seed;
+* (a version whose environments take ``dt_s``) it does not record that it ran at the
+  benchmark's own step (a sensitivity run at dt/4 is a study, not an entry).
 """
 
 from __future__ import annotations
@@ -105,9 +107,13 @@ def _coverage_problems(entry: dict, rows: list[dict], spec: BenchmarkSpec, group
     if extra.get("evaluation_pool") != f"{group}/{split}":
         problems.append(f"evaluation_pool {extra.get('evaluation_pool')!r}: this table ranks {group}/{split}")
     sha = extra.get("pool_file_sha256")
-    if sha is not None and sha != _pool_sha(group):
+    version = spec.rules.version
+    if sha is not None and sha != _pool_sha(group, version):
         problems.append(f"pool_file_sha256 {str(sha)[:12]}...: the {group} pool file has changed since (stale)")
-    expected = Counter({task.seed: copies for task in pool(group, split)})
+    if spec.tasks.step_option and extra.get("dt_s") != spec.rules.dt_s:
+        problems.append(f"dt_s {extra.get('dt_s')!r}: this table ranks episodes at the benchmark's own step, "
+                        f"dt_s = {spec.rules.dt_s} s")
+    expected = Counter({task.seed: copies for task in pool(group, split, version=version)})
     if Counter(row.get("task_seed") for row in rows) != expected:
         problems.append(f"rows: not every task of the {group}/{split} pool exactly once per training seed "
                         f"({len(rows)} rows, {sum(expected.values())} expected)")
@@ -115,5 +121,5 @@ def _coverage_problems(entry: dict, rows: list[dict], spec: BenchmarkSpec, group
 
 
 @lru_cache(maxsize=16)
-def _pool_sha(tier: str) -> str:
-    return hashlib.sha256(pool_path(tier).read_bytes()).hexdigest()
+def _pool_sha(tier: str, version: str) -> str:
+    return hashlib.sha256(pool_path(tier, version).read_bytes()).hexdigest()

@@ -202,7 +202,7 @@ class EpisodeEngine:
         applied, status = rollout.advance(self.steps_per_decision, residual, stop_on_violation=self.terminate)
         code = STATUS.index(status)
         increment = self.rule.increment(applied, self.dt, self.last_rates[0], scenario)
-        cost = self.rule.cost(applied, rollout.min_clearance(len(applied)), code != 0, scenario)
+        cost = self.rule.cost(applied, rollout.min_margin(len(applied)), code != 0, scenario)
         self.last_rates[0] = applied[-1]
         self.K[0] = rollout.k
         angles, e1, e0, rel, clear = rollout.observation()

@@ -61,7 +61,7 @@ class FFSREnv(gym.Env):
 
     ## Rewards
     As the spec's score rule says (``ffsr_gym.scoring.rules``): v0, minus B's per-decision
-    increment and the scenario's penalties (a feasible episode sums to −B); v1, the change of the
+    increment and the scenario's penalties (a feasible episode sums to −B); v2, the change of the
     episode's value 1 / (1 + C_t), so rewards sum to the score minus 1. ``info`` has the
     increment, ``penalty``, ``cost``, ``clearance_m``, ``ee_position_error_m``, ``clipped_actions``
     and, at the end, the rule's episode keys (``score`` among them), computed from the trajectory.
@@ -71,23 +71,28 @@ class FFSREnv(gym.Env):
     drawn from ``self.np_random`` (``reset(options={"task_index": i})`` picks one).
 
     ## Episode End
-    Terminated on a joint rate above the limit or a negative clearance; truncated at the task's
+    Terminated on a joint rate above the limit or a collision (v2: an obstacle clearance below the
+    1 cm keep-out distance; v0: contact); truncated at the task's
     ``simulation.duration_s`` (200 decisions).
 
     ## Arguments
     ``gymnasium.make(id, <task keyword>=..., render_mode=None, backend="auto", ...)``: v0 takes
-    ``scenario=``; v1 ``task=``, ``split=``, ``terminate_on_violation=``, ``dense_shaping=``.
+    ``scenario=``; v2 ``task=``, ``split=``, ``dt_s=``, ``terminate_on_violation=``, ``dense_shaping=``.
     ``backend``: ``"auto"`` (compiled kernel), ``"kernel"`` or ``"pinocchio"`` (the reference).
 
     ## Version History
-    * v1: bounded score that ranks, rewards that sum to it, 1 mm tolerance, fading residual,
-      certified task tiers (easy / medium / hard, debris, robust).
+    * v2: verdicts of the closed loop, not of the time step: the distance blend law, a 1 cm
+      keep-out distance, tiers certified over an ensemble (dt/2, dt/4, starts 1e-6 deg off,
+      Pinocchio) with margins, train / validation / test pools, ``dt_s=`` for sensitivity studies.
+    * v1 (retired): bounded score that ranks, rewards that sum to it, 1 mm tolerance, fading
+      residual, certified task tiers (easy / medium / hard, debris, robust); its verdicts were set
+      by the 0.01 s step (docs/envs.md, Version history).
     * v0: initial release (frozen).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
 
-    def __init__(self, version: str = "v1", residual: bool = False, render_mode: str | None = None,
+    def __init__(self, version: str = "v2", residual: bool = False, render_mode: str | None = None,
                  backend: str = "auto", **options: Any) -> None:
         self.benchmark_spec = spec = spec_for_version(version)
         options = task_options(spec, options)
@@ -95,7 +100,7 @@ class FFSREnv(gym.Env):
             raise InvalidInputError(f"render_mode {render_mode!r}; allowed: {self.metadata['render_modes']} or None")
         self.render_mode, self.residual, self._renderer = render_mode, bool(residual), None
         rule = score_rule(spec)
-        self.source = TaskSource(spec, rule, options.get(spec.tasks.keyword), options.get("split"))
+        self.source = TaskSource(spec, rule, options.get(spec.tasks.keyword), options.get("split"), options.get("dt_s"))
         self.engine = EpisodeEngine(self.source, residual=self.residual, backend=backend,
                                     terminate_on_violation=options.get("terminate_on_violation", True),
                                     dense_shaping=options.get("dense_shaping", False))
@@ -125,7 +130,7 @@ class FFSREnv(gym.Env):
     def step_with_parameters(self, m: float, T_c: float) -> tuple[np.ndarray, float, bool, bool, dict]:
         """A step of an (m, T_c) env with physical parameters m ∈ (0, 1) and T_c [s] > 0 (no float32 rounding)."""
         if self.residual:
-            raise InvalidInputError("step_with_parameters is for the (m, T_c) envs (FFSR-v0, FFSR-v1), not a residual env")
+            raise InvalidInputError("step_with_parameters is for the (m, T_c) envs (FFSR-v0, FFSR-v2), not a residual env")
         self._check_running()
         out = self.engine.step_one(None, parameters=physical_parameters(m, T_c))
         if self.render_mode == "human":

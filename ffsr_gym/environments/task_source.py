@@ -6,8 +6,10 @@
   per reset or picked with ``reset(options={"task_index": i})``; the spec's named scenarios
   (``paper``) and a :class:`Scenario` are accepted as single tasks.
 
-Every task is played as the score rule transforms it (``rule.task``: v1's planner defaults,
-tolerances and action box).
+Every task is played as the score rule transforms it (``rule.task``: the rule file's planner
+defaults, tolerances and action box). With ``dt_s`` (a version whose spec offers it), every task
+runs at that physics step instead of its own; the decisions stay every 0.1 s, so a sensitivity
+study plays the same tasks with the same decisions at dt/2 or dt/4.
 """
 
 from __future__ import annotations
@@ -33,17 +35,20 @@ class TaskSource:
         pool: the pool's tasks (tiers only), else None.
     """
 
-    def __init__(self, spec: BenchmarkSpec, rule: ScoreRule, task: Any = None, split: str | None = None) -> None:
-        self.spec, self.rule = spec, rule
+    def __init__(self, spec: BenchmarkSpec, rule: ScoreRule, task: Any = None, split: str | None = None,
+                 dt_s: Any = None) -> None:
+        self.spec, self.rule, self.dt_s = spec, rule, dt_s
         task = spec.tasks.default if task is None else task
         self.split = self._check_split(split)
         self.pool: tuple[PoolTask, ...] | None = None
         if isinstance(task, str) and task in spec.tasks.tiers:
-            self.name, self.pool = task, pool(task, self.split)
+            self.name, self.pool = task, pool(task, self.split, version=rule.benchmark.version)
             self.family = task_scenario(task, self.pool[0].seed, rule.benchmark)
         else:
             self.name = task if isinstance(task, str) else getattr(task, "name", str(task))
             self.family = rule.task(self._scenario(task))
+        if dt_s is not None:
+            self.family = self.family.at_step(dt_s)
         self.randomised = self.family.randomization is not None and self.pool is None
 
     def _check_split(self, split: str | None) -> str | None:
@@ -82,4 +87,7 @@ class TaskSource:
         elif isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not 0 <= index < len(self.pool):
             raise InvalidInputError(f"options['task_index'] = {index!r}; allowed: an integer in [0, {len(self.pool) - 1}]")
         seed = self.pool[int(index)].seed
-        return task_scenario(self.name, seed, self.rule.benchmark), {"task_index": int(index), "task_seed": seed}
+        task = task_scenario(self.name, seed, self.rule.benchmark)
+        if self.dt_s is not None:
+            task = task.at_step(self.dt_s)
+        return task, {"task_index": int(index), "task_seed": seed}

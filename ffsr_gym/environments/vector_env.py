@@ -46,7 +46,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"], "render_fps": 10}
 
-    def __init__(self, num_envs: int, version: str = "v1", residual: bool = False, *, threads: int | None = None,
+    def __init__(self, num_envs: int, version: str = "v2", residual: bool = False, *, threads: int | None = None,
                  backend: str = "kernel", render_mode: str | None = None, max_episode_steps: int | None = None,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **options: Any) -> None:
         spec = spec_for_version(version)
@@ -70,7 +70,8 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         self.metadata = {**self.metadata, "autoreset_mode": mode}
         self.render_mode, self._renderer, self.residual = render_mode, None, bool(residual)
         self.benchmark_spec, self.num_envs = spec, int(num_envs)
-        self.source = TaskSource(spec, score_rule(spec), options.get(spec.tasks.keyword), options.get("split"))
+        self.source = TaskSource(spec, score_rule(spec), options.get(spec.tasks.keyword), options.get("split"),
+                                 options.get("dt_s"))
         self.engine = EpisodeEngine(self.source, residual=self.residual, copies=self.num_envs, backend="kernel",
                                     dense_shaping=options.get("dense_shaping", False), batched=True)
         self.family = self.source.family
@@ -146,7 +147,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
     def step_with_parameters(self, m: float, T_c: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         """A step of every copy with physical (m, T_c [s]), no float32 rounding (the (m, T_c) ids only)."""
         if self.residual:
-            raise InvalidInputError("step_with_parameters is for the (m, T_c) envs (FFSR-v0, FFSR-v1), not a residual env")
+            raise InvalidInputError("step_with_parameters is for the (m, T_c) envs (FFSR-v0, FFSR-v2), not a residual env")
         return self._step(np.zeros((self.num_envs, 2), dtype=np.float32), physical_parameters(m, T_c))
 
     def _step(self, actions: Any, parameters: tuple[float, float] | None):

@@ -1,6 +1,6 @@
-"""Compiled (numba) decision of a benchmark-v1 episode: one call per environment ``step``.
+"""Compiled (numba) decision of a bounded-score (v2) episode: one call per environment ``step``.
 
-:func:`decide` does everything a v1 step computes from numbers: the action check (finite,
+:func:`decide` does everything a v2 step computes from numbers: the action check (finite,
 clipped to [-1, 1]), its mapping (the fading residual or (m, T_c)), the physics steps of
 :func:`ffsr_gym.kernel.loop.run_into`, the step's smoothness-cost increment
 (:mod:`ffsr_gym.kernel.score_terms`), its violation cost, and the next observation, written
@@ -28,7 +28,7 @@ from numba.experimental import structref
 from ffsr_gym.kernel.borrow import borrowed
 from ffsr_gym.kernel.loop import STATUS_NONFINITE, observe_into, run_into
 from ffsr_gym.kernel.physics import workspace
-from ffsr_gym.kernel.planner import F_DT, F_M, F_TC
+from ffsr_gym.kernel.planner import F_DT, F_KEEP_OUT, F_M, F_TC
 from ffsr_gym.kernel.score_terms import N_SCORE, smoothness_cost, smoothness_into
 
 #: Settings of a decision (vector ``ds``): residual scale [rad/s per unit action], fade length [s],
@@ -123,7 +123,8 @@ def decide(mdl_owner, plant_owner, ws_owner, x, k, n_total, n_max, fp, ip, ds, a
     Returns ``(rows, status, clipped, increment, cost, clearance, ee_error)``: physics steps taken,
     :mod:`~ffsr_gym.kernel.loop` status (or :data:`STATUS_BAD_ACTION`), whether the action was
     clipped, the smoothness-cost increment, the violation cost (0 without violation, else
-    penetration depth / scale + relative excess of the peak rate), the clearance [m] and the
+    depth inside the keep-out distance (or of arm-arm / arm-base contact) / scale + relative excess
+    of the peak rate), the clearance [m] and the
     end-effector position error [m] at the new state.
     """
     for j in range(len(action)):
@@ -146,13 +147,13 @@ def decide(mdl_owner, plant_owner, ws_owner, x, k, n_total, n_max, fp, ip, ds, a
     applied = LDQ[row0:row0 + rows]
     smoothness_into(applied, rows, dt, last_rates, terms)
     increment = smoothness_cost(terms, ds[D_SCORE:])
-    peak, lowest = 0.0, math.inf
+    peak, depth = 0.0, 0.0
     for i in range(rows):
         for j in range(12):
             peak = max(peak, abs(applied[i, j]))
-        lowest = min(lowest, LCLEAR[row0 + i], LSELF[row0 + i])
+        depth = max(depth, fp[F_KEEP_OUT] - LCLEAR[row0 + i], -LSELF[row0 + i])
     excess = max(0.0, peak * (180.0 / math.pi) / ds[D_RATE_LIMIT] - 1.0)
-    cost = max(0.0, -lowest) / ds[D_CLEAR_SCALE] + excess
+    cost = depth / ds[D_CLEAR_SCALE] + excess
     last_rates[:] = applied[rows - 1]
     rel[:] = 0.0
     clearance = observe_into(mdl, ws, x, (k + rows) * dt, fp, ip, rel)

@@ -14,6 +14,7 @@ from ffsr_gym.kernel.physics import midpoint_into, momentum_into, velocity_into,
 from ffsr_gym.kernel.planner import (
     F_DT,
     F_H,
+    F_KEEP_OUT,
     F_OBSTACLES,
     F_RATE_MAX,
     I_N_EST,
@@ -58,12 +59,13 @@ def _clearances(mdl, x, t, fp, ip, ws):
 
 @njit(cache=True, error_model="numpy")
 def _violation(dq, clear, self_c, fp, ip):
-    """Status of a step: a joint rate above the limit (in the scored scope) or a collision."""
+    """Status of a step: a joint rate above the limit (in the scored scope) or a collision (an obstacle
+    clearance below the keep-out distance, or arm-arm / arm-base contact)."""
     to_deg = 180.0 / math.pi
     for j in range(6 if ip[I_SCOPE] == 1 else 0, 12):
         if abs(dq[j]) * to_deg > fp[F_RATE_MAX]:
             return STATUS_RATE
-    if clear < 0.0 or self_c < 0.0:
+    if clear < fp[F_KEEP_OUT] or self_c < 0.0:
         return STATUS_COLLISION
     return STATUS_OK
 

@@ -25,10 +25,12 @@ F_R0D, F_SBD, F_H = 30, 33, 37
 #: Obstacle records from ``F_OBSTACLES`` on, ``OBSTACLE_FIELDS`` floats each: start position (3) [m],
 #: drift velocity (3) [m/s], radius [m]; ``ip[I_N_OBS]`` of the ``MAX_OBSTACLES`` slots are used.
 F_OBSTACLES, OBSTACLE_FIELDS, MAX_OBSTACLES = 43, 7, 8
+#: Keep-out distance [m]: a robot–obstacle clearance below it is a collision (0: contact).
+F_KEEP_OUT = F_OBSTACLES + OBSTACLE_FIELDS * MAX_OBSTACLES
 #: Length of the fixed part of ``fp``. The planner's target estimates follow it: ``ip[I_N_EST]``
 #: records like ``F_TRUE``'s, record k used for t in [k, k + 1) · ``fp[F_EST_DT]``
 #: (``ffsr_gym.planning.target_estimate``; one record, the true target, without noise).
-N_FP = F_OBSTACLES + OBSTACLE_FIELDS * MAX_OBSTACLES
+N_FP = F_KEEP_OUT + 1
 I_METHOD, I_PHI, I_SPLIT, I_ATT, I_MU, I_BAL_AVOID, I_N_OBS, I_SCOPE, I_PLANT, I_N_EST = range(10)
 N_IP = 10
 #: ``ffsr_gym.planning.target_estimate.INDEX_SLACK``.

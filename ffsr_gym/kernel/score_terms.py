@@ -1,4 +1,4 @@
-"""Compiled (numba) terms of the benchmark-v1 score: rate energy, rate variation, smoothness cost.
+"""Compiled (numba) terms of the bounded episode score (v2): rate energy, rate variation, smoothness cost.
 
 The only implementation of these sums: :func:`ffsr_gym.scoring.score.smoothness_terms` (whole
 episodes, leaderboards), the environments' fused decision (:mod:`ffsr_gym.kernel.decision`)

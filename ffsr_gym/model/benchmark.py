@@ -1,8 +1,10 @@
 """The benchmark definition files (``envs/benchmark/<version>.toml``) as frozen, validated dataclasses.
 
 A benchmark version fixes what the scenario files leave to it: the episode score, the action
-boxes of the environments and the residual fade. v0 is the scenario's own ``[objective]`` and
-``[env]`` sections (frozen); v1 is ``envs/benchmark/v1.toml``.
+boxes of the environments, the residual fade and the task tiers. v0 is the scenario's own
+``[objective]`` and ``[env]`` sections (frozen); v2 is ``envs/benchmark/v2.toml`` (v1, retired,
+is in the git history). Keys v2 added have defaults that leave v1's meaning unchanged, so a v1
+rule file still loads as v1 meant it.
 """
 
 from __future__ import annotations
@@ -18,15 +20,15 @@ import numpy as np
 
 from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model.resources import envs_dir
-from ffsr_gym.model.scenario import Randomization, Scenario
-from ffsr_gym.model.schema import TEXT, load_table, check_action_bounds, choice, integer, number, section, vector
+from ffsr_gym.model.scenario import Randomization, Scenario, load_scenario
+from ffsr_gym.model.schema import BOOL, TEXT, check_action_bounds, choice, integer, load_table, natural, number, section, vector
 
-VERSIONS = ("v1",)
+VERSIONS = ("v2",)
 
 
 @dataclass(frozen=True)
 class ScoreSettings:
-    """The smoothness cost, its references and the success test (see ``v1.toml``)."""
+    """The smoothness cost, its references and the success test (see ``v2.toml``)."""
 
     alpha: float = field(metadata=number(0.0, 1e6))
     beta: float = field(metadata=number(0.0, 1e6))
@@ -35,19 +37,57 @@ class ScoreSettings:
     max_rate_deg_s: float = field(metadata=number(0.0, 1e5, lo_open=True))
     ee_position_tolerance_m: float = field(metadata=number(0.0, 10.0, lo_open=True))
     ee_attitude_tolerance: float = field(metadata=number(0.0, 1.0, lo_open=True))
+    keep_out_m: float = field(default=0.0, metadata=number(0.0, 1.0))
 
 
 @dataclass(frozen=True)
 class PlannerDefaults:
-    """The reference planner's (m, T_c [s]) in this version."""
+    """The reference planner's (m, T_c [s]) and avoidance blend law in this version."""
 
     m: float = field(metadata=number(0.0, 1.0, lo_open=True, hi_open=True))
     T_c_s: float = field(metadata=number(0.0, 1e4, lo_open=True))
+    mu_law: str = field(default="cdf", metadata=choice("cdf", "distance"))
+
+
+@dataclass(frozen=True)
+class Ensemble:
+    """The members a certificate must succeed in before its task enters a pool (``[tasks.ensemble]``).
+
+    Besides the task itself: the same task at ``dt_s / d`` for each ``d`` of ``step_divisors``;
+    ``start_draws`` starts whose joints are each ``start_offset_deg`` off, with signs drawn from
+    ``default_rng([seed, 4 + draw])``; and, with ``pinocchio``, the task on the Pinocchio backend.
+    The worst episode must clear every success threshold by a margin (:meth:`short_margin`).
+    """
+
+    step_divisors: tuple[float, ...] = field(metadata=vector(2, 1.0, 64.0))
+    start_offset_deg: float = field(metadata=number(0.0, 1.0))
+    start_draws: int = field(metadata=natural(16))
+    pinocchio: bool = field(metadata=BOOL)
+    rate_margin: float = field(default=1.0, metadata=number(0.0, 1.0, lo_open=True))
+    clearance_margin_m: float = field(default=0.0, metadata=number(0.0, 1.0))
+    error_margin: float = field(default=1.0, metadata=number(0.0, 1.0, lo_open=True))
+
+    def short_margin(self, peak_rate_deg_s: float, min_clearance_m: float, min_self_clearance_m: float,
+                     final_errors: tuple[float, float], score: ScoreSettings) -> str | None:
+        """Which worst margin of a certificate is inside the hair's-breadth band (None: all clear it).
+
+        A certificate's worst episode must keep its peak rate at most ``rate_margin`` x the limit, its
+        obstacle clearance ``clearance_margin_m`` beyond the keep-out distance (its self clearance that
+        far from contact) and its final errors at most ``error_margin`` x the tolerances.
+        """
+        if peak_rate_deg_s > self.rate_margin * score.max_rate_deg_s:
+            return "rate margin"
+        if min_clearance_m < score.keep_out_m + self.clearance_margin_m or min_self_clearance_m < self.clearance_margin_m:
+            return "clearance margin"
+        if (final_errors[0] > self.error_margin * score.ee_position_tolerance_m
+                or final_errors[1] > self.error_margin * score.ee_attitude_tolerance):
+            return "final error margin"
+        return None
 
 
 @dataclass(frozen=True)
 class ActionSettings:
-    """Action boxes, the residual fade and the optional reward and cost terms of the v1 environments."""
+    """Action boxes, the residual fade and the optional reward and cost terms of the environments."""
 
     m_bounds: tuple[float, ...] = field(metadata=vector(2, 0.0, 1.0))
     T_c_bounds_s: tuple[float, ...] = field(metadata=vector(2, 1e-3, 1000.0))
@@ -59,7 +99,7 @@ class ActionSettings:
 
 @dataclass(frozen=True)
 class TaskRule:
-    """The task generator, its screening margins and the tier rule (see ``v1.toml`` [tasks]).
+    """The task generator, its screening margins and the tier rule (see ``v2.toml`` [tasks]).
 
     A candidate task is drawn from ``family`` with the ranges of ``draw``; it is rejected when the
     nominal motion (the default planner without avoidance) misses the target, brings the balance
@@ -78,6 +118,17 @@ class TaskRule:
     train_tasks: float = field(metadata=number(1, 1e5))
     test_tasks: float = field(metadata=number(1, 1e5))
     draw: Randomization = field(metadata=section(Randomization))
+    validation_tasks: float = field(default=0, metadata=number(0, 1e5))
+    ensemble: Ensemble | None = field(default=None, metadata=section(Ensemble))
+
+    @property
+    def splits(self) -> tuple[str, ...]:
+        """The pools' splits: train, validation (when it has tasks) and test."""
+        return ("train", "validation", "test") if self.validation_tasks else ("train", "test")
+
+    def tasks_in(self, split: str) -> int:
+        """How many tasks each tier's ``split`` pool holds."""
+        return int({"train": self.train_tasks, "validation": self.validation_tasks, "test": self.test_tasks}[split])
 
 
 @dataclass(frozen=True)
@@ -94,17 +145,23 @@ class Benchmark:
     def task(self, scenario: Scenario) -> Scenario:
         """``scenario`` with this version's planner defaults, tolerances, rate limit and action box.
 
-        The v0 code paths (B, feasibility, the action mapping) then apply v1's numbers, and the
+        The v0 code paths (B, feasibility, the action mapping) then apply this version's numbers, and the
         task's hash differs from the v0 scenario's.
         """
         s, a = self.score, self.action
         objective = dataclasses.replace(scenario.objective, max_rate_deg_s=s.max_rate_deg_s, rate_limit_scope="both_arms",
                                         ee_position_tolerance_m=s.ee_position_tolerance_m,
-                                        ee_attitude_tolerance=s.ee_attitude_tolerance)
+                                        ee_attitude_tolerance=s.ee_attitude_tolerance, keep_out_m=s.keep_out_m)
         env = dataclasses.replace(scenario.env, m_bounds=a.m_bounds, T_c_bounds_s=a.T_c_bounds_s,
                                   residual_rate_deg_s=a.residual_rate_deg_s)
-        planner = dataclasses.replace(scenario.planner, m=self.planner.m, T_c_s=self.planner.T_c_s)
+        planner = dataclasses.replace(scenario.planner, m=self.planner.m, T_c_s=self.planner.T_c_s,
+                                      mu_law=self.planner.mu_law)
         return scenario.replace(planner=planner, objective=objective, env=env)
+
+    @property
+    def dt_s(self) -> float:
+        """The benchmark's own physics step [s]: its task family's (entries must be scored at it)."""
+        return load_scenario(self.tasks.family).simulation.dt_s
 
     def residual_fade(self, t: float, motion_time_s: float) -> float:
         """The residual's weight f(t) ∈ [0, 1] at time ``t`` [s]: 1, a half-cosine over ``residual_fade_s``, then 0."""
@@ -117,7 +174,7 @@ class Benchmark:
         return 0.5 * (1.0 + math.cos(math.pi * (t - start) / fade))
 
 
-def load_benchmark(version: str = "v1") -> Benchmark:
+def load_benchmark(version: str = VERSIONS[-1]) -> Benchmark:
     """The rule file of benchmark ``version`` shipped in ``envs/benchmark`` (``<version>.toml``).
 
     Raises:

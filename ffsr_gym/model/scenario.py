@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ffsr_gym.exceptions import ScenarioError
+from ffsr_gym.exceptions import InvalidInputError, ScenarioError
 from ffsr_gym.model import portable
 from ffsr_gym.model.resources import robot_dir, scenario_path
 from ffsr_gym.model.schema import (
@@ -30,6 +30,7 @@ from ffsr_gym.model.schema import (
     Vec,
     build_table,
     check_action_bounds,
+    check_number,
     choice,
     integer,
     natural,
@@ -178,7 +179,9 @@ class ObjectiveSettings:
     """The benchmark objective B (paper eqs. 21-22; SPEC §9) and the feasibility tolerances.
 
     Rates are compared in deg/s. ``rate_limit_scope``: ``"both_arms"`` (default) or the literal
-    eq. (22) reading ``"balance_arm"``.
+    eq. (22) reading ``"balance_arm"``. ``keep_out_m``: a robot–obstacle clearance below it is a
+    collision (0, the default: contact; benchmark v2 sets it). Arm-arm and arm-base contact stays
+    the collision test of the robot's own parts.
     """
 
     alpha: float = field(default=0.35, metadata=number(0.0, 1e6))
@@ -189,6 +192,7 @@ class ObjectiveSettings:
     rate_limit_scope: str = field(default="both_arms", metadata=choice("both_arms", "balance_arm"))
     ee_position_tolerance_m: float = field(default=1e-6, metadata=number(0.0, 10.0, lo_open=True))
     ee_attitude_tolerance: float = field(default=1e-6, metadata=number(0.0, 1.0, lo_open=True))
+    keep_out_m: float = field(default=0.0, metadata=number(0.0, 1.0))
 
 
 @dataclass(frozen=True)
@@ -261,6 +265,30 @@ class Scenario:
         data = to_dict(dataclasses.replace(self, **sections))
         return _from_dict(data, source=self.source)
 
+    def at_step(self, dt_s: Any) -> Scenario:
+        """This scenario with the physics step ``dt_s`` [s]; every other value is kept bit for bit.
+
+        The decision interval and the duration stay as they are, so each must be a whole number of
+        the new steps (a sensitivity study runs the same task, with the same decisions, at dt/2, dt/4).
+
+        Raises:
+            InvalidInputError: ``dt_s`` not a number in [1e-5, 0.1] s, or not dividing the decision
+                interval and the duration into whole steps.
+        """
+        meta = next(f.metadata for f in dataclasses.fields(Simulation) if f.name == "dt_s")
+        try:
+            dt = check_number("dt_s", dt_s, meta)
+        except ScenarioError as exc:
+            raise InvalidInputError(f"{exc} [s]") from None
+        for name, span in (("env.decision_interval_s", self.env.decision_interval_s),
+                           ("simulation.duration_s", self.simulation.duration_s)):
+            steps = span / dt
+            if abs(steps - round(steps)) > 1e-9 * max(1.0, steps):
+                raise InvalidInputError(f"dt_s = {dt_s!r} does not divide {name} = {span} s into whole steps; allowed: "
+                                        f"{span} / n for a whole n, at most 0.1 s (the benchmark's own: "
+                                        f"{self.simulation.dt_s} s)")
+        return dataclasses.replace(self, simulation=dataclasses.replace(self.simulation, dt_s=dt))
+
     def sha256(self) -> str:
         """Hash of the scenario's content and of its robot's files (provenance, staleness).
 
@@ -280,6 +308,12 @@ class Scenario:
 
 
 
+#: Keys added after schema version 1, with their defaults. At the default they are left out of
+#: :func:`to_dict`, so a scenario that does not set them keeps the layout, and the hash, it had
+#: before they existed.
+ADDED_KEYS = {("objective", "keep_out_m"): 0.0}
+
+
 def to_dict(scenario: Scenario) -> dict[str, Any]:
     """Return the scenario as plain data (the TOML layout), without its source path."""
     data = _plain(scenario)
@@ -287,6 +321,9 @@ def to_dict(scenario: Scenario) -> dict[str, Any]:
     for optional in ("obstacle", "debris", "plant", "target_noise", "randomization"):
         if data[optional] is None:
             data.pop(optional)
+    for (table, key), default in ADDED_KEYS.items():
+        if data[table][key] == default:
+            data[table].pop(key)
     return data
 
 

@@ -73,6 +73,7 @@ class TaskSpec:
     scenarios: tuple[str, ...] = field(default=(), metadata=TEXTS)
     tiers: tuple[str, ...] = field(default=(), metadata=TEXTS)
     splits: tuple[str, ...] = field(default=(), metadata=TEXTS)
+    step_option: bool = field(default=False, metadata=BOOL)
 
 
 @dataclass(frozen=True)
@@ -141,8 +142,9 @@ class BenchmarkSpec:
 
     def env_options(self) -> set[str]:
         """The keyword arguments this version's environments take: the task keyword, the split (tiers), the
-        reward's options."""
-        return {self.tasks.keyword, *(("split",) if self.tasks.splits else ()), *self.reward.options}
+        physics step ``dt_s`` (when the spec offers it), the reward's options."""
+        return {self.tasks.keyword, *(("split",) if self.tasks.splits else ()),
+                *(("dt_s",) if self.tasks.step_option else ()), *self.reward.options}
 
     def eval_seeds(self, env_id: str) -> tuple[int, ...]:
         """The public evaluation seeds of ``env_id`` (protocol ``seeds``): a [start, stop) range."""

@@ -93,18 +93,23 @@ def progress_bar(total: int, desc: str, enabled: bool):
     return Bar()
 
 
-def curve_indices(tier: str, count: int, split: str = "test") -> list[int]:
-    """The tasks of the learning curve: ``count`` evenly spaced pool indices."""
-    size = len(pool(tier, split))
+def curve_split(spec: BenchmarkSpec) -> str:
+    """The pool learning curves score: validation when the version has one (never test), else the spec's split."""
+    return "validation" if "validation" in spec.tasks.splits else spec.evaluation.split
+
+
+def curve_indices(tier: str, count: int, split: str, version: str | None = None) -> list[int]:
+    """The tasks of the learning curve: ``count`` evenly spaced indices of ``tier``'s ``split`` pool."""
+    size = len(pool(tier, split, version=version))
     return sorted({int(i) for i in np.linspace(0, size - 1, max(1, min(count, size))).round()})
 
 
-def _curve_callback(env_id: str, tier: str, every: int, indices: list[int], points: list[dict[str, Any]]):
+def _curve_callback(env_id: str, tier: str, split: str, every: int, indices: list[int], points: list[dict[str, Any]]):
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Curve(BaseCallback):
         def _score(self) -> None:
-            report = evaluate(self.model, env_id, task=tier, split="test", indices=indices)
+            report = evaluate(self.model, env_id, task=tier, split=split, indices=indices)
             points.append({"env_steps": int(self.num_timesteps), "scores": [row["score"] for row in report.episodes]})
 
         def _on_training_start(self) -> None:
@@ -174,7 +179,9 @@ def train(algo: str, env_id: str, *, seed: int, out: str | Path, task: str | Non
                  progress_bar(steps, f"{algo} {env_id} {task} seed {seed}", progress)]
     pooled = spec.evaluation.protocol == "pool"
     if pooled:
-        callbacks.insert(0, _curve_callback(env_id, task, curve_every, curve_indices(task, curve_tasks), points))
+        split = curve_split(spec)
+        indices = curve_indices(task, curve_tasks, split, spec.rules.version)
+        callbacks.insert(0, _curve_callback(env_id, task, split, curve_every, indices, points))
     model.learn(total_timesteps=steps, callback=callbacks)
     model.save(out / "model.zip")
     env.close()
@@ -182,7 +189,7 @@ def train(algo: str, env_id: str, *, seed: int, out: str | Path, task: str | Non
               "seed": seed, "timesteps": steps, "n_envs": n_envs, "policy": policy, "hyperparams": params,
               "wall_time_s": time.perf_counter() - start}
     if pooled:
-        record["curve"] = {"test_indices": curve_indices(task, curve_tasks), "points": points}
+        record["curve"] = {"split": split, "indices": indices, "points": points}
     write_json_atomic(out / "train_record.json", record)
     return model, record
 

@@ -1,7 +1,7 @@
-"""Figures of the v1 leaderboard (``ffsr-gym leaderboard plot``): IQM with 95 % CIs per tier, and
+"""Figures of the ranked version's leaderboard (``ffsr-gym leaderboard plot``): IQM with 95 % CIs per tier, and
 performance profiles (the fraction of episodes scoring above each threshold).
 
-Read from the entries' JSON only (``<root>/v1/<tier>/*.json``); the aggregates drawn are the ones the
+Read from the entries' JSON only (``<root>/<version>/<tier>/*.json``); the aggregates drawn are the ones the
 entries store, which a test recomputes from their episode rows.
 """
 
@@ -18,8 +18,8 @@ from ffsr_gym.scoring.aggregate import iqm
 from ffsr_gym.tasks.tiers import ALL_TIERS
 
 TIER_ORDER = ALL_TIERS
-#: The points of the Pareto plot, under ``<root>/v1/`` (written by ``ffsr-gym leaderboard pareto``).
-PARETO_FILE = "paper_pareto.json"
+#: The points of the Pareto plot, under ``<root>/<version>/`` (written by ``ffsr-gym leaderboard pareto``).
+PARETO_FILE = "pareto.json"
 
 
 def _entries(root: Path) -> dict[str, list[dict]]:
@@ -44,7 +44,7 @@ def _panels(root: Path, height: float | None = None, **kwargs):
 
 
 def plot_iqm(root: str | Path) -> Path | None:
-    """IQM of the v1 episode score with its bootstrap 95 % CI, one panel per tier."""
+    """IQM of the episode score with its bootstrap 95 % CI, one panel per tier."""
     root = Path(root)
     panels = _panels(root)
     if panels is None:
@@ -59,7 +59,7 @@ def plot_iqm(root: str | Path) -> Path | None:
             ax.plot(e["metrics"]["score_iqm"], y, "o", color="C0")
         ax.set_yticks(range(len(items)), [e["name"] for e in items], fontsize=8)
         top = max(e["metrics"]["score_iqm_ci95"][1] for e in items)
-        ax.set(xlabel="v1 episode score, IQM with 95 % CI [-]", title=f"{tier}: test pool", xlim=(-0.005, 1.15 * top + 0.02))
+        ax.set(xlabel=f"{ranked_spec().version} episode score, IQM with 95 % CI [-]", title=f"{tier}: test pool", xlim=(-0.005, 1.15 * top + 0.02))
         ax.grid(True, axis="x", alpha=0.3)
     return _save(fig, root / ranked_spec().version / "iqm.png", _footer(entries))
 
@@ -104,8 +104,10 @@ def plot_learning_curves(root: str | Path) -> Path | None:
                               for _ in range(2000)])
             ax.plot(steps, centre, label=f"{e['name']} ({len(curves)} seeds)")
             ax.fill_between(steps, np.percentile(boots, 2.5, axis=0), np.percentile(boots, 97.5, axis=0), alpha=0.25)
-        n_tasks = len(entries[tier][0]["extra"]["runs"][0]["curve"]["test_indices"])
-        ax.set(xlabel="environment steps (decisions of 0.1 s)", ylabel=f"mean v1 score on {n_tasks} test tasks [-]",
+        curve = entries[tier][0]["extra"]["runs"][0]["curve"]
+        n_tasks = len(curve.get("indices", curve.get("test_indices", [])))
+        ax.set(xlabel="environment steps (decisions of 0.1 s)",
+               ylabel=f"mean {ranked_spec().version} score on {n_tasks} {curve.get('split', 'test')} tasks [-]",
                title=f"{tier}: learning curves (IQM over seeds, 95 % band)")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7)
@@ -124,7 +126,7 @@ def _front(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
 
 
 def plot_pareto(root: str | Path) -> Path | None:
-    """Smoothness cost against convergence time on ``paper`` (from ``paper_pareto.json``; None without it)."""
+    """Smoothness cost against convergence time on the study's task (from ``pareto.json``; None without it)."""
     root = Path(root)
     source = root / ranked_spec().version / PARETO_FILE
     if not source.is_file():
@@ -149,13 +151,14 @@ def plot_pareto(root: str | Path) -> Path | None:
         good = [p for p in b["points"] if p["success"]]
         failed = len(b["points"]) - len(good)
         if failed:
-            notes.append(f"{label}: {failed} of {len(b['points'])} fail on paper")
+            notes.append(f"{label}: {failed} of {len(b['points'])} fail on {data['task']}")
         if good:
             marker = "D" if len(b["tiers"]) > 1 else tier_marker.get(tier, "P")
             ax.scatter([p["convergence_time_s"] for p in good], [p["smoothness_cost"] for p in good], s=46,
                        marker=marker, color=colour, edgecolor="k", linewidth=0.5, label=label, zorder=3)
     ax.set(xlabel="convergence time: EE position error below 1 mm from then on [s]", ylabel="smoothness cost C [-] (log)",
-           yscale="log", title="paper task (benchmark v1): smoothness against convergence time; lower left is better\n"
+           yscale="log", title=f"task {data['task']} ({data['task_name']}, benchmark {ranked_spec().version}): smoothness "
+                               "against convergence time; lower left is better\n"
                                "colour: method; marker: the tier it was trained or tuned on (o easy, s medium, ^ hard, D all)")
     ax.grid(True, alpha=0.3, which="both")
     ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
@@ -163,5 +166,5 @@ def plot_pareto(root: str | Path) -> Path | None:
         ax.text(0.01, 0.99, "\n".join(notes), transform=ax.transAxes, fontsize=6.5, va="top", color="0.25")
     prov = data["provenance"]
     footer = (f"generated by ffsr-gym leaderboard plot from {PARETO_FILE} | commit {(prov.get('git_commit') or 'none')[:8]} "
-              f"| task paper sha256 {prov['scenario_sha256']['paper'][:10]} | {prov.get('command')}")
+              f"| task {data['task_name']} sha256 {prov['scenario_sha256'][data['task_name']][:10]} | {prov.get('command')}")
     return _save(fig, root / ranked_spec().version / "pareto.png", footer)

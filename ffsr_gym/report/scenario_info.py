@@ -45,7 +45,8 @@ def registry_lines() -> list[str]:
         lines.append(f"{spec.version} ({spec.status}): {', '.join(spec.env_ids)}; {spec.description}")
         lines.append(f"  tasks ({tasks.keyword}=): " + ", ".join([*tasks.scenarios, *tasks.tiers] or ["a scenario"]))
         for tier in tasks.tiers:
-            lines.append(f"    {tier}: " + ", ".join(f"{split} pool {len(pool(tier, split))} tasks" for split in tasks.splits))
+            sizes = (f"{split} pool {len(pool(tier, split, version=spec.rules.version))} tasks" for split in tasks.splits)
+            lines.append(f"    {tier}: " + ", ".join(sizes))
     lines.append("scenarios (scenario=): " + ", ".join(scenario_names()))
     lines.append("robots: " + ", ".join(sorted(p.name for p in (envs_dir() / "robots").iterdir() if p.is_dir())))
     return lines

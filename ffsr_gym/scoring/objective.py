@@ -36,7 +36,7 @@ class ObjectiveTerms:
         smooth: γ (α mission_integral + β balance_integral), the finite part of B.
         rate_violation: whether Θ_b = +∞.
         objective: B (may be +inf).
-        collided: any negative clearance.
+        collided: an obstacle clearance below the keep-out distance, or arm-arm / arm-base contact.
         final_errors_ok: final EE position and attitude errors within tolerance.
         feasible: no violation, no collision, final errors within tolerance.
         score: B if feasible else +inf.
@@ -95,7 +95,7 @@ def objective_terms(traj: Trajectory, settings: ObjectiveSettings) -> ObjectiveT
     mission, balance, violation = rate_terms(traj.dq_joints[:-1], traj.dt, settings)
     smooth = smooth_part(mission, balance, settings)
     objective = math.inf if violation else smooth
-    collided = bool(np.min(traj.clearance_m) < 0.0 or np.min(traj.self_clearance_m) < 0.0)
+    collided = bool(np.min(traj.clearance_m) < settings.keep_out_m or np.min(traj.self_clearance_m) < 0.0)
     final_ok = bool(traj.ee_position_error_m[-1] <= settings.ee_position_tolerance_m
                     and traj.ee_attitude_error[-1] <= settings.ee_attitude_tolerance)
     feasible = not violation and not collided and final_ok

@@ -8,7 +8,7 @@ code path computes every version's score:
 
 * ``paper_objective`` (v0): B of the paper (:mod:`ffsr_gym.scoring.objective`) from the
   scenario's ``[objective]`` section; reward = −(B's finite-part increment) − penalties.
-* ``bounded_smoothness`` (v1): 1 / (1 + C) on success (:mod:`ffsr_gym.scoring.score`) from the
+* ``bounded_smoothness`` (v2): 1 / (1 + C) on success (:mod:`ffsr_gym.scoring.score`) from the
   spec's rule file; reward = the change of the episode's value.
 """
 
@@ -63,7 +63,7 @@ class PaperObjective:
         objective = scenario.objective
         return smooth_part(*rate_terms(applied, dt, objective)[:2], objective)
 
-    def cost(self, applied: Array, min_clearance: float, terminated: bool, scenario: Scenario) -> float:
+    def cost(self, applied: Array, min_margin: float, terminated: bool, scenario: Scenario) -> float:
         """The safety cost of a decision: 1.0 when it ended the episode by a violation."""
         return 1.0 if terminated else 0.0
 
@@ -110,7 +110,7 @@ class PaperObjective:
 
 
 class BoundedSmoothness:
-    """1 / (1 + C) on success, 0 on failure: higher is better (``FFSR-v1``)."""
+    """1 / (1 + C) on success, 0 on failure: higher is better (``FFSR-v2``)."""
 
     name = "bounded_smoothness"
     increment_key = "smoothness_increment"
@@ -131,11 +131,12 @@ class BoundedSmoothness:
         """The smoothness cost C of the applied rates (n, 12), continuing from ``last_rates``."""
         return smoothness_cost(*smoothness_terms(applied, dt, last_rates), self.benchmark.score)
 
-    def cost(self, applied: Array, min_clearance: float, terminated: bool, scenario: Scenario) -> float:
-        """0 without violation; penetration depth / scale + relative excess of the peak rate."""
+    def cost(self, applied: Array, min_margin: float, terminated: bool, scenario: Scenario) -> float:
+        """0 without violation; depth of the violation (``min_margin`` [m], negative inside the keep-out distance
+        or in contact) / scale + relative excess of the peak rate."""
         limit = self.benchmark.score.max_rate_deg_s
         peak = float(np.degrees(np.max(np.abs(applied)))) if len(applied) else 0.0
-        depth = max(0.0, -min_clearance) / self.benchmark.action.cost_clearance_scale_m
+        depth = max(0.0, -min_margin) / self.benchmark.action.cost_clearance_scale_m
         return depth + max(0.0, peak / limit - 1.0)
 
     def result(self, traj: Trajectory, scenario: Scenario) -> EpisodeScore:

@@ -1,4 +1,4 @@
-"""The benchmark-v1 episode score: success, a smoothness cost without dead zone, and one bounded number.
+"""The bounded episode score (v2, as v1): success, a smoothness cost without dead zone, and one bounded number.
 
 For the applied joint rates Θ̇_k of each arm (held over [t_k, t_k + dt)):
 
@@ -13,7 +13,7 @@ V is their total variation, which is ∫‖Θ̈‖ dt for smooth rates and grows
 at every sign flip of a chatter. Success: no joint of either arm above the rate limit, no
 collision (obstacle, arm-arm, arm-base), final end-effector errors within the tolerances. The
 paper's B is reported next to it (``ffsr_gym.scoring.objective``). This module is the only place
-the v1 score is computed: the v1 env reward, the optimisers and the leaderboards all use it.
+the score is computed: the env reward, the optimisers and the leaderboards all use it.
 """
 
 from __future__ import annotations
@@ -77,7 +77,7 @@ def bounded_score(success: bool, cost: float) -> float:
 
 
 def score_reward(cost_before: float, cost_after: float, end: "EpisodeScore | None") -> tuple[float, float]:
-    """The v1 reward of one decision, and the part of it that is a failure penalty.
+    """The reward of one decision, and the part of it that is a failure penalty.
 
     The value of an unfinished episode is the score it would get if it succeeded now,
     1 / (1 + C_t); the value of a finished one is its score. The reward is the change of value,
@@ -106,7 +106,7 @@ def running_reward(cost_before: Any, cost_after: Any) -> Any:
 
 @dataclass(frozen=True)
 class EpisodeScore:
-    """Everything the v1 leaderboards report of one episode.
+    """Everything the pool leaderboards report of one episode.
 
     Attributes:
         score: 1 / (1 + C) on success, else 0.
@@ -152,7 +152,7 @@ def score_episode(traj: Trajectory, task: Scenario, benchmark: Benchmark) -> Epi
     peak = np.degrees(np.abs(applied).max(axis=0).reshape(2, 6).max(axis=1)) if len(applied) else np.zeros(2)
     min_clear, min_self = float(np.min(traj.clearance_m)), float(np.min(traj.self_clearance_m))
     final_p, final_o = float(traj.ee_position_error_m[-1]), float(traj.ee_attitude_error[-1])
-    checks = (bool(np.any(peak > settings.max_rate_deg_s)), min_clear < 0.0 or min_self < 0.0,
+    checks = (bool(np.any(peak > settings.max_rate_deg_s)), min_clear < task.objective.keep_out_m or min_self < 0.0,
               not (final_p <= settings.ee_position_tolerance_m and final_o <= settings.ee_attitude_tolerance))
     failure = next((name for name, failed in zip(FAILURES, checks) if failed), None)
     return EpisodeScore(

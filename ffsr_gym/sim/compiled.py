@@ -46,6 +46,7 @@ def settings_vectors(setup: ScenarioSetup, *, method: str, m: float, T_c: float)
     fp[kp.F_H:kp.F_H + 6] = scenario.initial.momentum
     if obstacle is not None:
         fp[kp.F_DANGER] = obstacle.danger_radius_m
+    fp[kp.F_KEEP_OUT] = scenario.objective.keep_out_m
     records = fp[kp.F_OBSTACLES:kp.F_OBSTACLES + kp.OBSTACLE_FIELDS * len(field)].reshape(-1, kp.OBSTACLE_FIELDS)
     records[:, :3], records[:, 3:6], records[:, 6] = field.positions_m, field.velocities_m_s, field.radii_m
     ip[:] = (kp.METHOD_CODES[method], s.phi_form == "printed", s.phi_split, s.attitude_error == "body",
@@ -173,10 +174,10 @@ class KernelRollout:
         e1, e0, rel, clear = kernel_loop.observe(self._mdl, self.x, self.t, self.fp, self.ip)
         return self.x[7:19].copy(), e1, e0, rel, float(clear)
 
-    def min_clearance(self, last: int) -> float:
-        """Smallest clearance [m] (obstacle, arm-arm, arm-base) over the last ``last`` recorded samples."""
+    def min_margin(self, last: int) -> float:
+        """Smallest margin to a collision [m] over the last ``last`` samples (:meth:`Rollout.min_margin`)."""
         window = slice(self.rows - last, self.rows)
-        return float(min(np.min(self._log["clear"][window]), np.min(self._log["self"][window])))
+        return float(min(np.min(self._log["clear"][window]) - self.fp[kp.F_KEEP_OUT], np.min(self._log["self"][window])))
 
     def trajectory(self) -> Trajectory:
         """The :class:`Trajectory` recorded so far, in Pinocchio order."""

@@ -127,7 +127,7 @@ class ReferenceRollout:
                 continue
             if np.any(np.degrees(np.abs(self.latest("dq_joints")[first:])) > objective.max_rate_deg_s):
                 return np.array(self._log["dq_joints"][start:]), STATUS[1]
-            if self.latest("clearance_m") < 0.0 or self.latest("self_clearance_m") < 0.0:
+            if self.latest("clearance_m") < self.scenario.objective.keep_out_m or self.latest("self_clearance_m") < 0.0:
                 return np.array(self._log["dq_joints"][start:]), STATUS[2]
         return np.array(self._log["dq_joints"][start:]), STATUS[0]
 
@@ -148,10 +148,12 @@ class ReferenceRollout:
         """Recorded samples from index ``start`` on, as arrays."""
         return {key: np.array(val[start:]) for key, val in self._log.items()}
 
-    def min_clearance(self, last: int) -> float:
-        """Smallest clearance [m] (obstacle, arm-arm, arm-base) over the last ``last`` recorded samples."""
+    def min_margin(self, last: int) -> float:
+        """Smallest margin to a collision [m] over the last ``last`` samples (:meth:`Rollout.min_margin`)."""
         window = slice(len(self._log["clearance_m"]) - last, None)
-        return float(min(np.min(self._log["clearance_m"][window]), np.min(self._log["self_clearance_m"][window])))
+        keep_out = self.scenario.objective.keep_out_m
+        return float(min(np.min(self._log["clearance_m"][window]) - keep_out,
+                         np.min(self._log["self_clearance_m"][window])))
 
     def trajectory(self) -> Trajectory:
         """The :class:`Trajectory` recorded so far."""

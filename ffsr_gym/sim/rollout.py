@@ -85,8 +85,9 @@ class Rollout(Protocol):
     def observation(self) -> tuple[Array, Array, Array, Array, float]:
         """Joint angles (12) [rad], EE error (6), base error (6), obstacle-relative vector (3) [m], clearance [m]."""
 
-    def min_clearance(self, last: int) -> float:
-        """Smallest clearance [m] (obstacle, arm-arm, arm-base) over the last ``last`` recorded samples."""
+    def min_margin(self, last: int) -> float:
+        """Smallest margin to a collision [m] over the last ``last`` recorded samples: the obstacle clearance
+        minus the scenario's keep-out distance, or the arm-arm / arm-base clearance (negative: a collision)."""
 
     def trajectory(self) -> Trajectory:
         """The :class:`Trajectory` recorded so far."""

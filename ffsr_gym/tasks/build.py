@@ -1,18 +1,25 @@
-"""Build the v1 task pools: apply the tier rule to candidate seeds, in resumable chunks.
+"""Build a benchmark version's task pools: apply the tier rule to candidate seeds, in resumable chunks.
 
-``ffsr-gym tasks build --work runs/tasks-v1`` classifies the candidates of each split in chunks
-of consecutive seeds. Every finished chunk is written atomically to the work folder, so a killed
-build resumes where it stopped and never reruns a finished chunk. When the first ``train_tasks``
-(``test_tasks``) candidates of every tier are known, the pools, the label of every candidate
-examined and the counts are written to ``envs/benchmark/v1_tasks.json`` (atomically).
+``ffsr-gym tasks build --version v2 --work runs/tasks-v2`` classifies the candidates of each split
+in chunks of consecutive seeds. Every finished chunk is written atomically to the work folder, so a
+killed build resumes where it stopped and never reruns a finished chunk. When the first
+``<split>_tasks`` candidates of every tier are known, the pools, the label of every candidate
+examined and the counts are written to ``envs/benchmark/<version>_tasks.json`` (atomically).
+
+With an ensemble whose ``pinocchio`` is set (v2), the pool candidates are then replayed on the
+Pinocchio backend in seed order (a second, resumable stage: ``<work>/<split>/pinocchio.json``); a
+candidate that fails there is relabelled ``fragile`` and the next candidate of its tier takes its
+place. The kernel members run for every candidate, the Pinocchio member (about 150 times slower)
+for the pool candidates only.
 
 ``--tier debris`` (``robust``) builds a perturbed tier the same way, into ``<work>/<tier>`` and
-``envs/benchmark/v1_<tier>_tasks.json``; its candidates are the seeds that the v1 pool file
-labels easy, medium or hard (:mod:`ffsr_gym.tasks.perturbation`).
+``envs/benchmark/<version>_<tier>_tasks.json``; its candidates are the seeds that the version's
+pool file labels easy, medium or hard (:mod:`ffsr_gym.tasks.perturbation`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import time
@@ -22,61 +29,78 @@ from concurrent.futures import Executor
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from tqdm.auto import tqdm
 
 from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.resources import envs_dir
-from ffsr_gym.provenance import provenance, write_json_atomic
+from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic
 from ffsr_gym.tasks.perturbation import PERTURBED_TIERS, load_perturbed_rule, perturbed_rule_sha256
-from ffsr_gym.tasks.splits import LABEL_CODES, SEED_RANGES, SPLITS, expected_count, load_pools, pool_path
+from ffsr_gym.tasks.certificate import Certificate, Margins, replay
+from ffsr_gym.tasks.splits import LABEL_CODES, SEED_RANGES, expected_count, load_pools, pool_path, task_scenario
 from ffsr_gym.tasks.tiers import PERTURBED_REJECTIONS, REJECTIONS, TIERS, Verdict, classify, classify_perturbed
 
-#: The rule file whose tiers the build applies (its hash is the pools' ``rule_sha256``).
-RULES = "v1"
-#: What ``--tier`` builds: the rule file's tiers together (named after it), or one perturbed tier.
-TARGETS = (RULES, *PERTURBED_TIERS)
 _ADMITTED = {LABEL_CODES[tier] for tier in TIERS}
 
 
-def _check_target(target: str) -> None:
-    if target not in TARGETS:
-        raise FFSRError(f"tier {target!r}; allowed: {list(TARGETS)}")
+def targets(version: str) -> tuple[str, ...]:
+    """What ``--tier`` builds for ``version``: the rule file's tiers together (named after the version), or one
+    perturbed tier."""
+    return (version, *PERTURBED_TIERS)
 
 
-def rule_sha256(target: str = RULES) -> str:
-    """Hash of the rule a pool file was built under (``v1.toml``; a perturbed tier: also ``v1_perturbed.toml``
-    and the v1 pool file its candidates come from)."""
-    _check_target(target)
-    digest = hashlib.sha256((envs_dir() / "benchmark" / f"{RULES}.toml").read_bytes())
+def _check_target(target: str, version: str) -> None:
+    if target not in targets(version):
+        raise FFSRError(f"tier {target!r}; allowed: {list(targets(version))}")
+
+
+def rule_sha256(target: str, version: str) -> str:
+    """Hash of the rule a pool file was built under (``<version>.toml``; a perturbed tier: also
+    ``<version>_perturbed.toml`` and the version's pool file its candidates come from)."""
+    _check_target(target, version)
+    digest = hashlib.sha256((envs_dir() / "benchmark" / f"{version}.toml").read_bytes())
     if target in PERTURBED_TIERS:
-        digest.update(perturbed_rule_sha256().encode())
-        digest.update(pool_path().read_bytes())
+        digest.update(perturbed_rule_sha256(version).encode())
+        digest.update(pool_path(version=version).read_bytes())
     return digest.hexdigest()
 
 
-def base_admitted(split: str, start: int, stop: int) -> list[bool]:
-    """Whether the v1 pool file labels each seed of [start, stop) easy, medium or hard.
+def base_admitted(split: str, start: int, stop: int, version: str) -> list[bool]:
+    """Whether ``version``'s pool file labels each seed of [start, stop) easy, medium or hard.
 
     Raises:
-        FFSRError: a seed beyond the candidates the v1 pool file labels.
+        FFSRError: a seed beyond the candidates the pool file labels.
     """
-    summary = load_pools()["splits"][split]
+    summary = load_pools(version=version)["splits"][split]
     first, labels = int(summary["first_seed"]), summary["labels"]
     if stop - first > len(labels):
-        raise FFSRError(f"split {split}: the v1 pool file labels seeds up to {first + len(labels) - 1}; the perturbed "
-                        f"tiers need seeds up to {stop - 1} (their candidates are v1 tier tasks)")
+        raise FFSRError(f"split {split}: the {version} pool file labels seeds up to {first + len(labels) - 1}; the "
+                        f"perturbed tiers need seeds up to {stop - 1} (their candidates are its tier tasks)")
     return [labels[seed - first] in _ADMITTED for seed in range(start, stop)]
 
 
-def classify_chunk(split: str, start: int, stop: int, target: str = RULES) -> list[dict[str, Any]]:
+def classify_chunk(split: str, start: int, stop: int, target: str, version: str) -> list[dict[str, Any]]:
     """Verdicts (as dicts) of the candidate seeds [start, stop) (a worker's unit of work)."""
-    benchmark = load_benchmark(RULES)
+    benchmark = load_benchmark(version)
     if target not in PERTURBED_TIERS:
         return [classify(seed, benchmark).as_dict() for seed in range(start, stop)]
-    rule = load_perturbed_rule()
+    rule = load_perturbed_rule(version)
     return [classify_perturbed(target, seed, benchmark, base_admitted=admitted, rule=rule).as_dict()
-            for seed, admitted in zip(range(start, stop), base_admitted(split, start, stop))]
+            for seed, admitted in zip(range(start, stop), base_admitted(split, start, stop, version))]
+
+
+def confirm(tier: str, seed: int, certificate: dict[str, Any], version: str) -> dict[str, Any]:
+    """The ensemble's Pinocchio member: ``certificate`` replayed on the Pinocchio backend (a worker's unit of work).
+
+    Returns ``{"seed", "success", "margins"}``: success with the ensemble's margins, and that episode's margins.
+    """
+    benchmark = load_benchmark(version)
+    task = task_scenario(tier, seed, benchmark)
+    result = replay(task, Certificate.from_dict(certificate), benchmark, backend="pinocchio")
+    margins = Margins.worst([result])
+    return {"seed": int(seed), "success": result.success and margins.short(benchmark) is None,
+            "margins": margins.as_dict()}
 
 
 def _work_dir(work: Path, target: str) -> Path:
@@ -92,7 +116,7 @@ def _load_chunk(path: Path, sha: str) -> list[Verdict] | None:
         return None
     data = json.loads(path.read_text(encoding="utf-8"))
     if data.get("rule_sha256") != sha:
-        raise FFSRError(f"{path} was built with another v1.toml (rule hash {data.get('rule_sha256')}); "
+        raise FFSRError(f"{path} was built under another rule file (rule hash {data.get('rule_sha256')}); "
                         "use a new --work folder")
     return [Verdict.from_dict(v) for v in data["verdicts"]]
 
@@ -101,45 +125,98 @@ def _tiers(target: str) -> tuple[str, ...]:
     return (target,) if target in PERTURBED_TIERS else TIERS
 
 
-def _complete(verdicts: list[Verdict], needed: int, tiers: tuple[str, ...]) -> bool:
+def _complete(verdicts: list[Verdict], want: dict[str, int]) -> bool:
     counts = Counter(v.tier for v in verdicts)
-    return all(counts[tier] >= needed for tier in tiers)
+    return all(counts[tier] >= n for tier, n in want.items())
 
 
-def build_split(work: Path, split: str, *, target: str = RULES, chunk: int = 100, max_candidates: int = 50_000,
-                executor: Executor | None = None, workers: int = 1, progress: bool = True) -> list[Verdict]:
-    """Classify the candidates of ``split`` chunk by chunk until every tier's pool is full.
+def build_split(work: Path, split: str, *, version: str, target: str | None = None, chunk: int = 100,
+                max_candidates: int = 50_000, executor: Executor | None = None, workers: int = 1,
+                progress: bool = True) -> list[Verdict]:
+    """Classify the candidates of ``split`` chunk by chunk until every tier's pool is full (and, with a
+    Pinocchio ensemble member, confirmed there).
 
-    Returns the verdicts of the consecutive candidates from the split's first seed on.
+    Returns the verdicts of the consecutive candidates from the split's first seed on; a candidate
+    the Pinocchio member fails is relabelled ``fragile``, one it confirms carries the worst margins
+    of both stages.
 
     Raises:
         FFSRError: a tier is still short after ``max_candidates`` candidates, or a chunk of the
             work folder was built under another rule.
     """
-    _check_target(target)
-    sha, tiers = rule_sha256(target), _tiers(target)
-    needed, first, work = expected_count(tiers[0], split), SEED_RANGES[split][0], _work_dir(Path(work), target)
+    target = version if target is None else target
+    _check_target(target, version)
+    ensemble = load_benchmark(version).tasks.ensemble
+    needed, work = expected_count(_tiers(target)[0], split, version), _work_dir(Path(work), target)
+    confirmations = work / split / "pinocchio.json"
+    confirmed: dict[int, dict[str, Any]] = {}
+    if confirmations.exists():
+        confirmed = {row["seed"]: row for row in json.loads(confirmations.read_text(encoding="utf-8"))["rows"]}
+    want = dict.fromkeys(_tiers(target), needed)
+    while True:
+        verdicts = _classified(work, split, version, target, want, chunk, max_candidates, executor, workers, progress)
+        if ensemble is None or not ensemble.pinocchio:
+            return verdicts
+        pending = [v for tier in want for v in [v for v in verdicts if v.tier == tier][:want[tier]]
+                   if v.seed not in confirmed]
+        if not pending:
+            break
+        _confirm(pending, confirmed, confirmations, version, executor, workers, progress)
+        want = {tier: needed + sum(not confirmed[v.seed]["success"] for v in verdicts if v.tier == tier
+                                   and v.seed in confirmed) for tier in want}
+    return [_confirmed(v, confirmed.get(v.seed)) for v in verdicts]
+
+
+def _confirmed(verdict: Verdict, row: dict[str, Any] | None) -> Verdict:
+    """``verdict`` after its Pinocchio replay ``row`` (None: not replayed; unchanged)."""
+    if row is None or verdict.tier is None:
+        return verdict
+    if not row["success"]:
+        return dataclasses.replace(verdict, tier=None, rejection="fragile", certificate=None, certificate_score=0.0)
+    return dataclasses.replace(verdict, margins=verdict.margins.merge(Margins.from_dict(row["margins"])))
+
+
+def _confirm(pending: list[Verdict], confirmed: dict[int, dict[str, Any]], path: Path, version: str,
+             executor: Executor | None, workers: int, progress: bool) -> None:
+    """Replay ``pending`` on the Pinocchio backend, saving ``confirmed`` atomically after every batch."""
+    run: Callable = executor.map if executor is not None else map
+    batch = max(1, workers) * 4
+    with tqdm(total=len(pending), desc=f"pinocchio {path.parent.name}", unit="task", disable=not progress) as bar:
+        for i in range(0, len(pending), batch):
+            part = pending[i:i + batch]
+            for row in run(confirm, [v.tier for v in part], [v.seed for v in part],
+                           [v.certificate.as_dict() for v in part], [version] * len(part)):
+                confirmed[row["seed"]] = row
+            write_json_atomic(path, {"rows": sorted(confirmed.values(), key=lambda r: r["seed"])})
+            bar.update(len(part))
+
+
+def _classified(work: Path, split: str, version: str, target: str, want: dict[str, int], chunk: int,
+                max_candidates: int, executor: Executor | None, workers: int, progress: bool) -> list[Verdict]:
+    """The verdicts of the split's consecutive candidates, classified chunk by chunk until each tier has ``want`` of them."""
+    sha, first = rule_sha256(target, version), SEED_RANGES[split][0]
     _check_chunking(work, split, chunk)
     verdicts: list[Verdict] = []
     with tqdm(desc=f"tasks {target} {split}", unit="task", disable=not progress) as bar:
         start = first
-        while not _complete(verdicts, needed, tiers):
+        while not _complete(verdicts, want):
             if start - first >= max_candidates:
                 counts = Counter(v.tier for v in verdicts)
                 raise FFSRError(f"split {split}: after {max_candidates} candidates the pools hold {dict(counts)}, "
-                                f"{needed} needed per tier; raise --max-candidates")
+                                f"{want} needed; raise --max-candidates")
             starts = [start + i * chunk for i in range(max(1, workers))]
             missing = [s for s in starts if not _chunk_path(work, split, s).exists()]
             run: Callable = executor.map if executor is not None else map
             for s, result in zip(missing, run(classify_chunk, [split] * len(missing), missing,
-                                              [s + chunk for s in missing], [target] * len(missing))):
+                                              [s + chunk for s in missing], [target] * len(missing),
+                                              [version] * len(missing))):
                 write_json_atomic(_chunk_path(work, split, s), {"split": split, "start": s, "stop": s + chunk,
                                                                 "rule_sha256": sha, "verdicts": result})
             for s in starts:
                 verdicts += _load_chunk(_chunk_path(work, split, s), sha)
             counts = Counter(v.tier for v in verdicts)
             bar.update(len(starts) * chunk)
-            bar.set_postfix({tier: f"{counts[tier]}/{needed}" for tier in tiers})
+            bar.set_postfix({tier: f"{counts[tier]}/{n}" for tier, n in want.items()})
             start += len(starts) * chunk
     return verdicts
 
@@ -169,7 +246,7 @@ def die_with_parent() -> None:
         pass
 
 
-def summarise_split(verdicts: list[Verdict], needed: int, target: str = RULES) -> dict[str, Any]:
+def summarise_split(verdicts: list[Verdict], needed: int, target: str) -> dict[str, Any]:
     """The pools, labels and counts of a split from its consecutive verdicts (trimmed to the last pool seed)."""
     tiers = _tiers(target)
     rejections = PERTURBED_REJECTIONS if target in PERTURBED_TIERS else REJECTIONS
@@ -193,54 +270,84 @@ def summarise_split(verdicts: list[Verdict], needed: int, target: str = RULES) -
         "rejected_but_constant_solvable": sum(v.constant_solvable for v in rejected),
         "default_success_in_pool": {tier: sum(v.default_failure is None for v in pools[tier]) / needed
                                     for tier in tiers},
-        "pools": {tier: [{"seed": v.seed, "certificate": v.certificate.as_dict(), "certificate_score": v.certificate_score,
-                          "default_failure": v.default_failure} for v in pools[tier]] for tier in tiers},
+        "pool_margins": {tier: _pool_margins(pools[tier]) for tier in tiers},
+        "default_failures_in_pool": {tier: dict(Counter(v.default_failure or "none" for v in pools[tier]))
+                                     for tier in tiers},
+        "pools": {tier: [_pool_entry(v) for v in pools[tier]] for tier in tiers},
     }
 
 
-def build(work: str | Path, *, target: str = RULES, out: str | Path | None = None, chunk: int = 100,
-          max_candidates: int = 50_000, executor: Executor | None = None, workers: int = 1,
+def _pool_entry(v: Verdict) -> dict[str, Any]:
+    entry = {"seed": v.seed, "certificate": v.certificate.as_dict(), "certificate_score": v.certificate_score,
+             "default_failure": v.default_failure}
+    if v.nominal:  # screening's measurements of the nominal motion (base tiers)
+        entry["nominal"] = {"final_ee_position_error_m": v.nominal[0], "min_balance_sigma": v.nominal[1],
+                            "min_self_clearance_m": v.nominal[2]}
+    if v.margins is not None and v.margins.episodes > 1:
+        entry["margins"] = v.margins.as_dict()
+    return entry
+
+
+def _pool_margins(pool: list[Verdict]) -> dict[str, Any] | None:
+    """Over a pool's certificates: the worst ensemble margins, and the median of each certificate's worst clearance."""
+    if not pool or any(v.margins is None for v in pool):
+        return None
+    worst = pool[0].margins
+    for v in pool[1:]:
+        worst = worst.merge(v.margins)
+    clearances = sorted(v.margins.min_clearance_m for v in pool)
+    return {**worst.as_dict(), "median_min_clearance_m": clearances[len(clearances) // 2]}
+
+
+def build(work: str | Path, *, version: str, target: str | None = None, out: str | Path | None = None,
+          chunk: int = 100, max_candidates: int = 50_000, executor: Executor | None = None, workers: int = 1,
           progress: bool = True) -> dict[str, Any]:
-    """Build both splits of ``target`` (``v1``: easy, medium and hard; or a perturbed tier), resuming from
-    ``work``, and write the pool file ``out`` (default: the shipped one)."""
-    _check_target(target)
-    began, work = time.perf_counter(), Path(work)
+    """Build every split of ``target`` (the version's name: easy, medium and hard; or a perturbed tier),
+    resuming from ``work``, and write the pool file ``out`` (default: the shipped one)."""
+    target = version if target is None else target
+    _check_target(target, version)
+    began, work, tiers = time.perf_counter(), Path(work), _tiers(target)
     splits = {}
-    for split in SPLITS:
-        verdicts = build_split(work, split, target=target, chunk=chunk, max_candidates=max_candidates,
+    for split in load_benchmark(version).tasks.splits:
+        verdicts = build_split(work, split, version=version, target=target, chunk=chunk, max_candidates=max_candidates,
                                executor=executor, workers=workers, progress=progress)
-        splits[split] = summarise_split(verdicts, expected_count(_tiers(target)[0], split), target)
-    data = {"version": RULES, "tiers": list(_tiers(target)), "rule_sha256": rule_sha256(target),
-            "seed_ranges": SEED_RANGES, "label_codes": LABEL_CODES,
+        splits[split] = summarise_split(verdicts, expected_count(tiers[0], split, version), target)
+    data = {"version": version, "tiers": list(tiers), "rule_sha256": rule_sha256(target, version),
+            "seed_ranges": {split: SEED_RANGES[split] for split in splits}, "label_codes": LABEL_CODES,
             "provenance": provenance(wall_time_s=time.perf_counter() - began), "splits": splits}
-    write_json_atomic(pool_path(_tiers(target)[0]) if out is None else out, data)
+    write_json_atomic(pool_path(tiers[0], version) if out is None else out, data)
     return data
 
 
 def tier_table(data: dict[str, Any]) -> str:
     """Markdown table of a pool file's counts: candidates, tiers, rejection shares (a perturbed tier:
-    the v1 tier tasks perturbed, the share certified and the default planner's success in the pool)."""
+    the version's tier tasks perturbed, the share certified and the default planner's success in the pool)."""
     tiers = tuple(data.get("tiers", TIERS))
     if tiers != TIERS:
         return _perturbed_table(data, tiers[0])
+    causes = [cause for cause in REJECTIONS if cause in data["splits"]["train"]["rejection_counts"]]
     lines = ["| split | candidates | " + " | ".join(tiers) + " | rejected | rejected, a constant setting solves | "
-             + " | ".join(f"`{cause}`" for cause in REJECTIONS) + " |",
-             "|---" * (4 + len(tiers) + len(REJECTIONS)) + "|"]
-    for split in SPLITS:
+             + " | ".join(f"`{cause}`" for cause in causes) + " |",
+             "|---" * (4 + len(tiers) + len(causes)) + "|"]
+    for split in data["splits"]:
         s = data["splits"][split]
         rejected = s["candidates"] - sum(s["tier_counts"].values())
-        shares = " | ".join(f"{100 * s['rejection_shares'][cause]:.1f} %" for cause in REJECTIONS)
+        shares = " | ".join(f"{100 * s['rejection_shares'][cause]:.1f} %" for cause in causes)
         lines.append(f"| {split} | {s['candidates']} | " + " | ".join(str(s["tier_counts"][t]) for t in tiers)
                      + f" | {rejected} | {s['rejected_but_constant_solvable']} | {shares} |")
     return "\n".join(lines) + "\n"
 
 
 def _perturbed_table(data: dict[str, Any], tier: str) -> str:
-    unsolved = [cause for cause in PERTURBED_REJECTIONS if cause != "base_rejected"]
-    lines = ["| split | seeds examined | v1 tier tasks perturbed | certified (in the pool) | certified share | "
-             + " | ".join(f"`{cause}`" for cause in unsolved) + " | reference (0.3, 4 s) succeeds, pool |",
+    unsolved = [cause for cause in PERTURBED_REJECTIONS
+                if cause != "base_rejected" and cause in data["splits"]["train"]["rejection_counts"]]
+    version = data["version"]
+    default = load_benchmark(version).planner
+    lines = [f"| split | seeds examined | {version} tier tasks perturbed | certified (in the pool) | certified share | "
+             + " | ".join(f"`{cause}`" for cause in unsolved)
+             + f" | reference ({default.m:g}, {default.T_c_s:g} s) succeeds, pool |",
              "|---" * (6 + len(unsolved)) + "|"]
-    for split in SPLITS:
+    for split in data["splits"]:
         s = data["splits"][split]
         counts = s["rejection_counts"]
         perturbed = s["candidates"] - counts["base_rejected"]
@@ -250,3 +357,48 @@ def _perturbed_table(data: dict[str, Any], tier: str) -> str:
                      + " | ".join(str(counts[cause]) for cause in unsolved)
                      + f" | {100 * s['default_success_in_pool'][tier]:.1f} % |")
     return "\n".join(lines) + "\n"
+
+
+def physics_table(files: list[dict[str, Any]], split: str = "test") -> str:
+    """Markdown table of what the pool tasks of ``split`` are like, per tier of the pool ``files``: how the default
+    planner fails, the nominal motion's balance-arm conditioning and self clearance (base tiers), and the
+    certificates' worst ensemble margins."""
+    lines = ["| tier | tasks | default planner: succeeds / rate limit / collision / final error | median min "
+             "σ_min(J_c²), nominal | median min self clearance, nominal [mm] | certificates: constant / residual | "
+             "median worst clearance [mm] | worst clearance [mm] | largest peak rate [deg/s] |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for s in (data["splits"][split] for data in files):
+        lines += _physics_rows(s)
+    return "\n".join(lines) + "\n"
+
+
+def _physics_rows(s: dict[str, Any]) -> list[str]:
+    lines = []
+    for tier, entries in s["pools"].items():
+        fails = s["default_failures_in_pool"][tier]
+        causes = " / ".join(str(fails.get(c, 0)) for c in ("none", "rate_limit", "collision", "final_error"))
+        nominal = [e["nominal"] for e in entries if "nominal" in e]
+        sigma = f"{np.median([n['min_balance_sigma'] for n in nominal]):.2f}" if nominal else "-"
+        self_c = f"{1000 * np.median([n['min_self_clearance_m'] for n in nominal]):.0f}" if nominal else "-"
+        kinds = [e["certificate"]["kind"] for e in entries]
+        margins = s["pool_margins"][tier]
+        lines.append(f"| {tier} | {len(entries)} | {causes} | {sigma} | {self_c} | {kinds.count('constant')} / "
+                     f"{kinds.count('residual')} | {1000 * margins['median_min_clearance_m']:.0f} | "
+                     f"{1000 * margins['min_clearance_m']:.1f} | {margins['peak_rate_deg_s']:.1f} |")
+    return lines
+
+
+def docs_tables(version: str) -> dict[str, str]:
+    """The tables docs/envs.md shows of ``version``'s pool files, by marker name (``<!-- <name>:begin -->``)."""
+    base = load_pools(version=version)
+    perturbed = {tier: load_pools(None, (tier,), version) for tier in PERTURBED_TIERS}
+    tables = {"tiers": tier_table(base), "tiers-physics": physics_table([base, *perturbed.values()])}
+    tables.update({f"tiers-{tier}": tier_table(data) for tier, data in perturbed.items()})
+    return tables
+
+
+def splice_docs_tables(text: str, version: str, where: str = "the docs") -> str:
+    """``text`` with every table of :func:`docs_tables` between its markers."""
+    for name, table in docs_tables(version).items():
+        text = splice_generated(text, f"<!-- {name}:begin -->", f"<!-- {name}:end -->", table, where=where)
+    return text

@@ -1,13 +1,17 @@
 """Certificates: a planner setting or a residual action that passes a task's success test.
 
-A certificate is replayed exactly as the v1 environments step: decisions every
-``env.decision_interval_s``, stop at the first violation, scored by
+A certificate is replayed exactly as the environments of its benchmark version step: decisions
+every ``env.decision_interval_s``, stop at the first violation, scored by
 :func:`ffsr_gym.scoring.score.score_episode`.
 
-* ``constant``: ``FFSR-v1`` with the same physical (m, T_c [s]) at every decision
+* ``constant``: ``FFSR-v2`` with the same physical (m, T_c [s]) at every decision
   (``env.unwrapped.step_with_parameters(m, T_c)``);
-* ``residual``: ``FFSR-Residual-v1`` with the same action (12 values in [-1, 1], exact in float32)
+* ``residual``: ``FFSR-Residual-v2`` with the same action (12 values in [-1, 1], exact in float32)
   at every decision, faded by the benchmark's law, on top of the default planner.
+
+From v2 on, a certificate must also succeed in every member of the rule file's ensemble
+(:func:`ensemble_members`): the task at smaller steps, from starts a hair off, and on the
+Pinocchio backend. :class:`Margins` keeps the worst of its margins over the members.
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.benchmark import Benchmark, residual_rates
+from ffsr_gym.model.benchmark import Benchmark, Ensemble, residual_rates
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning.planner import planner_parameters
 from ffsr_gym.scoring.score import EpisodeScore, score_episode
@@ -36,7 +40,7 @@ class Certificate:
     Attributes:
         kind: ``"constant"`` or ``"residual"``.
         m, T_c_s: the planner's (m, T_c [s]) (for ``residual``: the benchmark's default).
-        residual: (12,) the constant ``FFSR-Residual-v1`` action, or None.
+        residual: (12,) the constant ``FFSR-Residual-v2`` action, or None.
     """
 
     kind: str
@@ -93,11 +97,11 @@ def planner_task(task: Scenario, method: str, gain_per_s: float | None) -> Scena
 
 def planner_episode(task: Scenario, benchmark: Benchmark, *, method: str, m: float | None = None,
                     T_c: float | None = None, gain_per_s: float | None = None, backend: str = "auto") -> EpisodeScore:
-    """One episode of a reference-planner variant with constant parameters, scored like every v1 episode.
+    """One episode of a reference-planner variant with constant parameters, scored like every env episode.
 
     ``method`` is one of :data:`ffsr_gym.planning.planner.METHODS` (``predefined_time`` with
     (m, T_c [s]), ``proportional`` with gain K [1/s]); the run stops at the first violation, as
-    the v1 environments do.
+    the environments do.
     """
     played = planner_task(task, method, gain_per_s)
     rollout = make_rollout(played, backend=backend, method=method, m=m, T_c=T_c)
@@ -107,7 +111,7 @@ def planner_episode(task: Scenario, benchmark: Benchmark, *, method: str, m: flo
 
 
 def replay(task: Scenario, certificate: Certificate, benchmark: Benchmark, *, backend: str = "auto") -> EpisodeScore:
-    """Run ``certificate`` on ``task`` the way the v1 environments step, and score the episode.
+    """Run ``certificate`` on ``task`` the way the environments step, and score the episode.
 
     A constant certificate is one run of :func:`planner_episode` (bit-identical with stepping the
     env decision by decision); a residual one steps decision by decision, fading the residual.
@@ -127,3 +131,111 @@ def replay(task: Scenario, certificate: Certificate, benchmark: Benchmark, *, ba
             break
     rollout.finish()
     return score_episode(rollout.trajectory(), task, benchmark)
+
+
+@dataclass(frozen=True)
+class Member:
+    """One member of a certificate's ensemble: its name, the task it plays and the backend."""
+
+    name: str
+    task: Scenario
+    backend: str = "kernel"
+
+
+def offset_start(task: Scenario, offsets_deg: Any) -> Scenario:
+    """``task`` with its 12 initial joint angles moved by ``offsets_deg`` [deg] (mission arm, then balance arm)."""
+    offsets = np.asarray(offsets_deg, dtype=float)
+    initial = task.initial
+    moved = dataclasses.replace(
+        initial, mission_joints_deg=tuple(float(a + d) for a, d in zip(initial.mission_joints_deg, offsets[:6])),
+        balance_joints_deg=tuple(float(a + d) for a, d in zip(initial.balance_joints_deg, offsets[6:])))
+    return dataclasses.replace(task, initial=moved)
+
+
+def start_offsets(seed: int, draw: int, offset_deg: float) -> np.ndarray:
+    """The ``draw``-th start offset of candidate ``seed``: ± ``offset_deg`` per joint, signs from ``default_rng([seed, 4 + draw])``."""
+    return offset_deg * np.random.default_rng([int(seed), 4 + int(draw)]).choice((-1.0, 1.0), 12)
+
+
+def ensemble_members(task: Scenario, seed: int, ensemble: Ensemble, *, pinocchio: bool | None = None) -> list[Member]:
+    """The members of ``task``'s ensemble besides the task itself, in a fixed order: the smaller steps,
+    the offset starts, then (``pinocchio``, default: the ensemble's own setting) the Pinocchio backend."""
+    dt = task.simulation.dt_s
+    members = [Member(f"dt/{int(d)}", task.at_step(dt / d)) for d in ensemble.step_divisors]
+    members += [Member(f"start {draw + 1}", offset_start(task, start_offsets(seed, draw, ensemble.start_offset_deg)))
+                for draw in range(ensemble.start_draws)]
+    if ensemble.pinocchio if pinocchio is None else pinocchio:
+        members.append(Member("pinocchio", task, "pinocchio"))
+    return members
+
+
+@dataclass(frozen=True)
+class Margins:
+    """The worst success margins of a certificate over the episodes it was replayed in.
+
+    Attributes:
+        min_clearance_m: smallest robot–obstacle clearance [m] (inf without obstacle).
+        min_self_clearance_m: smallest arm-arm / arm-base clearance [m].
+        peak_rate_deg_s: largest joint rate of either arm [deg/s].
+        final_ee_position_error_m, final_ee_attitude_error: largest final end-effector errors.
+        episodes: how many episodes these are the worst of.
+    """
+
+    min_clearance_m: float
+    min_self_clearance_m: float
+    peak_rate_deg_s: float
+    final_ee_position_error_m: float
+    final_ee_attitude_error: float
+    episodes: int
+
+    @classmethod
+    def worst(cls, results: list[EpisodeScore]) -> Margins:
+        """The worst margins of ``results`` (at least one episode)."""
+        return cls(min(r.min_clearance_m for r in results), min(r.min_self_clearance_m for r in results),
+                   max(max(r.peak_rate_deg_s) for r in results), max(r.final_ee_position_error_m for r in results),
+                   max(r.final_ee_attitude_error for r in results), len(results))
+
+    def short(self, benchmark: Benchmark) -> str | None:
+        """Which margin is inside the ensemble's hair's-breadth band (None: all clear it, or no ensemble)."""
+        ensemble = benchmark.tasks.ensemble
+        if ensemble is None:
+            return None
+        return ensemble.short_margin(self.peak_rate_deg_s, self.min_clearance_m, self.min_self_clearance_m,
+                                     (self.final_ee_position_error_m, self.final_ee_attitude_error), benchmark.score)
+
+    def merge(self, other: Margins) -> Margins:
+        """The worst of both."""
+        return Margins(min(self.min_clearance_m, other.min_clearance_m),
+                       min(self.min_self_clearance_m, other.min_self_clearance_m),
+                       max(self.peak_rate_deg_s, other.peak_rate_deg_s),
+                       max(self.final_ee_position_error_m, other.final_ee_position_error_m),
+                       max(self.final_ee_attitude_error, other.final_ee_attitude_error), self.episodes + other.episodes)
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready dict (an infinite clearance becomes None)."""
+        data = dataclasses.asdict(self)
+        data["min_clearance_m"] = None if math.isinf(self.min_clearance_m) else self.min_clearance_m
+        return data
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Margins:
+        """Inverse of :meth:`as_dict`."""
+        clearance = data["min_clearance_m"]
+        return cls(math.inf if clearance is None else float(clearance), float(data["min_self_clearance_m"]),
+                   float(data["peak_rate_deg_s"]), float(data["final_ee_position_error_m"]),
+                   float(data["final_ee_attitude_error"]), int(data["episodes"]))
+
+
+def replay_members(members: list[Member], certificate: Certificate, benchmark: Benchmark
+                   ) -> tuple[str | None, list[EpisodeScore]]:
+    """Replay ``certificate`` in each member, stopping at the first that fails.
+
+    Returns ``(failed, results)``: the name of the member that failed (None: all succeeded) and
+    the results so far.
+    """
+    results = []
+    for member in members:
+        results.append(replay(member.task, certificate, benchmark, backend=member.backend))
+        if not results[-1].success:
+            return member.name, results
+    return None, results

@@ -1,10 +1,11 @@
-"""Benchmark-v1 candidate tasks: one per seed, drawn from the task family, then screened.
+"""Candidate tasks of a benchmark version: one per seed, drawn from the task family, then screened.
 
-A candidate is a deterministic function of its seed: the family scenario (v1's settings applied)
-with the target pose and the obstacle drawn by :func:`ffsr_gym.tasks.random_family.sample_scenario`
-from ``numpy.random.default_rng(seed)`` and the ranges of ``[tasks.draw]`` in ``v1.toml``.
+A candidate is a deterministic function of its seed: the family scenario (the version's settings
+applied) with the target pose and the obstacle drawn by
+:func:`ffsr_gym.tasks.random_family.sample_scenario` from ``numpy.random.default_rng(seed)`` and
+the ranges of ``[tasks.draw]`` in ``<version>.toml``.
 
-Screening looks at the *nominal motion*: the v1 default planner with avoidance switched off
+Screening looks at the *nominal motion*: the version's default planner with avoidance switched off
 (method ``no_avoidance``), run for the whole episode. A candidate is rejected when
 
 * ``nominal_final_error``: its final end-effector error misses the tolerance (the straight path
@@ -37,13 +38,13 @@ MAX_SEED = 2**63 - 1
 
 @lru_cache(maxsize=4)
 def task_family(benchmark: Benchmark) -> Scenario:
-    """The family scenario of the v1 tasks: v1's settings and the ``[tasks.draw]`` ranges (cached; frozen)."""
+    """The family scenario of the version's tasks: its settings and the ``[tasks.draw]`` ranges (cached; frozen)."""
     rule = benchmark.tasks
     return benchmark.task(load_scenario(rule.family)).replace(randomization=rule.draw)
 
 
 def draw_task(seed: int, benchmark: Benchmark) -> Scenario:
-    """The candidate task of ``seed`` (named ``v1-<seed>``, no randomization section).
+    """The candidate task of ``seed`` (named ``<version>-<seed>``, no randomization section).
 
     Raises:
         InvalidInputError: ``seed`` is not an integer in [0, 2**63).
@@ -58,8 +59,9 @@ def _draw_task(seed: int, benchmark: Benchmark) -> Scenario:
     """:func:`draw_task` after the check (cached: the environments draw pool tasks again and again)."""
     family = task_family(benchmark)
     drawn = sample_scenario(family, np.random.default_rng(int(seed)))
-    return drawn.replace(name=f"v1-{int(seed)}", randomization=None,
-                         description=f"Benchmark v1 candidate task of seed {int(seed)} (ffsr_gym.tasks.generator).")
+    version = benchmark.version
+    return drawn.replace(name=f"{version}-{int(seed)}", randomization=None,
+                         description=f"Benchmark {version} candidate task of seed {int(seed)} (ffsr_gym.tasks.generator).")
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,8 @@
-"""The perturbed tiers of benchmark v1: ``debris`` and ``robust`` tasks drawn on top of v1 tier tasks.
+"""The perturbed tiers: ``debris`` and ``robust`` tasks drawn on top of a version's tier tasks.
 
-A candidate of a perturbed tier is a task of a v1 tier (easy, medium or hard; the v1 pool file's
-labels say which seeds are), perturbed with draws from ``numpy.random.default_rng([seed, stream])``
-within the ranges of ``envs/benchmark/v1_perturbed.toml`` (docs/envs.md "Perturbed tiers"):
+A candidate of a perturbed tier is a task of a base tier (easy, medium or hard; the version's pool
+file's labels say which seeds are), perturbed with draws from ``numpy.random.default_rng([seed, stream])``
+within the ranges of ``envs/benchmark/<version>_perturbed.toml`` (docs/envs.md "Perturbed tiers"):
 
 * ``debris`` (stream 2): the obstacle drifts, and 1-3 more obstacles cross the desired path near
   the time the end effector passes there (``[debris]``, docs/model.md §14);
@@ -11,7 +11,7 @@ within the ranges of ``envs/benchmark/v1_perturbed.toml`` (docs/envs.md "Perturb
   sees the target through a bias and white noise (``[target_noise]``, §16).
 
 With every range collapsed to zero (:meth:`PerturbedRule.zero`) a perturbed task moves exactly as
-its v1 task (``tests/test_tiers_perturbed.py``).
+its base task (``tests/test_tiers_perturbed.py``).
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ STREAMS = {"debris": 2, "robust": 3}
 
 @dataclass(frozen=True)
 class DebrisDraw:
-    """Ranges of the ``debris`` tier (see ``v1_perturbed.toml``)."""
+    """Ranges of the ``debris`` tier (see ``<version>_perturbed.toml``)."""
 
     extra_obstacles: tuple[float, ...] = field(metadata=vector(2, 0, 7))
     radius_m: tuple[float, ...] = field(metadata=vector(2, 0.0, 0.5))
@@ -56,7 +56,7 @@ class DebrisDraw:
 
 @dataclass(frozen=True)
 class RobustDraw:
-    """Ranges of the ``robust`` tier (see ``v1_perturbed.toml``)."""
+    """Ranges of the ``robust`` tier (see ``<version>_perturbed.toml``)."""
 
     mass_scale: tuple[float, ...] = field(metadata=vector(2, 0.5, 2.0))
     inertia_scale: tuple[float, ...] = field(metadata=vector(2, 0.5, 2.0))
@@ -72,16 +72,21 @@ class RobustDraw:
 
 @dataclass(frozen=True)
 class PerturbedRule:
-    """``envs/benchmark/v1_perturbed.toml``: pool sizes and the draw ranges of each perturbed tier."""
+    """``envs/benchmark/<version>_perturbed.toml``: pool sizes and the draw ranges of each perturbed tier."""
 
     schema_version: int = field(metadata={"kind": "integer", "options": (1,)})
     train_tasks: float = field(metadata=number(1, 1e5))
     test_tasks: float = field(metadata=number(1, 1e5))
     debris: DebrisDraw = field(metadata=section(DebrisDraw))
     robust: RobustDraw = field(metadata=section(RobustDraw))
+    validation_tasks: float = field(default=0, metadata=number(0, 1e5))
+
+    def tasks_in(self, split: str) -> int:
+        """How many tasks each perturbed tier's ``split`` pool holds."""
+        return int({"train": self.train_tasks, "validation": self.validation_tasks, "test": self.test_tasks}[split])
 
     def zero(self) -> PerturbedRule:
-        """This rule with every perturbation range collapsed to nothing (the v1 task itself)."""
+        """This rule with every perturbation range collapsed to nothing (the base task itself)."""
         return dataclasses.replace(
             self,
             debris=dataclasses.replace(self.debris, extra_obstacles=(0.0, 0.0), obstacle_speed_m_s=(0.0, 0.0),
@@ -91,25 +96,25 @@ class PerturbedRule:
                                        attitude_bias_rad=0.0, position_sigma_m=0.0, attitude_sigma_rad=0.0))
 
 
-def rule_path() -> str:
-    """The shipped rule file."""
-    return str(envs_dir() / "benchmark" / "v1_perturbed.toml")
+def rule_path(version: str) -> str:
+    """The shipped perturbed-tier rule file of benchmark ``version``."""
+    return str(envs_dir() / "benchmark" / f"{version}_perturbed.toml")
 
 
-def perturbed_rule_sha256() -> str:
-    """Hash of the rule file (the draw ranges and pool sizes)."""
-    with open(rule_path(), "rb") as handle:
+def perturbed_rule_sha256(version: str) -> str:
+    """Hash of ``version``'s perturbed-tier rule file (the draw ranges and pool sizes)."""
+    with open(rule_path(version), "rb") as handle:
         return hashlib.sha256(handle.read()).hexdigest()
 
 
-@lru_cache(maxsize=1)
-def load_perturbed_rule() -> PerturbedRule:
-    """The shipped :class:`PerturbedRule`.
+@lru_cache(maxsize=4)
+def load_perturbed_rule(version: str) -> PerturbedRule:
+    """The shipped :class:`PerturbedRule` of benchmark ``version``.
 
     Raises:
         ScenarioError: unreadable file, or a key missing, unknown or out of range (named).
     """
-    path = rule_path()
+    path = rule_path(version)
     rule = load_table(PerturbedRule, path)
     if any(v != int(v) for v in rule.debris.extra_obstacles):
         raise ScenarioError(f"{path}: key 'debris.extra_obstacles' = {list(rule.debris.extra_obstacles)}; "
@@ -209,7 +214,7 @@ def draw_robust(task: Scenario, rng: np.random.Generator, spec: RobustDraw) -> S
 
 
 def perturbed_task(tier: str, seed: int, benchmark: Benchmark, rule: PerturbedRule | None = None) -> Scenario | None:
-    """The ``tier`` candidate on top of the v1 candidate task of ``seed`` (None: no admissible debris draw).
+    """The ``tier`` candidate on top of the candidate task of ``seed`` (None: no admissible debris draw).
 
     Raises:
         InvalidInputError: unknown tier, or a seed outside [0, 2**63).
@@ -217,7 +222,7 @@ def perturbed_task(tier: str, seed: int, benchmark: Benchmark, rule: PerturbedRu
     if tier not in PERTURBED_TIERS:
         raise InvalidInputError(f"perturbed tier {tier!r}; allowed: {list(PERTURBED_TIERS)}")
     draw_task(seed, benchmark)  # checks the seed
-    return _perturbed_task(tier, int(seed), benchmark, rule or load_perturbed_rule())
+    return _perturbed_task(tier, int(seed), benchmark, rule or load_perturbed_rule(benchmark.version))
 
 
 @lru_cache(maxsize=1024)
@@ -231,5 +236,6 @@ def _perturbed_task(tier: str, seed: int, benchmark: Benchmark, rule: PerturbedR
         if debris is None:
             return None
         task = with_sections(base, debris=debris)
-    description = f"Benchmark v1 {tier} candidate task of seed {seed} (ffsr_gym.tasks.perturbation)."
-    return with_sections(task, name=f"v1-{tier}-{seed}", description=description)
+    version = benchmark.version
+    description = f"Benchmark {version} {tier} candidate task of seed {seed} (ffsr_gym.tasks.perturbation)."
+    return with_sections(task, name=f"{version}-{tier}-{seed}", description=description)

@@ -1,4 +1,5 @@
-"""FFSR-v1 / FFSR-Residual-v1: API checks, the zero residual is the planner, rewards sum to the score minus 1, the residual can succeed."""
+"""FFSR-v2 / FFSR-Residual-v2: API checks on every tier, the zero residual is the planner, rewards sum to the score
+minus 1, the residual can succeed, ``dt_s`` runs the same task at another step."""
 
 from __future__ import annotations
 
@@ -16,12 +17,13 @@ from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.scoring.score import score_episode
 
-IDS = ("FFSR-v1", "FFSR-Residual-v1")
-BENCH = load_benchmark("v1")
+IDS = ("FFSR-v2", "FFSR-Residual-v2")
+BENCH = load_benchmark("v2")
 
 
-def run(env, policy, seed=0):
-    obs, _ = env.reset(seed=seed)
+def run(env, policy, seed=0, index=0):
+    """One episode of the pool task ``index`` (None: drawn from the seed)."""
+    obs, _ = env.reset(seed=seed, options=None if index is None else {"task_index": index})
     rewards, infos = [], []
     while True:
         obs, reward, terminated, truncated, info = env.step(policy(obs))
@@ -31,12 +33,13 @@ def run(env, policy, seed=0):
             return np.array(rewards), infos, env.unwrapped.trajectory
 
 
+@pytest.mark.parametrize("tier", ["easy", "medium", "hard", "debris", "robust"])
 @pytest.mark.parametrize("env_id", IDS)
-def test_check_env_gymnasium_and_sb3(env_id):
+def test_check_env_gymnasium_and_sb3(env_id, tier):
     sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        env = gym.make(env_id, task="paper", split="test")
+        env = gym.make(env_id, task=tier, split="test")
         check_env(env.unwrapped, skip_render_check=True)
         sb3_checker.check_env(env.unwrapped, warn=True)
     assert not caught, [str(w.message) for w in caught]
@@ -45,15 +48,19 @@ def test_check_env_gymnasium_and_sb3(env_id):
 
 def test_arguments_are_checked():
     with pytest.raises(InvalidInputError, match="split"):
-        gym.make("FFSR-v1", split="validation")
+        gym.make("FFSR-v2", split="holdout")
+    with pytest.raises(InvalidInputError, match="task 'paper'"):  # v2 has no paper task (docs/model.md)
+        gym.make("FFSR-v2", task="easy")
+    with pytest.raises(InvalidInputError, match="dt_s"):
+        gym.make("FFSR-v2", dt_s=0.003)
     with pytest.raises(InvalidInputError, match="task"):
-        gym.make("FFSR-v1", task="impossible")
+        gym.make("FFSR-v2", task="impossible")
     with pytest.raises(InvalidInputError, match="terminate_on_violation"):
-        gym.make("FFSR-v1", terminate_on_violation="no")
+        gym.make("FFSR-v2", terminate_on_violation="no")
 
 
 def test_zero_residual_is_exactly_the_reference_planner():
-    env = gym.make("FFSR-Residual-v1", task="paper")
+    env = gym.make("FFSR-Residual-v2", task="easy")
     rewards, infos, traj = run(env, lambda obs: np.zeros(12, dtype=np.float32))
     reference = ffsr_gym.simulate(env.unwrapped.scenario)
     for field in ("q", "dq_joints", "ee_position_error_m", "clearance_m"):
@@ -63,7 +70,7 @@ def test_zero_residual_is_exactly_the_reference_planner():
 
 
 def test_rewards_sum_to_score_minus_one_and_info_matches_the_trajectory():
-    env = gym.make("FFSR-v1", task="paper")
+    env = gym.make("FFSR-v2", task="easy")
     rng = np.random.default_rng(1)
     actions = np.clip(rng.normal([0.0, -0.2], 0.05, (200, 2)), -1, 1).astype(np.float32)
     it = iter(actions)
@@ -81,7 +88,7 @@ def test_rewards_sum_to_score_minus_one_and_info_matches_the_trajectory():
 @pytest.mark.parametrize("terminate", [True, False])
 def test_a_failure_loses_the_remaining_value(terminate):
     """A rate-limit failure: the return is exactly −1 (score 0), the last reward's penalty is 1 / (1 + C_t)."""
-    env = gym.make("FFSR-v1", task="paper", terminate_on_violation=terminate)
+    env = gym.make("FFSR-v2", task="easy", terminate_on_violation=terminate)
     lo = np.array([-1.0, -1.0], dtype=np.float32)  # m = 0.05, T_c = 1 s: far over the rate limit
     rewards, infos, _ = run(env, lambda obs: lo)
     assert infos[-1]["failure"] == "rate_limit" and infos[-1]["score"] == 0.0
@@ -94,7 +101,7 @@ def test_a_failure_loses_the_remaining_value(terminate):
 
 def test_fading_residual_leaves_no_steady_state_error():
     """v0 failed with a constant residual of 0.002 deg/s (final error 1.2e-6 m); the fade removes it."""
-    env = gym.make("FFSR-Residual-v1", task="paper")
+    env = gym.make("FFSR-Residual-v2", task="easy")
     outcomes = []
     for size in (0.002 / 20, 0.01, 0.1, 0.5, 1.0):
         _, infos, traj = run(env, lambda obs, size=size: np.full(12, size, dtype=np.float32))
@@ -115,7 +122,7 @@ def test_fade_law():
 
 def test_uniform_random_residual_succeeds_unless_it_breaks_a_limit():
     """Random residuals: every episode that neither exceeds the rate limit nor collides reaches the tolerance."""
-    env = gym.make("FFSR-Residual-v1", task="paper")
+    env = gym.make("FFSR-Residual-v2", task="easy")
     env.action_space.seed(0)
     failures = [run(env, lambda obs: env.action_space.sample(), seed=s)[1][-1]["failure"] for s in range(6)]
     assert "final_error" not in failures
@@ -123,22 +130,23 @@ def test_uniform_random_residual_succeeds_unless_it_breaks_a_limit():
 
 
 def test_violations_graded_when_not_terminating():
-    env = gym.make("FFSR-v1", task="paper", terminate_on_violation=False)
+    env = gym.make("FFSR-v2", task="easy", terminate_on_violation=False)
     lo = np.array([-1.0, -1.0], dtype=np.float32)  # m = 0.05, T_c = 1 s: far over the rate limit
     rewards, infos, traj = run(env, lambda obs: lo)
     assert len(infos) == 200 and not any(i.get("success") for i in infos)
     costs = np.array([i["cost"] for i in infos])
     assert costs.max() > 1.0 and infos[-1]["failure"] == "rate_limit"
     rates = np.degrees(np.abs(traj.dq_joints[:-1])).reshape(200, -1).max(axis=1)
-    clear = np.minimum(traj.clearance_m[:-1], traj.self_clearance_m[:-1]).reshape(200, -1).min(axis=1)
+    keep_out = BENCH.score.keep_out_m
+    clear = np.minimum(traj.clearance_m[:-1] - keep_out, traj.self_clearance_m[:-1]).reshape(200, -1).min(axis=1)
     expected = np.maximum(0, -clear) / BENCH.action.cost_clearance_scale_m + np.maximum(0, rates / 200.0 - 1)
     assert costs == pytest.approx(expected, rel=1e-12, abs=1e-15)
-    stopped = gym.make("FFSR-v1", task="paper")
+    stopped = gym.make("FFSR-v2", task="easy")
     assert len(run(stopped, lambda obs: lo)[1]) < 200
 
 
 def test_dense_shaping_telescopes_and_leaves_the_score():
-    plain, shaped = gym.make("FFSR-v1", task="paper"), gym.make("FFSR-v1", task="paper", dense_shaping=True)
+    plain, shaped = gym.make("FFSR-v2", task="easy"), gym.make("FFSR-v2", task="easy", dense_shaping=True)
     action = np.array([0.0, -0.3], dtype=np.float32)
     r0, i0, _ = run(plain, lambda obs: action)
     r1, i1, _ = run(shaped, lambda obs: action)
@@ -152,8 +160,8 @@ def test_dense_shaping_telescopes_and_leaves_the_score():
 
 SCRIPT = """
 import hashlib, sys, numpy as np, gymnasium as gym, ffsr_gym
-env = gym.make("FFSR-Residual-v1", task=sys.argv[1])
-obs, _ = env.reset(seed=5)
+env = gym.make("FFSR-Residual-v2", task=sys.argv[1])
+obs, _ = env.reset(seed=5)  # the pool task, drawn from the seed
 env.action_space.seed(5)
 h = hashlib.sha256(obs.tobytes())
 for _ in range(40):
@@ -164,7 +172,7 @@ print(h.hexdigest())
 """
 
 
-@pytest.mark.parametrize("task", ["paper", "medium"])
+@pytest.mark.parametrize("task", ["easy", "medium", "debris", "robust"])
 def test_same_seed_bit_identical_across_processes(task):
     digests = {subprocess.run([sys.executable, "-c", SCRIPT, task], capture_output=True, text=True, check=True).stdout
                for _ in range(2)}
@@ -173,8 +181,8 @@ def test_same_seed_bit_identical_across_processes(task):
 
 CYCLES = """
 import gc, numpy as np, gymnasium as gym, ffsr_gym
-env = gym.make("FFSR-Residual-v1", task="easy")
-venv = gym.make_vec("FFSR-Residual-v1", num_envs=4, vectorization_mode="vector_entry_point", task="easy")
+env = gym.make("FFSR-Residual-v2", task="easy")
+venv = gym.make_vec("FFSR-Residual-v2", num_envs=4, vectorization_mode="vector_entry_point", task="easy")
 env.reset(seed=0); venv.reset(seed=0); env.action_space.seed(0); venv.action_space.seed(0)
 def run(n):
     for _ in range(n):
@@ -195,13 +203,14 @@ def test_steps_and_episode_ends_leave_no_cyclic_garbage():
     assert int(out.split()[-1]) == 0
 
 
-def test_evaluate_v1_scores_the_test_pool_from_trajectories_and_records_the_pools():
+def test_evaluate_scores_the_test_pool_from_trajectories_and_records_the_pools():
     from ffsr_gym.tasks.splits import pool
 
-    report = ffsr_gym.evaluate((0.3, 4.0), "FFSR-v1", task="easy", training_pool="none (fixed default)")
+    report = ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task="easy", training_pool="none (fixed default)")
     entry = report.to_json()
     tasks = pool("easy", "test")
     assert entry["extra"]["evaluation_pool"] == "easy/test" and entry["extra"]["training_pool"] == "none (fixed default)"
+    assert entry["extra"]["dt_s"] == 0.01  # the benchmark's own step, recorded
     assert [row["task_seed"] for row in entry["episodes"]] == [t.seed for t in tasks]
     # The default planner is the certificate of every easy task: the stored build scores, replayed.
     assert [row["score"] for row in entry["episodes"]] == pytest.approx([t.certificate_score for t in tasks], abs=1e-12)
@@ -209,8 +218,45 @@ def test_evaluate_v1_scores_the_test_pool_from_trajectories_and_records_the_pool
     lo, hi = report.metrics["score_iqm_ci95"]
     assert lo <= report.metrics["score_iqm"] <= hi
     with pytest.raises(InvalidInputError, match="seeds"):
-        ffsr_gym.evaluate((0.3, 4.0), "FFSR-v1", seeds=[1, 2])
+        ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", seeds=[1, 2])
     with pytest.raises(InvalidInputError, match="task"):
         ffsr_gym.evaluate((0.3, 4.0), "FFSR-v0", task="easy")
-    with pytest.raises(InvalidInputError, match="FFSR-v0 and FFSR-v1"):
-        ffsr_gym.evaluate((0.3, 4.0), "FFSR-Residual-v1", task="easy")
+    with pytest.raises(InvalidInputError, match="FFSR-v0 and FFSR-v2"):
+        ffsr_gym.evaluate((0.3, 4.0), "FFSR-Residual-v2", task="easy")
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_dt_s_plays_the_same_task_at_another_step_with_the_same_decisions(env_id):
+    """``dt_s=0.0025``: 40 physics steps per 0.1 s decision, 200 decisions; the episode is the certificate's
+    replay at dt/4 (the zero residual and the default (m, T_c) are the reference planner)."""
+    from ffsr_gym.tasks.certificate import Certificate, replay
+    from ffsr_gym.tasks.splits import pool, task_scenario
+
+    env = gym.make(env_id, task="easy", split="test", dt_s=0.0025)
+    assert env.unwrapped.steps_per_decision == 40
+    zero = np.zeros(env.action_space.shape, dtype=np.float32)
+    if env_id == "FFSR-v2":
+        step = lambda obs: env.unwrapped.step_with_parameters(0.3, 4.0)  # noqa: E731 - physical, no float32 rounding
+    else:
+        step = lambda obs: env.step(zero)  # noqa: E731
+    obs, _ = env.reset(seed=0, options={"task_index": 3})
+    decisions, done = 0, False
+    while not done:
+        obs, _, terminated, truncated, info = step(obs)
+        decisions, done = decisions + 1, terminated or truncated
+    task = task_scenario("easy", pool("easy", "test")[3].seed, BENCH)
+    expected = replay(task.at_step(0.0025), Certificate("constant", 0.3, 4.0), BENCH)
+    assert decisions == 200 and len(env.unwrapped.trajectory.t) == 8001
+    assert info["score"] == pytest.approx(expected.score, abs=1e-12) and info["success"] == expected.success
+
+
+def test_an_entry_scored_at_another_step_records_it_and_the_leaderboard_refuses_it():
+    from ffsr_gym.bench.verify import entry_problems
+    from ffsr_gym.model.spec import spec_for_version
+
+    spec = spec_for_version("v2")
+    own = ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task="easy").to_json()
+    fine = ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task="easy", env_kwargs={"dt_s": 0.005}).to_json()
+    assert fine["extra"]["dt_s"] == 0.005 and fine["env_kwargs"]["dt_s"] == 0.005
+    assert not entry_problems(own, spec, "easy")
+    assert any("dt_s 0.005" in p and "dt_s = 0.01 s" in p for p in entry_problems(fine, spec, "easy"))

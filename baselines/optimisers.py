@@ -1,12 +1,12 @@
-"""Benchmark-v1 entries of the paper's GA and of CMA-ES over constant (m, T_c), on every tier.
+"""Entries of the paper's GA and of CMA-ES over constant (m, T_c), on every tier of a benchmark version.
 
-    python baselines/v1_optimisers.py --leaderboard leaderboards [--tasks 20] [--work runs/v1_optimisers]
+    python baselines/optimisers.py --version v2 --leaderboard leaderboards [--tasks 20] [--work runs/optimisers-v2]
 
-Both minimise the same loss, 1 − the mean v1 score over the first ``--tasks`` tasks of the tier's
-*training* pool (``ffsr_gym.bench.planner_scores.training_loss``), inside the FFSR-v1 action box
-(m in [0.05, 0.6], T_c in [1, 10] s); the optimum is then scored on the tier's test pool. The GA
-checkpoints every generation in ``--work`` and an existing entry is kept, so a killed run resumes.
-Compute: episodes run during the search (evaluations x tasks) and wall time.
+Both minimise the same loss, 1 − the mean score over the first ``--tasks`` tasks of the tier's
+*training* pool (``ffsr_gym.bench.planner_scores.training_loss``), inside the version's (m, T_c)
+action box (m in [0.05, 0.6], T_c in [1, 10] s); the optimum is then scored on the tier's test
+pool. The GA checkpoints every generation in ``--work`` and an existing entry is kept, so a killed
+run resumes. Compute: episodes run during the search (evaluations x tasks) and wall time.
 """
 
 import argparse
@@ -19,25 +19,25 @@ import cma
 import numpy as np
 
 from ffsr_gym.bench.planner_scores import evaluate_planner, training_loss
-from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.model.benchmark import VERSIONS, load_benchmark
 from ffsr_gym.optim import ga
 from ffsr_gym.tasks.tiers import ALL_TIERS
 
 
-def run_ga(tier, tasks, work, pool, generations, population):
-    box = load_benchmark("v1").action
+def run_ga(tier, tasks, work, pool, generations, population, version):
+    box = load_benchmark(version).action
     config = ga.GAConfig(population=population, generations=generations, m_bounds=tuple(box.m_bounds),
-                         T_c_bounds_s=tuple(box.T_c_bounds_s), seed=0, scenario=f"v1:{tier}")
+                         T_c_bounds_s=tuple(box.T_c_bounds_s), seed=0, scenario=f"{version}:{tier}")
     state = ga.run(config, executor=pool, checkpoint=Path(work) / f"ga_{tier}.json",
-                   fitness=partial(training_loss, tier=tier, tasks=tasks), progress=True)
+                   fitness=partial(training_loss, tier=tier, tasks=tasks, version=version), progress=True)
     m, T_c, loss = ga.best(state)
     return (m, T_c), {"objective_evaluations": len(state.cache) * tasks, "best_training_loss": loss}
 
 
-def run_cmaes(tier, tasks, pool, evaluations):
-    box = load_benchmark("v1").action
+def run_cmaes(tier, tasks, pool, evaluations, version):
+    box = load_benchmark(version).action
     low, high = np.array([box.m_bounds[0], box.T_c_bounds_s[0]]), np.array([box.m_bounds[1], box.T_c_bounds_s[1]])
-    loss = partial(training_loss, tier=tier, tasks=tasks)
+    loss = partial(training_loss, tier=tier, tasks=tasks, version=version)
     es = cma.CMAEvolutionStrategy([0.45, 0.33], 0.2, {"bounds": [0, 1], "seed": 1, "maxfevals": evaluations, "verbose": -9})
     while not es.stop():
         candidates = es.ask()
@@ -50,19 +50,23 @@ def run_cmaes(tier, tasks, pool, evaluations):
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--leaderboard", required=True, help="leaderboard root; entries go to <root>/v1/<tier>/")
+    parser.add_argument("--version", default=VERSIONS[-1], choices=VERSIONS, help=f"default: {VERSIONS[-1]}")
+    parser.add_argument("--leaderboard", required=True, help="leaderboard root; entries go to <root>/<version>/<tier>/")
     parser.add_argument("--tasks", type=int, default=20, help="training tasks per loss evaluation (default: 20)")
-    parser.add_argument("--work", default="runs/v1_optimisers", help="GA checkpoints (default: runs/v1_optimisers)")
+    parser.add_argument("--work", default=None, help="GA checkpoints (default: runs/optimisers-<version>)")
     parser.add_argument("--generations", type=int, default=15, help="GA generations (default: 15)")
     parser.add_argument("--population", type=int, default=16, help="GA population (default: 16)")
     parser.add_argument("--evaluations", type=int, default=120, help="CMA-ES loss evaluations (default: 120)")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default: 2)")
     args = parser.parse_args()
+    version, work = args.version, args.work or f"runs/optimisers-{args.version}"
+    names = {f"ga_{version}": "paper GA", f"cmaes_{version}": "CMA-ES (cma)"}
     with ProcessPoolExecutor(args.workers) as pool:
         for tier in ALL_TIERS:
-            folder = Path(args.leaderboard) / "v1" / tier
-            searches = {"ga_v1": partial(run_ga, tier, args.tasks, args.work, pool, args.generations, args.population),
-                        "cmaes_v1": partial(run_cmaes, tier, args.tasks, pool, args.evaluations)}
+            folder = Path(args.leaderboard) / version / tier
+            ga_name, cmaes_name = names
+            searches = {ga_name: partial(run_ga, tier, args.tasks, work, pool, args.generations, args.population, version),
+                        cmaes_name: partial(run_cmaes, tier, args.tasks, pool, args.evaluations, version)}
             for name, search in searches.items():
                 if (folder / f"{name}.json").exists():
                     print("kept", folder / f"{name}.json")
@@ -71,8 +75,9 @@ def main() -> None:
                 (m, T_c), compute = search()
                 compute["wall_time_s"] = time.perf_counter() - start
                 report = evaluate_planner("predefined_time", task=tier, m=m, T_c=T_c, name=name,
-                                          training_pool=f"{tier}/train (first {args.tasks} tasks)", compute=compute)
-                report.extra["method"] = {"ga_v1": "paper GA", "cmaes_v1": "CMA-ES (cma)"}[name] + f" over (m, T_c): ({m:.4f}, {T_c:.3f} s)"
+                                          training_pool=f"{tier}/train (first {args.tasks} tasks)", compute=compute,
+                                          version=version)
+                report.extra["method"] = names[name] + f" over (m, T_c): ({m:.4f}, {T_c:.3f} s)"
                 print(name, tier, f"({m:.4f}, {T_c:.3f} s)", f"IQM {report.metrics['score_iqm']:.3f}", "->", report.save(folder))
 
 
