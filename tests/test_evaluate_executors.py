@@ -57,4 +57,4 @@ def test_batched_fixed_parameters_give_the_serial_entry(task):
     with ProcessPoolExecutor(2) as executor:
         _same(serial, evaluate_pool((0.1, 1.5), "FFSR-v2", task=task, indices=indices, executor=executor, chunk=4))
     with pytest.raises(InvalidInputError, match="batched"):
-        evaluate_pool((0.3, 4.0), "FFSR-Residual-v2", task=task, indices=indices, batched=True)
+        evaluate_pool((0.0,) * 12, "FFSR-Residual-v2", task=task, indices=indices, batched=True)

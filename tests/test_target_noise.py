@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import retired_v1_rules
 from test_kernel import ARRAYS, assert_agree
 from test_scenario import assert_section_rejected
 
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.robot import load_robot
 from ffsr_gym.model.scenario import TargetNoise, load_scenario, to_dict
 from ffsr_gym.sim.simulate import make_rollout, simulate
@@ -22,7 +22,8 @@ NOISE = TargetNoise(position_bias_m=(3e-4, -2e-4, 1e-4), attitude_bias_rad=(2e-4
 
 @pytest.fixture(scope="module")
 def scenario():
-    return load_benchmark("v2").task(load_scenario("paper")).replace(target_noise=NOISE)
+    # v1's rules on `paper` (the scenario's own blend law): under v2's the arm never reaches this target.
+    return retired_v1_rules().task(load_scenario("paper")).replace(target_noise=NOISE)
 
 
 def test_kernel_matches_reference_with_a_noisy_target(scenario):

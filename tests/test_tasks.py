@@ -247,3 +247,43 @@ def test_training_loss_is_one_minus_the_mean_certified_score():
     stored = [t.certificate_score for t in pool("easy", "train")[:5]]
     assert training_loss(0.3, 4.0, tier="easy", tasks=5) == pytest.approx(1.0 - np.mean(stored), abs=1e-12)
     assert 0.0 <= training_loss(0.1, 3.0, tier="medium", tasks=3) <= 1.0
+
+
+def test_a_candidate_the_pinocchio_member_fails_is_relabelled_fragile_and_replaced(tmp_path, monkeypatch):
+    """The build's second stage: pool candidates are replayed on Pinocchio in seed order (here a stand-in that fails
+    one seed); the failed one becomes `fragile`, the next candidate of its tier takes its place, and a rerun resumes
+    from the saved confirmations without replaying them."""
+    from ffsr_gym.tasks import build
+
+    replayed = []
+
+    def fake_confirm(tier, seed, certificate, version):
+        replayed.append(seed)
+        margins = {"min_clearance_m": 0.1, "min_self_clearance_m": 0.05, "peak_rate_deg_s": 100.0,
+                   "final_ee_position_error_m": 1e-8, "final_ee_attitude_error": 1e-8, "episodes": 1}
+        return {"seed": seed, "success": seed != 5, "margins": margins}
+
+    monkeypatch.setattr(build, "confirm", fake_confirm)
+    monkeypatch.setattr(build, "expected_count", lambda tier, split, version=None: 2)  # per tier
+    verdicts = build.build_split(tmp_path, "train", version="v2", chunk=20, progress=False)
+    easy = [v for v in verdicts if v.tier == "easy"]
+    assert [v.seed for v in easy[:2]] == [8, 9] and next(v for v in verdicts if v.seed == 5).rejection == "fragile"
+    assert replayed == [5, 8, 11, 26, 7, 51, 9]  # easy, medium, hard in seed order; then the easy replacement
+    assert easy[0].margins.episodes == 6  # dt, dt/2, dt/4, two starts, then Pinocchio
+    count = len(replayed)
+    again = build.build_split(tmp_path, "train", version="v2", chunk=20, progress=False)
+    assert len(replayed) == count and [v.seed for v in again if v.tier == "easy"][:2] == [8, 9]
+
+
+def test_what_makes_medium_and_hard_tasks():
+    """docs/envs.md: the default breaks the rate limit on medium tasks; on hard ones its collisions are contacts of
+    the robot's own parts, the obstacle far away (first 20 test tasks of each)."""
+    from ffsr_gym.tasks.certificate import planner_episode
+
+    def defaults(tier):
+        return [planner_episode(draw_task(t.seed, BENCH), BENCH, method="predefined_time", m=0.3, T_c=4.0)
+                for t in pool(tier, "test")[:20]]
+
+    assert sum(r.failure == "rate_limit" for r in defaults("medium")) >= 18
+    hard = [r for r in defaults("hard") if r.failure == "collision"]
+    assert len(hard) >= 5 and all(r.min_self_clearance_m < 0.0 and r.min_clearance_m > 0.1 for r in hard)

@@ -5,6 +5,7 @@ environments and the ensemble with the base tiers' (``tests/test_tasks.py``: a s
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -101,7 +102,7 @@ def test_debris_draws_stay_in_the_documented_ranges():
             for radius, velocity in zip(d.radii_m, d.velocities_m_s):
                 assert spec["radius_m"][0] <= radius <= spec["radius_m"][1]
                 assert spec["debris_speed_m_s"][0] <= np.linalg.norm(velocity) <= spec["debris_speed_m_s"][1] + 1e-15
-            assert task.replace(debris=None, name=base.name, description=base.description) == base
+            assert dataclasses.replace(task, debris=None, name=base.name, description=base.description) == base
             assert task.target == base.target and task.initial == base.initial  # bit for bit, not normalised again
 
 
@@ -120,7 +121,7 @@ def test_robust_draws_stay_in_the_documented_ranges():
         assert (noise.position_sigma_m, noise.attitude_sigma_rad, noise.interval_s) == (
             spec["position_sigma_m"], spec["attitude_sigma_rad"], spec["interval_s"])
         assert np.any(momentum != 0.0) and np.any(np.array(plant.mass_scale) != 1.0)
-        assert task.replace(plant=None, target_noise=None, initial=base.initial, name=base.name,
+        assert dataclasses.replace(task, plant=None, target_noise=None, initial=base.initial, name=base.name,
                             description=base.description) == base
 
 
@@ -172,21 +173,19 @@ def test_robust_task_conserves_the_momentum_it_draws_for_its_own_plant():
 
 
 def test_what_the_perturbations_change_for_the_reference_planner():
-    """docs/envs.md: on the test pools, the reference (0.3, 4 s) changes outcome on at most 10 % of the
-    robust tasks against their v1 tasks (the feedback absorbs the drawn mismatch, momentum and noise),
-    and on at least 20 % of the debris tasks (both ways: debris also pushes arms off grazing paths)."""
+    """docs/envs.md: on the test pools, the reference (0.3, 4 s) changes outcome on more than 30 % of the tasks of
+    each perturbed tier against their base tasks (v1's robust ranges: at most 10 %), mostly from success to failure."""
     from ffsr_gym.tasks.certificate import planner_episode
     from ffsr_gym.tasks.splits import task_scenario
 
     def succeeds(task):
         return planner_episode(task, BENCH, method="predefined_time", m=0.3, T_c=4.0).success
 
-    flips = {}
     for tier in PERTURBED_TIERS:
-        entries = pool(tier, "test")
-        flips[tier] = sum(succeeds(draw_task(e.seed, BENCH)) != succeeds(task_scenario(tier, e.seed, BENCH))
-                          for e in entries) / len(entries)
-    assert flips["robust"] <= 0.10 and flips["debris"] >= 0.20, flips
+        pairs = [(succeeds(draw_task(e.seed, BENCH)), succeeds(task_scenario(tier, e.seed, BENCH)))
+                 for e in pool(tier, "test")]
+        lost, gained = sum(a and not b for a, b in pairs), sum(b and not a for a, b in pairs)
+        assert lost + gained > 0.30 * len(pairs) and lost > 3 * gained, (tier, lost, gained)
 
 
 @pytest.mark.parametrize("old, new, message", [

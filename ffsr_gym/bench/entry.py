@@ -72,13 +72,16 @@ class EvalReport:
 
 
 def stepper(policy: Policy, env: gym.Env) -> Callable[[np.ndarray], tuple]:
-    """One env step for ``policy`` given the last observation (fixed parameters bypass float32 actions)."""
+    """One env step for ``policy`` given the last observation (fixed (m, T_c) bypass float32 actions; on a residual
+    env a tuple is a constant action)."""
     if isinstance(policy, tuple):
-        if env.unwrapped.residual:
-            raise InvalidInputError("a fixed (m, T_c) policy only applies to FFSR-v0 and FFSR-v2")
+        if env.unwrapped.residual:  # a constant residual action (checked by ``evaluate``)
+            action = np.array(policy, dtype=np.float32)
+            return lambda _obs: env.step(action)
         return lambda _obs: env.unwrapped.step_with_parameters(*policy)
     if isinstance(policy, PredictsActions):
         return lambda obs: env.step(policy.predict(obs, deterministic=True)[0])
     if callable(policy):
         return lambda obs: env.step(policy(obs))
-    raise InvalidInputError(f"policy must be callable, have .predict, or be a (m, T_c) tuple; got {type(policy).__name__}")
+    raise InvalidInputError(f"policy must be callable, have .predict, or be a tuple ((m, T_c), or a constant residual "
+                            f"action); got {type(policy).__name__}")

@@ -75,6 +75,23 @@ def _check_protocol(spec: BenchmarkSpec, kwargs: dict[str, Any]) -> None:
                                     f"(an entry plays the spec's whole episodes of its tasks); allowed: {sorted(allowed)}")
 
 
+def _check_constant(policy: tuple, plan: Plan) -> None:
+    """A fixed policy: on a residual id, a constant action of 12 numbers in [-1, 1], exact in float32 (it is played
+    as the env's action every decision); else a fixed (m, T_c [s]) (:func:`_check_parameters`).
+
+    Raises:
+        InvalidInputError: naming the value and what is allowed.
+    """
+    if not plan.spec.is_residual(plan.env_id):
+        _check_parameters(policy, plan)
+        return
+    values = np.array([x if isinstance(x, (int, float, np.floating)) and not isinstance(x, bool) else np.nan
+                       for x in policy], dtype=float)
+    if values.shape != (12,) or not np.all(np.abs(values) <= 1.0) or np.any(values.astype(np.float32) != values):
+        raise InvalidInputError(f"constant residual action {policy!r}; allowed: 12 numbers in [-1, 1], exact in float32 "
+                                "(np.float32 values), one per joint")
+
+
 def _check_parameters(policy: tuple, plan: Plan) -> None:
     """A fixed (m, T_c [s]) must be two real numbers inside the version's action box.
 
@@ -191,7 +208,8 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
 
     Args:
         policy: a callable obs -> action, an object with SB3-style ``predict(obs, deterministic=True)``,
-            or, on an (m, T_c) id, a fixed ``(m, T_c)`` in physical units (no float32 rounding).
+            or a tuple: on an (m, T_c) id, a fixed ``(m, T_c)`` in physical units (no float32 rounding); on a
+            residual id, a constant action (12 values in [-1, 1], exact in float32).
         env_id: a registered id (``ffsr-gym list``).
         seeds: protocol ``seeds`` (v0): episode seeds; default: the id's public evaluation seeds.
         env_kwargs: other ``gymnasium.make`` arguments (v0: ``{"scenario": ...}``; never the score).
@@ -219,7 +237,7 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
         raise InvalidInputError(f"chunk = {chunk!r}; allowed: an integer >= 1")
     _check_protocol(spec, plan.kwargs)
     if isinstance(policy, tuple):
-        _check_parameters(policy, plan)
+        _check_constant(policy, plan)
     return _run(policy, plan, name=name, progress=progress, executor=executor, chunk=chunk, batched=batched)
 
 

@@ -7,6 +7,7 @@ import hashlib
 import math
 import time
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 from gymnasium.utils import seeding
@@ -20,7 +21,7 @@ from ffsr_gym.provenance import provenance
 from ffsr_gym.scoring.objective import objective_terms
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.sim.simulate import simulate
-from ffsr_gym.tasks.certificate import planner_episode, planner_task
+from ffsr_gym.tasks.certificate import Certificate, planner_episode, planner_task, replay
 from ffsr_gym.tasks.random_family import sample_scenario
 from ffsr_gym.tasks.splits import pool, pool_path, task_scenario
 
@@ -102,4 +103,21 @@ def training_loss(m: float, T_c: float, *, tier: str, tasks: int = 20, version: 
     benchmark = score_rule(spec_for_version(version)).benchmark
     episodes = [planner_episode(task_scenario(tier, t.seed, benchmark), benchmark, method="predefined_time", m=m,
                                 T_c=T_c) for t in pool(tier, "train", version=benchmark.version)[:tasks]]
+    return 1.0 - float(np.mean([e.score for e in episodes]))
+
+
+def residual_training_loss(action: Any, *, tier: str, tasks: int = 20, version: str = "v2") -> float:
+    """1 − the mean score of a constant residual action (12 values in [-1, 1], rounded to float32 as the env
+    rounds its actions) on top of the reference planner, faded as the residual env fades it, over the first
+    ``tasks`` tasks of ``tier``'s **training** pool: the black box of a residual search (in [0, 1]; picklable
+    with ``functools.partial``).
+    """
+    values = np.asarray(action, dtype=np.float64)
+    if values.shape != (12,) or not np.all(np.isfinite(values)):
+        raise InvalidInputError(f"residual action {action!r}; allowed: 12 finite numbers")
+    exact = tuple(float(x) for x in np.clip(values, -1.0, 1.0).astype(np.float32))
+    benchmark = score_rule(spec_for_version(version)).benchmark
+    certificate = Certificate("residual", benchmark.planner.m, benchmark.planner.T_c_s, exact)
+    episodes = [replay(task_scenario(tier, t.seed, benchmark), certificate, benchmark)
+                for t in pool(tier, "train", version=benchmark.version)[:tasks]]
     return 1.0 - float(np.mean([e.score for e in episodes]))
