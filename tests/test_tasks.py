@@ -238,6 +238,9 @@ def test_docs_tier_table_is_generated_from_the_pool_file():
     text = (Path(__file__).resolve().parents[1] / "docs" / "envs.md").read_text(encoding="utf-8")
     block = text.split("<!-- tiers:begin -->\n")[1].split("<!-- tiers:end -->")[0]
     assert block == tier_table(POOLS)
+    from ffsr_gym.tasks.build import splice_docs_tables
+
+    assert splice_docs_tables(text, "v2") == text, "rerun: ffsr-gym tasks tables --docs docs/envs.md"
 
 
 def test_training_loss_is_one_minus_the_mean_certified_score():

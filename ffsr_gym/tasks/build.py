@@ -364,7 +364,7 @@ def physics_table(files: list[dict[str, Any]], split: str = "test") -> str:
     planner fails, the nominal motion's self clearance (base tiers), and the certificates' worst ensemble margins."""
     lines = ["| tier | tasks | default planner: succeeds / rate limit / collision / final error | min self clearance "
              "of the nominal motion: median [mm], share below 10 mm | certificates: constant / residual | median worst "
-             "clearance [mm] | worst clearance [mm] | largest peak rate [deg/s] |",
+             "obstacle clearance [mm] | worst obstacle clearance [mm] | largest peak rate [deg/s] |",
              "|---|---|---|---|---|---|---|---|"]
     for s in (data["splits"][split] for data in files):
         lines += _physics_rows(s)
