@@ -122,11 +122,20 @@ def summary(pieces: list[dict]) -> list[dict]:
                                 float(v4.mean())],
                     "median_peak_rate_deg_s": [float(np.median([r["peak_rate_deg_s"] for r in rows])),
                                                float(np.median([r["peak_rate_deg_s"] for r in fine]))],
-                    "median_success_clearance_m": float(np.median(clear)) if clear else None})
+                    "median_success_clearance_m": float(np.median(clear)) if clear else None,
+                    "largest_peak_change_deg_s": _largest_peak_change(rows, fine)})
     for row in out:
         spear, gap = row["spearman"], abs(row["iqm"][0] - row["iqm"][2])
         row["meets_bar"] = bool(row["agreement"] >= BAR[0] and spear is not None and spear >= BAR[1] and gap <= BAR[2])
     return out
+
+
+def _largest_peak_change(rows: list[dict], fine: list[dict]) -> float | None:
+    """The largest change [deg/s] of an episode's peak joint rate between dt and dt/4, over the tasks that
+    succeed at both (how far from the rate limit a verdict must be not to flip with the step)."""
+    changes = [abs(a["peak_rate_deg_s"] - b["peak_rate_deg_s"]) for a, b in zip(rows, fine)
+               if a["success"] and b["success"]]
+    return max(changes) if changes else None
 
 
 def sample(pieces: list[dict], count: int = 3) -> list[dict]:
@@ -143,16 +152,17 @@ def _num(x: float | None) -> str:
 def table(rows: list[dict], law: str) -> str:
     """Markdown of one law's rows."""
     lines = ["| tier | planner | tasks | verdicts equal dt / dt/4 | Spearman dt / dt/4 | IQM dt, dt/2, dt/4 | "
-             "success dt, dt/2, dt/4 | median peak rate dt / dt/4 [deg/s] | median clearance of successes at dt [m] | "
-             "meets the bar |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "success dt, dt/2, dt/4 | median peak rate dt / dt/4 [deg/s] | largest peak-rate change, successes "
+             "[deg/s] | median clearance of successes at dt [m] | meets the bar |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in (r for r in rows if r["law"] == law):
         iqms = ", ".join("-" if v is None else f"{v:.3f}" for v in r["iqm"])
         rates = ", ".join("-" if v is None else f"{v:.2f}" for v in r["success"])
         clear = "-" if r["median_success_clearance_m"] is None else f"{r['median_success_clearance_m']:.4f}"
+        change = "-" if r["largest_peak_change_deg_s"] is None else f"{r['largest_peak_change_deg_s']:.1f}"
         lines.append(f"| {r['tier']} | {r['planner']} | {r['tasks']} | {r['agreement']:.2f} | {_num(r['spearman'])} | "
                      f"{iqms} | {rates} | {r['median_peak_rate_deg_s'][0]:.0f} / {r['median_peak_rate_deg_s'][1]:.0f} | "
-                     f"{clear} | {'yes' if r['meets_bar'] else '**no**'} |")
+                     f"{change} | {clear} | {'yes' if r['meets_bar'] else '**no**'} |")
     return "\n".join(lines)
 
 
