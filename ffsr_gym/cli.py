@@ -156,9 +156,13 @@ def _leaderboard_pareto(args: argparse.Namespace) -> None:
                                command=" ".join(["ffsr-gym", *args.argv])))
 
 
-def _load_policy(spec: str, algo: str | None, trust: bool):
+def _load_policy(spec: str, algo: str | None, trust: bool, env: Any = None):
+    """``--policy``; ``reference`` needs the env (its action mode and task defaults)."""
     from ffsr_gym.bench.policies import load_policy
 
+    if spec == "reference":  # the reference planner: the zero residual, or the task's own (m, T_c)
+        planner = env.unwrapped.family.planner
+        return (0.0,) * 12 if env.unwrapped.residual else (planner.m, planner.T_c_s)
     return load_policy(spec, algo, trust=trust)
 
 
@@ -168,14 +172,17 @@ def _add_policy_arguments(parser: argparse.ArgumentParser, *, env_id: str | None
     parser.add_argument("--env-id", required=env_id is None, default=env_id, choices=registered_ids(),
                         help="environment id" + (f" (default: {env_id})" if env_id else ""))
     parser.add_argument("--policy", required=policy is None, default=policy,
-                        help="'m,T_c' (fixed parameters, e.g. 0.3,4), an SB3 .zip (with --algo), or module:callable"
-                             + (f" (default: {policy})" if policy else ""))
+                        help="'reference' (the reference planner: the zero residual, or the task's (m, T_c)), 'm,T_c' (fixed "
+                             "parameters, e.g. 0.3,4), an SB3 .zip (with --algo), module:callable or "
+                             "path/to/file.py:callable" + (f" (default: {policy})" if policy else ""))
     parser.add_argument("--algo", default=None, choices=algorithm_names(), help="the algorithm of an SB3 .zip")
     parser.add_argument("--task", default=task, choices=all_task_names(),
                         help=f"task or tier of the versions with tiers (default: {task})")
     parser.add_argument("--split", default=split, choices=all_splits(),
                         help=f"versions with tiers: {split_help} (default: {split})")
-    parser.add_argument("--scenario", default="paper", help="v0: scenario name or TOML path (default: paper)")
+    parser.add_argument("--scenario", default=None,
+                        help="scenario name or TOML path; v0: the scenario (default: paper); versions with tiers: a "
+                             "custom task played instead of --task (unranked; default: none)")
     parser.add_argument("--trust-model", action="store_true",
                         help="load an SB3 .zip from outside the working folder (loading unpickles: it can run code)")
 
@@ -186,8 +193,24 @@ def _env_kwargs(args: argparse.Namespace) -> dict:
 
     spec = spec_of(args.env_id)
     if spec.tasks.splits:
+        if args.scenario is not None:  # a custom task: no tier, no split
+            return {spec.tasks.keyword: args.scenario}
         return {spec.tasks.keyword: args.task, "split": args.split}
-    return {spec.tasks.keyword: args.scenario}
+    return {spec.tasks.keyword: args.scenario or "paper"}
+
+
+def _compute(text: str | None) -> dict | None:
+    """``--compute ENV_STEPS,WALL_TIME_S`` as :func:`ffsr_gym.evaluate`'s ``compute``."""
+    if text is None:
+        return None
+    from ffsr_gym.bench.evaluation import check_compute
+    from ffsr_gym.exceptions import InvalidInputError
+
+    parts = text.split(",")
+    try:
+        return check_compute({"env_steps": int(parts[0]), "wall_time_s": float(parts[1])} if len(parts) == 2 else None)
+    except ValueError:
+        raise InvalidInputError(f"--compute {text!r}; allowed: ENV_STEPS,WALL_TIME_S, e.g. 1000000,5400") from None
 
 
 def _evaluate(args: argparse.Namespace) -> None:
@@ -200,15 +223,28 @@ def _evaluate(args: argparse.Namespace) -> None:
 
     spec = spec_of(args.env_id)
     pooled = spec.evaluation.protocol == "pool"
-    if args.workers > 1 and not pooled:
-        raise InvalidInputError(f"--workers {args.workers}; more than 1 only for the ids scored on a pool")
-    folder = Path(args.leaderboard or ".") / spec.folder(args.env_id, args.task if pooled else "")
+    custom = pooled and args.scenario is not None
+    if args.workers > 1 and (not pooled or custom):
+        raise InvalidInputError(f"--workers {args.workers}; more than 1 only for a tier's pool")
+    if args.seeds is not None and pooled and not custom:
+        raise InvalidInputError("--seeds: a tier's pool is scored one episode per task; --seeds applies to a custom "
+                                "--scenario or to a version scored on seeds")
+    folder = Path(args.leaderboard or ".") / (spec.version + "/custom" if custom
+                                              else spec.folder(args.env_id, args.task if pooled else ""))
     if args.leaderboard:
         free_entry(folder, args.name, force=args.force)  # before any work: a late error would lose the run
-    policy = _load_policy(args.policy, args.algo, args.trust_model)
+    compute = _compute(args.compute)
+    if args.policy == "reference":
+        import gymnasium
+
+        with gymnasium.make(args.env_id, **_env_kwargs(args)) as env:
+            policy = _load_policy(args.policy, args.algo, args.trust_model, env)
+    else:
+        policy = _load_policy(args.policy, args.algo, args.trust_model)
     executor = ProcessPoolExecutor(args.workers) if args.workers > 1 else None
     try:
-        report = evaluate(policy, args.env_id, name=args.name, progress=not args.no_progress,
+        report = evaluate(policy, args.env_id, name=args.name, progress=not args.no_progress, compute=compute,
+                          seeds=args.seeds,
                           **(_env_kwargs(args) | {"training_pool": args.training_pool, "executor": executor} if pooled
                              else {"env_kwargs": _env_kwargs(args)}))
     finally:
@@ -237,13 +273,19 @@ def _render(args: argparse.Namespace) -> None:
     from ffsr_gym.report.episode_gif import check_gif_path, record_episode, write_gif
 
     out = check_gif_path(args.out)  # before the episode runs
-    policy = _load_policy(args.policy, args.algo, args.trust_model)
     env = gymnasium.make(args.env_id, render_mode="rgb_array", **_env_kwargs(args))
-    frames, decisions, info = record_episode(env, stepper(policy, env), seed=args.seed, every=args.every)
+    policy = _load_policy(args.policy, args.algo, args.trust_model, env)
+    options = None if args.task_index is None else {"task_index": args.task_index}
+    frames, decisions, info = record_episode(env, stepper(policy, env), seed=args.seed, every=args.every,
+                                             options=options)
+    from ffsr_gym.report.episode_end import episode_end
+
+    end = episode_end(env.unwrapped.rollout)
     env.close()
     write_gif(frames, out, 1000.0 * args.every * env.unwrapped.family.env.decision_interval_s / args.speed)
     outcome = {k: info.get(k) for k in ("score", "success", "failure") if k in info}
     print(f"wrote {out}: {len(frames)} frames, {decisions} decisions, {outcome}")
+    print(f"last frame: {end.text}")
 
 
 def _tasks(args: argparse.Namespace) -> None:
@@ -356,16 +398,25 @@ def _add_study_commands(sub: Any) -> None:
     ev = sub.add_parser("evaluate", help="score a policy with ffsr_gym.evaluate and optionally write a leaderboard entry")
     _add_policy_arguments(ev, env_id=None, policy=None, task="easy", split="test", split_help="pool scored")
     ev.add_argument("--training-pool", default=None, help="pool versions: what the policy was trained or tuned on (recorded)")
+    ev.add_argument("--seeds", type=natural, nargs="+", default=None,
+                    help="reset seeds: of a custom --scenario (default: 0) or of a version scored on seeds "
+                         "(default: its public evaluation seeds)")
+    ev.add_argument("--compute", default=None, metavar="ENV_STEPS,WALL_TIME_S",
+                    help="what training the policy cost, recorded for the compute column (default: none)")
     ev.add_argument("--name", default="submission", help="entry name (default: submission)")
     ev.add_argument("--workers", type=positive_int, default=1,
                     help="pool versions: score the pool on this many processes; the same entry as with 1 (default: 1)")
-    ev.add_argument("--leaderboard", default=None, help="write the entry under this leaderboard root")
+    ev.add_argument("--leaderboard", default=None,
+                    help="write the entry under this leaderboard root: <root>/<version>/<tier>/ (a custom --scenario: "
+                         "<root>/<version>/custom/, unranked) (default: do not write)")
     ev.add_argument("--force", action="store_true", help="replace an entry of the same name (default: refuse)")
     ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ev.set_defaults(func=_evaluate)
     rd = sub.add_parser("render", help="an episode of a policy as an animated GIF")
-    _add_policy_arguments(rd, env_id="FFSR-v2", policy="0.3,4", task="easy", split="train", split_help="pool of a tier")
+    _add_policy_arguments(rd, env_id="FFSR-v2", policy="reference", task="easy", split="train", split_help="pool of a tier")
     rd.add_argument("--seed", type=natural, default=0, help="reset seed: picks a tier's task (default: 0)")
+    rd.add_argument("--task-index", type=natural, default=None,
+                    help="play this task of the tier's pool instead of the one the seed picks (default: none)")
     rd.add_argument("--every", type=positive_int, default=2, help="one frame every N decisions of 0.1 s (default: 2)")
     rd.add_argument("--speed", type=positive_float, default=2.0, help="playback speed over real time (default: 2)")
     rd.add_argument("--out", default="runs/episode.gif", help="GIF file (default: runs/episode.gif)")

@@ -49,8 +49,10 @@ def test_check_env_gymnasium_and_sb3(env_id, tier):
 def test_arguments_are_checked():
     with pytest.raises(InvalidInputError, match="split"):
         gym.make("FFSR-v2", split="holdout")
-    with pytest.raises(InvalidInputError, match="task 'paper'"):  # v2 has no paper task (docs/model.md)
-        gym.make("FFSR-v2", task="paper")
+    paper = gym.make("FFSR-v2", task="paper").unwrapped  # not a v2 task: a custom one, never ranked (docs/envs.md)
+    assert paper.source.custom and paper.pool is None and paper.split is None and paper.scenario.name == "paper"
+    with pytest.raises(InvalidInputError, match="custom task"):
+        gym.make("FFSR-v2", task="paper", split="test")
     with pytest.raises(InvalidInputError, match="dt_s"):
         gym.make("FFSR-v2", dt_s=0.003)
     with pytest.raises(InvalidInputError, match="task"):

@@ -62,13 +62,51 @@ class EvalReport:
         })
 
     def save(self, directory: str | Path) -> Path:
-        """Write the entry atomically to ``directory/<name>.json`` and return its path."""
+        """Write the entry atomically to ``directory/<name>.json`` and return its path.
+
+        A folder that is a leaderboard table by its path (``<version>/<tier>`` of a version with
+        tiers, or a ``<env id>`` folder of one scored on seeds) only takes an entry that the
+        leaderboard would rank there: the same checks as ``ffsr-gym leaderboard render``
+        (:func:`ffsr_gym.bench.verify.entry_problems`). Any other folder takes any entry.
+
+        Raises:
+            InvalidInputError: a name that is not a plain file name, or an entry that the table
+                folder would refuse (every reason named).
+        """
         if not isinstance(self.name, str) or not ENTRY_NAME.fullmatch(self.name):
             raise InvalidInputError(f"entry name {self.name!r}; allowed: 1-128 characters of letters, digits, '.', '_', "
                                     "'-', not starting with '.' (it becomes a file name in the entry's folder)")
+        table = leaderboard_table(Path(directory))
+        if table is not None:
+            from ffsr_gym.bench.verify import entry_problems
+
+            spec, group = table
+            problems = entry_problems(self.to_json(), spec, group)
+            if problems:
+                raise InvalidInputError(f"{directory} is the {spec.version} leaderboard table {group!r}, which would refuse "
+                                        f"this entry: {'; '.join(problems)} (save elsewhere, e.g. "
+                                        f"leaderboards/{spec.version}/custom/ for a custom task)")
         path = Path(directory) / f"{self.name}.json"
         write_json_atomic(path, self.to_json())
         return path
+
+
+def leaderboard_table(directory: Path) -> tuple[Any, str] | None:
+    """(spec, table) when ``directory`` is a leaderboard table folder by its path, else None.
+
+    A table of a version with tiers is a folder ``<version>/<tier>``; one of a version scored on
+    seeds is a folder named after one of its env ids.
+    """
+    from ffsr_gym.model.spec import all_specs
+
+    folder = Path(directory).absolute()
+    for spec in all_specs().values():
+        if "{task}" in spec.leaderboard.folder:
+            if folder.name in spec.tasks.tiers and folder.parent.name == spec.version:
+                return spec, folder.name
+        elif folder.name in spec.env_ids:
+            return spec, folder.name
+    return None
 
 
 def stepper(policy: Policy, env: gym.Env) -> Callable[[np.ndarray], tuple]:

@@ -2,7 +2,9 @@
 
 The spec's evaluation protocol says which episodes make an entry: the public seeds of an id
 (``seeds``, v0) or one episode per task of a tier's split (``pool``, v2, the test pool by
-default). Every episode is scored from its trajectory by the spec's score rule
+default). A version with tiers also scores a *custom task* (a scenario of one's own, one episode
+per seed): the same rule, recorded as unranked (``extra.custom_task``) so no leaderboard folder
+takes it. Every episode is scored from its trajectory by the spec's score rule
 (:mod:`ffsr_gym.scoring.rules`), never from the rewards; the env is built here, so no caller's
 wrapper can change a score.
 """
@@ -41,6 +43,7 @@ class Plan:
     kwargs: dict[str, Any]
     episodes: list[tuple[int, int | None]]
     extra: dict[str, Any] = field(default_factory=dict)
+    recorded_kwargs: dict[str, Any] | None = None  # what the entry records, when ``kwargs`` holds a Scenario
 
 
 def spec_of(env_id: Any) -> BenchmarkSpec:
@@ -73,6 +76,27 @@ def _check_protocol(spec: BenchmarkSpec, kwargs: dict[str, Any]) -> None:
         if name not in allowed:
             raise InvalidInputError(f"env_kwargs[{name!r}] would change the evaluation protocol of {spec.version} "
                                     f"(an entry plays the spec's whole episodes of its tasks); allowed: {sorted(allowed)}")
+
+
+def check_compute(compute: Any) -> dict[str, Any]:
+    """``compute`` as an entry records it: env steps and wall time (and optionally the hardware) of training.
+
+    Raises:
+        InvalidInputError: not a dict with exactly these keys and values in range (each named).
+    """
+    required, optional = ("env_steps", "wall_time_s"), ("hardware",)
+    if not isinstance(compute, dict) or not set(required) <= set(compute) or not set(compute) <= {*required, *optional}:
+        raise InvalidInputError(f"compute = {compute!r}; allowed: a dict with keys 'env_steps' (integer >= 0) and "
+                                "'wall_time_s' (number >= 0), optionally 'hardware' (text)")
+    steps, seconds = compute["env_steps"], compute["wall_time_s"]
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 0:
+        raise InvalidInputError(f"compute['env_steps'] = {steps!r}; allowed: an integer >= 0 (env steps of training)")
+    if isinstance(seconds, bool) or not isinstance(seconds, (int, float, np.floating)) or not 0 <= seconds < np.inf:
+        raise InvalidInputError(f"compute['wall_time_s'] = {seconds!r}; allowed: a finite number >= 0 [s]")
+    if "hardware" in compute and not isinstance(compute["hardware"], str):
+        raise InvalidInputError(f"compute['hardware'] = {compute['hardware']!r}; allowed: a text, e.g. '2 CPU cores'")
+    return {"env_steps": int(steps), "wall_time_s": float(seconds)} | (
+        {"hardware": compute["hardware"]} if "hardware" in compute else {})
 
 
 def _check_constant(policy: tuple, plan: Plan) -> None:
@@ -124,12 +148,59 @@ def _seed_plan(spec: BenchmarkSpec, env_id: str, seeds: Sequence[int] | None, en
     return Plan(spec, env_id, kwargs, [(int(s), None) for s in chosen])
 
 
-def _pool_plan(spec: BenchmarkSpec, env_id: str, *, task: str | None, split: str | None, indices: Sequence[int] | None,
-               env_kwargs: dict | None, training_pool: str | None) -> Plan:
+def _task_arguments(spec: BenchmarkSpec, env_kwargs: dict | None, task: Any, split: Any) -> tuple[dict, Any, Any]:
+    """``env_kwargs`` without the task and split, which may come from either place but not from both.
+
+    Raises:
+        InvalidInputError: the same argument given twice.
+    """
+    kwargs = dict(env_kwargs or {})
+    given = {spec.tasks.keyword: task, "split": split}
+    for key in given:
+        if key in kwargs:
+            if given[key] is not None:
+                raise InvalidInputError(f"env_kwargs[{key!r}] and {key}= both given; pass it once (as {key}=)")
+            given[key] = kwargs.pop(key)
+    return kwargs, given[spec.tasks.keyword], given["split"]
+
+
+def _custom_plan(spec: BenchmarkSpec, env_id: str, task: Any, split: Any, seeds: Sequence[int] | None,
+                 indices: Any, kwargs: dict[str, Any], training_pool: str | None) -> Plan:
+    """A custom task: one episode per seed (default: seed 0) of the scenario, recorded as unranked."""
+    from ffsr_gym.environments.task_source import scenario_task
+    from ffsr_gym.model.scenario import to_dict
+
+    for name, value in (("split", split), ("indices", indices)):
+        if value is not None:
+            raise InvalidInputError(f"{name} = {value!r}: a custom task (a scenario) has no pool; {name} applies to "
+                                    f"the tiers {list(spec.tasks.tiers)}")
+    scenario = scenario_task(spec, task)
+    chosen = [0] if seeds is None else list(seeds)
+    if not chosen or any(isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0 for s in chosen):
+        raise InvalidInputError(f"seeds = {seeds!r}; allowed: a non-empty list of non-negative integers")
+    extra = {"training_pool": training_pool, "evaluation_pool": None,
+             "custom_task": {"name": scenario.name, "scenario_sha256": scenario.sha256(), "scenario": to_dict(scenario)}}
+    if spec.tasks.step_option:
+        extra["dt_s"] = float(kwargs.get("dt_s", scenario.simulation.dt_s))
+    recorded = {**kwargs, spec.tasks.keyword: scenario.source or scenario.name}
+    return Plan(spec, env_id, {**kwargs, spec.tasks.keyword: scenario}, [(int(s), None) for s in chosen], extra,
+                recorded_kwargs=recorded)
+
+
+def _pool_plan(spec: BenchmarkSpec, env_id: str, *, task: Any, split: str | None, indices: Sequence[int] | None,
+               env_kwargs: dict | None, training_pool: str | None, seeds: Sequence[int] | None = None) -> Plan:
+    env_kwargs, task, split = _task_arguments(spec, env_kwargs, task, split)
     task = spec.evaluation.default_task if task is None else task
-    split = spec.evaluation.split if split is None else split
     if training_pool is not None and not isinstance(training_pool, str):
         raise InvalidInputError(f"training_pool = {training_pool!r}; allowed: None or a text such as 'easy/train'")
+    from ffsr_gym.environments.task_source import is_custom
+
+    if is_custom(spec, task):
+        return _custom_plan(spec, env_id, task, split, seeds, indices, env_kwargs, training_pool)
+    if seeds is not None:
+        raise InvalidInputError(f"seeds: {spec.version} scores one episode per task of a pool; choose it with task= "
+                                "and split= (seeds= applies to a custom task)")
+    split = spec.evaluation.split if split is None else split
     if task not in (*spec.tasks.scenarios, *spec.tasks.tiers) or split not in spec.tasks.splits:
         raise InvalidInputError(f"task {task!r}, split {split!r}; allowed: task in "
                                 f"{[*spec.tasks.scenarios, *spec.tasks.tiers]}, split in {list(spec.tasks.splits)}")
@@ -203,7 +274,7 @@ def _batched_episodes(parameters: tuple[float, float], version: str, kwargs: dic
 def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None, env_kwargs: dict | None = None,
              name: str = "submission", progress: bool = False, task: str | None = None, split: str | None = None,
              training_pool: str | None = None, executor: Executor | None = None, indices: Sequence[int] | None = None,
-             chunk: int = 10, batched: bool | None = None) -> EvalReport:
+             chunk: int = 10, batched: bool | None = None, compute: dict[str, Any] | None = None) -> EvalReport:
     """Score ``policy`` on ``env_id`` by its version's protocol and score rule.
 
     Args:
@@ -222,28 +293,34 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
             ``concurrent.futures.Executor`` (processes, Dask); the policy must pickle. Same entry.
         batched: a fixed (m, T_c) on a pool runs all tasks in one batched env in this process
             (None: whenever possible without an executor; the same entry, tested bit for bit).
+        compute: what training or tuning the policy cost, for the leaderboard's compute column:
+            ``{"env_steps": int, "wall_time_s": float}`` (both required, >= 0), optionally
+            ``"hardware": str``. Recorded as the entry's ``extra.compute``.
+
+    A task that is not a tier (a :class:`Scenario`, a scenario TOML path or a shipped scenario
+    name, as ``task=`` or ``env_kwargs={"task": ...}``) is a custom task: one episode per seed of
+    ``seeds`` (default ``[0]``), recorded as unranked (``extra.custom_task`` holds the scenario).
     """
     spec = spec_of(env_id)
     if spec.evaluation.protocol == "seeds":
         plan = _seed_plan(spec, env_id, seeds, env_kwargs, {"task": task, "split": split, "training_pool": training_pool,
                                                             "executor": executor, "indices": indices, "batched": batched})
     else:
-        if seeds is not None:
-            raise InvalidInputError(f"seeds: {spec.version} scores one episode per task of a pool; choose it with task= "
-                                    "and split=")
         plan = _pool_plan(spec, env_id, task=task, split=split, indices=indices, env_kwargs=env_kwargs,
-                          training_pool=training_pool)
+                          training_pool=training_pool, seeds=seeds)
     if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
         raise InvalidInputError(f"chunk = {chunk!r}; allowed: an integer >= 1")
     _check_protocol(spec, plan.kwargs)
     if isinstance(policy, tuple):
         _check_constant(policy, plan)
+    if compute is not None:
+        plan.extra["compute"] = check_compute(compute)
     return _run(policy, plan, name=name, progress=progress, executor=executor, chunk=chunk, batched=batched)
 
 
 def _runner(policy: Any, plan: Plan, executor: Executor | None, chunk: int, batched: bool | None):
     """How the plan's episodes run: one batched env, or chunks of single envs (serially or on ``executor``)."""
-    pooled = plan.spec.evaluation.protocol == "pool"
+    pooled = plan.spec.evaluation.protocol == "pool" and "custom_task" not in plan.extra
     residual = plan.spec.is_residual(plan.env_id)
     fixed = (isinstance(policy, tuple) and pooled and not residual and plan.kwargs.get("terminate_on_violation", True)
              is True and set(plan.kwargs) <= {plan.spec.tasks.keyword, "split", "dense_shaping", "terminate_on_violation",
@@ -281,7 +358,8 @@ def _run(policy: Any, plan: Plan, *, name: str, progress: bool, executor: Execut
     extra = dict(plan.extra)
     if isinstance(policy, tuple):  # what `ffsr-gym leaderboard verify` re-runs
         extra["policy"] = {"fixed": [float(x) for x in policy]}
-    return EvalReport(plan.env_id, plan.kwargs, rule.aggregate(rows), rows, prov, name=name, extra=extra,
+    return EvalReport(plan.env_id, plan.kwargs if plan.recorded_kwargs is None else plan.recorded_kwargs,
+                      rule.aggregate(rows), rows, prov, name=name, extra=extra,
                       score_rule=plan.spec.score.text)
 
 

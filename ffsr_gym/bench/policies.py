@@ -88,7 +88,13 @@ def _import(target: str, spec: str) -> Any:
             module = importlib.util.module_from_spec(module_spec)
             module_spec.loader.exec_module(module)
             return module
-        return importlib.import_module(target)
+        try:
+            return importlib.import_module(target)
+        except ModuleNotFoundError as exc:  # a module file in the working folder, not on sys.path
+            local = Path(*target.split(".")).with_suffix(".py")
+            if exc.name != target.split(".")[0] or not local.is_file():
+                raise
+            return _import(str(local), spec)
     except InvalidInputError:
         raise
     except Exception as exc:  # noqa: BLE001 - a user's file: whatever it raises is reported by name

@@ -175,10 +175,12 @@ class FFSREnv(gym.Env):
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
             return None
         from ffsr_gym.environments.render import SceneRenderer
+        from ffsr_gym.report.episode_end import episode_end
 
         if self._renderer is None:
             self._renderer = SceneRenderer(interactive=self.render_mode == "human")
-        return self._renderer.draw(self.rollout, self.scenario)
+        end = episode_end(self.rollout) if self._started and self.engine.finished(0) else None
+        return self._renderer.draw(self.rollout, self.scenario, end)
 
     def close(self) -> None:
         if self._renderer is not None:

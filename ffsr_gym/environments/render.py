@@ -1,4 +1,5 @@
-"""matplotlib 3D drawing of the robot, obstacle, target and end-effector trace (env rendering)."""
+"""matplotlib 3D drawing of the robot, the obstacles where they are now, the target, the end-effector
+trace and, once the episode is over, how it ended (env rendering)."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import numpy as np
 
 from ffsr_gym.model import quaternion as quat
 from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.report.episode_end import EpisodeEnd
 from ffsr_gym.sim.rollout import Rollout
 
 _CUBE_EDGES = [(a, b) for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1]
@@ -27,11 +29,13 @@ class SceneRenderer:
         self.fig = plt.figure(figsize=(6, 6), dpi=80)
         self.ax = self.fig.add_subplot(projection="3d")
 
-    def draw(self, rollout: Rollout, scenario: Scenario) -> np.ndarray | None:
+    def draw(self, rollout: Rollout, scenario: Scenario, end: EpisodeEnd | None = None) -> np.ndarray | None:
         """Draw the current state; return an RGB array (H, W, 3) unless interactive.
 
-        The artists are built on the first call (and when the scenario changes) and then only
-        get new data, so a frame costs one canvas draw.
+        Every obstacle (``[obstacle]`` and each ``[debris]`` sphere) is drawn where it is at the
+        rollout's time, with its track since t = 0; ``end`` (the episode is over) marks where and
+        when it ended and why. The robot's artists are built on the first call (and when the
+        scenario changes) and then only get new data.
         """
         robot = rollout.robot
         if getattr(self, "_scenario", None) is not scenario:
@@ -45,7 +49,9 @@ class SceneRenderer:
             points, _ = robot.joint_points(arm)
             line.set_data_3d(*points.T)
         self._trace.set_data_3d(*np.array(list(self._ee_trace(rollout))).T)
-        self.ax.set_title(f"{scenario.name}: t = {rollout.t:.2f} s")
+        self._draw_obstacles(rollout, scenario)
+        self._draw_end(end)
+        self.ax.set_title(f"{scenario.name}: t = {rollout.t:.2f} s", fontsize=10)
         self.fig.canvas.draw()
         if self.interactive:
             self.plt.pause(0.001)
@@ -65,8 +71,7 @@ class SceneRenderer:
         rotation = quat.to_rotation(np.array(scenario.target.quaternion_wxyz))
         for i, c in enumerate(("r", "g", "b")):
             ax.plot(*np.array([target, target + 0.1 * rotation[:, i]]).T, color=c, lw=2)
-        if scenario.obstacle is not None:
-            self._sphere(np.array(scenario.obstacle.position_m), scenario.obstacle.danger_radius_m)
+        self._moving: list = []
         center = np.array(scenario.initial.base_position_m)
         ax.set(xlabel="x [m]", ylabel="y [m]", zlabel="z [m]", xlim=(center[0] - 1.2, center[0] + 1.5),
                ylim=(center[1] - 1.2, center[1] + 1.5), zlim=(center[2] - 1.2, center[2] + 1.5))
@@ -79,12 +84,43 @@ class SceneRenderer:
         for q in qs[:: max(1, len(qs) // 100)] if len(qs) else [rollout.q]:
             yield robot.transform_ee_to_world(q, 0).translation
 
-    def _sphere(self, center: np.ndarray, radius: float) -> None:
+    def _draw_obstacles(self, rollout: Rollout, scenario: Scenario) -> None:
+        """Each obstacle at time t: its body, the (shared) danger radius, its track since t = 0, its name."""
+        for artist in self._moving:
+            artist.remove()
+        self._moving = []
+        field = rollout.setup.obstacles
+        if not len(field) or scenario.obstacle is None:
+            return
+        now, start = field.at(rollout.t), field.at(0.0)
+        danger = scenario.obstacle.danger_radius_m
+        for i, (p, p0, radius) in enumerate(zip(now, start, field.radii_m)):
+            name = "obstacle" if i == 0 else f"debris {i}"
+            color = "tab:red" if i == 0 else "tab:purple"
+            first = i <= 1  # one legend entry per kind
+            self._moving.append(self._sphere(p, danger, color, alpha=0.15))
+            self._moving.append(self._sphere(p, max(radius, 0.01), color, alpha=0.8))
+            self._moving.append(self.ax.scatter(*p, color=color, s=15, label=f"{'obstacle' if i == 0 else 'debris'} "
+                                                                              "(danger radius)" if first else None))
+            if np.any(field.velocities_m_s[i]):
+                self._moving += self.ax.plot(*np.array([p0, p]).T, ":", color=color, lw=1)
+            self._moving.append(self.ax.text(*p, f" {name}", color=color, fontsize=7))
+        self.ax.legend(loc="upper left", fontsize=7)
+
+    def _draw_end(self, end: EpisodeEnd | None) -> None:
+        """The end marker: a star where the episode ended, and what happened there."""
+        if end is None:
+            return
+        color = "tab:red" if end.failed else "tab:green"
+        self._moving.append(self.ax.scatter(*end.point_m, marker="*", s=250, color=color, edgecolor="black",
+                                            depthshade=False, zorder=10))
+        self._moving.append(self.fig.text(0.5, 0.02, end.text, ha="center", fontsize=8, color=color, wrap=True))
+
+    def _sphere(self, center: np.ndarray, radius: float, color: str, alpha: float):
         u, v = np.mgrid[0:2 * np.pi:16j, 0:np.pi:8j]
         xyz = [center[0] + radius * np.cos(u) * np.sin(v), center[1] + radius * np.sin(u) * np.sin(v),
                center[2] + radius * np.cos(v)]
-        self.ax.plot_wireframe(*xyz, color="tab:red", alpha=0.3, lw=0.5)
-        self.ax.scatter(*center, color="tab:red", s=20, label="obstacle / danger radius")
+        return self.ax.plot_wireframe(*xyz, color=color, alpha=alpha, lw=0.5)
 
     def close(self) -> None:
         """Close the figure."""

@@ -2,9 +2,10 @@
 
 * ``scenario``: one scenario (a shipped name, a TOML path or a :class:`Scenario`); a scenario with
   a ``[randomization]`` section is a seeded family, drawn anew at every reset.
-* ``tiers``: the certified pools of a tier (``split`` = train or test), one task drawn uniformly
-  per reset or picked with ``reset(options={"task_index": i})``; the spec's named scenarios
-  (``paper``) and a :class:`Scenario` are accepted as single tasks.
+* ``tiers``: the certified pools of a tier (``split`` = train, validation or test), one task drawn
+  uniformly per reset or picked with ``reset(options={"task_index": i})``. A :class:`Scenario`,
+  a path to a scenario TOML file or a shipped scenario name is a *custom task* (``custom``): played
+  as it is given, scored by the same rule, never ranked (no split applies to it).
 
 Every task is played as the score rule transforms it (``rule.task``: the rule file's planner
 defaults, tolerances and action box). With ``dt_s`` (a version whose spec offers it), every task
@@ -14,11 +15,12 @@ study plays the same tasks with the same decisions at dt/2 or dt/4.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.exceptions import InvalidInputError, ScenarioError
 from ffsr_gym.model.scenario import Scenario, load_scenario
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.scoring.rules import ScoreRule
@@ -33,12 +35,14 @@ class TaskSource:
         name: the task's name (tier, scenario name).
         family: the scenario played (fixed task), the family drawn from, or the pool's first task.
         pool: the pool's tasks (tiers only), else None.
+        custom: whether the task is a custom one (a version with tiers given a scenario instead).
     """
 
     def __init__(self, spec: BenchmarkSpec, rule: ScoreRule, task: Any = None, split: str | None = None,
                  dt_s: Any = None) -> None:
         self.spec, self.rule, self.dt_s = spec, rule, dt_s
         task = spec.tasks.default if task is None else task
+        self.custom = is_custom(spec, task)
         self.split = self._check_split(split)
         self.pool: tuple[PoolTask, ...] | None = None
         if isinstance(task, str) and task in spec.tasks.tiers:
@@ -53,7 +57,10 @@ class TaskSource:
 
     def _check_split(self, split: str | None) -> str | None:
         splits = self.spec.tasks.splits
-        if not splits:
+        if self.custom and split is not None:
+            raise InvalidInputError(f"split = {split!r}: a custom task (a scenario) has no pools; split applies to "
+                                    f"the tiers {list(self.spec.tasks.tiers)}")
+        if not splits or self.custom:
             if split is not None:
                 raise InvalidInputError(f"split = {split!r}: {self.spec.ids.parameters} has no task splits")
             return None
@@ -64,12 +71,7 @@ class TaskSource:
 
     def _scenario(self, task: Any) -> Scenario:
         """The scenario of a task that is not a tier (the spec decides what names it accepts)."""
-        tasks = self.spec.tasks
-        if isinstance(task, Scenario) or tasks.kind == "scenario":
-            return load_scenario(task)
-        if task in tasks.scenarios:
-            return load_scenario(task)
-        raise InvalidInputError(f"task {task!r}; allowed: {[*tasks.scenarios, *tasks.tiers]} or a Scenario")
+        return scenario_task(self.spec, task)
 
     def draw(self, rng: np.random.Generator, options: dict | None) -> tuple[Scenario, dict[str, int]]:
         """The next episode's scenario (drawn from ``rng``) and what ``reset``'s info says about it.
@@ -91,3 +93,31 @@ class TaskSource:
         if self.dt_s is not None:
             task = task.at_step(self.dt_s)
         return task, {"task_index": int(index), "task_seed": seed}
+
+
+def is_custom(spec: BenchmarkSpec, task: Any) -> bool:
+    """Whether ``task`` is a custom task of ``spec``: a version with tiers given anything but a tier or a named task."""
+    if spec.tasks.kind != "tiers":
+        return False
+    return not (isinstance(task, str) and task in (*spec.tasks.tiers, *spec.tasks.scenarios))
+
+
+def scenario_task(spec: BenchmarkSpec, task: Any) -> Scenario:
+    """The scenario of a task that is not a tier: a :class:`Scenario`, a shipped name or a TOML path.
+
+    Raises:
+        InvalidInputError: anything else, or a scenario file that does not load (the file's own
+            error, which names the key), with what ``task`` allows.
+    """
+    tasks = spec.tasks
+    if not isinstance(task, (Scenario, str, Path)):
+        raise InvalidInputError(f"{tasks.keyword} = {type(task).__name__} object; allowed: "
+                                f"{[*tasks.scenarios, *tasks.tiers]}, a Scenario or a path to a scenario .toml file")
+    try:
+        return load_scenario(task)
+    except ScenarioError as exc:
+        if tasks.kind == "scenario":
+            raise
+        raise InvalidInputError(f"{tasks.keyword} = {str(task)!r}: {exc}; allowed: {[*tasks.scenarios, *tasks.tiers]}, "
+                                "a Scenario, or a shipped scenario name or path to a scenario .toml file "
+                                "(a custom task, never ranked)") from None

@@ -180,10 +180,13 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         if not self._started:
             raise InvalidInputError("call reset() before render()")
         from ffsr_gym.environments.render import SceneRenderer
+        from ffsr_gym.report.episode_end import episode_end
 
         if self._renderer is None:
             self._renderer = SceneRenderer()
-        return (self._renderer.draw(self.engine.rollout(0), self.engine.scenarios[0]),)
+        rollout = self.engine.rollout(0)
+        end = episode_end(rollout) if self.engine.finished(0) else None
+        return (self._renderer.draw(rollout, self.engine.scenarios[0], end),)
 
     def close_extras(self, **kwargs: Any) -> None:
         if self._renderer is not None:

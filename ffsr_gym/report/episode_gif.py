@@ -30,9 +30,10 @@ def check_gif_path(out: str | Path) -> Path:
     return out
 
 
-def record_episode(env: Any, step: Callable[[Any], tuple], *, seed: int, every: int) -> tuple[list, int, dict]:
+def record_episode(env: Any, step: Callable[[Any], tuple], *, seed: int, every: int,
+                   options: dict | None = None) -> tuple[list, int, dict]:
     """Frames of one episode (the first, every ``every``-th decision and the last), decisions taken, last info."""
-    obs, _ = env.reset(seed=seed)
+    obs, _ = env.reset(seed=seed, options=options)
     frames, decisions, done, info = [env.render()], 0, False, {}
     while not done:
         obs, _, terminated, truncated, info = step(obs)
