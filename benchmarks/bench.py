@@ -251,12 +251,47 @@ def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
             f"single env {alone:.2f} s", alone / batched, "faster than single env", batched < alone)
         row(f"pool_{tier}_workers", f"(0.3, 4 s) on the {tier} test pool, {workers} worker processes", spread, "s",
             f"single env {alone:.2f} s", alone / spread, "faster than single env", spread < alone)
+    training = training_throughput("FFSR-Residual-v2", 8, 8192)
+    if training is not None:
+        batched_rate, single_rate = training
+        row("training_batched", "PPO training on FFSR-Residual-v2 easy, 8 copies, 8192 env steps, batched SB3 adapter",
+            batched_rate, "env steps/s", f"make_vec_env of 8 single envs {single_rate:,.0f} env steps/s",
+            batched_rate / single_rate, "faster than make_vec_env", batched_rate > single_rate)
     dask = dask_scaling(workers)
     if dask is not None:
         one, many = dask
         row("dask", f"(0.3, 4 s) on the easy test pool, Dask LocalCluster, {workers} workers", many, "s",
             f"1 worker {one:.2f} s", one / many, "scales with workers (ratio > 1)", one / many > 1.0)
     return rows, budget
+
+
+def training_throughput(env_id: str, n_envs: int, steps: int) -> tuple[float, float] | None:
+    """Env steps per second of the same PPO training (shipped hyperparameters, ``n_envs`` copies, ``steps`` steps,
+    seed 0) on the batched adapter and on SB3's ``make_vec_env``: the same episodes, so the same work (None
+    without stable-baselines3)."""
+    try:
+        import torch
+        from stable_baselines3 import PPO
+    except ImportError:
+        print("  stable-baselines3 unavailable: pip install -e '.[rl]'")
+        return None
+    from ffsr_gym.optim.rl import load_hyperparams, training_env
+
+    torch.set_num_threads(1)
+    params = load_hyperparams("ppo", env_id)
+    for key in ("n_envs", "n_timesteps", "policy"):
+        params.pop(key, None)
+    rates = []
+    for vec_env in ("batched", "single"):
+        env = training_env(env_id, n_envs, 0, {"task": "easy", "split": "train"}, vec_env)
+        model = PPO("MlpPolicy", env, seed=0, device="cpu", **params)
+        model.learn(n_envs * params["n_steps"])  # warm-up: compile, first task draws
+        with _no_gc():
+            start = time.perf_counter()
+            model.learn(steps, reset_num_timesteps=True)
+            rates.append(steps / (time.perf_counter() - start))
+        env.close()
+    return rates[0], rates[1]
 
 
 def dask_scaling(workers: int) -> tuple[float, float] | None:

@@ -1,4 +1,4 @@
-"""The ``ffsr-gym`` command line."""
+"""The ``ffsr-gym`` command line (:data:`DESCRIPTION` is what ``ffsr-gym --help`` says)."""
 
 from __future__ import annotations
 
@@ -11,6 +11,10 @@ from typing import Any
 from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.bench.options import natural, positive_float, positive_int
 from ffsr_gym.model.spec import all_splits, all_task_names, registered_ids
+
+
+DESCRIPTION = ("Dual-arm free-floating space robot: reproduce the paper's predefined-time planner, play and score "
+               "the Gymnasium benchmark ({ids}), train baselines, build task pools and render leaderboards.")
 
 
 def _info(args: argparse.Namespace) -> None:
@@ -97,7 +101,7 @@ def _train(args: argparse.Namespace) -> None:
         free_entry(folder, entry_name(args.algo, spec, args.env_id, task), force=args.force)
     report = train_and_evaluate(args.algo, args.env_id, task=task, seeds=args.seeds, out=args.out,
                                 timesteps=args.timesteps, hyperparams=args.hyperparams, curve_every=args.curve_every,
-                                progress=not args.no_progress)
+                                progress=not args.no_progress, n_envs=args.n_envs, vec_env=args.vec_env)
     print(f"{report.name}: {report.metrics}")
     if args.leaderboard:
         print("wrote", report.save(folder))
@@ -365,7 +369,13 @@ def _add_study_commands(sub: Any) -> None:
     tr.add_argument("--curve-every", type=positive_int, default=5000,
                     help="versions with tiers: env steps between learning-curve points (default: 5000)")
     tr.add_argument("--seeds", type=natural, nargs="+", default=[0, 1, 2, 3, 4], help="training seeds (default: 0 1 2 3 4)")
-    tr.add_argument("--timesteps", type=positive_int, default=None, help="default: n_timesteps of the hyperparameter file")
+    tr.add_argument("--timesteps", type=positive_int, default=None,
+                    help="env steps per seed (default: n_timesteps of the hyperparameter file)")
+    tr.add_argument("--n-envs", type=positive_int, default=None,
+                    help="environment copies stepped together (default: n_envs of the hyperparameter file)")
+    tr.add_argument("--vec-env", default="batched", choices=["batched", "single"],
+                    help="batched: all copies in one batched-kernel env (SB3 VecEnv adapter); single: SB3's make_vec_env "
+                         "over single envs; the same episodes either way (default: batched)")
     tr.add_argument("--hyperparams", default=None, help="folder with <algo>.yml (default: the shipped ffsr_gym/hyperparams)")
     tr.add_argument("--out", default="runs/rl", help="folder of the models and records (default: runs/rl)")
     tr.add_argument("--leaderboard", default=None, help="write the entry under this folder")
@@ -455,7 +465,9 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``ffsr-gym`` console script."""
     from ffsr_gym import __version__
 
-    parser = argparse.ArgumentParser(prog="ffsr-gym", description=__doc__)
+    parser = argparse.ArgumentParser(prog="ffsr-gym", description=DESCRIPTION.format(ids=", ".join(registered_ids())),
+                                     epilog="Each command has its own --help. Documentation: README.md, docs/envs.md, "
+                                            "docs/model.md, docs/robots.md, leaderboards/README.md.")
     parser.add_argument("--version", action="version", version=f"ffsr-gym {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for add in (_add_model_commands, _add_study_commands, _add_board_commands):

@@ -37,12 +37,12 @@ def test_step_after_the_episode_ended_is_an_error_not_more_physics(env_id):
     env.step(action)  # a reset starts a new episode
 
 
-@pytest.mark.parametrize("robot", ["../../../../../../etc", "/proc/self", "ffsr_dual_arm/..", ""])
-def test_scenario_robot_must_be_a_shipped_robot(tmp_path, robot):
+@pytest.mark.parametrize("robot", ["../../../../../../etc", "/proc/self", "ffsr_dual_arm/..", "", "ghost"])
+def test_scenario_robot_must_be_a_shipped_robot_or_a_robot_folder(tmp_path, robot):
     text = scenario_path("paper").read_text().replace('robot = "ffsr_dual_arm"', f"robot = {json.dumps(robot)}")
     path = tmp_path / "escape.toml"
     path.write_text(text)
-    with pytest.raises(RobotFileError, match="not a shipped robot"):
+    with pytest.raises(RobotFileError, match=r"escape.toml: key 'robot': .*(\.urdf|shipped robot)"):
         ffsr_gym.load_scenario(path)
 
 

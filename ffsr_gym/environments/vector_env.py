@@ -27,7 +27,13 @@ from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.sim.trajectory import Trajectory
 
-_MODES = {mode.value: mode for mode in (AutoresetMode.NEXT_STEP, AutoresetMode.DISABLED)}
+_MODES = {mode.value: mode for mode in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP, AutoresetMode.DISABLED)}
+
+
+def copy_info(info: dict[str, Any], i: int) -> dict[str, Any]:
+    """Copy ``i``'s part of a batched ``info`` (a key whose ``_key`` mask is False for it is left out)."""
+    return {key: value[i] for key, value in info.items()
+            if not key.startswith("_") and (f"_{key}" not in info or info[f"_{key}"][i])}
 
 
 class FFSRVectorEnv(gym.vector.VectorEnv):
@@ -35,10 +41,12 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
 
     Arguments as the single environment plus ``threads`` (numba's thread count, default all
     cores); ``terminate_on_violation`` must stay True (the batched kernel stops a copy at its first
-    violation). Autoreset is Gymnasium's next-step mode, or with
-    ``autoreset_mode=AutoresetMode.DISABLED`` none: a copy whose episode ended holds (not stepped,
-    reward 0, its end reported once) until the next ``reset()``, which resets every copy (no
-    ``reset_mask``). ``reset(seed=s)`` seeds copy i with s + i; ``options={"task_index": [...]}``
+    violation). Autoreset is Gymnasium's next-step mode; with ``AutoresetMode.SAME_STEP`` a copy
+    whose episode ended is reset in the same step (its last observation and info in
+    ``info["final_obs"]`` and ``info["final_info"]``, masked by ``_final_obs``, ``_final_info``;
+    what stable-baselines3 expects, :mod:`ffsr_gym.optim.sb3_vec_env`); with
+    ``AutoresetMode.DISABLED`` none: a copy whose episode ended holds (not stepped, reward 0, its
+    end reported once) until the next ``reset()``, which resets every copy (no ``reset_mask``). ``reset(seed=s)`` seeds copy i with s + i; ``options={"task_index": [...]}``
     picks each copy's pool task of this reset. ``reset``'s info has ``task_index`` and
     ``task_seed`` per copy (-1 outside a pool); episode-end keys come with their ``_key`` masks.
     Memory: one full-episode trajectory buffer per copy (~1 MB at dt = 0.01 s, 20 s).
@@ -162,7 +170,21 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
             self._reset_copy(int(i))
         rewards, terminated, truncated, info = self.engine.step_copies(a, active, parameters)
         self._needs_reset = (self._needs_reset & ~restarted) | terminated | truncated
-        return self.engine.obs.copy(), rewards, terminated, truncated, info
+        obs = self.engine.obs.copy()
+        if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP and self._needs_reset.any():
+            info = self._reset_ended(obs, info)
+        return obs, rewards, terminated, truncated, info
+
+    def _reset_ended(self, obs: np.ndarray, info: dict[str, Any]) -> dict[str, Any]:
+        """Same-step autoreset: every ended copy's last observation and info into ``info``, then a reset (in ``obs``)."""
+        ended = self._needs_reset.copy()
+        final_obs, final_info = np.full(self.num_envs, None, dtype=object), np.full(self.num_envs, None, dtype=object)
+        for i in np.flatnonzero(ended):
+            final_obs[i], final_info[i] = obs[i].copy(), copy_info(info, int(i))
+            self._reset_copy(int(i))
+            obs[i] = self.engine.obs[i]
+        self._needs_reset[:] = False
+        return {**info, "final_obs": final_obs, "_final_obs": ended, "final_info": final_info, "_final_info": ended.copy()}
 
     # ----------------------------------------------------------------------------- extras
     def trajectory(self, i: int) -> Trajectory:

@@ -111,18 +111,35 @@ class CollisionModel:
 
     @staticmethod
     def _read_parts(robot: Robot, spec: dict) -> list[_Part]:
+        """The base box and the capsules, each checked: named after a link of its arm, sizes finite and positive."""
         model = robot.model
         radius = float(spec["capsule_radius_m"])
         base = spec["base"]
-        parts = [_Part("base", "base", coal.Box(*map(float, base["size_m"])), model.getFrameId(base["link"]), pin.SE3.Identity())]
-        for item in spec["capsule"]:
+        if not model.existFrame(base["link"]) or model.frames[model.getFrameId(base["link"])].parentJoint != 1:
+            raise ValueError(f"base.link {base['link']!r} is not the URDF's root link")
+        size = np.array(base["size_m"], dtype=float)
+        if size.shape != (3,) or not np.all(np.isfinite(size)) or np.any(size <= 0.0):
+            raise ValueError(f"base.size_m = {base['size_m']!r}; allowed: three finite edge lengths > 0 [m]")
+        parts = [_Part("base", "base", coal.Box(*size), model.getFrameId(base["link"]), pin.SE3.Identity())]
+        for number, item in enumerate(spec["capsule"], start=1):
             link = item["link"]
-            if not model.existFrame(link):
-                raise ValueError(f"link {link!r} is not in the URDF")
-            start, end = np.array(item["start_m"], float), np.array(item["end_m"], float)
-            length = portable.norm(end - start)
+            where = f"capsule {number} (link {link!r})"
             arm = link.split("_")[0]
-            shape = coal.Capsule(float(item.get("radius_m", radius)), length)
+            if arm not in ("mission", "balance"):
+                raise ValueError(f"{where}: a capsule's link is named <arm>_..., arm 'mission' or 'balance'")
+            if not model.existFrame(link) or model.frames[model.getFrameId(link)].type != pin.FrameType.BODY:
+                raise ValueError(f"{where}: no such link in the URDF")
+            joint = int(model.frames[model.getFrameId(link)].parentJoint)
+            if not model.names[joint].startswith(f"{arm}_joint"):
+                raise ValueError(f"{where}: the link moves with {model.names[joint]!r}, not with a joint of the {arm} arm")
+            start, end = np.array(item["start_m"], float), np.array(item["end_m"], float)
+            r = float(item.get("radius_m", radius))
+            if start.shape != (3,) or end.shape != (3,) or not np.all(np.isfinite([*start, *end, r])) or r <= 0.0:
+                raise ValueError(f"{where}: start_m and end_m are [x, y, z] [m], the radius a number > 0")
+            length = portable.norm(end - start)
+            if length <= 0.0:
+                raise ValueError(f"{where}: start_m equals end_m; allowed: two different points (a segment)")
+            shape = coal.Capsule(r, length)
             parts.append(_Part(link, arm, shape, model.getFrameId(link), _segment_frame(start, end)))
         return parts
 

@@ -27,20 +27,57 @@ def envs_dir() -> Path:
     return package.parent / "envs"
 
 
-def robot_dir(name: str) -> Path:
-    """Return the folder of the shipped robot called ``name`` (``envs/robots/<name>``).
+def robot_names() -> list[str]:
+    """The names of the shipped robots (folders in ``envs/robots``)."""
+    return sorted(p.name for p in (envs_dir() / "robots").iterdir() if p.is_dir())
 
-    Only the names of the shipped robots are accepted, never a path: a scenario file cannot
-    make the package read (or hash) files outside ``envs/robots``.
+
+def is_shipped_robot(ref: str) -> bool:
+    """Whether ``ref`` names a shipped robot (else it is a path to a robot of one's own)."""
+    return isinstance(ref, str) and ref in robot_names()
+
+
+def robot_files(ref: str) -> tuple[Path, Path]:
+    """The (URDF, collision file) of a robot: a shipped name, or a path to a robot folder or its URDF.
+
+    A robot folder holds exactly one ``.urdf`` file and a ``collision.toml`` (docs/robots.md); a
+    shipped robot ``<name>`` is ``envs/robots/<name>/<name>.urdf``. A path is used as given
+    (scenario files resolve theirs against their own folder when they load).
 
     Raises:
-        RobotFileError: if no such robot is shipped.
+        RobotFileError: neither a shipped name nor an existing robot folder or URDF (what is
+            missing is named).
     """
-    robots = envs_dir() / "robots"
-    known = sorted(p.name for p in robots.iterdir() if p.is_dir())
-    if not isinstance(name, str) or name not in known:
-        raise RobotFileError(f"robot {name!r} is not a shipped robot; allowed: {known}")
-    return robots / name
+    if not isinstance(ref, str) or not ref:
+        raise RobotFileError(f"robot {ref!r}; allowed: a shipped robot {robot_names()} or a path to a robot folder")
+    if is_shipped_robot(ref):
+        folder = envs_dir() / "robots" / ref
+        return folder / f"{ref}.urdf", folder / "collision.toml"
+    path = Path(ref)
+    if path.suffix == ".urdf" and path.is_file():
+        urdf, folder = path, path.parent
+    elif path.is_dir():
+        urdfs = sorted(path.glob("*.urdf"))
+        if len(urdfs) != 1:
+            raise RobotFileError(f"robot folder {ref!r} holds {len(urdfs)} .urdf files; allowed: exactly one "
+                                 "(docs/robots.md)")
+        urdf, folder = urdfs[0], path
+    else:
+        raise RobotFileError(f"robot {ref!r} is not a shipped robot {robot_names()} and no such robot folder or "
+                             ".urdf file exists")
+    collision = folder / "collision.toml"
+    if not collision.is_file():
+        raise RobotFileError(f"robot {ref!r}: {collision} does not exist; a robot folder needs one (docs/robots.md)")
+    return urdf, collision
+
+
+def robot_dir(ref: str) -> Path:
+    """The folder of a robot (shipped name or path): every file in it enters the scenario hash.
+
+    Raises:
+        RobotFileError: as :func:`robot_files`.
+    """
+    return robot_files(ref)[0].parent
 
 
 def scenario_names() -> list[str]:

@@ -24,7 +24,7 @@ import pinocchio as pin
 from ffsr_gym.exceptions import InvalidInputError, RobotFileError
 from ffsr_gym.model import portable
 from ffsr_gym.model.quaternion import skew, wxyz_from_xyzw, xyzw_from_wxyz
-from ffsr_gym.model.resources import robot_dir
+from ffsr_gym.model.resources import robot_files
 from ffsr_gym.types import Array
 
 ARMS = ("mission", "balance")
@@ -259,7 +259,20 @@ def _changed_robot(urdf_path: Path, changes: tuple) -> Robot:
     return Robot(urdf_path).with_inertial_changes(*changes)
 
 
-@lru_cache(maxsize=8)
 def load_robot(name: str = "ffsr_dual_arm") -> Robot:
-    """Load the shipped robot ``envs/robots/<name>/<name>.urdf`` (cached per process)."""
-    return Robot(robot_dir(name) / f"{name}.urdf")
+    """Load a robot: a shipped name (``envs/robots/<name>/<name>.urdf``) or a path to a robot folder or URDF.
+
+    Cached per process and per version of the robot's files (an edited robot folder loads anew).
+    """
+    urdf = robot_files(name)[0]
+    return _load(str(urdf), files_stamp(urdf.parent))
+
+
+def files_stamp(folder: Path) -> tuple:
+    """(name, size, modification time) of every file in ``folder``: a cache key that changes when a file does."""
+    return tuple((p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in sorted(folder.iterdir()) if p.is_file())
+
+
+@lru_cache(maxsize=8)
+def _load(urdf: str, stamp: tuple) -> Robot:
+    return Robot(urdf)

@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ffsr_gym.exceptions import InvalidInputError, ScenarioError
+from ffsr_gym.exceptions import InvalidInputError, RobotFileError, ScenarioError
 from ffsr_gym.model import portable
-from ffsr_gym.model.resources import robot_dir, scenario_path
+from ffsr_gym.model.resources import is_shipped_robot, robot_dir, scenario_path
 from ffsr_gym.model.schema import (
     file_key,
     BOOL,
@@ -296,7 +296,10 @@ class Scenario:
         """
         cached = self.__dict__.get("_sha256")
         if cached is None:
-            digest = hashlib.sha256(json.dumps(to_dict(self), sort_keys=True).encode())
+            data = to_dict(self)
+            if not is_shipped_robot(self.robot):  # a robot folder: its name and files, wherever it lies
+                data["robot"] = Path(self.robot).name
+            digest = hashlib.sha256(json.dumps(data, sort_keys=True).encode())
             for path in sorted(robot_dir(self.robot).iterdir()):
                 if path.is_file():
                     digest.update(path.name.encode())
@@ -387,9 +390,20 @@ def _from_dict(data: dict[str, Any], *, source: str) -> Scenario:
         scenario = build_table(Scenario, data)
     except ScenarioError as exc:
         raise ScenarioError(where + str(exc)) from None
-    scenario = dataclasses.replace(scenario, source=source)
+    scenario = dataclasses.replace(scenario, source=source, robot=_robot_reference(scenario.robot, source))
     _check_cross_fields(scenario, where)
     return _normalised(scenario)
+
+
+def _robot_reference(robot: str, source: str) -> str:
+    """A shipped robot's name as it is; a robot path made absolute, against the scenario file's folder (or the
+    working folder for a scenario built in code), so the scenario means the same robot from any folder."""
+    if is_shipped_robot(robot):
+        return robot
+    path = Path(robot).expanduser()
+    if not path.is_absolute():
+        path = (Path(source).parent if source else Path.cwd()) / path
+    return str(path.resolve())
 
 
 def _check_cross_fields(s: Scenario, where: str) -> None:
@@ -427,7 +441,10 @@ def _check_cross_fields(s: Scenario, where: str) -> None:
                             "or one [x, y, z] per link (12)")
     if s.randomization is not None and s.obstacle is None:
         raise ScenarioError(f"{where}section 'randomization' needs an 'obstacle' section (its radii are used)")
-    robot_dir(s.robot)
+    try:
+        robot_dir(s.robot)
+    except RobotFileError as exc:
+        raise RobotFileError(f"{where}key 'robot': {exc}") from None
 
 
 def _normalised(s: Scenario) -> Scenario:

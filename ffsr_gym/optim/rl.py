@@ -144,20 +144,46 @@ def training_kwargs(spec: BenchmarkSpec, task: str) -> dict[str, Any]:
     return {spec.tasks.keyword: task}
 
 
+#: How the training envs are stepped: the batched kernel (:class:`~ffsr_gym.optim.sb3_vec_env.BatchedVecEnv`),
+#: or SB3's ``make_vec_env`` over single environments (the same episodes, bit for bit; slower).
+VEC_ENVS = ("batched", "single")
+
+
+def training_env(env_id: str, n_envs: int, seed: int, env_kwargs: dict[str, Any], vec_env: str = "batched") -> Any:
+    """The SB3 ``VecEnv`` an agent trains on (see :data:`VEC_ENVS`); copy i is seeded ``seed + i`` at its first reset.
+
+    Raises:
+        InvalidInputError: ``vec_env`` or ``n_envs`` out of range.
+    """
+    if vec_env not in VEC_ENVS:
+        raise InvalidInputError(f"vec_env {vec_env!r}; allowed: {list(VEC_ENVS)}")
+    if isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1:
+        raise InvalidInputError(f"n_envs = {n_envs!r}; allowed: an integer >= 1")
+    if vec_env == "single":
+        from stable_baselines3.common.env_util import make_vec_env
+
+        return make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs)
+    from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
+
+    env = BatchedVecEnv(env_id, n_envs, **env_kwargs)
+    env.seed(seed)
+    return env
+
+
 def train(algo: str, env_id: str, *, seed: int, out: str | Path, task: str | None = None, timesteps: int | None = None,
           hyperparams: str | Path | None = None, curve_every: int = 5000, curve_tasks: int = 10,
-          progress: bool = True) -> tuple[Any, dict[str, Any]]:
+          progress: bool = True, n_envs: int | None = None, vec_env: str = "batched") -> tuple[Any, dict[str, Any]]:
     """Train one agent; returns ``(model, record)`` (loaded if ``out`` holds a finished run).
 
     TensorBoard logs, checkpoints and ``model.zip`` go to ``out``; on a pool version the record
-    holds the learning curve.
+    holds the learning curve. ``n_envs`` overrides the hyperparameter file's; ``vec_env`` is one of
+    :data:`VEC_ENVS` (the same episodes either way).
     """
     spec = spec_of(env_id)
     task = task or spec.evaluation.default_task
     env_kwargs = training_kwargs(spec, task)
     sb3, torch = sb3_modules()
     from stable_baselines3.common.callbacks import CheckpointCallback
-    from stable_baselines3.common.env_util import make_vec_env
 
     params = load_hyperparams(algo, env_id, hyperparams)
     cls, out = getattr(sb3, SB3_CLASSES[algo]), Path(out)
@@ -169,11 +195,12 @@ def train(algo: str, env_id: str, *, seed: int, out: str | Path, task: str | Non
                           f"{wanted} asked for; use another --out to train anew", stacklevel=2)
         return cls.load(out / "model.zip", device="cpu"), record
     torch.set_num_threads(1)
-    n_envs, steps = int(params.pop("n_envs", 1)), int(timesteps or params.pop("n_timesteps"))
+    file_envs, steps = int(params.pop("n_envs", 1)), int(timesteps or params.pop("n_timesteps"))
+    n_envs = file_envs if n_envs is None else n_envs
     params.pop("n_timesteps", None)
     policy = params.pop("policy", "MlpPolicy")
     start, points = time.perf_counter(), []
-    env = make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs)
+    env = training_env(env_id, n_envs, seed, env_kwargs, vec_env)
     model = cls(policy, env, seed=seed, device="cpu", verbose=0, tensorboard_log=str(out / "tensorboard"), **params)
     callbacks = [CheckpointCallback(save_freq=max(1, steps // (4 * n_envs)), save_path=str(out / "checkpoints")),
                  progress_bar(steps, f"{algo} {env_id} {task} seed {seed}", progress)]
@@ -186,7 +213,7 @@ def train(algo: str, env_id: str, *, seed: int, out: str | Path, task: str | Non
     model.save(out / "model.zip")
     env.close()
     record = {"algo": algo, "env_id": env_id, "task": task, "training_pool": f"{task}/train" if pooled else task,
-              "seed": seed, "timesteps": steps, "n_envs": n_envs, "policy": policy, "hyperparams": params,
+              "seed": seed, "timesteps": steps, "n_envs": n_envs, "vec_env": vec_env, "policy": policy, "hyperparams": params,
               "wall_time_s": time.perf_counter() - start}
     if pooled:
         record["curve"] = {"split": split, "indices": indices, "points": points}
@@ -197,7 +224,7 @@ def train(algo: str, env_id: str, *, seed: int, out: str | Path, task: str | Non
 def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | Path, task: str | None = None,
                        timesteps: int | None = None, hyperparams: str | Path | None = None,
                        eval_seeds: list[int] | None = None, curve_every: int = 5000, curve_tasks: int = 10,
-                       progress: bool = True) -> EvalReport:
+                       progress: bool = True, n_envs: int | None = None, vec_env: str = "batched") -> EvalReport:
     """Train one agent per seed and score all of them with :func:`evaluate` as one leaderboard entry."""
     if not seeds:
         raise InvalidInputError("at least one training seed is needed")
@@ -209,13 +236,13 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
         folder = Path(out) / f"{algo}_{env_id}_{task}_seed{seed}"
         model, record = train(algo, env_id, task=task, seed=seed, out=folder, timesteps=timesteps,
                               hyperparams=hyperparams, curve_every=curve_every, curve_tasks=curve_tasks,
-                              progress=progress)
+                              progress=progress, n_envs=n_envs, vec_env=vec_env)
         evaluation = _evaluation(model, spec, env_id, task, folder, eval_seeds)
         rows += [row | {"train_seed": seed} for row in evaluation["episodes"]]
         runs.append({key: record[key] for key in ("seed", "timesteps", "n_envs", "wall_time_s", "curve") if key in record}
                     | {"metrics": evaluation["metrics"]})
     compute = {"env_steps": sum(run["timesteps"] for run in runs), "wall_time_s": sum(run["wall_time_s"] for run in runs)}
-    extra = {"method": f"{SB3_CLASSES[algo]} (stable-baselines3), {len(seeds)} training seeds", "training_seeds": seeds,
+    extra = {"method": f"{SB3_CLASSES[algo]} (stable-baselines3), {len(seeds)} training seed{'s' * (len(seeds) != 1)}", "training_seeds": seeds,
              "runs": runs, "compute": compute, "timesteps_per_seed": runs[0]["timesteps"]}
     if pooled:
         extra |= {"training_pool": f"{task}/train", "evaluation_pool": f"{task}/{spec.evaluation.split}"}

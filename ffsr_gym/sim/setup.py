@@ -16,7 +16,9 @@ import numpy as np
 from ffsr_gym.kernel.arrays import KernelModel, ModelArrays, extract
 from ffsr_gym.model.collision import CollisionModel
 from ffsr_gym.model.obstacles import ObstacleField, obstacle_field
-from ffsr_gym.model.robot import Robot, load_robot
+from ffsr_gym.model.resources import robot_files
+from ffsr_gym.model.robot import Robot, files_stamp, load_robot
+from ffsr_gym.model.robot_check import check_robot
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning.desired_path import DesiredPath
 from ffsr_gym.planning.planner import reference_targets
@@ -35,6 +37,7 @@ class RobotAssets:
     def __init__(self, name: str) -> None:
         self.name = name
         self.robot: Robot = load_robot(name)
+        check_robot(self.robot)
         self.collision = CollisionModel(self.robot)
 
     @cached_property
@@ -48,9 +51,18 @@ class RobotAssets:
         return self.kernel.arrays()
 
 
-@lru_cache(maxsize=8)
 def robot_assets(name: str) -> RobotAssets:
-    """The shared :class:`RobotAssets` of a shipped robot (cached per process)."""
+    """The shared :class:`RobotAssets` of a robot, shipped or a folder's (cached per process and files' version).
+
+    Raises:
+        RobotFileError: the robot's files are missing or fail :func:`~ffsr_gym.model.robot_check.check_robot`.
+    """
+    urdf = robot_files(name)[0]
+    return _assets(name, files_stamp(urdf.parent))
+
+
+@lru_cache(maxsize=8)
+def _assets(name: str, stamp: tuple) -> RobotAssets:
     return RobotAssets(name)
 
 
