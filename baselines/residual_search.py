@@ -59,8 +59,7 @@ def main() -> None:
             action, compute = search(tier, args.tasks, args.evaluations, pool, args.version)
             compute["wall_time_s"] = time.perf_counter() - start
             report = ffsr_gym.evaluate(action, env_id, task=tier, name="cmaes_residual",
-                                       training_pool=f"{tier}/train (first {args.tasks} tasks)")
-            report.extra["compute"] = compute
+                                       training_pool=f"{tier}/train (first {args.tasks} tasks)", compute=compute)
             report.extra["method"] = "CMA-ES (cma) over one constant residual action: " + ", ".join(f"{x:+.3f}"
                                                                                                   for x in action)
             print("cmaes_residual", tier, f"IQM {report.metrics['score_iqm']:.3f}", "->", report.save(folder))

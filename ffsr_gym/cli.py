@@ -282,13 +282,13 @@ def _render(args: argparse.Namespace) -> None:
     options = None if args.task_index is None else {"task_index": args.task_index}
     frames, decisions, info = record_episode(env, stepper(policy, env), seed=args.seed, every=args.every,
                                              options=options)
-    from ffsr_gym.report.episode_end import episode_end
+    from ffsr_gym.sim.episode_end import episode_end
 
-    end = episode_end(env.unwrapped.rollout)
+    end, played = episode_end(env.unwrapped.rollout), env.unwrapped.scenario.name
     env.close()
     write_gif(frames, out, 1000.0 * args.every * env.unwrapped.family.env.decision_interval_s / args.speed)
     outcome = {k: info.get(k) for k in ("score", "success", "failure") if k in info}
-    print(f"wrote {out}: {len(frames)} frames, {decisions} decisions, {outcome}")
+    print(f"wrote {out}: task {played}, {len(frames)} frames, {decisions} decisions, {outcome}")
     print(f"last frame: {end.text}")
 
 
@@ -461,17 +461,44 @@ def _add_board_commands(sub: Any) -> None:
     render.set_defaults(func=_leaderboard)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``ffsr-gym`` console script."""
+class _DefaultsShown(argparse.HelpFormatter):
+    """Every option's help ends with its default, unless the help text already names it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if ("default" in text or not action.option_strings or action.required or action.default is argparse.SUPPRESS
+                or isinstance(action, (argparse._StoreTrueAction, argparse._VersionAction, argparse._HelpAction))):
+            return text
+        value = action.default
+        shown = "none" if value is None else " ".join(map(str, value)) if isinstance(value, (list, tuple)) else value
+        return f"{text} (default: {shown})"
+
+
+class _Parser(argparse.ArgumentParser):
+    """The command line's parsers: each shows its options' defaults (sub-command parsers are of this class too)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", _DefaultsShown)
+        super().__init__(*args, **kwargs)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``ffsr-gym`` argument parser, every sub-command on it."""
     from ffsr_gym import __version__
 
-    parser = argparse.ArgumentParser(prog="ffsr-gym", description=DESCRIPTION.format(ids=", ".join(registered_ids())),
+    parser = _Parser(prog="ffsr-gym", description=DESCRIPTION.format(ids=", ".join(registered_ids())),
                                      epilog="Each command has its own --help. Documentation: README.md, docs/envs.md, "
                                             "docs/model.md, docs/robots.md, leaderboards/README.md.")
     parser.add_argument("--version", action="version", version=f"ffsr-gym {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for add in (_add_model_commands, _add_study_commands, _add_board_commands):
         add(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``ffsr-gym`` console script."""
+    parser = build_parser()
     argv = sys.argv[1:] if argv is None else argv
     try:
         args = parser.parse_args(argv)

@@ -21,7 +21,7 @@ def _quad_field(points, p_o):
 
 
 def test_single_segment_calibration_from_spec():
-    """SPEC §5: one 0.5 m segment, point 0.2 m from its middle: CDF = 4.19; 0.1 m: 6.59; 0.05 m: 9.25."""
+    """docs/model.md §6: one 0.5 m segment, point 0.2 m from its middle: CDF = 4.19; 0.1 m: 6.59; 0.05 m: 9.25."""
     points = np.array([[0.0, 0, 0], [0.5, 0, 0]])
     for d, expected in ((0.2, 4.19), (0.1, 6.59), (0.05, 9.25)):
         cdf, distance = danger_field(points, np.array([0.25, d, 0.0]))

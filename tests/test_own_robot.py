@@ -6,7 +6,9 @@ whose upper link is 0.45 m instead of 0.5 m (joint placement, link CoM and capsu
 
 from __future__ import annotations
 
+import runpy
 import shutil
+import textwrap
 from pathlib import Path
 
 import gymnasium as gym
@@ -117,19 +119,19 @@ def test_the_hash_follows_the_robot_files_not_their_place(own, tmp_path):
 
 
 def test_a_urdf_path_names_the_same_robot(own):
-    root, folder, scenario = own
+    root, _folder, scenario = own
     by_file = load_scenario(scenario_with_robot(root / "my_robot", "my_robot.urdf"))
     assert load_robot(by_file.robot).total_mass == load_robot(scenario.robot).total_mass
 
 
 BROKEN = {
     "a renamed joint": ("urdf", 'name="mission_joint4"', 'name="mission_joint_four"', "mission_joint4"),
-    "an extra joint": ("urdf", '</robot>', '<link name="extra"><inertial><mass value="1"/><inertia ixx="1" ixy="0" '
+    "an extra joint": ("urdf", '</robot>', ('<link name="extra"><inertial><mass value="1"/><inertia ixx="1" ixy="0" '
                        'ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link><joint name="extra_joint" type="revolute">'
                        '<parent link="base"/><child link="extra"/><axis xyz="0 0 1"/><limit effort="1" velocity="1" '
-                       'lower="-1" upper="1"/></joint></robot>', "extra_joint"),
-    "a prismatic joint": ("urdf", '<joint name="balance_joint2" type="revolute">', '<joint name="balance_joint2" '
-                          'type="prismatic">', "balance_joint2"),
+                       'lower="-1" upper="1"/></joint></robot>'), "extra_joint"),
+    "a prismatic joint": ("urdf", '<joint name="balance_joint2" type="revolute">', ('<joint name="balance_joint2" '
+                          'type="prismatic">'), "balance_joint2"),
     "a non-positive inertia": ("urdf", 'ixx="0.16875"', 'ixx="-0.16875"', "mission_link2"),
     "an impossible inertia": ("urdf", 'ixx="0.16875" ixy="0" ixz="0" iyy="0.396875" iyz="0" izz="0.396875"',
                               'ixx="1.0" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"', "triangle"),
@@ -164,3 +166,18 @@ def test_a_folder_without_its_files_is_refused(tmp_path):
         load_scenario(scenario_with_robot(tmp_path, "no_collision"))
     with pytest.raises(InvalidInputError, match="custom task"):
         gym.make("FFSR-v2", task=str(tmp_path / "nothing_here.toml"))
+
+
+def test_the_walkthrough_in_docs_robots_md_runs_as_written(tmp_path, monkeypatch):
+    text = (Path(__file__).resolve().parents[1] / "docs" / "robots.md").read_text(encoding="utf-8")
+    blocks = [block.split("```")[0] for block in text.split("```python\n")[1:]]
+    monkeypatch.chdir(tmp_path)
+    Path("make_robot.py").write_text(textwrap.dedent(blocks[0]))  # step 1 of the page, as written
+    runpy.run_path("make_robot.py")
+    scenario = load_scenario("mine.toml")
+    assert load_robot(scenario.robot).total_mass == pytest.approx(318.0)  # as the page says
+    report = ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task="mine.toml", name="mine_constant")
+    assert report.metrics["success_rate"] == 1.0 and round(report.metrics["score_mean"], 2) == 0.72  # as the page says
+    kernel = ffsr_gym.simulate("mine.toml", backend="kernel")
+    reference = ffsr_gym.simulate("mine.toml", backend="pinocchio")
+    assert np.abs(kernel.q - reference.q).max() < 1e-9

@@ -1,4 +1,4 @@
-"""Closed-loop properties of the four planning methods (SPEC §6, paper Section 5)."""
+"""Closed-loop properties of the four planning methods (docs/model.md §8, paper Section 5)."""
 
 from __future__ import annotations
 

@@ -79,7 +79,7 @@ def test_phi_rejects_bad_parameters():
 
 
 def test_printed_form_misses_the_T_c_bound():
-    """Erratum (SPEC §3): the printed eq. (2) settles at m T_c ∫_0^r0 exp(-r^m) dr, unbounded in r0."""
+    """Erratum (docs/model.md §3): the printed eq. (2) settles at m T_c ∫_0^r0 exp(-r^m) dr, unbounded in r0."""
     m, r0 = 0.1, 100.0
     closed_form = m * T_C * quad(lambda r: math.exp(-(r**m)), 0.0, r0, limit=200)[0]
     assert closed_form > 2 * T_C  # 7.2 s > 3 s

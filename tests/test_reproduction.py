@@ -63,7 +63,7 @@ def test_direction_of_every_comparison(reproduction):
     _, data = reproduction
     claims = {c["claim"]: c["holds"] for c in data["claims"]}
     printed = [name for name in claims if "printed obstacle" in name]
-    assert len(printed) == 1 and claims.pop(printed[0]) is False  # SPEC §10.4: it cannot interact
+    assert len(printed) == 1 and claims.pop(printed[0]) is False  # docs/model.md §9: it cannot interact
     failing = [name for name, holds in claims.items() if not holds]
     assert not failing
     methods = data["methods"]

@@ -30,6 +30,7 @@ def test_smoke_training_writes_a_valid_entry(algo, env_id, tmp_path):
     assert entry["metrics"]["episodes"] == 2
     assert leaderboard.recompute(entry)["feasible_rate"] == entry["metrics"]["feasible_rate"]
     assert entry["extra"]["runs"][0]["timesteps"] == 256
+    assert entry["extra"]["method"].endswith(", 1 training seed")  # not "1 training seeds"
     assert (tmp_path / "runs" / f"{algo}_{env_id}_paper_seed0" / "model.zip").is_file()
     assert any((tmp_path / "runs").rglob("events.out.tfevents*"))  # TensorBoard log
 

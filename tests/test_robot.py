@@ -28,7 +28,7 @@ def test_initial_mission_ee_position_is_spec_p_e0(robot, q_paper):
 
 
 def _cylinder_inertia(mass: float, length: float, axis: int) -> np.ndarray:
-    r = 0.15  # SPEC §11
+    r = 0.15  # docs/model.md §2
     if length == 0.0:
         return np.eye(3) * 0.4 * mass * r * r
     diag = np.full(3, mass * (3 * r * r + length**2) / 12)
@@ -54,7 +54,7 @@ def test_urdf_link_inertias_follow_spec_table(robot, arm, masses, extra):
 
 
 def _momentum_closed_form(robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """SPEC §2.3 (SpaceDyn calc_hh) from per-link masses, CoMs and inertias, independent of Pinocchio's map."""
+    """docs/model.md §2 (SpaceDyn calc_hh) from per-link masses, CoMs and inertias, independent of Pinocchio's map."""
     model, data = robot.model, robot.model.createData()
     pin.forwardKinematics(model, data, q)
     r0, R0 = data.oMi[1].translation, data.oMi[1].rotation
@@ -173,7 +173,7 @@ def test_urdf_without_arm_joints_is_rejected(tmp_path):
 
 
 def test_spec_singular_values_at_the_paper_start(robot, q_paper):
-    """SPEC §10.2/§11 report these conditioning numbers for this geometry."""
+    """docs/model.md §2 report these conditioning numbers for this geometry."""
     robot.update_kinematics(q_paper)
     sv_Jm = np.linalg.svd(robot.arm_jacobian(0), compute_uv=False)
     sv_Hbm2 = np.linalg.svd(robot.momentum_matrices(q_paper).H_bm[1], compute_uv=False)

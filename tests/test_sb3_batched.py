@@ -10,14 +10,14 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-import torch  # noqa: E402
-from gymnasium.vector import AutoresetMode  # noqa: E402
-from stable_baselines3 import PPO  # noqa: E402
-from stable_baselines3.common.env_util import make_vec_env  # noqa: E402
+import torch
+from gymnasium.vector import AutoresetMode
+from stable_baselines3 import PPO
+from stable_baselines3.common.env_util import make_vec_env
 
-from ffsr_gym.exceptions import InvalidInputError  # noqa: E402
-from ffsr_gym.optim.rl import train, training_env  # noqa: E402
-from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv  # noqa: E402
+from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.optim.rl import train, training_env
+from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
 
 POOL = {"task": "easy", "split": "train"}
 

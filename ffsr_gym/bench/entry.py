@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -12,11 +11,11 @@ from typing import Any, Protocol, runtime_checkable
 import gymnasium as gym
 import numpy as np
 
+from ffsr_gym.bench.verify import ENTRY_NAME, entry_problems
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.provenance import write_json_atomic
 from ffsr_gym.scoring.aggregate import BOOTSTRAP_SAMPLES, BOOTSTRAP_SEED
 
-ENTRY_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,127}")
 V0_SCORE_RULE = "objective B if feasible else inf (null in JSON)"
 
 
@@ -78,8 +77,6 @@ class EvalReport:
                                     "'-', not starting with '.' (it becomes a file name in the entry's folder)")
         table = leaderboard_table(Path(directory))
         if table is not None:
-            from ffsr_gym.bench.verify import entry_problems
-
             spec, group = table
             problems = entry_problems(self.to_json(), spec, group)
             if problems:

@@ -79,24 +79,38 @@ def _check_protocol(spec: BenchmarkSpec, kwargs: dict[str, Any]) -> None:
 
 
 def check_compute(compute: Any) -> dict[str, Any]:
-    """``compute`` as an entry records it: env steps and wall time (and optionally the hardware) of training.
+    """``compute`` as an entry records it (the tables' compute column): what training or tuning the policy cost.
+
+    Keys: ``env_steps`` (environment steps, RL) and/or ``objective_evaluations`` (whole episodes
+    run by an optimiser), at least one, integers >= 0; ``wall_time_s`` (required, >= 0); optionally
+    ``hardware`` (text).
 
     Raises:
-        InvalidInputError: not a dict with exactly these keys and values in range (each named).
+        InvalidInputError: anything else, naming the key and what is allowed.
     """
-    required, optional = ("env_steps", "wall_time_s"), ("hardware",)
-    if not isinstance(compute, dict) or not set(required) <= set(compute) or not set(compute) <= {*required, *optional}:
-        raise InvalidInputError(f"compute = {compute!r}; allowed: a dict with keys 'env_steps' (integer >= 0) and "
-                                "'wall_time_s' (number >= 0), optionally 'hardware' (text)")
-    steps, seconds = compute["env_steps"], compute["wall_time_s"]
-    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 0:
-        raise InvalidInputError(f"compute['env_steps'] = {steps!r}; allowed: an integer >= 0 (env steps of training)")
+    counts, optional = ("env_steps", "objective_evaluations"), ("hardware",)
+    allowed = (*counts, "wall_time_s", *optional)
+    if (not isinstance(compute, dict) or "wall_time_s" not in compute or not any(k in compute for k in counts)
+            or not set(compute) <= set(allowed)):
+        raise InvalidInputError(f"compute = {compute!r}; allowed: a dict with 'wall_time_s' (number >= 0 [s]), "
+                                "'env_steps' and/or 'objective_evaluations' (integers >= 0), optionally 'hardware' "
+                                "(text)")
+    out: dict[str, Any] = {}
+    for key in counts:
+        if key in compute:
+            value = compute[key]
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+                raise InvalidInputError(f"compute[{key!r}] = {value!r}; allowed: an integer >= 0")
+            out[key] = int(value)
+    seconds = compute["wall_time_s"]
     if isinstance(seconds, bool) or not isinstance(seconds, (int, float, np.floating)) or not 0 <= seconds < np.inf:
         raise InvalidInputError(f"compute['wall_time_s'] = {seconds!r}; allowed: a finite number >= 0 [s]")
-    if "hardware" in compute and not isinstance(compute["hardware"], str):
-        raise InvalidInputError(f"compute['hardware'] = {compute['hardware']!r}; allowed: a text, e.g. '2 CPU cores'")
-    return {"env_steps": int(steps), "wall_time_s": float(seconds)} | (
-        {"hardware": compute["hardware"]} if "hardware" in compute else {})
+    out["wall_time_s"] = float(seconds)
+    if "hardware" in compute:
+        if not isinstance(compute["hardware"], str):
+            raise InvalidInputError(f"compute['hardware'] = {compute['hardware']!r}; allowed: a text, e.g. '2 CPU cores'")
+        out["hardware"] = compute["hardware"]
+    return out
 
 
 def _check_constant(policy: tuple, plan: Plan) -> None:
@@ -294,8 +308,9 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
         batched: a fixed (m, T_c) on a pool runs all tasks in one batched env in this process
             (None: whenever possible without an executor; the same entry, tested bit for bit).
         compute: what training or tuning the policy cost, for the leaderboard's compute column:
-            ``{"env_steps": int, "wall_time_s": float}`` (both required, >= 0), optionally
-            ``"hardware": str``. Recorded as the entry's ``extra.compute``.
+            ``{"env_steps": int, "wall_time_s": float}`` (or ``objective_evaluations`` for an
+            optimiser's episodes), optionally ``"hardware": str`` (:func:`check_compute`).
+            Recorded as the entry's ``extra.compute``.
 
     A task that is not a tier (a :class:`Scenario`, a scenario TOML path or a shipped scenario
     name, as ``task=`` or ``env_kwargs={"task": ...}``) is a custom task: one episode per seed of

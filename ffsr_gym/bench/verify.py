@@ -18,14 +18,17 @@ from __future__ import annotations
 
 import hashlib
 import math
+import re
 from collections import Counter
 from functools import lru_cache
 from typing import Any
 
-from ffsr_gym.bench.entry import ENTRY_NAME
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.splits import pool, pool_path
+
+#: An entry's name: it becomes a file name, and a table cell (no newline, no ``|``).
+ENTRY_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,127}")
 
 
 def entry_problems(entry: Any, spec: BenchmarkSpec, group: str) -> list[str]:

@@ -175,7 +175,7 @@ class FFSREnv(gym.Env):
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
             return None
         from ffsr_gym.environments.render import SceneRenderer
-        from ffsr_gym.report.episode_end import episode_end
+        from ffsr_gym.sim.episode_end import episode_end
 
         if self._renderer is None:
             self._renderer = SceneRenderer(interactive=self.render_mode == "human")

@@ -7,7 +7,7 @@ import numpy as np
 
 from ffsr_gym.model import quaternion as quat
 from ffsr_gym.model.scenario import Scenario
-from ffsr_gym.report.episode_end import EpisodeEnd
+from ffsr_gym.sim.episode_end import EpisodeEnd
 from ffsr_gym.sim.rollout import Rollout
 
 _CUBE_EDGES = [(a, b) for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1]

@@ -202,7 +202,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         if not self._started:
             raise InvalidInputError("call reset() before render()")
         from ffsr_gym.environments.render import SceneRenderer
-        from ffsr_gym.report.episode_end import episode_end
+        from ffsr_gym.sim.episode_end import episode_end
 
         if self._renderer is None:
             self._renderer = SceneRenderer()

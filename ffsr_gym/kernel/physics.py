@@ -150,7 +150,7 @@ def kinematics_into(mdl, x, ws):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def momentum_into(mdl, x, ws):
-    """H_b, H_bm (about the base CoM, world frame; SPEC §2.3) and the system CoM, into the workspace."""
+    """H_b, H_bm (about the base CoM, world frame; docs/model.md §2) and the system CoM, into the workspace."""
     mass, lever, inertia, subtree = mdl.mass, mdl.lever, mdl.inertia, mdl.subtree
     Rj, pj, z, H_b, H_bm, rg, r, Iw = ws.Rj, ws.pj, ws.z, ws.H_b, ws.H_bm, ws.rg, ws.r, ws.Iw
     M = mass[0]

@@ -354,7 +354,7 @@ def _mission_task_into(x, t, fp, ip, ws):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def plan(mdl, x, t, fp, ip, ws):
-    """Joint rates and diagnostics at (t, x): SPEC §7 steps 1-8 (fills the workspace at x).
+    """Joint rates and diagnostics at (t, x): docs/model.md §8 steps 1-8 (fills the workspace at x).
 
     Writes ``ws.dq`` (12, mission first), ``ws.e1``, ``ws.e0``, ``ws.mu``, ``ws.cdf``, ``ws.smin``.
     """

@@ -1,4 +1,4 @@
-"""Scalar-first unit quaternions ``[w, x, y, z]`` (the paper's convention, SPEC §1).
+"""Scalar-first unit quaternions ``[w, x, y, z]`` (the paper's convention, docs/model.md §1).
 
 Pinocchio stores the free-flyer attitude as ``(x, y, z, w)``; the two conversions below are the
 only place where the orders meet.

@@ -1,6 +1,6 @@
 """Pinocchio model of the dual-arm free-floating space robot and its momentum kinematics.
 
-Conventions (SPEC §1-2 and its implementation notes):
+Conventions (docs/model.md §1-2):
 
 * ``q`` (size 19) and ``v`` (size 18) are in Pinocchio order: free-flyer first (position [m],
   quaternion ``(x, y, z, w)``; linear and angular velocity [m/s, rad/s] in the **base frame**),
@@ -8,7 +8,7 @@ Conventions (SPEC §1-2 and its implementation notes):
 * ``dq_joints`` (size 12) are joint rates [rad/s] in the paper's order, mission arm first.
 * "World" twists ``V = [v; ω]`` are the paper's: linear part first, both in the inertial frame,
   ``v`` of the frame origin (for the base: its centre of mass).
-* Momentum matrices follow SPEC §2.3 (R5): ``H_b V_0 + H_bm1 dq1 + H_bm2 dq2 = C`` with
+* Momentum matrices follow docs/model.md §2 (R5): ``H_b V_0 + H_bm1 dq1 + H_bm2 dq2 = C`` with
   ``C = [P; L_0]`` and ``L_0`` the angular momentum about the base centre of mass.
 """
 
@@ -34,7 +34,7 @@ LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 @dataclass(frozen=True)
 class MomentumMatrices:
-    """World-frame momentum matrices about the base centre of mass (SPEC §2.3, R5).
+    """World-frame momentum matrices about the base centre of mass (docs/model.md §2, R5).
 
     Attributes:
         H_b: (6, 6) base inertia matrix, maps the world base twist V_0 to [P; L_0].
@@ -218,7 +218,7 @@ class Robot:
 
         ``V_e = J_g dq_joints`` with the base moving through momentum conservation:
         :math:`J_g = [J_m^1 \\;\\; 0] \\text{ or } [0 \\;\\; J_m^2] - J_0 H_b^{-1} [H_{bm1} \\;\\; H_{bm2}]`
-        (Umetani-Yoshida; SPEC §2.3). World-aligned, linear part first, at the end-effector.
+        (Umetani-Yoshida; docs/model.md §2). World-aligned, linear part first, at the end-effector.
         """
         self.update_kinematics(q)
         mats = self.momentum_matrices(q)

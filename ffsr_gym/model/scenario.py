@@ -155,7 +155,7 @@ class TargetNoise:
 
 @dataclass(frozen=True)
 class PlannerSettings:
-    """Planner parameters (SPEC §3-6). Symbols follow the paper; see docs/model.md."""
+    """Planner parameters (docs/model.md §3-8). Symbols follow the paper; see docs/model.md."""
 
     m: float = field(metadata=number(0.0, 1.0, lo_open=True, hi_open=True))
     T_c_s: float = field(metadata=number(0.0, 1000.0, lo_open=True))
@@ -176,7 +176,7 @@ class PlannerSettings:
 
 @dataclass(frozen=True)
 class ObjectiveSettings:
-    """The benchmark objective B (paper eqs. 21-22; SPEC §9) and the feasibility tolerances.
+    """The benchmark objective B (paper eqs. 21-22; docs/model.md §13) and the feasibility tolerances.
 
     Rates are compared in deg/s. ``rate_limit_scope``: ``"both_arms"`` (default) or the literal
     eq. (22) reading ``"balance_arm"``. ``keep_out_m``: a robot–obstacle clearance below it is a

@@ -1,4 +1,4 @@
-"""The paper's genetic algorithm over (m, T_c) (Section 4, eq. 23; SPEC §9), resumable and executor-agnostic.
+"""The paper's genetic algorithm over (m, T_c) (Section 4, eq. 23; docs/model.md §13), resumable and executor-agnostic.
 
 Binary encoding (16 bits per gene), roulette selection, single-point crossover with probability
 P_c, one-bit mutation with probability P_m per individual, elitism (the best individual survives).

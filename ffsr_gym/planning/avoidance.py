@@ -1,6 +1,6 @@
 """Cumulative danger field (CDF) of an arm at an obstacle point, its gradient and the blend μ.
 
-SPEC §5 (reconstructed eqs. R16-R18), after Lacevic & Rocco's kinetostatic danger field, static
+docs/model.md §6 (reconstructed eqs. R16-R18), after Lacevic & Rocco's kinetostatic danger field, static
 part only. The arm is the chain of segments p_i → p_{i+1} between consecutive joint origins (and the
 tool segment to the end-effector); zero-length segments are skipped. Each segment is
 parameterised as r(s) = A + s (B − A), s ∈ [0, 1]:

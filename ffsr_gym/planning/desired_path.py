@@ -1,4 +1,4 @@
-"""Desired end-effector trajectory: trapezoidal velocity profile (paper Fig. 3; SPEC §8).
+"""Desired end-effector trajectory: trapezoidal velocity profile (paper Fig. 3; docs/model.md §5).
 
 s(t) rises from 0 to 1 over the motion time t_f with constant acceleration for t_a, constant
 speed, then constant deceleration for t_a; it holds s = 1 afterwards. Position moves on the

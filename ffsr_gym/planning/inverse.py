@@ -1,4 +1,4 @@
-"""Singularity-robust inverse and the blend projector (SPEC §4, reconstructed eqs. R13-R15)."""
+"""Singularity-robust inverse and the blend projector (docs/model.md §7, reconstructed eqs. R13-R15)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The four planning methods of the paper's Section 5 behind one interface (SPEC §6-7).
+"""The four planning methods of the paper's Section 5 behind one interface (docs/model.md §8).
 
 At each step the planner maps the time and the state to the joint rates of both arms:
 
@@ -62,7 +62,7 @@ class PlanStep:
 
 
 def reference_targets(robot: Robot, scenario: Scenario, initial_q: Array) -> tuple[DesiredPath, tuple[Array, Array]]:
-    """The desired end-effector path and the base set-point of a scenario (SPEC §8; base set-point: its initial pose).
+    """The desired end-effector path and the base set-point of a scenario (docs/model.md §5; base set-point: its initial pose).
 
     Args:
         robot: the robot model.
@@ -163,7 +163,7 @@ class Planner:
         return mu, -s.cdf_xi * gradient, cdf, distance
 
     def __call__(self, t: float, q: Array) -> PlanStep:
-        """Joint rates at time ``t`` [s] and configuration ``q`` (SPEC §7 steps 1-8)."""
+        """Joint rates at time ``t`` [s] and configuration ``q`` (docs/model.md §8 steps 1-8)."""
         robot, s = self.robot, self.settings
         robot.update_kinematics(q)
         mats = robot.momentum_matrices(q)

@@ -1,4 +1,4 @@
-"""Pose errors of the end-effector and the base (SPEC §2.4, reconstructed eqs. R6-R7).
+"""Pose errors of the end-effector and the base (docs/model.md §4, reconstructed eqs. R6-R7).
 
 Quaternions are scalar-first. The attitude error has two variants, both verified against finite
 differences (``tests/test_pose_error.py``):

@@ -1,4 +1,4 @@
-"""Predefined-time stable functions (paper eqs. 2, 3, 9, 10; SPEC §3).
+"""Predefined-time stable functions (paper eqs. 2, 3, 9, 10; docs/model.md §3).
 
 The reference form (Sánchez-Torres et al. 2018) is
 
@@ -43,7 +43,7 @@ def _scaled_norm(x: Array) -> float:
 
 
 def phi(x: Array, T_c: float, m: float, *, form: str = "sanchez_torres") -> Array:
-    """Predefined-time function of a vector (or scalar) ``x`` (SPEC §3).
+    """Predefined-time function of a vector (or scalar) ``x`` (docs/model.md §3).
 
     Args:
         x: error vector, any shape; the norm is taken over all entries.

@@ -20,7 +20,7 @@ from ffsr_gym.sim.setup import prepare
 from ffsr_gym.sim.simulate import simulate
 from ffsr_gym.sim.trajectory import Trajectory
 
-# (label, scenario, method, m, T_c [s]) — the paper's settings (SPEC §12).
+# (label, scenario, method, m, T_c [s]) — the paper's settings (docs/model.md §9).
 COMPARISON = {method: ("paper", method, 0.1, 3.0) for method in METHODS}
 PARAMETER_STUDY = {
     "predefined_time m=0.1 T_c=2.19": ("paper", "predefined_time", 0.1, 2.19),
@@ -290,7 +290,7 @@ def render_markdown(result: dict[str, Any]) -> str:
     lines = [
         "# Reproduction of Yan & Liu, Section 5",
         "",
-        f"Scenario `paper` (obstacle relocated onto the swept path, SPEC §10.4), dt = {s['dt_s']} s, "
+        f"Scenario `paper` (obstacle relocated onto the swept path, docs/model.md §9), dt = {s['dt_s']} s, "
         f"duration {s['duration_s']} s, comparison at m = 0.1, T_c = 3 s. The robot is our reconstruction "
         "(the paper's masses and geometry are unpublished), so absolute numbers differ; the claims are "
         "qualitative.",

@@ -1,4 +1,4 @@
-"""The benchmark objective B and the feasibility of an episode (paper eqs. 21-22; SPEC §9).
+"""The benchmark objective B and the feasibility of an episode (paper eqs. 21-22; docs/model.md §13).
 
 .. math:: B = \\gamma\\Big(\\alpha \\int \\Psi(\\|\\dot\\Theta^1\\|, \\dot\\Theta_{danger})\\,dt
           + \\beta \\int \\Psi(\\|\\dot\\Theta^2\\|, \\dot\\Theta_{danger})\\,dt\\Big) + \\Theta_b,
