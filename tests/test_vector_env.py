@@ -192,6 +192,6 @@ def test_v2_vector_env_without_autoreset_holds_ended_copies():
             pass
         assert step[4]["score"] == held[i][2] and single.unwrapped.rollout.k == held[i][1]
     with pytest.raises(InvalidInputError, match="autoreset_mode"):
-        FFSRVectorEnv(2, "v2", task="hard", autoreset_mode="SameStep")
+        FFSRVectorEnv(2, "v2", task="hard", autoreset_mode="EveryStep")
     with pytest.raises(InvalidInputError, match="reset_mask"):
         venv.reset(options={"reset_mask": np.array([True, False])})
