@@ -139,8 +139,10 @@ def _check_leaderboard(root: str, readme: Path | None) -> int:
 def _leaderboard_plot(args: argparse.Namespace) -> None:
     from ffsr_gym.report.leaderboard_plots import plot_iqm, plot_learning_curves, plot_pareto, plot_profiles
 
-    for path in (plot_iqm(args.root), plot_profiles(args.root), plot_learning_curves(args.root)):
-        print("wrote" if path else "no entries of the ranked version under", path or args.root)
+    for what, path in (("entries of the ranked version", plot_iqm(args.root)),
+                       ("entries of the ranked version", plot_profiles(args.root)),
+                       ("learning curves (RL entries)", plot_learning_curves(args.root))):
+        print(f"wrote {path}" if path else f"no {what} under {args.root}: that figure is not drawn")
     pareto = plot_pareto(args.root)
     if pareto is None:
         print("no pareto.json yet: run ffsr-gym leaderboard pareto")

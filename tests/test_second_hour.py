@@ -235,3 +235,18 @@ def test_the_v2_table_lists_every_info_key_and_the_spaces(env_id):
     assert set(info) - first == documented["last step's `info`"] - failures
     assert env.observation_space.shape == (53,) and "| 52 | elapsed-time fraction" in text
     assert env.action_space.shape == ((12,) if "Residual" in env_id else (2,))
+
+
+def test_a_custom_entry_replays_from_what_it_stores(tmp_path):
+    from ffsr_gym.bench.replay import replay_entry
+
+    mine = tmp_path / "mine.toml"
+    mine.write_text(scenario_path("free_space").read_text().replace('name = "free_space"', 'name = "mine"'))
+    path = ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task=str(mine), seeds=[0, 1], name="mine").save(tmp_path / "custom")
+    mine.unlink()  # the entry alone is enough
+    assert replay_entry(path) == (True, "all 2 rows reproduce exactly")
+    entry = json.loads(path.read_text())
+    entry["extra"]["custom_task"]["scenario"]["target"]["position_m"][0] += 0.01
+    path.write_text(json.dumps(entry))
+    with pytest.raises(InvalidInputError, match="hash differs"):
+        replay_entry(path)

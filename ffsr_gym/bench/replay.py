@@ -38,7 +38,11 @@ def replay_entry(path: str | Path, *, trust: bool = False) -> tuple[bool, str]:
                                   T_c=planner["T_c_s"], gain_per_s=planner["gain_per_s"], version=spec.version)
     elif isinstance(extra.get("policy"), dict) and len(extra.get("training_seeds") or []) <= 1:
         policy = _policy(extra["policy"], trust)
-        if spec.evaluation.protocol == "pool":
+        if "custom_task" in extra:
+            report = evaluate(policy, entry["env_id"], task=_custom_scenario(extra["custom_task"], path),
+                              seeds=entry["protocol"]["seeds"],
+                              env_kwargs={k: v for k, v in kwargs.items() if k != spec.tasks.keyword})
+        elif spec.evaluation.protocol == "pool":
             task, split = kwargs.pop(spec.tasks.keyword), kwargs.pop("split")
             report = evaluate(policy, entry["env_id"], task=task, split=split, env_kwargs=kwargs,
                               indices=[row["task_index"] for row in entry["episodes"]])
@@ -48,6 +52,26 @@ def replay_entry(path: str | Path, *, trust: bool = False) -> tuple[bool, str]:
         return False, ("nothing to re-run: the entry names no planner, fixed parameters, callable or model "
                        "(an RL study's entry is re-run by its training command)")
     return _compare(entry["episodes"], report.to_json()["episodes"])
+
+
+def _custom_scenario(record: Any, path: Path) -> Any:
+    """The scenario a custom-task entry stores, checked against the hash it was scored with.
+
+    Raises:
+        InvalidInputError: a malformed record, a robot folder missing on this machine, or a hash that
+            differs (the robot's files changed since).
+    """
+    from ffsr_gym.exceptions import RobotFileError, ScenarioError
+    from ffsr_gym.model.scenario import scenario_from_dict
+
+    try:
+        scenario = scenario_from_dict(record["scenario"], source=f"{path} extra.custom_task.scenario")
+    except (KeyError, TypeError, ScenarioError, RobotFileError) as exc:
+        raise InvalidInputError(f"{path}: its custom task cannot be rebuilt here ({exc})") from None
+    if scenario.sha256() != record.get("scenario_sha256"):
+        raise InvalidInputError(f"{path}: the custom task's hash differs from the one scored ({scenario.sha256()[:12]} vs "
+                                f"{str(record.get('scenario_sha256'))[:12]}): the stored scenario or its robot's files changed")
+    return scenario
 
 
 def _policy(record: dict[str, Any], trust: bool) -> Any:

@@ -384,6 +384,17 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     return _from_dict(data, source=str(path))
 
 
+def scenario_from_dict(data: Any, source: str = "") -> Scenario:
+    """A scenario from plain data in the TOML layout (:func:`to_dict`'s output, e.g. one stored in an entry).
+
+    Raises:
+        ScenarioError: not a table, or any invalid key (named); RobotFileError: its robot is missing.
+    """
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{source or 'scenario'}: not a table of scenario keys ({type(data).__name__})")
+    return _from_dict(copy.deepcopy(data), source=source)
+
+
 def _from_dict(data: dict[str, Any], *, source: str) -> Scenario:
     where = f"{source}: " if source else ""
     try:
