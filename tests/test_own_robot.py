@@ -150,10 +150,12 @@ def test_a_broken_robot_is_refused_naming_the_file_and_the_element(tmp_path, cas
     text = path.read_text()
     assert old in text, case
     path.write_text(text.replace(old, new, 1))
-    scenario = load_scenario(scenario_with_robot(tmp_path, "bad"))
-    with pytest.raises(RobotFileError) as error:
-        robot_assets(scenario.robot)
+    with pytest.raises(RobotFileError) as error:  # on load: the scenario names a broken robot
+        load_scenario(scenario_with_robot(tmp_path, "bad"))
+    assert "mine.toml: key 'robot'" in str(error.value), str(error.value)
     assert path.name in str(error.value) and named in str(error.value), str(error.value)
+    with pytest.raises(RobotFileError, match=named):  # and wherever it is used
+        robot_assets(str(folder))
 
 
 def test_a_folder_without_its_files_is_refused(tmp_path):

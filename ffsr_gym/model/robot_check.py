@@ -16,7 +16,7 @@ import numpy as np
 import pinocchio as pin
 
 from ffsr_gym.exceptions import RobotFileError
-from ffsr_gym.model.robot import ARMS, JOINTS_PER_ARM, Robot
+from ffsr_gym.model.robot import ARMS, JOINTS_PER_ARM, Robot, load_robot
 
 #: Joint types the closed loop integrates: revolute about any fixed axis.
 REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
@@ -64,6 +64,19 @@ def check_robot(robot: Robot) -> None:
                              "its frame; allowed: [0, 0, 0] (the base frame is the base's centre of mass)")
     for joint_id in [1, *(int(j) for j in robot.joint_ids.ravel())]:
         _check_inertia(where, link_of_joint(robot, joint_id), model.inertias[joint_id])
+
+
+def check_robot_folder(ref: str) -> None:
+    """Load the robot ``ref`` (a shipped name or a folder) and check its URDF and its collision file.
+
+    Raises:
+        RobotFileError: what :func:`check_robot` or the collision file's reader finds, file and element named.
+    """
+    from ffsr_gym.model.collision import CollisionModel
+
+    robot = load_robot(ref)
+    check_robot(robot)
+    CollisionModel(robot)
 
 
 def _check_inertia(where: Path, link: str, inertia: pin.Inertia) -> None:

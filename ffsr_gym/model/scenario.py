@@ -454,6 +454,10 @@ def _check_cross_fields(s: Scenario, where: str) -> None:
         raise ScenarioError(f"{where}section 'randomization' needs an 'obstacle' section (its radii are used)")
     try:
         robot_dir(s.robot)
+        if not is_shipped_robot(s.robot):  # a robot of one's own is checked as it loads (the shipped one by its tests)
+            from ffsr_gym.model.robot_check import check_robot_folder
+
+            check_robot_folder(s.robot)
     except RobotFileError as exc:
         raise RobotFileError(f"{where}key 'robot': {exc}") from None
 
