@@ -214,9 +214,12 @@ def _compute(text: str | None) -> dict | None:
 
     parts = text.split(",")
     try:
-        return check_compute({"env_steps": int(parts[0]), "wall_time_s": float(parts[1])} if len(parts) == 2 else None)
+        if len(parts) != 2:
+            raise ValueError(text)
+        steps, seconds = int(parts[0]), float(parts[1])
     except ValueError:
         raise InvalidInputError(f"--compute {text!r}; allowed: ENV_STEPS,WALL_TIME_S, e.g. 1000000,5400") from None
+    return check_compute({"env_steps": steps, "wall_time_s": seconds})
 
 
 def _evaluate(args: argparse.Namespace) -> None:
@@ -489,8 +492,8 @@ def build_parser() -> argparse.ArgumentParser:
     from ffsr_gym import __version__
 
     parser = _Parser(prog="ffsr-gym", description=DESCRIPTION.format(ids=", ".join(registered_ids())),
-                                     epilog="Each command has its own --help. Documentation: README.md, docs/envs.md, "
-                                            "docs/model.md, docs/robots.md, leaderboards/README.md.")
+                     epilog="Each command has its own --help. Documentation: README.md, docs/envs.md, docs/model.md, "
+                            "docs/robots.md, leaderboards/README.md.")
     parser.add_argument("--version", action="version", version=f"ffsr-gym {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for add in (_add_model_commands, _add_study_commands, _add_board_commands):

@@ -118,10 +118,11 @@ def test_the_hash_follows_the_robot_files_not_their_place(own, tmp_path):
     assert robot_assets(edited.robot).robot.total_mass == pytest.approx(load_robot().total_mass - 60.0)
 
 
-def test_a_urdf_path_names_the_same_robot(own):
-    root, _folder, scenario = own
-    by_file = load_scenario(scenario_with_robot(root / "my_robot", "my_robot.urdf"))
+def test_a_urdf_path_names_the_same_robot(own, tmp_path):
+    _, folder, scenario = own
+    by_file = load_scenario(scenario_with_robot(tmp_path, str(folder / "my_robot.urdf")))
     assert load_robot(by_file.robot).total_mass == load_robot(scenario.robot).total_mass
+    assert by_file.sha256() == scenario.sha256()  # one robot, one hash, however the scenario names it
 
 
 BROKEN = {

@@ -298,7 +298,7 @@ class Scenario:
         if cached is None:
             data = to_dict(self)
             if not is_shipped_robot(self.robot):  # a robot folder: its name and files, wherever it lies
-                data["robot"] = Path(self.robot).name
+                data["robot"] = robot_dir(self.robot).name
             digest = hashlib.sha256(json.dumps(data, sort_keys=True).encode())
             for path in sorted(robot_dir(self.robot).iterdir()):
                 if path.is_file():
