@@ -31,6 +31,7 @@ from ffsr_gym.kernel import decision
 from ffsr_gym.kernel import planner as kp
 from ffsr_gym.model import portable
 from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.planning import ptsf
 from ffsr_gym.sim.compiled import LOG_FIELDS, KernelRollout, new_log
 from ffsr_gym.sim.rollout import BACKENDS, STATUS, Rollout
 from ffsr_gym.sim.simulate import kernel_available, make_rollout
@@ -244,8 +245,7 @@ class EpisodeEngine:
         """
         mode = decision.MODE_RESIDUAL if self.residual else decision.MODE_PARAMETERS
         if parameters is not None:
-            for i in np.flatnonzero(active):
-                self._set_parameters(i, parameters)
+            self._set_parameters_of(active, parameters)
             mode = decision.MODE_SET
         out, start = self.out, self.K.copy()
         out[~active, :5] = 0.0  # no steps, no cost; clearance and EE error of the reset (or held) state stay
@@ -310,6 +310,14 @@ class EpisodeEngine:
         rollout = self.rollouts[i]
         rollout.set_parameters(*parameters)
         self.FP[i, kp.F_M], self.FP[i, kp.F_TC] = rollout.fp[kp.F_M], rollout.fp[kp.F_TC]
+
+    def _set_parameters_of(self, active: np.ndarray, parameters: tuple[float, float]) -> None:
+        """:meth:`_set_parameters` for every ``active`` copy at once (checked once per predefined-time form; the
+        copies' rollouts read them from ``FP`` when next asked for, :meth:`rollout`)."""
+        m, T_c = float(parameters[0]), float(parameters[1])
+        for form in {self.scenarios[i].planner.phi_form for i in np.flatnonzero(active)}:
+            ptsf.check_parameters(T_c, m, form)
+        self.FP[active, kp.F_M], self.FP[active, kp.F_TC] = m, T_c
 
     def end_copy(self, i: int) -> Any:
         """Record copy ``i``'s final sample and score its whole trajectory with the rule."""
