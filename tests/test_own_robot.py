@@ -179,8 +179,16 @@ def test_the_walkthrough_in_docs_robots_md_runs_as_written(tmp_path, monkeypatch
     runpy.run_path("make_robot.py")
     scenario = load_scenario("mine.toml")
     assert load_robot(scenario.robot).total_mass == pytest.approx(318.0)  # as the page says
+    assert load_robot().total_mass == pytest.approx(368.0)  # "50 kg less than the shipped 368 kg"
     report = ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task="mine.toml", name="mine_constant")
     assert report.metrics["success_rate"] == 1.0 and round(report.metrics["score_mean"], 2) == 0.72  # as the page says
     kernel = ffsr_gym.simulate("mine.toml", backend="kernel")
     reference = ffsr_gym.simulate("mine.toml", backend="pinocchio")
     assert np.abs(kernel.q - reference.q).max() < 1e-9
+
+
+def test_the_page_says_why_a_shorter_arm_misses(own):
+    """docs/robots.md: with a 0.45 m upper link the free_space target is out of reach, 27 mm short."""
+    root, _, _ = own
+    row = ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task=str(root / "mine.toml")).episodes[0]
+    assert row["failure"] == "final_error" and round(1000 * row["final_ee_position_error_m"]) == 27
