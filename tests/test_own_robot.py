@@ -111,11 +111,13 @@ def test_the_hash_follows_the_robot_files_not_their_place(own, tmp_path):
     moved = tmp_path / "elsewhere"
     shutil.copytree(root, moved)
     assert load_scenario(moved / "mine.toml").sha256() == scenario.sha256()
+    assert prepare(load_scenario(moved / "mine.toml")).robot.total_mass == pytest.approx(318.0)  # cached now
     (moved / "my_robot" / "my_robot.urdf").write_text((folder / "my_robot.urdf").read_text().replace(
         'value="150.0"', 'value="140.0"'))
     edited = load_scenario(moved / "mine.toml")
     assert edited.sha256() != scenario.sha256()
     assert robot_assets(edited.robot).robot.total_mass == pytest.approx(load_robot().total_mass - 60.0)
+    assert prepare(edited).robot.total_mass == pytest.approx(308.0)  # not the stale 318 kg setup
 
 
 def test_a_urdf_path_names_the_same_robot(own, tmp_path):

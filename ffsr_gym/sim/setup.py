@@ -16,7 +16,7 @@ import numpy as np
 from ffsr_gym.kernel.arrays import KernelModel, ModelArrays, extract
 from ffsr_gym.model.collision import CollisionModel
 from ffsr_gym.model.obstacles import ObstacleField, obstacle_field
-from ffsr_gym.model.resources import robot_files
+from ffsr_gym.model.resources import is_shipped_robot, robot_dir, robot_files
 from ffsr_gym.model.robot import Robot, files_stamp, load_robot
 from ffsr_gym.model.robot_check import check_robot
 from ffsr_gym.model.scenario import Scenario
@@ -111,9 +111,15 @@ class ScenarioSetup:
         return self.assets.robot
 
 
-@lru_cache(maxsize=64)
 def prepare(scenario: Scenario) -> ScenarioSetup:
-    """The :class:`ScenarioSetup` of a scenario (cached per process; scenarios are frozen)."""
+    """The :class:`ScenarioSetup` of a scenario (cached per process; scenarios are frozen, and a robot folder of
+    one's own is keyed by its files' version too, so an edited robot is never simulated from a stale cache)."""
+    stamp = () if is_shipped_robot(scenario.robot) else files_stamp(robot_dir(scenario.robot))
+    return _prepare(scenario, stamp)
+
+
+@lru_cache(maxsize=64)
+def _prepare(scenario: Scenario, stamp: tuple) -> ScenarioSetup:
     assets = robot_assets(scenario.robot)
     q0 = initial_configuration(assets.robot, scenario)
     q0.flags.writeable = False  # shared by every rollout of this scenario
