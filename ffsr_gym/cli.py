@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -517,6 +518,9 @@ def main(argv: list[str] | None = None) -> int:
     except FFSRError as exc:
         print(f"ffsr-gym: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # the reader went away (``ffsr-gym info | head``): stop quietly, as other tools do
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     return int(code or 0)
 
 
