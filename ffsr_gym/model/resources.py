@@ -7,12 +7,14 @@ the repository's folder is used instead.
 
 from __future__ import annotations
 
+from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 
 from ffsr_gym.exceptions import RobotFileError, ScenarioError
 
 
+@lru_cache(maxsize=1)
 def envs_dir() -> Path:
     """Return the folder holding ``robots/`` and ``scenarios/``.
 
@@ -29,12 +31,18 @@ def envs_dir() -> Path:
 
 def robot_names() -> list[str]:
     """The names of the shipped robots (folders in ``envs/robots``)."""
-    return sorted(p.name for p in (envs_dir() / "robots").iterdir() if p.is_dir())
+    return list(_shipped_robots())
+
+
+@lru_cache(maxsize=1)
+def _shipped_robots() -> tuple[str, ...]:
+    """The shipped robots, listed once per process (the package's files do not change under it)."""
+    return tuple(sorted(p.name for p in (envs_dir() / "robots").iterdir() if p.is_dir()))
 
 
 def is_shipped_robot(ref: str) -> bool:
     """Whether ``ref`` names a shipped robot (else it is a path to a robot of one's own)."""
-    return isinstance(ref, str) and ref in robot_names()
+    return isinstance(ref, str) and ref in _shipped_robots()
 
 
 def robot_files(ref: str) -> tuple[Path, Path]:
