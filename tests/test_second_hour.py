@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import ffsr_gym
-from ffsr_gym.bench.entry import leaderboard_table
+from ffsr_gym.bench.leaderboard import leaderboard_table
 from ffsr_gym.cli import build_parser, main
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.benchmark import load_benchmark

@@ -75,6 +75,8 @@ class EvalReport:
         if not isinstance(self.name, str) or not ENTRY_NAME.fullmatch(self.name):
             raise InvalidInputError(f"entry name {self.name!r}; allowed: 1-128 characters of letters, digits, '.', '_', "
                                     "'-', not starting with '.' (it becomes a file name in the entry's folder)")
+        from ffsr_gym.bench.leaderboard import leaderboard_table
+
         table = leaderboard_table(Path(directory))
         if table is not None:
             spec, group = table
@@ -86,24 +88,6 @@ class EvalReport:
         path = Path(directory) / f"{self.name}.json"
         write_json_atomic(path, self.to_json())
         return path
-
-
-def leaderboard_table(directory: Path) -> tuple[Any, str] | None:
-    """(spec, table) when ``directory`` is a leaderboard table folder by its path, else None.
-
-    A table of a version with tiers is a folder ``<version>/<tier>``; one of a version scored on
-    seeds is a folder named after one of its env ids.
-    """
-    from ffsr_gym.model.spec import all_specs
-
-    folder = Path(directory).absolute()
-    for spec in all_specs().values():
-        if "{task}" in spec.leaderboard.folder:
-            if folder.name in spec.tasks.tiers and folder.parent.name == spec.version:
-                return spec, folder.name
-        elif folder.name in spec.env_ids:
-            return spec, folder.name
-    return None
 
 
 def stepper(policy: Policy, env: gym.Env) -> Callable[[np.ndarray], tuple]:

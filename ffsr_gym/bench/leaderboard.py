@@ -40,6 +40,18 @@ def folder_of(spec: BenchmarkSpec, root: str | Path, group: str) -> Path:
     return Path(root) / spec.folder(group, "")
 
 
+def leaderboard_table(directory: str | Path) -> tuple[BenchmarkSpec, str] | None:
+    """(spec, table) when ``directory`` is a leaderboard table folder by its path (it ends in the folder
+    :func:`folder_of` gives that table under any root), else None."""
+    parts = Path(directory).absolute().parts
+    for spec in all_specs().values():
+        for group in groups(spec):
+            tail = folder_of(spec, "", group).parts
+            if parts[-len(tail):] == tail:
+                return spec, group
+    return None
+
+
 def load_entries(root: str | Path, spec: BenchmarkSpec) -> dict[str, list[dict[str, Any]]]:
     """A version's entries by table (env id or tier), each sorted by file name; missing folders are empty.
 
