@@ -10,13 +10,15 @@ rotational inertia (positive definite, triangle inequality), and the collision f
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
 from ffsr_gym.exceptions import RobotFileError
-from ffsr_gym.model.robot import ARMS, JOINTS_PER_ARM, Robot, load_robot
+from ffsr_gym.model.resources import robot_files
+from ffsr_gym.model.robot import ARMS, JOINTS_PER_ARM, Robot, files_stamp, load_robot
 
 #: Joint types the closed loop integrates: revolute about any fixed axis.
 REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
@@ -69,12 +71,21 @@ def check_robot(robot: Robot) -> None:
 def check_robot_folder(ref: str) -> None:
     """Load the robot ``ref`` (a shipped name or a folder) and check its URDF and its collision file.
 
+    Done once per robot and version of its files (a scenario naming it may load many times, e.g. a
+    seeded family at every reset); a robot that fails is checked again, and fails again, each time.
+
     Raises:
         RobotFileError: what :func:`check_robot` or the collision file's reader finds, file and element named.
     """
+    urdf = robot_files(ref)[0]
+    _check_folder(str(urdf), files_stamp(urdf.parent))
+
+
+@lru_cache(maxsize=8)
+def _check_folder(urdf: str, stamp: tuple) -> None:
     from ffsr_gym.model.collision import CollisionModel
 
-    robot = load_robot(ref)
+    robot = load_robot(urdf)
     check_robot(robot)
     CollisionModel(robot)
 

@@ -296,11 +296,11 @@ class Scenario:
         """
         cached = self.__dict__.get("_sha256")
         if cached is None:
-            data = to_dict(self)
+            data, folder = to_dict(self), robot_dir(self.robot)
             if not is_shipped_robot(self.robot):  # a robot folder: its name and files, wherever it lies
-                data["robot"] = robot_dir(self.robot).name
+                data["robot"] = folder.name
             digest = hashlib.sha256(json.dumps(data, sort_keys=True).encode())
-            for path in sorted(robot_dir(self.robot).iterdir()):
+            for path in sorted(folder.iterdir()):
                 if path.is_file():
                     digest.update(path.name.encode())
                     digest.update(path.read_bytes())

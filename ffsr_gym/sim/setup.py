@@ -18,7 +18,7 @@ from ffsr_gym.model.collision import CollisionModel
 from ffsr_gym.model.obstacles import ObstacleField, obstacle_field
 from ffsr_gym.model.resources import is_shipped_robot, robot_dir, robot_files
 from ffsr_gym.model.robot import Robot, files_stamp, load_robot
-from ffsr_gym.model.robot_check import check_robot
+from ffsr_gym.model.robot_check import check_robot_folder
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning.desired_path import DesiredPath
 from ffsr_gym.planning.planner import reference_targets
@@ -36,8 +36,8 @@ class RobotAssets:
 
     def __init__(self, name: str) -> None:
         self.name = name
+        check_robot_folder(name)
         self.robot: Robot = load_robot(name)
-        check_robot(self.robot)
         self.collision = CollisionModel(self.robot)
 
     @cached_property
