@@ -118,7 +118,8 @@ def test_smallest_singular_value_matches_lapack(condition):
 
 
 def test_smallest_singular_value_declines_what_it_cannot_certify():
-    """-1 (the caller then uses the Jacobi SVD) for a singular matrix and a six-fold σ_min."""
+    """-1 (the caller then uses the Jacobi SVD) for a singular matrix; a six-fold σ_min is found (the
+    Laguerre step is exact for a root of multiplicity 6)."""
     G, tri = np.empty((6, 6)), np.empty((2, 6))
     rng = np.random.default_rng(3)
     A = rng.normal(size=(6, 6))
@@ -128,14 +129,14 @@ def test_smallest_singular_value_declines_what_it_cannot_certify():
     svd_into(A, np.empty((6, 6)), s, np.empty((6, 6)), False)
     assert s.min() < 1e-14 * s.max()
     Q, _ = np.linalg.qr(rng.normal(size=(6, 6)))
-    assert smallest_singular_value(3.0 * Q, G, tri) == -1.0  # Newton crawls towards a root of multiplicity 6
+    assert smallest_singular_value(3.0 * Q, G, tri) == pytest.approx(3.0, rel=1e-11)
 
 
 def test_paired_smallest_singular_values_equal_two_calls():
     """The interleaved pair (the planner's two arms) gives each matrix's own result bit for bit, also
     when one declines (-1) or needs more Newton steps than the other."""
     rng = np.random.default_rng(11)
-    G, tri, tri_b = np.empty((6, 6)), np.empty((2, 6)), np.empty((2, 6))
+    G, G_b, tri, tri_b = np.empty((6, 6)), np.empty((6, 6)), np.empty((2, 6)), np.empty((2, 6))
     singular = rng.normal(size=(6, 6))
     singular[:, 5] = singular[:, 0] - 2.0 * singular[:, 3]
     Q, _ = np.linalg.qr(rng.normal(size=(6, 6)))
@@ -143,7 +144,7 @@ def test_paired_smallest_singular_values_equal_two_calls():
     seen = set()
     for i, A in enumerate(matrices):
         B = matrices[(7 * i + 3) % len(matrices)]
-        pair = smallest_singular_values(A, B, G, tri, tri_b)
+        pair = smallest_singular_values(A, B, G, G_b, tri, tri_b)
         single = (smallest_singular_value(A, G, tri), smallest_singular_value(B, G, tri))
         assert pair == single, i
         seen.update(value == -1.0 for value in single)

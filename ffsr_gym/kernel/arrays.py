@@ -38,7 +38,9 @@ class KernelModel:
         q_index, v_index: (12,) Pinocchio ``q`` / ``v`` index of each kernel joint.
         axis_code: (12,) 0, 1, 2 for a joint about the frame's x, y, z axis (a cheaper rotation in
             the kernel), -1 for any other axis.
-        subtree: (12, 12) ``subtree[k, i]``: body i moves with joint k (i is k or a descendant).
+
+    Joints are in tree order within each arm: a parent has a smaller index than its children and
+    lies on the same arm (joints 0-5 mission, 6-11 balance), as the kernel's passes assume.
     """
 
     parent: np.ndarray
@@ -61,7 +63,6 @@ class KernelModel:
     q_index: np.ndarray
     v_index: np.ndarray
     axis_code: np.ndarray
-    subtree: np.ndarray
 
     def arrays(self) -> ModelArrays:
         """The arrays as the kernel takes them: a :data:`ModelArrays` named tuple (same names, same order)."""
@@ -96,6 +97,10 @@ def extract(robot: Robot, collision: CollisionModel) -> KernelModel:
         else:
             raise RobotFileError(f"joint {model.names[pin_id]!r} of type {name} is not supported by the kernel")
         parent.append(kernel_of.get(int(model.parents[pin_id]), -1))
+        k = len(parent) - 1
+        if parent[k] >= k or (parent[k] >= 0 and parent[k] // 6 != k // 6):
+            raise RobotFileError(f"joint {model.names[pin_id]!r}: the kernel needs each arm's joints in chain order "
+                                 f"from its base (joint {k} has parent {parent[k]})")
         R.append(model.jointPlacements[pin_id].rotation)
         p.append(model.jointPlacements[pin_id].translation)
     bodies = [1, *pin_ids]
@@ -122,19 +127,7 @@ def extract(robot: Robot, collision: CollisionModel) -> KernelModel:
         box_half=np.array(collision._parts[0].shape.halfSide),
         q_index=robot.joint_q_index.astype(np.int64), v_index=robot.joint_v_index.astype(np.int64),
         axis_code=np.array([_axis_code(a) for a in axis], dtype=np.int64),
-        subtree=_subtree(parent),
     )
-
-
-def _subtree(parent: list[int]) -> np.ndarray:
-    """``out[k, i]`` is True when joint k is body i's own joint or one of its ancestors."""
-    out = np.zeros((len(parent), len(parent)), dtype=np.bool_)
-    for i in range(len(parent)):
-        k = i
-        while k >= 0:
-            out[k, i] = True
-            k = parent[k]
-    return out
 
 
 def _axis_code(axis: tuple[float, ...]) -> int:

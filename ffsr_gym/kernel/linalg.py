@@ -26,7 +26,8 @@ def solve_into(A, b, M, x):
     """Solve A x = b (6 x 6) by Gaussian elimination with partial pivoting.
 
     ``M`` (6, 6) is scratch; ``x`` (6,) receives the solution. ``A`` and ``b`` are not modified.
-    The size is a constant, so the compiler unrolls the loops.
+    The size is a constant, so the compiler unrolls the loops; each pivot is inverted once and
+    its reciprocal kept on the diagonal of ``M`` for the back substitution.
     """
     n = 6
     for r in range(n):
@@ -40,20 +41,21 @@ def solve_into(A, b, M, x):
             if abs(M[r, c]) > best:
                 best, piv = abs(M[r, c]), r
         if piv != c:
-            for j in range(n):
+            for j in range(c, n):
                 M[c, j], M[piv, j] = M[piv, j], M[c, j]
             x[c], x[piv] = x[piv], x[c]
+        inv = 1.0 / M[c, c]
+        M[c, c] = inv
         for r in range(c + 1, n):
-            f = M[r, c] / M[c, c]
-            if f != 0.0:
-                for j in range(c, n):
-                    M[r, j] -= f * M[c, j]
-                x[r] -= f * x[c]
+            f = M[r, c] * inv
+            for j in range(c + 1, n):
+                M[r, j] -= f * M[c, j]
+            x[r] -= f * x[c]
     for c in range(n - 1, -1, -1):
         s = x[c]
         for j in range(c + 1, n):
             s -= M[c, j] * x[j]
-        x[c] = s / M[c, c]
+        x[c] = s * M[c, c]
 
 
 @njit(cache=True, error_model="numpy")
@@ -71,6 +73,16 @@ def solve3(A, b0, b1, b2):
     c22 = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
     return ((c00 * b0 + c10 * b1 + c20 * b2) / det, (c01 * b0 + c11 * b1 + c21 * b2) / det,
             (c02 * b0 + c12 * b1 + c22 * b2) / det)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def solve_sym3(a00, a01, a02, a11, a12, a22, b0, b1, b2):
+    """Solution of the symmetric 3x3 system A x = b by cofactors (A well conditioned): a 3-tuple."""
+    c00, c01, c02 = a11 * a22 - a12 * a12, a02 * a12 - a01 * a22, a01 * a12 - a02 * a11
+    c11, c12, c22 = a00 * a22 - a02 * a02, a01 * a02 - a00 * a12, a00 * a11 - a01 * a01
+    inv = 1.0 / (a00 * c00 + a01 * c01 + a02 * c02)
+    return ((c00 * b0 + c01 * b1 + c02 * b2) * inv, (c01 * b0 + c11 * b1 + c12 * b2) * inv,
+            (c02 * b0 + c12 * b1 + c22 * b2) * inv)
 
 
 def _round_robin(n: int) -> tuple:
@@ -141,91 +153,142 @@ def svd_into(A, Ut, s, Vt, vectors=True):
 def smallest_singular_value(A, G, tri):
     """σ_min of a 6x6 matrix from the smallest eigenvalue of G = AᵀA, or -1 when that is not reliable.
 
-    G is reduced to tridiagonal form by Householder reflections, and Newton's method on the
-    characteristic polynomial (evaluated through the LDLᵀ pivots of T − λI) climbs from λ = 0 to
-    the smallest eigenvalue: for a polynomial with real roots it approaches the smallest root
-    monotonically from below, and every pivot stays positive on the way. Squaring the matrix
-    costs accuracy for small σ: the error is about 1e-16 σ_max² / σ_min, so callers use the result
-    only when σ_min is not far below σ_max (``kernel.planner`` asks for σ_min ≥ 1e-3 ‖A‖_F) and
-    fall back to :func:`svd_into` otherwise. Returns -1 when a pivot vanishes at λ = 0 (A
-    singular to working precision) or Newton does not settle. ``G`` (6, 6) and ``tri`` (2, 6;
-    diagonal, off-diagonal) are scratch; ``A`` is not modified. About 3x cheaper than the
-    values-only Jacobi SVD.
+    G is reduced to tridiagonal form T by Householder reflections. From λ = 0 one Laguerre step
+    and then Newton steps on the characteristic polynomial det(T − λI) (evaluated through the
+    LDLᵀ pivots of T − λI) climb to the smallest eigenvalue: for a polynomial with real roots both
+    approach the smallest root monotonically from below, and every pivot stays positive on the
+    way. The Laguerre step (cubic order, exact for a root of multiplicity 6) usually lands within
+    a few per cent, so two or three Newton steps finish. Squaring the matrix costs accuracy for
+    small σ: the error is about 1e-16 σ_max² / σ_min, so callers use the result only when σ_min
+    is not far below σ_max (``kernel.planner`` asks for σ_min ≥ 1e-3 ‖A‖_F) and fall back to
+    :func:`svd_into` otherwise. Returns -1 when a pivot vanishes at λ = 0 (A singular to working
+    precision) or Newton does not settle. ``G`` (6, 6) and ``tri`` (2, 6; diagonal,
+    off-diagonal) are scratch; ``A`` is not modified.
     """
-    _tridiagonal_into(A, G, tri)
-    d, e = tri[0], tri[1]
-    lam, done, result = 0.0, False, -1.0
+    _gram_into(A, G)
+    for k in range(4):
+        _householder_step(G, tri[0], tri[1], k)
+    _tridiagonal_tail(G, tri)
+    lam, done, result = _laguerre_from_zero(tri[0], tri[1])
     for _ in range(100):
-        lam, done, result = _newton_step(d, e, lam)
         if done:
             return result
+        lam, done, result = _newton_step(tri[0], tri[1], lam)
     return -1.0
 
 
 @njit(cache=True, error_model="numpy")
-def smallest_singular_values(A, B, G, tri_a, tri_b):
+def smallest_singular_values(A, B, G, G_b, tri_a, tri_b):
     """:func:`smallest_singular_value` of two 6x6 matrices (the same numbers as two calls).
 
-    The two Newton iterations run step for step in one loop: each is a chain of dependent
-    divisions, and interleaved the processor overlaps the two chains (the planner's two arm
-    Jacobians are known before either filtered inverse is needed).
+    The two reductions and the two iterations run step for step in one loop: each is a chain of
+    dependent square roots and divisions, and interleaved the processor overlaps the two chains
+    (the planner's two arm Jacobians are known before either filtered inverse is needed).
     """
-    _tridiagonal_into(A, G, tri_a)
-    _tridiagonal_into(B, G, tri_b)
+    _gram_into(A, G)
+    _gram_into(B, G_b)
+    for k in range(4):
+        _householder_step(G, tri_a[0], tri_a[1], k)
+        _householder_step(G_b, tri_b[0], tri_b[1], k)
+    _tridiagonal_tail(G, tri_a)
+    _tridiagonal_tail(G_b, tri_b)
     da, ea, db, eb = tri_a[0], tri_a[1], tri_b[0], tri_b[1]
-    lam_a, done_a, result_a = 0.0, False, -1.0
-    lam_b, done_b, result_b = 0.0, False, -1.0
+    lam_a, done_a, result_a = _laguerre_from_zero(da, ea)
+    lam_b, done_b, result_b = _laguerre_from_zero(db, eb)
     for _ in range(100):
+        if done_a and done_b:
+            break
         if not done_a:
             lam_a, done_a, result_a = _newton_step(da, ea, lam_a)
         if not done_b:
             lam_b, done_b, result_b = _newton_step(db, eb, lam_b)
-        if done_a and done_b:
-            break
     return (result_a if done_a else -1.0), (result_b if done_b else -1.0)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _tridiagonal_into(A, G, tri):
-    """G = AᵀA reduced to tridiagonal form by Householder reflections (diagonal into ``tri[0]``,
-    off-diagonal into ``tri[1]``)."""
-    n = 6
-    for i in range(n):
-        for j in range(i, n):
+def _gram_into(A, G):
+    """G = AᵀA (6x6, both triangles)."""
+    for i in range(6):
+        for j in range(i, 6):
             acc = 0.0
-            for r in range(n):
+            for r in range(6):
                 acc += A[r, i] * A[r, j]
             G[i, j] = acc
             G[j, i] = acc
-    d, e = tri[0], tri[1]
-    for k in range(n - 2):  # reflect column k below the subdiagonal to zero; v in G[k+1:, k], w in G[k, k+1:]
-        d[k] = G[k, k]
-        below = 0.0
-        for i in range(k + 2, n):
-            below += G[i, k] * G[i, k]
-        x0 = G[k + 1, k]
-        if below == 0.0:
-            e[k] = x0
-            continue
-        alpha = -math.sqrt(x0 * x0 + below) if x0 >= 0.0 else math.sqrt(x0 * x0 + below)
-        G[k + 1, k] = x0 - alpha
-        beta = 2.0 / ((x0 - alpha) * (x0 - alpha) + below)
-        half = 0.0
-        for i in range(k + 1, n):  # p = β A v
-            acc = 0.0
-            for j in range(k + 1, n):
-                acc += G[i, j] * G[j, k]
-            G[k, i] = beta * acc
-            half += G[k, i] * G[i, k]
-        half *= 0.5 * beta
-        for i in range(k + 1, n):  # w = p − (β vᵀp / 2) v
-            G[k, i] -= half * G[i, k]
-        for i in range(k + 1, n):  # A ← A − v wᵀ − w vᵀ
-            for j in range(k + 1, i + 1):
-                G[i, j] -= G[i, k] * G[k, j] + G[k, i] * G[j, k]
-                G[j, i] = G[i, j]
-        e[k] = alpha
-    d[n - 2], d[n - 1], e[n - 2] = G[n - 2, n - 2], G[n - 1, n - 1], G[n - 1, n - 2]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _householder_step(G, d, e, k):
+    """Step k (0-3) of the reduction of the symmetric ``G`` to tridiagonal form: the Householder
+    reflection that zeroes column k below the subdiagonal (v kept in G[k+1:, k], w in G[k, k+1:]);
+    ``d[k]``, ``e[k]`` receive the diagonal and off-diagonal entries. A column already zero below
+    the subdiagonal gets the sign-flipping reflection (or none, β = 0, when it is zero altogether).
+    """
+    n = 6
+    d[k] = G[k, k]
+    below = 0.0
+    for i in range(k + 2, n):
+        below += G[i, k] * G[i, k]
+    x0 = G[k + 1, k]
+    norm = math.sqrt(x0 * x0 + below)
+    alpha = -norm if x0 >= 0.0 else norm
+    v0 = x0 - alpha
+    den = v0 * v0 + below
+    beta = 2.0 / den if den > 0.0 else 0.0
+    G[k + 1, k] = v0
+    half = 0.0
+    for i in range(k + 1, n):  # p = β G v
+        acc = 0.0
+        for j in range(k + 1, n):
+            acc += G[i, j] * G[j, k]
+        G[k, i] = beta * acc
+        half += G[k, i] * G[i, k]
+    half *= 0.5 * beta
+    for i in range(k + 1, n):  # w = p − (β vᵀp / 2) v
+        G[k, i] -= half * G[i, k]
+    for i in range(k + 1, n):  # G ← G − v wᵀ − w vᵀ
+        for j in range(k + 1, i + 1):
+            G[i, j] -= G[i, k] * G[k, j] + G[k, i] * G[j, k]
+            G[j, i] = G[i, j]
+    e[k] = alpha
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _tridiagonal_tail(G, tri):
+    """The last diagonal and off-diagonal entries, after the four reflections."""
+    tri[0, 4], tri[0, 5], tri[1, 4] = G[4, 4], G[5, 5], G[5, 4]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _laguerre_from_zero(d, e):
+    """One Laguerre step on det(T − λI) from λ = 0 (T: diagonal ``d``, off-diagonal ``e``).
+
+    With S₁ = Σ 1/λᵢ and S₂ = Σ 1/λᵢ² (from the pivots of T and their first two derivatives in λ),
+    the step is 6 / (S₁ + √(5 (6 S₂ − S₁²))). Returns ``(lam, done, result)`` as
+    :func:`_newton_step`: done with -1 when a pivot of T is not positive (T singular to working
+    precision).
+    """
+    n = 6
+    q, dq, ddq = d[0], -1.0, 0.0  # pivot of T − λI at λ = 0 and its first two derivatives in λ
+    if not q > 0.0:
+        return 0.0, True, -1.0
+    inv = 1.0 / q
+    g = dq * inv
+    h = -g * g
+    for k in range(1, n):
+        e2 = e[k - 1] * e[k - 1]
+        r = e2 * inv
+        ddq = r * inv * (ddq - 2.0 * dq * dq * inv)
+        dq = -1.0 + r * dq * inv
+        q = d[k] - r
+        if not q > 0.0:
+            return 0.0, True, -1.0
+        inv = 1.0 / q
+        gk = dq * inv
+        g += gk
+        h += ddq * inv - gk * gk
+    s1, s2 = -g, -h  # Σ 1/λᵢ, Σ 1/λᵢ²
+    return n / (s1 + math.sqrt(max((n - 1) * (n * s2 - s1 * s1), 0.0))), False, -1.0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -233,20 +296,22 @@ def _newton_step(d, e, lam):
     """One Newton step on det(T − λI) from ``lam`` (T: diagonal ``d``, off-diagonal ``e``).
 
     Returns ``(lam, done, result)``: the next λ; done when converged (result √λ) or when a pivot
-    of T − λI is not positive (result √λ, or -1 at λ = 0: T singular to working precision).
+    of T − λI is not positive (result √λ: at the root to working precision).
     """
     n = 6
     q, dq = d[0] - lam, -1.0  # pivot of T − λI and its derivative in λ
     if not q > 0.0:
-        return lam, True, (-1.0 if lam == 0.0 else math.sqrt(lam))
-    slope = dq / q  # d/dλ log det(T − λI)
+        return lam, True, math.sqrt(lam)
+    inv = 1.0 / q
+    slope = dq * inv  # d/dλ log det(T − λI)
     for k in range(1, n):
-        r = e[k - 1] * e[k - 1] / q
-        dq = -1.0 + r * dq / q
+        r = e[k - 1] * e[k - 1] * inv
+        dq = -1.0 + r * dq * inv
         q = d[k] - lam - r
         if not q > 0.0:  # at or past the root: only by rounding, once converged
-            return lam, True, (-1.0 if lam == 0.0 else math.sqrt(lam))
-        slope += dq / q
+            return lam, True, math.sqrt(lam)
+        inv = 1.0 / q
+        slope += dq * inv
     step = -1.0 / slope
     lam += step
     if step <= 1e-12 * lam:

@@ -100,7 +100,7 @@ def run_into(mdl_owner, plant_owner, ws_owner, x_owner, k0, n_total, n_max, fp_o
     mass, lever, inertia = borrowed(plant_owner)  # the plant: the planner's kinematics, its own inertias
     body = ModelArrays(mdl.parent, mdl.placement_R, mdl.placement_p, mdl.axis, mass, lever, inertia, mdl.ee_parent,
                        mdl.ee_R, mdl.ee_p, mdl.cap_parent, mdl.cap_a, mdl.cap_b, mdl.cap_radius, mdl.cap_arm,
-                       mdl.cap_vs_base, mdl.box_half, mdl.q_index, mdl.v_index, mdl.axis_code, mdl.subtree)
+                       mdl.cap_vs_base, mdl.box_half, mdl.q_index, mdl.v_index, mdl.axis_code)
     mismatch = ip[I_PLANT] == 1
     dt, h = fp[F_DT], fp[F_H:F_H + 6]
     rows = 0

@@ -16,18 +16,23 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from ffsr_gym.kernel.linalg import solve_into
+from ffsr_gym.kernel.linalg import solve_sym3
+
+#: Obstacle slots of the planner's settings vector (``ffsr_gym.kernel.planner``), sizing the danger-field buffer.
+MAX_OBSTACLES = 8
 
 #: Buffers of one closed loop (kinematics, momentum, planner, collision, integrator).
 Workspace = namedtuple("Workspace", [
     "Rj", "pj", "R_b", "Re", "pe", "z",  # joint frames, base rotation, EE frames, joint axes (world)
-    "H_b", "H_bm", "rg", "r", "Iw",  # momentum matrices, system CoM, body CoMs, body inertias (world)
+    "H_b", "H_bm", "rg", "comp",  # momentum matrices, system CoM, composite bodies (mass, D, A: momentum_into)
     "tmp", "rot", "M6", "b6", "x_half", "v_mid",  # scratch
     "J", "U", "V", "s", "G", "tri", "Jo", "Jo_d", "points", "p_obs", "dq_c",  # planner
     "V0", "x1", "target", "p_d", "sigma_d", "V_ed",
     "dq", "e1", "e0", "mu", "cdf", "smin", "v0", "e1t",  # planner outputs (e1t: EE error to the true target)
     "cap_A", "cap_B", "cap_mid", "cap_hl", "bound", "first", "second", "rel", "cand",  # collision
-    "Jb", "tri_b",  # the balance arm's Jacobian and its tridiagonal form (both arms' σ_min run together)
+    "Jb", "G_b", "tri_b",  # the balance arm's Jacobian, Gram matrix and tridiagonal form (both arms' σ_min run together)
+    "cs",  # cos, sin of the joint angles at the last planned state, and those angles (kinematics_into)
+    "seg",  # danger field: (length, t0, h, ρ1, ρ2) of each obstacle's view of each arm segment
 ])
 
 
@@ -37,15 +42,16 @@ def workspace(n_capsules):
     n_pairs = n_capsules * n_capsules + n_capsules
     return Workspace(
         np.empty((12, 3, 3)), np.empty((12, 3)), np.empty((3, 3)), np.empty((2, 3, 3)), np.empty((2, 3)),
-        np.empty((12, 3)), np.empty((6, 6)), np.empty((2, 6, 6)), np.empty(3), np.empty((12, 3)),
-        np.empty((12, 3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((6, 6)), np.empty(6), np.empty(19),
+        np.empty((12, 3)), np.empty((6, 6)), np.empty((2, 6, 6)), np.empty(3), np.empty((12, 10)),
+        np.empty((3, 3)), np.empty((3, 3)), np.empty((6, 6)), np.empty(6), np.empty(19),
         np.empty(6), np.empty((6, 6)), np.empty((6, 6)), np.empty((6, 6)), np.empty(6), np.empty((6, 6)),
         np.empty((2, 6)), np.empty((3, 3)),
         np.empty((3, 3)), np.empty((7, 3)), np.empty(3), np.empty(6), np.empty(6), np.empty(6),
         np.empty(6), np.empty(3), np.empty(4), np.empty(6), np.empty(12), np.empty(6), np.empty(6), np.empty(2),
         np.empty(2), np.empty(2), np.empty(6), np.empty(6), np.empty((n_capsules, 3)), np.empty((n_capsules, 3)),
         np.empty((n_capsules, 3)), np.empty(n_capsules), np.empty(n_pairs), np.empty(n_pairs, dtype=np.int64),
-        np.empty(n_pairs, dtype=np.int64), np.empty(3), np.empty(23), np.empty((6, 6)), np.empty((2, 6)),
+        np.empty(n_pairs, dtype=np.int64), np.empty(3), np.empty(23), np.empty((6, 6)), np.empty((6, 6)), np.empty((2, 6)),
+        np.full((3, 12), np.nan), np.empty((6 * MAX_OBSTACLES, 5)),
     )
 
 
@@ -78,8 +84,8 @@ def R_to_quat_wxyz(R):
 
 
 @njit(cache=True, error_model="numpy")
-def _rot_into(out, axis, angle):
-    c, s = math.cos(angle), math.sin(angle)
+def _rot_into(out, axis, c, s):
+    """Rotation by the angle of cosine ``c`` and sine ``s`` about the unit ``axis``."""
     x, y, z = axis[0], axis[1], axis[2]
     C = 1.0 - c
     out[0, 0], out[0, 1], out[0, 2] = c + x * x * C, x * y * C - z * s, x * z * C + y * s
@@ -101,32 +107,59 @@ def _mv3_add_into(out, base, A, v):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _rotate_inertia_into(out, R, I):
-    """out = (R I) R^T, each entry summed left to right (R I held in registers)."""
+def _sym_inertia_into(out, R, I):
+    """Upper triangle of the symmetric R I Rᵀ (``I`` symmetric): out[a, b] for a <= b."""
     for a in range(3):
         ra0, ra1, ra2 = R[a, 0], R[a, 1], R[a, 2]
         t0 = ra0 * I[0, 0] + ra1 * I[1, 0] + ra2 * I[2, 0]
         t1 = ra0 * I[0, 1] + ra1 * I[1, 1] + ra2 * I[2, 1]
         t2 = ra0 * I[0, 2] + ra1 * I[1, 2] + ra2 * I[2, 2]
-        for b in range(3):
+        for b in range(a, 3):
             out[a, b] = t0 * R[b, 0] + t1 * R[b, 1] + t2 * R[b, 2]
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def kinematics_into(mdl, x, ws):
-    """Forward kinematics into the workspace: joint rotations/origins, base rotation, EE poses, axes."""
+def _joint_cos_sin(x, k, cs, dq, h):
+    """cos and sin of joint angle k of ``x``: computed (and kept in ``cs``) when ``h`` is 0; else ``x`` is
+    a state advanced by ``dq`` h from the one ``cs`` holds, and the angle-sum formula turns the kept
+    values into the new ones (a short series for the small increment), unless ``cs`` is not of that state.
+    """
+    if h != 0.0 and cs[2, k] + dq[k] * h == x[7 + k]:
+        d = dq[k] * h
+        c0, s0 = cs[0, k], cs[1, k]
+        if abs(d) < 1e-2:  # series to d⁹ and d⁸: below 1e-22 of the result
+            d2 = d * d
+            sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0 * (1.0 - d2 / 72.0))))
+            cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0 * (1.0 - d2 / 56.0)))
+        else:
+            cd, sd = math.cos(d), math.sin(d)
+        return c0 * cd - s0 * sd, s0 * cd + c0 * sd
+    c, s = math.cos(x[7 + k]), math.sin(x[7 + k])
+    if h == 0.0:
+        cs[0, k], cs[1, k], cs[2, k] = c, s, x[7 + k]
+    return c, s
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def kinematics_into(mdl, x, ws, dq=None, h=0.0):
+    """Forward kinematics into the workspace: joint rotations/origins, base rotation, EE poses, axes.
+
+    With ``h`` = 0 the joint angles' cosines and sines are kept in ``ws.cs``; a later call for the
+    state advanced by ``dq`` h (the midpoint) reuses them (:func:`_joint_cos_sin`).
+    """
     parent, pl_R, pl_p, axis = mdl.parent, mdl.placement_R, mdl.placement_p, mdl.axis
     ee_parent, ee_R, ee_p, axis_code = mdl.ee_parent, mdl.ee_R, mdl.ee_p, mdl.axis_code
     Rj, pj, R_b, Re, pe, z, tmp, rot = ws.Rj, ws.pj, ws.R_b, ws.Re, ws.pe, ws.z, ws.tmp, ws.rot
+    rates = ws.dq if dq is None else dq
     quat_into(R_b, x[3], x[4], x[5], x[6])
     for k in range(12):
         q = parent[k]
         P = R_b if q < 0 else Rj[q]  # the parent frame's rotation and origin
         _mv3_add_into(pj[k], x if q < 0 else pj[q], P, pl_p[k])
         L, a = pl_R[k], axis_code[k]
+        c, s = _joint_cos_sin(x, k, ws.cs, rates, h)
         if a >= 0:  # rotation about frame axis a of P L: column a kept, the other two mixed (P L in registers)
             b, d = (a + 1) % 3, (a + 2) % 3
-            c, s = math.cos(x[7 + k]), math.sin(x[7 + k])
             for r in range(3):
                 p0, p1, p2 = P[r, 0], P[r, 1], P[r, 2]
                 ta = p0 * L[0, a] + p1 * L[1, a] + p2 * L[2, a]
@@ -138,7 +171,7 @@ def kinematics_into(mdl, x, ws):
                 z[k, r] = ta
         else:
             _mm3_into(tmp, P, L)
-            _rot_into(rot, axis[k], x[7 + k])
+            _rot_into(rot, axis[k], c, s)
             _mm3_into(Rj[k], tmp, rot)
             for r in range(3):
                 z[k, r] = Rj[k, r, 0] * axis[k, 0] + Rj[k, r, 1] * axis[k, 1] + Rj[k, r, 2] * axis[k, 2]
@@ -150,69 +183,67 @@ def kinematics_into(mdl, x, ws):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def momentum_into(mdl, x, ws):
-    """H_b, H_bm (about the base CoM, world frame; docs/model.md §2) and the system CoM, into the workspace."""
-    mass, lever, inertia, subtree = mdl.mass, mdl.lever, mdl.inertia, mdl.subtree
-    Rj, pj, z, H_b, H_bm, rg, r, Iw = ws.Rj, ws.pj, ws.z, ws.H_b, ws.H_bm, ws.rg, ws.r, ws.Iw
-    M = mass[0]
-    g0, g1, g2 = mass[0] * x[0], mass[0] * x[1], mass[0] * x[2]
+    """H_b, H_bm (about the base CoM, world frame; docs/model.md §2) and the system CoM, into the workspace.
+
+    One pass from the tips to the base over composite bodies (docs/model.md §12): joint k's subtree
+    has mass M_k, first moment D_k = Σ m_i d_i and second moment A_k = Σ (I_i + m_i (|d_i|² 1 − d_i d_iᵀ))
+    about the base CoM x (d_i = r_i − x, I_i the body's world inertia), so with e_k = p_k − x
+    column k of H_bm is [z_k × (D_k − M_k e_k); A_k z_k − D_k × (z_k × e_k)], and the arms' roots
+    give H_b (rotational block I_base + Σ A_root, coupling S(D), system CoM x + D / M).
+    """
+    mass, lever, inertia, parent = mdl.mass, mdl.lever, mdl.inertia, mdl.parent
+    Rj, pj, z, H_b, H_bm, rg, comp = ws.Rj, ws.pj, ws.z, ws.H_b, ws.H_bm, ws.rg, ws.comp
+    x0, x1, x2 = x[0], x[1], x[2]
+    comp[:, :] = 0.0
+    tm, t0, t1, t2 = mass[0], 0.0, 0.0, 0.0  # whole robot: mass and first moment
+    _sym_inertia_into(ws.tmp, ws.R_b, inertia[0])
+    a00, a01, a02, a11, a12, a22 = ws.tmp[0, 0], ws.tmp[0, 1], ws.tmp[0, 2], ws.tmp[1, 1], ws.tmp[1, 2], ws.tmp[2, 2]
+    for i in range(11, -1, -1):
+        m, R, lv, c = mass[i + 1], Rj[i], lever[i + 1], comp[i]
+        dx = pj[i, 0] - x0 + (R[0, 0] * lv[0] + R[0, 1] * lv[1] + R[0, 2] * lv[2])
+        dy = pj[i, 1] - x1 + (R[1, 0] * lv[0] + R[1, 1] * lv[1] + R[1, 2] * lv[2])
+        dz = pj[i, 2] - x2 + (R[2, 0] * lv[0] + R[2, 1] * lv[1] + R[2, 2] * lv[2])
+        _sym_inertia_into(ws.tmp, R, inertia[i + 1])
+        W = ws.tmp
+        mx, my, mz = m * dx, m * dy, m * dz
+        c[0] += m
+        c[1] += mx
+        c[2] += my
+        c[3] += mz
+        c[4] += W[0, 0] + (my * dy + mz * dz)
+        c[5] += W[0, 1] - mx * dy
+        c[6] += W[0, 2] - mx * dz
+        c[7] += W[1, 1] + (mx * dx + mz * dz)
+        c[8] += W[1, 2] - my * dz
+        c[9] += W[2, 2] + (mx * dx + my * dy)
+        zx, zy, zz = z[i, 0], z[i, 1], z[i, 2]
+        ex, ey, ez = pj[i, 0] - x0, pj[i, 1] - x1, pj[i, 2] - x2
+        Mk, Dx, Dy, Dz = c[0], c[1], c[2], c[3]
+        fx, fy, fz = Dx - Mk * ex, Dy - Mk * ey, Dz - Mk * ez
+        ux, uy, uz = zy * ez - zz * ey, zz * ex - zx * ez, zx * ey - zy * ex  # z × e
+        arm, col = i // 6, i % 6
+        H_bm[arm, 0, col] = zy * fz - zz * fy
+        H_bm[arm, 1, col] = zz * fx - zx * fz
+        H_bm[arm, 2, col] = zx * fy - zy * fx
+        H_bm[arm, 3, col] = c[4] * zx + c[5] * zy + c[6] * zz - (Dy * uz - Dz * uy)
+        H_bm[arm, 4, col] = c[5] * zx + c[7] * zy + c[8] * zz - (Dz * ux - Dx * uz)
+        H_bm[arm, 5, col] = c[6] * zx + c[8] * zy + c[9] * zz - (Dx * uy - Dy * ux)
+        q = parent[i]
+        if q >= 0:
+            for a in range(10):
+                comp[q, a] += c[a]
+        else:  # an arm's root: its composite joins the base
+            tm, t0, t1, t2 = tm + c[0], t0 + c[1], t1 + c[2], t2 + c[3]
+            a00, a01, a02, a11, a12, a22 = a00 + c[4], a01 + c[5], a02 + c[6], a11 + c[7], a12 + c[8], a22 + c[9]
     H_b[:, :] = 0.0
-    _rotate_inertia_into(ws.tmp, ws.R_b, inertia[0])
-    b00, b01, b02 = ws.tmp[0, 0], ws.tmp[0, 1], ws.tmp[0, 2]  # rotational block, summed in registers
-    b10, b11, b12 = ws.tmp[1, 0], ws.tmp[1, 1], ws.tmp[1, 2]
-    b20, b21, b22 = ws.tmp[2, 0], ws.tmp[2, 1], ws.tmp[2, 2]
-    for i in range(12):
-        m_i = mass[i + 1]
-        _mv3_add_into(r[i], pj[i], Rj[i], lever[i + 1])
-        _rotate_inertia_into(Iw[i], Rj[i], inertia[i + 1])
-        M += m_i
-        r0, r1, r2 = r[i, 0], r[i, 1], r[i, 2]
-        d0, d1, d2 = r0 - x[0], r1 - x[1], r2 - x[2]
-        g0 += m_i * r0
-        g1 += m_i * r1
-        g2 += m_i * r2
-        dd = d0 * d0 + d1 * d1 + d2 * d2
-        W = Iw[i]  # S(d)^T S(d) = |d|^2 I - d d^T
-        b00 += W[0, 0] + m_i * (dd - d0 * d0)
-        b01 += W[0, 1] + m_i * (0.0 - d0 * d1)
-        b02 += W[0, 2] + m_i * (0.0 - d0 * d2)
-        b10 += W[1, 0] + m_i * (0.0 - d1 * d0)
-        b11 += W[1, 1] + m_i * (dd - d1 * d1)
-        b12 += W[1, 2] + m_i * (0.0 - d1 * d2)
-        b20 += W[2, 0] + m_i * (0.0 - d2 * d0)
-        b21 += W[2, 1] + m_i * (0.0 - d2 * d1)
-        b22 += W[2, 2] + m_i * (dd - d2 * d2)
-    H_b[3, 3], H_b[3, 4], H_b[3, 5] = b00, b01, b02
-    H_b[4, 3], H_b[4, 4], H_b[4, 5] = b10, b11, b12
-    H_b[5, 3], H_b[5, 4], H_b[5, 5] = b20, b21, b22
-    rg[0], rg[1], rg[2] = g0, g1, g2
+    H_b[3, 3], H_b[3, 4], H_b[3, 5] = a00, a01, a02
+    H_b[4, 3], H_b[4, 4], H_b[4, 5] = a01, a11, a12
+    H_b[5, 3], H_b[5, 4], H_b[5, 5] = a02, a12, a22
     for a in range(3):
-        rg[a] /= M
-    w0, w1, w2 = M * (rg[0] - x[0]), M * (rg[1] - x[1]), M * (rg[2] - x[2])
-    for a in range(3):
-        H_b[a, a] = M
-    H_b[0, 4], H_b[0, 5], H_b[1, 3], H_b[1, 5], H_b[2, 3], H_b[2, 4] = w2, -w1, -w2, w0, w1, -w0
-    H_b[4, 0], H_b[5, 0], H_b[3, 1], H_b[5, 1], H_b[3, 2], H_b[4, 2] = w2, -w1, -w2, w0, w1, -w0
-    for k in range(12):  # column k of H_bm, accumulated in registers over the bodies joint k moves
-        arm, col = k // 6, k % 6
-        zx, zy, zz = z[k, 0], z[k, 1], z[k, 2]
-        px, py, pz = pj[k, 0], pj[k, 1], pj[k, 2]
-        h0 = h1 = h2 = h3 = h4 = h5 = 0.0
-        for i in range(k, 6 * arm + 6):  # bodies moved by joint k (on its own arm)
-            if not subtree[k, i]:
-                continue
-            m_i = mass[i + 1]
-            rx, ry, rz = r[i, 0], r[i, 1], r[i, 2]
-            ex, ey, ez = rx - px, ry - py, rz - pz
-            vx, vy, vz = zy * ez - zz * ey, zz * ex - zx * ez, zx * ey - zy * ex
-            fx, fy, fz = rx - x[0], ry - x[1], rz - x[2]
-            h0 += m_i * vx
-            h1 += m_i * vy
-            h2 += m_i * vz
-            h3 += Iw[i, 0, 0] * zx + Iw[i, 0, 1] * zy + Iw[i, 0, 2] * zz + m_i * (fy * vz - fz * vy)
-            h4 += Iw[i, 1, 0] * zx + Iw[i, 1, 1] * zy + Iw[i, 1, 2] * zz + m_i * (fz * vx - fx * vz)
-            h5 += Iw[i, 2, 0] * zx + Iw[i, 2, 1] * zy + Iw[i, 2, 2] * zz + m_i * (fx * vy - fy * vx)
-        H_bm[arm, 0, col], H_bm[arm, 1, col], H_bm[arm, 2, col] = h0, h1, h2
-        H_bm[arm, 3, col], H_bm[arm, 4, col], H_bm[arm, 5, col] = h3, h4, h5
+        H_b[a, a] = tm
+    rg[0], rg[1], rg[2] = x0 + t0 / tm, x1 + t1 / tm, x2 + t2 / tm
+    H_b[0, 4], H_b[0, 5], H_b[1, 3], H_b[1, 5], H_b[2, 3], H_b[2, 4] = t2, -t1, -t2, t0, t1, -t0
+    H_b[4, 0], H_b[5, 0], H_b[3, 1], H_b[5, 1], H_b[3, 2], H_b[4, 2] = t2, -t1, -t2, t0, t1, -t0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -229,20 +260,31 @@ def momentum_about_base_into(out, h, rg, x):
 def velocity_into(out, x, dq, h, ws):
     """Base velocity (base frame, Pinocchio layout) conserving ``h`` = [P; L_G].
 
-    Uses the momentum matrices already in the workspace (computed at ``x``).
+    Uses the momentum matrices already in the workspace (computed at ``x``). H_b = [M 1, S(D)ᵀ;
+    S(D), A] (:func:`momentum_into`) is solved by its Schur complement: (A − (|D|² 1 − D Dᵀ) / M) ω
+    = l − D × p / M (the locked inertia about the system CoM, positive definite), then
+    v = (p + D × ω) / M, for [p; l] = momentum about the base CoM minus H_bm Θ̇.
     """
-    H_bm, R_b, rhs = ws.H_bm, ws.R_b, ws.b6
+    H_b, H_bm, R_b, rhs = ws.H_b, ws.H_bm, ws.R_b, ws.b6
     momentum_about_base_into(rhs, h, ws.rg, x)
     for a in range(6):
         acc = rhs[a]
         for c in range(6):
             acc -= H_bm[0, a, c] * dq[c] + H_bm[1, a, c] * dq[6 + c]
         rhs[a] = acc
-    V = ws.x1  # scratch 6-vector
-    solve_into(ws.H_b, rhs, ws.M6, V)
+    M, d0, d1, d2 = H_b[0, 0], H_b[5, 1], H_b[3, 2], H_b[4, 0]
+    inv_m = 1.0 / M
+    p0, p1, p2 = rhs[0], rhs[1], rhs[2]
+    dd = (d0 * d0 + d1 * d1 + d2 * d2) * inv_m
+    w0, w1, w2 = solve_sym3(H_b[3, 3] - dd + d0 * d0 * inv_m, H_b[3, 4] + d0 * d1 * inv_m, H_b[3, 5] + d0 * d2 * inv_m,
+                            H_b[4, 4] - dd + d1 * d1 * inv_m, H_b[4, 5] + d1 * d2 * inv_m,
+                            H_b[5, 5] - dd + d2 * d2 * inv_m,
+                            rhs[3] - (d1 * p2 - d2 * p1) * inv_m, rhs[4] - (d2 * p0 - d0 * p2) * inv_m,
+                            rhs[5] - (d0 * p1 - d1 * p0) * inv_m)
+    v0, v1, v2 = (p0 + (d1 * w2 - d2 * w1)) * inv_m, (p1 + (d2 * w0 - d0 * w2)) * inv_m, (p2 + (d0 * w1 - d1 * w0)) * inv_m
     for a in range(3):
-        out[a] = R_b[0, a] * V[0] + R_b[1, a] * V[1] + R_b[2, a] * V[2]
-        out[3 + a] = R_b[0, a] * V[3] + R_b[1, a] * V[4] + R_b[2, a] * V[5]
+        out[a] = R_b[0, a] * v0 + R_b[1, a] * v1 + R_b[2, a] * v2
+        out[3 + a] = R_b[0, a] * w0 + R_b[1, a] * w1 + R_b[2, a] * w2
 
 
 @njit(cache=True, error_model="numpy")
@@ -291,7 +333,7 @@ def midpoint_into(out, mdl, x, v0, dq, dt, h, ws):
     workspace's kinematics at the half step. ``out`` may be ``x`` itself.
     """
     integrate_into(ws.x_half, x, v0, dq, 0.5 * dt)
-    kinematics_into(mdl, ws.x_half, ws)
+    kinematics_into(mdl, ws.x_half, ws, dq, 0.5 * dt)
     momentum_into(mdl, ws.x_half, ws)
     velocity_into(ws.v_mid, ws.x_half, dq, h, ws)
     integrate_into(out, x, ws.v_mid, dq, dt)

@@ -14,7 +14,7 @@ import math
 from numba import njit
 
 from ffsr_gym.kernel.linalg import smallest_singular_values, solve3, solve_into, svd_into
-from ffsr_gym.kernel.physics import R_to_quat_wxyz, kinematics_into, momentum_about_base_into, momentum_into
+from ffsr_gym.kernel.physics import MAX_OBSTACLES, R_to_quat_wxyz, kinematics_into, momentum_about_base_into, momentum_into
 
 F_M, F_TC, F_K, F_LAM1, F_LAM2, F_EPS1, F_EPS2, F_XI, F_DELTA, F_K1, F_DANGER = range(11)
 F_TF, F_TA, F_EST_DT, F_DT, F_RATE_MAX = 11, 12, 13, 14, 15
@@ -24,7 +24,7 @@ F_P0, F_Q0, F_TRUE, TARGET_FIELDS = 16, 19, 23, 7
 F_R0D, F_SBD, F_H = 30, 33, 37
 #: Obstacle records from ``F_OBSTACLES`` on, ``OBSTACLE_FIELDS`` floats each: start position (3) [m],
 #: drift velocity (3) [m/s], radius [m]; ``ip[I_N_OBS]`` of the ``MAX_OBSTACLES`` slots are used.
-F_OBSTACLES, OBSTACLE_FIELDS, MAX_OBSTACLES = 43, 7, 8
+F_OBSTACLES, OBSTACLE_FIELDS = 43, 7
 #: Keep-out distance [m]: a robot–obstacle clearance below it is a collision (0: contact).
 F_KEEP_OUT = F_OBSTACLES + OBSTACLE_FIELDS * MAX_OBSTACLES
 #: Length of the fixed part of ``fp``. The planner's target estimates follow it: ``ip[I_N_EST]``
@@ -167,40 +167,54 @@ def true_error_into(ws, t, fp, ip):
     pose_error_into(ws.e1t, ws.Jo, ws.Jo_d, ws.pe[0], R_to_quat_wxyz(ws.Re[0]), ws.p_d, ws.sigma_d, ip[I_ATT] == 1)
 
 
-@njit(cache=True, error_model="numpy")
-def _integrals(ox, oy, oz, points, i):
-    """Line integrals along segment i (points i → i+1) seen from the obstacle point (ox, oy, oz).
+@njit(cache=True, error_model="numpy", inline="always")
+def _field_of_segment(ox, oy, oz, points, i, geometry):
+    """Integral of 1/ρ along segment i (points i → i+1) seen from the obstacle point (ox, oy, oz), and its
+    nearest distance [m]; stores (length, t0, h, ρ1, ρ2) in ``geometry`` (5) for :func:`_moments_of_segment`.
 
-    Returns (F, I0, I1, nearest distance).
+    Returns (0, inf) for a zero-length segment (skipped, as the reference skips it). Both ends' distances
+    are plain norms (ρ1 = |p_o − a|, ρ2 = |p_o − b|), and the two inverse hyperbolic sines of a foot on
+    the segment are one logarithm: asinh(u/h) + asinh(v/h) = log((u + ρ_u)(v + ρ_v) / h²).
     """
-    Lx, Ly, Lz = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1], points[i + 1, 2] - points[i, 2]
+    ax, ay, az = points[i, 0], points[i, 1], points[i, 2]
+    Lx, Ly, Lz = points[i + 1, 0] - ax, points[i + 1, 1] - ay, points[i + 1, 2] - az
     length = math.sqrt(Lx * Lx + Ly * Ly + Lz * Lz)
-    wx, wy, wz = ox - points[i, 0], oy - points[i, 1], oz - points[i, 2]
+    geometry[0] = length
+    if length < 1e-12:
+        return 0.0, math.inf
+    wx, wy, wz = ox - ax, oy - ay, oz - az
     t0 = (wx * Lx + wy * Ly + wz * Lz) / length
     cx, cy, cz = Ly * wz - Lz * wy, Lz * wx - Lx * wz, Lx * wy - Ly * wx
     h = max(math.sqrt(cx * cx + cy * cy + cz * cz) / length, 1e-12)
+    rho1 = math.sqrt(wx * wx + wy * wy + wz * wz)
+    vx, vy, vz = wx - Lx, wy - Ly, wz - Lz
+    rho2 = math.sqrt(vx * vx + vy * vy + vz * vz)
+    geometry[1], geometry[2], geometry[3], geometry[4] = t0, h, rho1, rho2
     tau1, tau2 = -t0, length - t0
-    rho1, rho2 = math.hypot(tau1, h), math.hypot(tau2, h)
+    if tau2 > 0.0:
+        lo, hi, r_lo, r_hi = tau1, tau2, rho1, rho2
+    else:
+        lo, hi, r_lo, r_hi = -tau2, -tau1, rho2, rho1
+    if lo >= 0.0:  # the foot of the perpendicular is off the segment
+        return math.log((hi + r_hi) / (lo + r_lo)) / length, r_lo
+    return math.log((hi + r_hi) * (r_lo - lo) / (h * h)) / length, h
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _moments_of_segment(geometry):
+    """(I0, I1): integrals of 1/ρ³ and s/ρ³ along a segment from its ``geometry`` (:func:`_field_of_segment`)."""
+    length, t0, h, rho1, rho2 = geometry[0], geometry[1], geometry[2], geometry[3], geometry[4]
+    tau1, tau2 = -t0, length - t0
     if tau2 > 0.0:
         lo, hi, r_lo, r_hi = tau1, tau2, rho1, rho2
     else:
         lo, hi, r_lo, r_hi = -tau2, -tau1, rho2, rho1
     if lo >= 0.0:
-        inv1 = math.log((hi + r_hi) / (lo + r_lo))
         inv3 = (hi * hi - lo * lo) / (r_lo * r_hi * (hi * r_lo + lo * r_hi))
-        nearest = r_lo
     else:
-        inv1 = math.asinh(hi / h) + math.asinh(-lo / h)
         inv3 = (hi / r_hi - lo / r_lo) / (h * h)
-        nearest = h
     I0 = inv3 / length
-    return inv1 / length, I0, (1.0 / rho1 - 1.0 / rho2) / (length * length) + (t0 / length) * I0, nearest
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _segment_length(points, i):
-    dx, dy, dz = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1], points[i + 1, 2] - points[i, 2]
-    return math.sqrt(dx * dx + dy * dy + dz * dz)
+    return I0, (1.0 / rho1 - 1.0 / rho2) / (length * length) + (t0 / length) * I0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -208,19 +222,19 @@ def avoidance_into(ws, fp, ip, arm, t):
     """μ and CDF of one arm at time ``t`` (``Planner._avoidance``); Θ̇_c (6) into ``ws.dq_c``.
 
     The CDF and its gradient sum over the obstacles, the distance is the smallest (docs/model.md §14).
+    The gradient pass, needed only while μ < 1, reuses each segment's geometry from the field pass.
     """
-    points, z, dq_c, pj, pe = ws.points, ws.z, ws.dq_c, ws.pj, ws.pe
+    points, z, dq_c, pj, pe, seg = ws.points, ws.z, ws.dq_c, ws.pj, ws.pe, ws.seg
     for a in range(3):
         for i in range(6):
             points[i, a] = pj[6 * arm + i, a]
         points[6, a] = pe[arm, a]
     total, dist = 0.0, 1e300
-    for o in range(ip[I_N_OBS]):
+    n_obs = ip[I_N_OBS]
+    for o in range(n_obs):
         ox, oy, oz = obstacle_at(fp, o, t)
         for i in range(6):
-            if _segment_length(points, i) < 1e-12:
-                continue
-            F, _, _, nearest = _integrals(ox, oy, oz, points, i)
+            F, nearest = _field_of_segment(ox, oy, oz, points, i, seg[6 * o + i])
             total += F
             dist = min(dist, nearest)
     cdf = fp[F_K1] * total
@@ -234,12 +248,13 @@ def avoidance_into(ws, fp, ip, arm, t):
     if mu >= 1.0:
         return 1.0, cdf
     scale = -fp[F_XI] * fp[F_K1]  # Θ̇_c = −ξ k₁ ∂CDF/∂Θ, only needed while the avoidance acts
-    for o in range(ip[I_N_OBS]):
+    for o in range(n_obs):
         ox, oy, oz = obstacle_at(fp, o, t)
         for i in range(6):
-            if _segment_length(points, i) < 1e-12:
+            geometry = seg[6 * o + i]
+            if geometry[0] < 1e-12:
                 continue  # zero-length segment
-            _, I0, I1, _ = _integrals(ox, oy, oz, points, i)
+            I0, I1 = _moments_of_segment(geometry)
             ax, ay, az = points[i, 0], points[i, 1], points[i, 2]
             bx, by, bz = points[i + 1, 0], points[i + 1, 1], points[i + 1, 2]
             for k in range(i + 1):
@@ -371,7 +386,7 @@ def plan(mdl, x, t, fp, ip, ws):
     for r in range(6):  # the balance arm's: J_c² = −H_bm2
         for c in range(6):
             Jb[r, c] = -H_bm[1, r, c]
-    s_mission, s_balance = smallest_singular_values(J, Jb, ws.G, ws.tri, ws.tri_b)
+    s_mission, s_balance = smallest_singular_values(J, Jb, ws.G, ws.G_b, ws.tri, ws.tri_b)
     for arm in range(2):
         mu, cdf = 1.0, 0.0
         ws.dq_c[:] = 0.0
