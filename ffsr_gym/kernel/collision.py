@@ -231,8 +231,8 @@ def _obstacle_clearance(radius, half, R_b, p_b, A, B, p_o, r_o, rel):
 def self_clearance(mdl, ws, p_b):
     """Smallest signed distance arm–arm and arm–base (mounting links excluded) [m].
 
-    Candidate pairs are visited in order of a cheap lower bound (bounding spheres); exact
-    distances are computed only while a bound can still beat the best so far. Needs
+    Each candidate pair has a cheap lower bound (bounding spheres); the pair of the smallest bound
+    is measured first, then only pairs whose bound can still beat the best so far. Needs
     :func:`capsule_ends_into` done at the current state.
     """
     return _self_clearance(mdl.cap_radius, mdl.cap_arm, mdl.cap_vs_base, mdl.box_half, ws.R_b, p_b, ws.cap_A, ws.cap_B, ws.cap_mid, ws.cap_hl,
@@ -261,19 +261,20 @@ def _self_clearance(radius, arm, vs_base, half, R_b, p_b, A, B, mid, hl, bound, 
             bound[count] = _sdf_local(local[0], local[1], local[2], half) - hl[i] - radius[i]
             first[count], second[count] = i, -1
             count += 1
-    best = 1e300
-    for _ in range(count):
-        k = 0
-        for c in range(1, count):
-            if bound[c] < bound[k]:
-                k = c
-        if bound[k] >= best:
-            break
-        bound[k] = 1e301  # visited
-        i, j = first[k], second[k]
-        if j >= 0:
-            value = _axis_axis(A, B, i, j) - radius[i] - radius[j]
-        else:
-            value = _capsule_box(A, B, i, R_b, p_b, half, scratch) - radius[i]
-        best = min(best, value)
+    k0 = 0
+    for c in range(1, count):
+        if bound[c] < bound[k0]:
+            k0 = c
+    best = _pair_distance(A, B, radius, half, R_b, p_b, first[k0], second[k0], scratch)
+    for c in range(count):  # only pairs whose bound can still beat the best so far
+        if c != k0 and bound[c] < best:
+            best = min(best, _pair_distance(A, B, radius, half, R_b, p_b, first[c], second[c], scratch))
     return best
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _pair_distance(A, B, radius, half, R_b, p_b, i, j, scratch):
+    """Signed distance [m] of capsules i and j, or of capsule i and the base box when j is -1."""
+    if j >= 0:
+        return _axis_axis(A, B, i, j) - radius[i] - radius[j]
+    return _capsule_box(A, B, i, R_b, p_b, half, scratch) - radius[i]
