@@ -363,7 +363,8 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
             ``"free_space"``) or a path to a TOML file.
 
     Returns:
-        The frozen, validated :class:`Scenario`. Quaternions are normalised.
+        The frozen, validated :class:`Scenario`. Quaternions are normalised. Loading the same file
+        again (same size and modification time) returns the same object.
 
     Raises:
         ScenarioError: unknown name, unreadable TOML, or any invalid key (the message names the
@@ -373,6 +374,13 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         return name_or_path
     path = scenario_path(name_or_path)
     try:
+        stat = path.stat()
+        key = (str(path), stat.st_size, stat.st_mtime_ns)
+    except OSError:
+        key = None
+    if key in _LOADED:
+        return _LOADED[key]
+    try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{path}: not valid TOML ({exc})") from exc
@@ -381,7 +389,17 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
                             "a scenario is a TOML file") from None
     except OSError as exc:
         raise ScenarioError(f"{path}: cannot be read ({exc.strerror})") from None
-    return _from_dict(data, source=str(path))
+    scenario = _from_dict(data, source=str(path))
+    if key is not None and is_shipped_robot(scenario.robot):  # a robot folder's files may change under its hash
+        if len(_LOADED) >= 64:
+            _LOADED.clear()
+        _LOADED[key] = scenario
+    return scenario
+
+
+#: Scenarios loaded from files, by (path, size, modification time): loading parses and validates the TOML
+#: (about a millisecond), and a scenario is immutable. Only those on a shipped robot are kept.
+_LOADED: dict[tuple, Scenario] = {}
 
 
 def scenario_from_dict(data: Any, source: str = "") -> Scenario:
