@@ -195,3 +195,36 @@ def test_v2_vector_env_without_autoreset_holds_ended_copies():
         FFSRVectorEnv(2, "v2", task="hard", autoreset_mode="EveryStep")
     with pytest.raises(InvalidInputError, match="reset_mask"):
         venv.reset(options={"reset_mask": np.array([True, False])})
+
+
+def test_v2_play_out_gives_the_trajectories_of_decision_after_decision():
+    """``play_out_with_parameters``: whole episodes in one kernel call end where, and as, decision after decision
+    of ``step_with_parameters`` does (trajectory arrays and episode scores bit for bit), for two copies that end at
+    different decisions."""
+    from ffsr_gym.environments.vector_env import FFSRVectorEnv
+
+    def played(whole):
+        venv = FFSRVectorEnv(2, "v2", task="hard", split="test", autoreset_mode="Disabled")
+        venv.reset(seed=[0, 1], options={"task_index": [0, 5]})
+        if whole:
+            terminated, truncated, _ = venv.play_out_with_parameters(0.1, 1.5)
+            assert (terminated | truncated).all()
+        else:
+            ended = np.zeros(2, dtype=bool)
+            while not ended.all():
+                _, _, term, trunc, _ = venv.step_with_parameters(0.1, 1.5)
+                ended |= term | trunc
+        return venv, [venv.trajectory(i) for i in range(2)], [venv.engine.results[i] for i in range(2)]
+
+    _, whole, scores = played(True)
+    _, stepped, stepped_scores = played(False)
+    assert scores == stepped_scores and scores[0].failure == "rate_limit"
+    assert len(whole[0].t) != len(whole[1].t)
+    for a, b in zip(whole, stepped):
+        assert len(a.t) == len(b.t)
+        for name in ("q", "v", "dq_joints", "ee_position_error_m", "clearance_m", "self_clearance_m", "mu", "sigma_min"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    with pytest.raises(InvalidInputError, match="not a residual env"):
+        FFSRVectorEnv(2, "v2", residual=True, task="hard").play_out_with_parameters(0.3, 4.0)
+    with pytest.raises(InvalidInputError, match="reset"):
+        FFSRVectorEnv(2, "v2", task="hard").play_out_with_parameters(0.3, 4.0)

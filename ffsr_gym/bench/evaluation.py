@@ -270,19 +270,16 @@ def _batched_episodes(parameters: tuple[float, float], version: str, kwargs: dic
     indices = [index for _, index in jobs]
     _, info = venv.reset(seed=[seed for seed, _ in jobs],
                          options=None if indices[0] is None else {"task_index": indices})
-    results: dict[int, tuple[dict, str, str]] = {}
     engine = venv.engine
-    while len(results) < len(jobs):
-        _, _, terminated, truncated, _ = venv.step_with_parameters(*parameters)
-        for i in np.flatnonzero(terminated | truncated):
-            if int(i) not in results:
-                played, traj = engine.scenarios[i], engine.trajectory(int(i))
-                seed = int(info["task_seed"][i])
-                row = _row(jobs[i][0], {"task_seed": None if seed < 0 else seed},
-                           engine.rule.row(engine.results[i], traj), True)
-                results[int(i)] = (row, played.name, played.sha256())
+    venv.play_out_with_parameters(*parameters)  # whole episodes in one call (the rows of decision after decision)
+    results = []
+    for i, (seed, _) in enumerate(jobs):
+        task_seed = int(info["task_seed"][i])
+        row = _row(seed, {"task_seed": None if task_seed < 0 else task_seed},
+                   engine.rule.row(engine.results[i], engine.trajectory(i)), True)
+        results.append((row, engine.scenarios[i].name, engine.scenarios[i].sha256()))
     venv.close()
-    return [results[i] for i in range(len(jobs))]
+    return results
 
 
 def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None, env_kwargs: dict | None = None,

@@ -236,9 +236,13 @@ class EpisodeEngine:
         return obs, float(reward), terminated, truncated, info
 
     # ------------------------------------------------------------------------ N copies
-    def step_copies(self, actions: np.ndarray, active: np.ndarray,
-                    parameters: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
+    def step_copies(self, actions: np.ndarray, active: np.ndarray, parameters: tuple[float, float] | None = None,
+                    *, to_end: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
         """One decision of every ``active`` copy (checked, clipped float32 ``actions`` (N, size)).
+
+        ``to_end``: the decision lasts until the episode ends (its horizon or a violation): one kernel
+        call plays whole episodes, with the trajectories of decision after decision (the planner keeps
+        no state between steps), for a fixed policy's evaluation.
 
         Returns ``(rewards, terminated, truncated, info)``, arrays over the copies (inactive: 0);
         ``info`` has the rule's end keys with their ``_key`` masks and the per-decision keys.
@@ -252,7 +256,7 @@ class EpisodeEngine:
         if self.workspaces is None:
             self.workspaces = kernel_batch.workspaces(self.n, len(self.mdl.cap_radius))
         kernel_batch.decide_batch(self.mdl, self.plants, self.workspaces, self.X, self.K, active, self.n_steps,
-                                  self.steps_per_decision, self.FP, self.IP, self.DS, actions, mode,
+                                  self.n_steps if to_end else self.steps_per_decision, self.FP, self.IP, self.DS, actions, mode,
                                   tuple(self.logs[key] for key in LOG_FIELDS), self.last_rates, self.scratch,
                                   self.obs, out, kernel_batch.groups(self.n))
         rows, status = out[:, 0].astype(np.int64), out[:, 1].astype(np.int64)

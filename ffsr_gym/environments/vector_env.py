@@ -158,6 +158,24 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
             raise InvalidInputError("step_with_parameters is for the (m, T_c) envs (FFSR-v0, FFSR-v2), not a residual env")
         return self._step(np.zeros((self.num_envs, 2), dtype=np.float32), physical_parameters(m, T_c))
 
+    def play_out_with_parameters(self, m: float, T_c: float) -> tuple[np.ndarray, np.ndarray, dict]:
+        """Every running copy's episode to its end with physical (m, T_c [s]) in one kernel call: the
+        trajectories and episode scores of :meth:`step_with_parameters` repeated until each copy ends
+        (bit for bit), without a decision's observation and bookkeeping in between.
+
+        Returns ``(terminated, truncated, info)`` as a step's (episode-end keys included); the copies
+        then need a ``reset()`` (none is reset here, whatever the autoreset mode).
+        """
+        if self.residual:
+            raise InvalidInputError("play_out_with_parameters is for the (m, T_c) envs (FFSR-v0, FFSR-v2), not a residual env")
+        if not self._started:
+            raise InvalidInputError("call reset() before play_out_with_parameters()")
+        active = ~self._needs_reset
+        _, terminated, truncated, info = self.engine.step_copies(
+            np.zeros((self.num_envs, 2), dtype=np.float32), active, physical_parameters(m, T_c), to_end=True)
+        self._needs_reset |= terminated | truncated
+        return terminated, truncated, info
+
     def _step(self, actions: Any, parameters: tuple[float, float] | None):
         if not self._started:
             raise InvalidInputError("call reset() before step()")

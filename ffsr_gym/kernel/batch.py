@@ -1,11 +1,10 @@
-"""Compiled (numba) batches of closed loops: many episodes advanced in one thread-parallel call.
+"""Compiled (numba) batches of decisions: many episodes advanced in one thread-parallel call.
 
-Each episode runs :func:`ffsr_gym.kernel.loop.run_into` unchanged (same numbers as one at a time);
-``prange`` spreads the episodes over numba's threads (``numba.set_num_threads``) in a few
-interleaved groups. :func:`run_batch` and :func:`observe_batch` give each group one workspace for
-all its episodes (allocating one per episode and call cost as much as a physics step);
-:func:`decide_batch` keeps one workspace per episode between calls (:func:`workspaces`), so each
-decision reuses the planner step its observation computed, as the single environment does.
+Each episode runs :func:`ffsr_gym.kernel.decision.decide` unchanged (same numbers as one at a
+time); ``prange`` spreads the episodes over numba's threads (``numba.set_num_threads``) in a few
+interleaved groups. :func:`decide_batch` keeps one workspace per episode between calls
+(:func:`workspaces`), so each decision reuses the planner step its observation computed, as the
+single environment does.
 """
 
 from __future__ import annotations
@@ -15,54 +14,12 @@ from numba import njit, prange
 from numba.typed import List
 
 from ffsr_gym.kernel.decision import decide
-from ffsr_gym.kernel.loop import observe_into, run_into
 from ffsr_gym.kernel.physics import workspace
-from ffsr_gym.kernel.planner import F_DT
 
 
 def groups(n: int) -> int:
     """Episode groups for ``n`` episodes: four per thread of numba's (load balance), at most one per episode."""
     return max(1, min(n, 4 * numba.get_num_threads()))
-
-
-@njit(cache=True, parallel=True)
-def run_batch(mdl, plants, X, K, active, n_total, n_max, FP, IP, residuals, logs, rows, status, applied, n_groups):
-    """Advance every active episode e by up to ``n_max`` steps from step ``K[e]``, stopping on a violation.
-
-    ``X`` (N, 19) and ``K`` (N,) are updated in place; ``logs`` is the tuple of (N, n + 1, ...)
-    trajectory arrays of :class:`~ffsr_gym.sim.compiled.KernelRollout`, written from row K[e].
-    ``rows`` (N,), ``status`` (N,) and ``applied`` (N, n_max, 12; zero-padded rates) are outputs.
-    ``n_groups``: :func:`groups` (episode g, g + n_groups, ... share a workspace and a thread).
-    ``plants``: (N, 13), (N, 13, 3), (N, 13, 3, 3) each episode's plant masses, levers and inertias.
-    """
-    PM, PL, PI = plants
-    LX, LV, LDQ, LERR, LCLEAR, LSELF, LMU, LCDF, LSMIN = logs
-    n = X.shape[0]
-    for g in prange(n_groups):
-        ws = workspace(len(mdl.cap_radius))
-        for e in range(g, n, n_groups):
-            rows[e], status[e] = 0, 0
-            applied[e, :, :] = 0.0
-            if not active[e]:
-                continue
-            k = K[e]
-            _, r, st = run_into(mdl, (PM[e], PL[e], PI[e]), ws, X[e], k, n_total, n_max, FP[e], IP[e], residuals[e],
-                                True, False, False, LX[e, k:], LV[e, k:], LDQ[e, k:], LERR[e, k:], LCLEAR[e, k:], LSELF[e, k:],
-                                LMU[e, k:], LCDF[e, k:], LSMIN[e, k:])
-            K[e] = k + r
-            rows[e], status[e] = r, st
-            applied[e, :r, :] = LDQ[e, k:k + r, :]
-
-
-@njit(cache=True, parallel=True)
-def observe_batch(mdl, X, K, FP, IP, E1, E0, REL, CLEAR, n_groups):
-    """EE errors (N, 6), base errors (N, 6), obstacle-relative vectors (N, 3), clearances (N,) at the current states."""
-    n = X.shape[0]
-    for g in prange(n_groups):
-        ws = workspace(len(mdl.cap_radius))
-        for e in range(g, n, n_groups):
-            CLEAR[e] = observe_into(mdl, ws, X[e], K[e] * FP[e, F_DT], FP[e], IP[e], REL[e])
-            E1[e, :], E0[e, :] = ws.e1, ws.e0
 
 
 @njit(cache=True)

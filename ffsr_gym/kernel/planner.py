@@ -14,7 +14,13 @@ import math
 from numba import njit
 
 from ffsr_gym.kernel.linalg import smallest_singular_values, solve3, solve_into, svd_into
-from ffsr_gym.kernel.physics import MAX_OBSTACLES, R_to_quat_wxyz, kinematics_into, momentum_about_base_into, momentum_into
+from ffsr_gym.kernel.physics import (
+    MAX_OBSTACLES,
+    R_to_quat_wxyz,
+    kinematics_into,
+    momentum_about_base_into,
+    momentum_into,
+)
 
 F_M, F_TC, F_K, F_LAM1, F_LAM2, F_EPS1, F_EPS2, F_XI, F_DELTA, F_K1, F_DANGER = range(11)
 F_TF, F_TA, F_EST_DT, F_DT, F_RATE_MAX = 11, 12, 13, 14, 15
