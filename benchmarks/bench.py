@@ -188,7 +188,7 @@ def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
     kernel = best_of(lambda: ffsr_gym.simulate("paper", backend="kernel"), repeats)
     reference = best_of(lambda: ffsr_gym.simulate("paper", backend="pinocchio"), 1)
     row("rollout", "20 s paper rollout at dt = 0.01 s, kernel", kernel * 1e3, "ms", f"Pinocchio {reference * 1e3:.0f} ms",
-        reference / kernel, "speed-up >= 10x and <= 20 ms", reference / kernel >= 10 and kernel <= 0.02)
+        reference / kernel, "speed-up >= 10x and <= 5 ms", reference / kernel >= 10 and kernel <= 0.005)
 
     try:
         pusher = per_step(gym.make("Pusher-v5"), 4000)
@@ -205,8 +205,9 @@ def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
     for key, name, value in (*singles, ("step_batched", f"one batched FFSR-Residual-v2 step per copy (64 copies, "
                                                          f"{workers} threads)", vector_step / 64)):
         ratio = None if pusher is None else value / pusher
+        bound = 0.7 if key == "step_pool_parameters" else 1.0
         row(key, name, value * 1e6, "us", "Pusher-v5 " + ("n/a" if pusher is None else f"{pusher * 1e6:.0f} us"), ratio,
-            "ratio <= 1", None if ratio is None else ratio <= 1.0)
+            f"ratio <= {bound:g}", None if ratio is None else ratio <= bound)
 
     serial = reference * 100 * 100 / workers
     with ProcessPoolExecutor(workers) as pool:
@@ -228,14 +229,15 @@ def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
             vector_throughput(env_id, 64, 400, workers, **kwargs)  # a long run), so neither pays first draws
         single, _, _ = vector_throughput(env_id, 64, 400, 1, **kwargs)  # 400 decisions: two whole episodes per copy
         steps_per_s, _, compiled = vector_throughput(env_id, 64, 400, workers, **kwargs)
+        goal = 1_000_000 if kwargs else 600_000  # v2's target; v0's, as it was
         row(key, f"batched {env_id}{' on easy' if kwargs else ''}, 64 copies, {workers} threads, whole episodes"
             f"{' (tasks drawn before)' if kwargs else ''}",
             steps_per_s, "physics steps/s", f"1 thread {single:,.0f} steps/s", steps_per_s / single,
-            ">= 600,000 steps/s", steps_per_s >= 600_000)
+            f">= {goal:,} steps/s", steps_per_s >= goal)
         if not math.isnan(compiled):  # the v2 env: its compiled decisions alone bound the row above
             row(f"{key}_compiled", "the same pass, its compiled decisions alone (`decide_batch`, Python excluded)",
                 compiled, "physics steps/s", f"whole episodes {steps_per_s:,.0f} steps/s", compiled / steps_per_s,
-                "bound on whole episodes: >= 600,000 needed", compiled >= 600_000)
+                f"bound on whole episodes: >= {goal:,} needed", compiled >= goal)
     numba.set_num_threads(workers)
 
     from ffsr_gym.bench.evaluation import evaluate as evaluate_pool
@@ -247,8 +249,8 @@ def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
         with ProcessPoolExecutor(workers) as pool:
             evaluate_pool((0.3, 4.0), "FFSR-v2", task=tier, indices=list(range(2 * workers)), executor=pool, chunk=1)  # warm
             spread = best_of(lambda tier=tier, pool=pool: evaluate_pool((0.3, 4.0), "FFSR-v2", task=tier, executor=pool), 1)
-        row(f"pool_{tier}_batched", f"(0.3, 4 s) on the {tier} test pool, batched env", batched, "s",
-            f"single env {alone:.2f} s", alone / batched, "faster than single env", batched < alone)
+        row(f"pool_{tier}_batched", f"(0.3, 4 s) on the {tier} test pool through `evaluate` (batched, whole episodes)",
+            batched, "s", f"single env {alone:.2f} s", alone / batched, "<= 0.25 s", batched <= 0.25)
         row(f"pool_{tier}_workers", f"(0.3, 4 s) on the {tier} test pool, {workers} worker processes", spread, "s",
             f"single env {alone:.2f} s", alone / spread, "faster than single env", spread < alone)
     training = training_throughput("FFSR-Residual-v2", 8, 8192)
@@ -365,13 +367,39 @@ def budget_table(results: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def clock_ghz() -> float | None:
+    """The processor's clock [GHz] as the kernel reports it (None where /proc/cpuinfo does not say)."""
+    try:
+        text = Path("/proc/cpuinfo").read_text(encoding="utf-8")
+    except OSError:
+        return None
+    mhz = [float(line.split(":")[1]) for line in text.splitlines() if line.startswith("cpu MHz")]
+    return max(mhz) / 1000.0 if mhz else None
+
+
+def floor_line(results: dict) -> str:
+    """Operations per physics step and the share of the cores' arithmetic floor the batched v2 row reaches."""
+    ops, ghz, workers = results["operations"]["step"], results.get("clock_ghz"), results["workers"]
+    batched = [row["value"] for run in results["runs"] for row in run if row["key"] == "batched"]
+    line = (f"About {ops:,} floating-point operations per physics step on `paper` (counted from the kernel's loops, "
+            "`benchmarks/kernel_parts.py` `operation_counts`)")
+    if ghz is None or not batched:
+        return line + "."
+    scalar, vector = workers * ghz * 1e9 * 2 / ops, workers * ghz * 1e9 * 16 / ops
+    return (line + f". At {ghz:.2f} GHz, {workers} cores doing two scalar operations per cycle (the kernel's IEEE "
+            f"scalar code, no fused multiply-add: docs/model.md §17) could run {scalar:,.0f} steps/s, and "
+            f"{vector:,.0f} at the AVX2 peak (16 per cycle); batched `FFSR-Residual-v2` reaches "
+            f"{_span(batched, ',.0f')} steps/s: {_span([100 * b / scalar for b in batched], '.0f')} % of the scalar "
+            f"floor, {_span([100 * b / vector for b in batched], '.1f')} % of the vector one.")
+
+
 def kernel_table(results: dict) -> str:
     """The README table of one kernel physics step's parts (ranges over the runs, us per call)."""
     parts = results["kernel_parts"]
     steps = [p["step"] * 1e6 for p in parts]
     lines = [f"One physics step of the 20 s `paper` rollout: {_span(steps, '.2f')} us over {len(parts)} runs "
-             f"(600,000 steps/s on {results['workers']} threads needs {results['workers'] / 0.6:.2f} us per step "
-             "and thread, everything included).", "",
+             f"(1,000,000 steps/s on {results['workers']} threads needs {results['workers']:.2f} us per step "
+             "and thread, everything included).", "", floor_line(results), "",
              "| part | us per call | share of a step |", "|---|---|---|"]
     for key, name in kernel_parts.PARTS.items():
         values = [p[key] * 1e6 for p in parts]
@@ -400,7 +428,7 @@ def main() -> None:
         budgets.append(budget)
         parts.append(kernel_parts.measure_parts())
     results = {"machine": machine, "workers": workers, "quick": args.quick, "runs": runs, "budgets": budgets,
-               "kernel_parts": parts,
+               "kernel_parts": parts, "operations": kernel_parts.operation_counts(), "clock_ghz": clock_ghz(),
                "provenance": provenance(command="python benchmarks/bench.py " + " ".join(sys.argv[1:]),
                                         wall_time_s=time.perf_counter() - start)}
     write_json_atomic(args.out, results)

@@ -26,6 +26,32 @@ PARTS = {"kinematics": "forward kinematics (done twice per step: at the state an
          "midpoint": "midpoint integration (kinematics, momentum and base velocity at the half step)"}
 
 
+def operation_counts(joints: int = 12, capsules: int = 8, base_pairs: int = 6, obstacles: int = 1,
+                     exact_pairs: float = 2.5) -> dict[str, int]:
+    """Floating-point operations of one physics step's parts, counted from the kernel's loops (each add,
+    subtract, multiply, divide, square root or ``math`` call one; comparisons and index arithmetic not
+    counted). ``exact_pairs``: self-clearance pairs measured exactly per step (2.6 on ``paper``, the rest
+    culled by their bounds). An estimate of the arithmetic, not a measurement: the processor's counters are
+    not readable here.
+    """
+    arm = joints // 2
+    kinematics = 30 + joints * (18 + 63 + 2) + 2 * (45 + 18)  # base rotation; per joint: origin, two mixed columns, cos/sin
+    momentum = 75 + joints * (21 + 75 + 3 + 28 + 54 + 10)  # base inertia; per body: CoM, inertia, composite, column, parent
+    householder = sum(2 * m * m + 2 * m * (m + 1) + 5 * m + 10 for m in range(arm - 1, 1, -1))
+    singular = 2 * (21 * 11 + householder + 6 * 14 + 3 * 6 * 7)  # both arms: Gram, reduction, Laguerre, ~3 Newton steps
+    field = 2 * obstacles * arm * 60  # both arms: one logarithm and four square roots per segment and obstacle
+    gradient = obstacles * (arm * 20 + 45 * arm * (arm + 1) // 2)  # one arm, only while its blend acts
+    planner_rest = 130 + 250 + 6 * joints + 150 + 2 * 200 + 2 * 72  # base and EE tasks, Jacobian, targets, LU, norms
+    pairs = (capsules // 2) ** 2 + base_pairs
+    clearances = capsules * 36 + (70 + capsules * 25) * obstacles + capsules * 16 + pairs * 14 + int(exact_pairs * 350)
+    velocity, integrate = 260, 100
+    return {"kinematics": kinematics, "momentum": momentum, "singular values": singular, "danger field": field,
+            "field gradient (while avoiding)": gradient, "rest of the planner step": planner_rest,
+            "clearances": clearances, "base velocity": velocity, "integration": integrate,
+            "step": 2 * kinematics + 2 * momentum + singular + field + planner_rest + clearances + 2 * velocity
+            + 2 * integrate}
+
+
 @njit(cache=True)
 def _kinematics(mdl_owner, x_owner, ws_owner, n):
     mdl, x, ws = borrowed(mdl_owner), borrowed(x_owner), borrowed(ws_owner)

@@ -30,3 +30,14 @@ def test_speed_table_ranges_and_verdicts():
     table = bench.speed_table({"machine": "m", "runs": runs})
     assert "| w | 2-3 ms | r (last run) | 0.50-1.50 | t | in some runs |" in table
 
+
+
+def test_floor_line_shares():
+    """The kernel table's floor: cores x clock x operations per cycle / operations per step, and the batched share."""
+    bench = benchmark_script("bench")
+    results = {"operations": {"step": 10_000}, "clock_ghz": 2.5, "workers": 2,
+               "runs": [[{"key": "batched", "value": 250_000.0}], [{"key": "batched", "value": 300_000.0}]]}
+    line = bench.floor_line(results)
+    assert "could run 1,000,000 steps/s, and 8,000,000 at the AVX2 peak" in line
+    assert "250,000-300,000 steps/s: 25-30 % of the scalar floor, 3.1-3.8 % of the vector one." in line
+    assert bench.floor_line(results | {"clock_ghz": None}).endswith("`operation_counts`).")
