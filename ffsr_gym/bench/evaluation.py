@@ -275,8 +275,8 @@ def _batched_episodes(parameters: tuple[float, float], version: str, kwargs: dic
     results = []
     for i, (seed, _) in enumerate(jobs):
         task_seed = int(info["task_seed"][i])
-        row = _row(seed, {"task_seed": None if task_seed < 0 else task_seed},
-                   engine.rule.row(engine.results[i], engine.trajectory(i)), True)
+        traj = engine.trajectory(i) if engine.rule.row_needs_trajectory else None
+        row = _row(seed, {"task_seed": None if task_seed < 0 else task_seed}, engine.rule.row(engine.results[i], traj), True)
         results.append((row, engine.scenarios[i].name, engine.scenarios[i].sha256()))
     venv.close()
     return results

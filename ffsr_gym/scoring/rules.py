@@ -49,6 +49,7 @@ class PaperObjective:
     #: Whether the compiled decision's increment and cost are this rule's (else recomputed from the rates).
     compiled_terms = False
     shaping = False
+    row_needs_trajectory = True  # :meth:`row` adds trajectory metrics
     benchmark = None  # its numbers are the scenario's own sections
 
     def __init__(self, spec: BenchmarkSpec) -> None:
@@ -118,6 +119,7 @@ class BoundedSmoothness:
                                  "paper_B": float}
     compiled_terms = True
     shaping = True
+    row_needs_trajectory = False  # :meth:`row` reads the result only
 
     def __init__(self, spec: BenchmarkSpec) -> None:
         self.spec = spec
@@ -157,7 +159,7 @@ class BoundedSmoothness:
         """Rewards of decisions that did not end their episodes (elementwise, as one at a time)."""
         return running_reward(cost_before, cost_before + increments)
 
-    def row(self, result: EpisodeScore, traj: Trajectory) -> dict[str, Any]:
+    def row(self, result: EpisodeScore, traj: Trajectory | None) -> dict[str, Any]:
         """The leaderboard row of an episode (besides its seed and task)."""
         return result.as_dict()
 
