@@ -173,3 +173,109 @@ def test_cache_guard_covers_every_compiled_module():
     assert compiled == {module.__name__ for module in kernel_cache.MODULES}
     assert intrinsics == {"ffsr_gym.kernel.borrow"}
     assert compiled | intrinsics == {module.__name__ for module in kernel_cache.SOURCES}
+
+
+def _random_states(rng, n):
+    """(19,) kernel states: base position, unit quaternion (x, y, z, w), 12 joint angles in ±1.5 rad."""
+    out = []
+    for _ in range(n):
+        quat = rng.normal(size=4)
+        out.append(np.concatenate((rng.uniform(-0.5, 0.5, 3), quat / np.linalg.norm(quat), rng.uniform(-1.5, 1.5, 12))))
+    return out
+
+
+def _pinocchio_q(rollout, x):
+    q = np.empty(19)
+    q[:7], q[rollout.model.q_index] = x[:7], x[7:]
+    return q
+
+
+def test_composite_body_momentum_matches_pinocchio():
+    """H_b and H_bm from the composite-body pass against Pinocchio's centroidal map (``Robot.momentum_matrices``),
+    and the system CoM against ``pinocchio.centerOfMass``, at random states."""
+    from ffsr_gym.kernel import physics
+    from ffsr_gym.model.robot import load_robot
+    from ffsr_gym.model.scenario import load_scenario
+
+    rollout, robot = KernelRollout(load_scenario("paper")), load_robot()
+    mdl, ws = rollout._mdl, physics.workspace(len(rollout._mdl.cap_radius))
+    for x in _random_states(np.random.default_rng(5), 20):
+        physics.kinematics_into(mdl, x, ws)
+        physics.momentum_into(mdl, x, ws)
+        q = _pinocchio_q(rollout, x)
+        ref = robot.momentum_matrices(q)
+        np.testing.assert_allclose(ws.H_b, ref.H_b, rtol=0, atol=1e-11 * np.abs(ref.H_b).max())
+        np.testing.assert_allclose(ws.H_bm, ref.H_bm, rtol=0, atol=1e-11 * np.abs(ref.H_bm).max())
+        np.testing.assert_allclose(ws.rg, robot.system_com(q), rtol=0, atol=1e-13)
+
+
+def test_schur_base_velocity_matches_a_dense_solve():
+    """The base velocity by H_b's Schur complement against numpy's dense solve of the same system."""
+    from ffsr_gym.kernel import physics
+    from ffsr_gym.model.scenario import load_scenario
+
+    rollout = KernelRollout(load_scenario("paper"))
+    mdl, ws, rng = rollout._mdl, physics.workspace(len(rollout._mdl.cap_radius)), np.random.default_rng(6)
+    for x in _random_states(rng, 20):
+        dq, h = rng.normal(size=12), rng.normal(size=6)
+        physics.kinematics_into(mdl, x, ws)
+        physics.momentum_into(mdl, x, ws)
+        out = np.empty(6)
+        physics.velocity_into(out, x, dq, h, ws)
+        d = ws.rg - x[:3]  # [P; L_G] about the system CoM -> about the base CoM, minus the arms' part
+        rhs = np.concatenate((h[:3], h[3:] + np.cross(d, h[:3]))) - ws.H_bm[0] @ dq[:6] - ws.H_bm[1] @ dq[6:]
+        world = np.linalg.solve(ws.H_b, rhs)
+        R = ws.R_b
+        np.testing.assert_allclose(out, np.concatenate((R.T @ world[:3], R.T @ world[3:])), rtol=0,
+                                   atol=1e-12 * max(1.0, np.abs(world).max()))
+
+
+def test_danger_field_segments_match_the_reference_integrals():
+    """One logarithm per segment and the kept geometry against ``planning.avoidance``'s closed form (two inverse
+    hyperbolic sines, hypot): the feet before, on and after the segment, nearly collinear points, and a segment
+    of zero length (skipped)."""
+    from ffsr_gym.kernel.planner import _field_of_segment, _moments_of_segment
+    from ffsr_gym.planning.avoidance import _segment_integrals
+
+    rng, geometry = np.random.default_rng(8), np.empty(5)
+    a, b = np.array([0.1, -0.2, 0.3]), np.array([0.6, 0.1, 0.2])
+    direction = (b - a) / np.linalg.norm(b - a)
+    normal = np.cross(direction, [0.0, 0.0, 1.0])
+    normal /= np.linalg.norm(normal)
+    points = [a + s * (b - a) + rng.normal(scale=0.3, size=3) for s in rng.uniform(-1.0, 2.0, 200)]
+    points += [a + s * (b - a) + 1e-7 * normal for s in (-0.5, 0.3, 1.7)]  # nearly on the line
+    cases = 0
+    for p in points:
+        F, nearest = _field_of_segment(p[0], p[1], p[2], np.array([a, b]), 0, geometry)
+        I0, I1 = _moments_of_segment(geometry)
+        F_ref, I0_ref, I1_ref, nearest_ref = _segment_integrals(p, a, b)
+        assert F == pytest.approx(F_ref, rel=1e-12) and nearest == pytest.approx(nearest_ref, rel=1e-12)
+        assert I0 == pytest.approx(I0_ref, rel=1e-9) and I1 == pytest.approx(I1_ref, rel=1e-9, abs=1e-9 * abs(I0_ref))
+        cases += 1
+    assert cases == 203
+    assert _field_of_segment(0.0, 0.0, 1.0, np.array([a, a]), 0, geometry) == (0.0, np.inf)
+
+
+def test_midpoint_kinematics_from_the_kept_cosines():
+    """The half step's kinematics from the planner step's cosines and sines (angle-sum formula, series for the
+    increment) equal a fresh evaluation to rounding; a state the kept values do not belong to is computed afresh."""
+    from ffsr_gym.kernel import physics
+    from ffsr_gym.model.scenario import load_scenario
+
+    rollout = KernelRollout(load_scenario("paper"))
+    mdl = rollout._mdl
+    kept, fresh = physics.workspace(len(mdl.cap_radius)), physics.workspace(len(mdl.cap_radius))
+    rng = np.random.default_rng(9)
+    for x, scale in zip(_random_states(rng, 12), [0.5] * 6 + [40.0] * 6):  # small increments (series), large ones
+        dq, h = rng.normal(scale=scale, size=12), 0.005
+        half = x.copy()
+        half[7:] = x[7:] + dq * h
+        physics.kinematics_into(mdl, x, kept)  # keeps cos/sin at x
+        physics.kinematics_into(mdl, half, kept, dq, h)
+        physics.kinematics_into(mdl, half, fresh)
+        for name in ("Rj", "pj", "z", "Re", "pe"):
+            np.testing.assert_allclose(getattr(kept, name), getattr(fresh, name), rtol=0, atol=4e-15, err_msg=name)
+    other = _random_states(rng, 1)[0]
+    physics.kinematics_into(mdl, other, kept, dq, h)  # the kept values are of another state: computed afresh
+    physics.kinematics_into(mdl, other, fresh)
+    assert np.array_equal(kept.Rj, fresh.Rj) and np.array_equal(kept.pj, fresh.pj)
