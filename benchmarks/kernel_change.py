@@ -1,4 +1,5 @@
-"""What a kernel change did to the v2 leaderboards: each entry's IQM and CI before and after, and its rank.
+"""What a kernel change did to the v2 leaderboards and pools: each entry's IQM and CI before and after, its rank,
+and each pool's tasks and certificate scores.
 
 The entries before are read from git (``--before``, the last commit on the previous kernel), the
 entries after from the working tree (regenerated on the new kernel). For each tier and entry it
@@ -14,6 +15,7 @@ below), so a reader sees whether the pair was at the edge of separation.
 from __future__ import annotations
 
 import argparse
+import json
 import subprocess
 import sys
 import tarfile
@@ -21,6 +23,8 @@ import tempfile
 from io import BytesIO
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from ffsr_gym.bench.leaderboard import load_entries, ordered
 from ffsr_gym.model.spec import spec_for_version
@@ -66,6 +70,37 @@ def flipped_pairs(before: dict[str, dict[str, Any]], after: dict[str, dict[str, 
     return pairs
 
 
+POOL_FILES = ("v2_tasks.json", "v2_debris_tasks.json", "v2_robust_tasks.json")
+
+
+def _pools(text: str) -> dict[tuple[str, str], list[dict[str, Any]]]:
+    data = json.loads(text)
+    return {(tier, split): tasks for split, part in data["splits"].items() for tier, tasks in part["pools"].items()}
+
+
+def pool_change(before_commit: str) -> dict[str, Any]:
+    """Per tier: whether every pool holds the same tasks with the same certificates before and after, and the
+    relative change of the stored certificate scores (median, 99th percentile, largest)."""
+    out: dict[str, Any] = {}
+    for name in POOL_FILES:
+        old_text = subprocess.run(["git", "-C", str(ROOT), "show", f"{before_commit}:envs/benchmark/{name}"], check=True,
+                                  capture_output=True, text=True).stdout
+        old, new = _pools(old_text), _pools((ROOT / "envs" / "benchmark" / name).read_text(encoding="utf-8"))
+        for (tier, split), tasks in new.items():
+            was = old.get((tier, split), [])
+            same = [(t["seed"], t["certificate"], t["default_failure"]) for t in tasks] == \
+                   [(t["seed"], t["certificate"], t["default_failure"]) for t in was]
+            change = [abs(t["certificate_score"] - w["certificate_score"]) / w["certificate_score"]
+                      for t, w in zip(tasks, was) if w["certificate_score"] > 0.0]
+            row = out.setdefault(tier, {"same_tasks": True, "changes": []})
+            row["same_tasks"] &= same
+            row["changes"] += change
+    return {tier: {"same_tasks": row["same_tasks"], "tasks": len(row["changes"]),
+                   "score_change_median": float(np.median(row["changes"])),
+                   "score_change_p99": float(np.quantile(row["changes"], 0.99)),
+                   "score_change_max": float(np.max(row["changes"]))} for tier, row in out.items()}
+
+
 def compare(before_commit: str, version: str) -> dict[str, Any]:
     before, after = entries_at(before_commit, version), entries_at(None, version)
     tiers = {}
@@ -78,12 +113,13 @@ def compare(before_commit: str, version: str) -> dict[str, Any]:
                          "iqm_after": new["iqm"], "ci_after": new["ci"], "rank_after": new["rank"],
                          "inside_old_ci": None if old is None else old["ci"][0] <= new["iqm"] <= old["ci"][1]})
         tiers[tier] = {"entries": rows, "flipped_pairs": flipped_pairs(before.get(tier, {}), after[tier])}
-    return {"version": version, "before": before_commit, "tiers": tiers}
+    return {"version": version, "before": before_commit, "tiers": tiers, "pools": pool_change(before_commit)}
 
 
 def table(record: dict[str, Any]) -> str:
-    lines = [f"Benchmark {record['version']}: each entry before (commit {record['before']}, the previous kernel) and "
-             "after (this kernel). IQM [95 % CI]; rank by CI separation.", "",
+    head = (f"Benchmark {record['version']}: each entry before (commit {record['before']}, the previous kernel) and "
+            "after (this kernel). IQM [95 % CI]; rank by CI separation.")
+    lines = [head, "",
              "| tier | entry | IQM before | IQM after | inside the old CI | rank before | rank after |",
              "|---|---|---|---|---|---|---|"]
     for tier, data in record["tiers"].items():
@@ -93,6 +129,13 @@ def table(record: dict[str, Any]) -> str:
             inside = {None: "n/a", True: "yes", False: "**no**"}[row["inside_old_ci"]]
             lines.append(f"| {tier} | {row['name']} | {before} | {row['iqm_after']:.4f} | {inside} | "
                          f"{row['rank_before']} | {row['rank_after']} |")
+    pools = ("The pool files rebuilt on this kernel (`ffsr-gym tasks build`), every split of each tier: the same tasks "
+             "with the same certificates and default failures, and the relative change of the stored certificate scores:")
+    columns = "| tier | same tasks, certificates, default failures | tasks | median change | 99th percentile | largest |"
+    lines += ["", pools, "", columns, "|---|---|---|---|---|---|"]
+    for tier, row in record["pools"].items():
+        lines.append(f"| {tier} | {'yes' if row['same_tasks'] else '**no**'} | {row['tasks']} | "
+                     f"{row['score_change_median']:.1e} | {row['score_change_p99']:.1e} | {row['score_change_max']:.1e} |")
     flips = [(tier, p) for tier, data in record["tiers"].items() for p in data["flipped_pairs"]]
     lines.append("")
     if not flips:

@@ -53,3 +53,10 @@ def test_ranks_move_only_through_pairs_at_the_edge_of_separation():
         for pair in data["flipped_pairs"]:
             widths = [entries[pair[k]]["ci_before"][1] - entries[pair[k]]["ci_before"][0] for k in ("above", "below")]
             assert abs(pair["gap_before"]) <= 0.5 * max(widths), (tier, pair)
+
+
+def test_the_rebuilt_pools_hold_the_same_tasks():
+    """Rebuilt on the new kernel, every pool keeps its tasks, certificates and default failures (only the stored
+    certificate scores, margins and nominal figures are re-recorded)."""
+    assert set(RECORD["pools"]) == {"easy", "medium", "hard", "debris", "robust"}
+    assert all(row["same_tasks"] and row["tasks"] == 350 for row in RECORD["pools"].values())
