@@ -30,15 +30,15 @@ from ffsr_gym.tasks.tiers import ALL_TIERS
 GAINS_PER_S = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
 
 
-def tune(tier: str, candidates: list[dict], tasks: int, version: str) -> tuple[dict, dict]:
-    """The candidate with the best mean score on the first ``tasks`` training tasks, and its cost."""
+def tune(tier: str, candidates: list[dict], tasks: int, version: str) -> tuple[dict, dict, float]:
+    """The candidate with the best mean score on the first ``tasks`` training tasks, its cost, and that mean."""
     benchmark, start = load_benchmark(version), time.perf_counter()
     scenarios = [task_scenario(tier, t.seed, benchmark) for t in pool(tier, "train", version=version)[:tasks]]
     means = [np.mean([planner_episode(s, benchmark, **c).score for s in scenarios])
              for c in tqdm(candidates, desc=f"tune {tier}", leave=False)]
     best = candidates[int(np.argmax(means))]
-    return best, {"objective_evaluations": len(candidates) * len(scenarios), "wall_time_s": time.perf_counter() - start,
-                  "best_mean_training_score": float(max(means))}
+    return (best, {"objective_evaluations": len(candidates) * len(scenarios), "wall_time_s": time.perf_counter() - start},
+            float(max(means)))
 
 
 def main() -> None:
@@ -60,14 +60,17 @@ def main() -> None:
             if (folder / f"{name}.json").exists():
                 print("kept", folder / f"{name}.json")
                 continue
+            found = {}
             if len(candidates) == 1:
                 setting, compute, trained_on = candidates[0], {}, None
             else:
-                (setting, compute), trained_on = tune(tier, candidates, args.tune_tasks, args.version), f"{tier}/train"
+                setting, compute, found["best_mean_training_score"] = tune(tier, candidates, args.tune_tasks, args.version)
+                trained_on = f"{tier}/train"
             settings = {key: value for key, value in setting.items() if key != "method"}
             report = evaluate_planner(setting["method"], task=tier, name=name, training_pool=trained_on,
                                       compute=compute, version=args.version, **settings)
             report.extra["method"] = f"{setting['method']} planner {settings}"
+            report.extra.update(found)
             print(name, tier, settings, f"IQM {report.metrics['score_iqm']:.3f}", "->", report.save(folder))
 
 

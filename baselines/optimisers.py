@@ -31,7 +31,7 @@ def run_ga(tier, tasks, work, pool, generations, population, version):
     state = ga.run(config, executor=pool, checkpoint=Path(work) / f"ga_{tier}.json",
                    fitness=partial(training_loss, tier=tier, tasks=tasks, version=version), progress=True)
     m, T_c, loss = ga.best(state)
-    return (m, T_c), {"objective_evaluations": len(state.cache) * tasks, "best_training_loss": loss}
+    return (m, T_c), {"objective_evaluations": len(state.cache) * tasks}, loss
 
 
 def run_cmaes(tier, tasks, pool, evaluations, version):
@@ -44,8 +44,7 @@ def run_cmaes(tier, tasks, pool, evaluations, version):
         params = [tuple(low + np.clip(z, 0, 1) * (high - low)) for z in candidates]
         es.tell(candidates, list(pool.map(ga.call_fitness, [loss] * len(params), params)))
     m, T_c = low + np.clip(es.result.xbest, 0, 1) * (high - low)
-    return (float(m), float(T_c)), {"objective_evaluations": int(es.result.evaluations) * tasks,
-                                    "best_training_loss": float(es.result.fbest)}
+    return (float(m), float(T_c)), {"objective_evaluations": int(es.result.evaluations) * tasks}, float(es.result.fbest)
 
 
 def main() -> None:
@@ -72,12 +71,13 @@ def main() -> None:
                     print("kept", folder / f"{name}.json")
                     continue
                 start = time.perf_counter()
-                (m, T_c), compute = search()
+                (m, T_c), compute, loss = search()
                 compute["wall_time_s"] = time.perf_counter() - start
                 report = evaluate_planner("predefined_time", task=tier, m=m, T_c=T_c, name=name,
                                           training_pool=f"{tier}/train (first {args.tasks} tasks)", compute=compute,
                                           version=version)
                 report.extra["method"] = names[name] + f" over (m, T_c): ({m:.4f}, {T_c:.3f} s)"
+                report.extra["best_training_loss"] = loss
                 print(name, tier, f"({m:.4f}, {T_c:.3f} s)", f"IQM {report.metrics['score_iqm']:.3f}", "->", report.save(folder))
 
 

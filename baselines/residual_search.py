@@ -26,8 +26,8 @@ from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.tasks.tiers import ALL_TIERS
 
 
-def search(tier: str, tasks: int, evaluations: int, pool: ProcessPoolExecutor, version: str) -> tuple[tuple, dict]:
-    """The best constant residual of a CMA-ES run on the training pool, and what it cost."""
+def search(tier: str, tasks: int, evaluations: int, pool: ProcessPoolExecutor, version: str) -> tuple[tuple, dict, float]:
+    """The best constant residual of a CMA-ES run on the training pool, what it cost, and its training loss."""
     loss = partial(residual_training_loss, tier=tier, tasks=tasks, version=version)
     es = cma.CMAEvolutionStrategy(np.zeros(12), 0.3, {"bounds": [-1, 1], "seed": 1, "maxfevals": evaluations,
                                                      "verbose": -9})
@@ -36,8 +36,7 @@ def search(tier: str, tasks: int, evaluations: int, pool: ProcessPoolExecutor, v
         es.tell(candidates, list(pool.map(loss, candidates)))
         print(f"  {tier}: {es.result.evaluations} evaluations, best training loss {es.result.fbest:.4f}", flush=True)
     action = tuple(float(x) for x in np.clip(es.result.xbest, -1.0, 1.0).astype(np.float32))
-    return action, {"objective_evaluations": int(es.result.evaluations) * tasks,
-                    "best_training_loss": float(es.result.fbest)}
+    return action, {"objective_evaluations": int(es.result.evaluations) * tasks}, float(es.result.fbest)
 
 
 def main() -> None:
@@ -56,12 +55,13 @@ def main() -> None:
                 print("kept", folder / "cmaes_residual.json")
                 continue
             start = time.perf_counter()
-            action, compute = search(tier, args.tasks, args.evaluations, pool, args.version)
+            action, compute, loss = search(tier, args.tasks, args.evaluations, pool, args.version)
             compute["wall_time_s"] = time.perf_counter() - start
             report = ffsr_gym.evaluate(action, env_id, task=tier, name="cmaes_residual",
                                        training_pool=f"{tier}/train (first {args.tasks} tasks)", compute=compute)
             report.extra["method"] = "CMA-ES (cma) over one constant residual action: " + ", ".join(f"{x:+.3f}"
                                                                                                   for x in action)
+            report.extra["best_training_loss"] = loss
             print("cmaes_residual", tier, f"IQM {report.metrics['score_iqm']:.3f}", "->", report.save(folder))
 
 

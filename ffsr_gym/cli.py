@@ -210,7 +210,7 @@ def _compute(text: str | None) -> dict | None:
     """``--compute ENV_STEPS,WALL_TIME_S`` as :func:`ffsr_gym.evaluate`'s ``compute``."""
     if text is None:
         return None
-    from ffsr_gym.bench.evaluation import check_compute
+    from ffsr_gym.bench.entry import check_compute
     from ffsr_gym.exceptions import InvalidInputError
 
     parts = text.split(",")

@@ -102,6 +102,16 @@ def test_compute_is_a_public_argument_checked_by_name():
             ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", indices=[0], compute=bad)
 
 
+def test_a_planner_entry_checks_its_compute_by_the_same_rule():
+    """``evaluate_planner`` (the classical and optimiser baselines) records compute through the same check:
+    a search's own diagnostic, such as its best training loss, belongs in ``extra``, not in ``compute``."""
+    from ffsr_gym.bench.planner_scores import evaluate_planner
+
+    with pytest.raises(InvalidInputError, match="allowed"):
+        evaluate_planner("predefined_time", task="easy", m=0.3, T_c=4.0,
+                         compute={"objective_evaluations": 20, "wall_time_s": 1.0, "best_training_loss": 0.7})
+
+
 def test_the_frame_shows_every_obstacle_where_it_is_now():
     env = gym.make("FFSR-v2", task="debris", split="test", render_mode="rgb_array")
     env.reset(seed=0, options={"task_index": 3})

@@ -19,6 +19,41 @@ from ffsr_gym.scoring.aggregate import BOOTSTRAP_SAMPLES, BOOTSTRAP_SEED
 V0_SCORE_RULE = "objective B if feasible else inf (null in JSON)"
 
 
+def check_compute(compute: Any) -> dict[str, Any]:
+    """``compute`` as an entry records it (the tables' compute column): what training or tuning the policy cost.
+
+    Keys: ``env_steps`` (environment steps, RL) and/or ``objective_evaluations`` (whole episodes
+    run by an optimiser), at least one, integers >= 0; ``wall_time_s`` (required, >= 0); optionally
+    ``hardware`` (text).
+
+    Raises:
+        InvalidInputError: anything else, naming the key and what is allowed.
+    """
+    counts, optional = ("env_steps", "objective_evaluations"), ("hardware",)
+    allowed = (*counts, "wall_time_s", *optional)
+    if (not isinstance(compute, dict) or "wall_time_s" not in compute or not any(k in compute for k in counts)
+            or not set(compute) <= set(allowed)):
+        raise InvalidInputError(f"compute = {compute!r}; allowed: a dict with 'wall_time_s' (number >= 0 [s]), "
+                                "'env_steps' and/or 'objective_evaluations' (integers >= 0), optionally 'hardware' "
+                                "(text)")
+    out: dict[str, Any] = {}
+    for key in counts:
+        if key in compute:
+            value = compute[key]
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+                raise InvalidInputError(f"compute[{key!r}] = {value!r}; allowed: an integer >= 0")
+            out[key] = int(value)
+    seconds = compute["wall_time_s"]
+    if isinstance(seconds, bool) or not isinstance(seconds, (int, float, np.floating)) or not 0 <= seconds < np.inf:
+        raise InvalidInputError(f"compute['wall_time_s'] = {seconds!r}; allowed: a finite number >= 0 [s]")
+    out["wall_time_s"] = float(seconds)
+    if "hardware" in compute:
+        if not isinstance(compute["hardware"], str):
+            raise InvalidInputError(f"compute['hardware'] = {compute['hardware']!r}; allowed: a text, e.g. '2 CPU cores'")
+        out["hardware"] = compute["hardware"]
+    return out
+
+
 @runtime_checkable
 class PredictsActions(Protocol):
     """Anything with a stable-baselines3-style ``predict``."""

@@ -13,7 +13,7 @@ import numpy as np
 from gymnasium.utils import seeding
 from tqdm.auto import tqdm
 
-from ffsr_gym.bench.entry import EvalReport
+from ffsr_gym.bench.entry import EvalReport, check_compute
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.scenario import Scenario, load_scenario
 from ffsr_gym.model.spec import spec_for_version
@@ -70,11 +70,13 @@ def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | 
 
     The planner variants that are not an env action (``proportional``) are scored here, from the
     trajectory with the version's score rule, exactly as :func:`ffsr_gym.evaluate` scores env episodes.
+    ``compute``: what tuning the parameters cost (:func:`~ffsr_gym.bench.entry.check_compute`), if anything.
     """
     spec = spec_for_version(version)
     if task not in spec.tasks.tiers or split not in spec.tasks.splits:
         raise InvalidInputError(f"task {task!r}, split {split!r}; allowed: task in {list(spec.tasks.tiers)}, "
                                 f"split in {list(spec.tasks.splits)}")
+    compute = check_compute(compute) if compute else {}
     rule = score_rule(spec)
     benchmark, start, rows, hashes = rule.benchmark, time.perf_counter(), [], {}
     tasks = pool(task, split, version=benchmark.version)
@@ -85,7 +87,7 @@ def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | 
         rows.append({"seed": index, "task_index": index, "task_seed": entry.seed, **result.as_dict()})
     extra = {"training_pool": training_pool, "evaluation_pool": f"{task}/{split}",
              "pool_file_sha256": hashlib.sha256(pool_path(task, benchmark.version).read_bytes()).hexdigest(),
-             "planner": {"method": method, "m": m, "T_c_s": T_c, "gain_per_s": gain_per_s}, "compute": compute or {}}
+             "planner": {"method": method, "m": m, "T_c_s": T_c, "gain_per_s": gain_per_s}, "compute": compute}
     if spec.tasks.step_option:
         extra["dt_s"] = benchmark.dt_s
     prov = provenance(scenarios=hashes, seeds=list(range(len(rows))), wall_time_s=time.perf_counter() - start)
