@@ -364,7 +364,8 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
 
     Returns:
         The frozen, validated :class:`Scenario`. Quaternions are normalised. Loading the same file
-        again (same size and modification time) returns the same object.
+        again (same size and modification time) returns the same object when its robot is a
+        shipped one (a robot folder's files may change under the scenario's hash).
 
     Raises:
         ScenarioError: unknown name, unreadable TOML, or any invalid key (the message names the
