@@ -1,17 +1,16 @@
 """RL study on a pool benchmark version: PPO and SAC on FFSR-v2 and FFSR-Residual-v2, every tier, 5 seeds each.
 
     python baselines/rl_study.py --leaderboard leaderboards [--version v2] [--work runs/rl-v2] [--workers 2]
-                                 [--scale 1.0] [--seeds 0 1 2 3 4]
+                                 [--algos ppo sac] [--tiers easy hard] [--seeds 0 1 2 3 4] [--points 20]
 
-One study piece is one (algorithm, env id, tier): its agents train on the tier's training pool
-(budgets in ``ffsr_gym/hyperparams``, times ``--scale``), each is scored on the test pool, and
-the piece becomes one leaderboard entry (``ffsr_gym.optim.rl.train_and_evaluate``; learning curves
-on the validation pool). Pieces
-run in parallel on ``--workers`` processes. A piece whose entry exists is skipped, and inside a
-piece a seed whose folder in ``--work`` holds its model and scores is loaded, not retrained, so a
-killed study resumes where it stopped. The learning curve of every seed has 5 points after the
-untrained one. To rerun it bigger: ``--scale 10`` trains ten times as long (write to a new
-``--leaderboard`` root or delete the old entries first).
+One piece is one (algorithm, env id, tier, training seed): the agent trains on the tier's
+training pool for the budget of ``ffsr_gym/hyperparams/<algo>.yml`` (times ``--scale``), is
+scored on the validation pool ``--points`` times (the learning curve and the checkpoint
+selection), and its last and best-on-validation checkpoints are scored once on the test pool
+(``ffsr_gym.optim.rl``). Pieces run on ``--workers`` processes, one core each. A piece whose
+folder in ``--work`` holds its models and scores is loaded, never retrained, so a killed study
+resumes where it stopped; when every seed of an (algorithm, env id, tier) is done, its two
+leaderboard entries (``<name>`` and ``<name>_valbest``) are written. An existing entry is kept.
 """
 
 import argparse
@@ -21,25 +20,33 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
+from ffsr_gym.bench.evaluation import spec_of
 from ffsr_gym.model.spec import spec_for_version
-from ffsr_gym.optim.rl import load_hyperparams
-from ffsr_gym.optim.rl import train_and_evaluate
+from ffsr_gym.optim.rl import CHECKPOINTS, entry_name, load_hyperparams, train_and_evaluate
 from ffsr_gym.tasks.tiers import ALL_TIERS
 
-ALGOS = ("sac", "ppo")
+ALGOS = ("ppo", "sac")
 
 
-def entry_name(algo: str, env_id: str, tier: str) -> str:
-    return f"{algo}_{'residual_' if 'Residual' in env_id else ''}{tier}"
-
-
-def run_piece(algo: str, env_id: str, tier: str, seeds: list[int], scale: float, work: str, root: str,
-              version: str) -> str:
+def budget(algo: str, env_id: str, scale: float, points: int) -> tuple[int, int]:
+    """(env steps per seed, steps between validation scorings)."""
     steps = int(round(load_hyperparams(algo, env_id)["n_timesteps"] * scale))
-    report = train_and_evaluate(algo, env_id, task=tier, seeds=seeds, out=work, timesteps=steps,
-                                   curve_every=max(1, steps // 5), progress=False)
-    path = report.save(Path(root) / version / tier)
-    return f"{report.name}: IQM {report.metrics['score_iqm']:.3f}, success {report.metrics['success_rate']:.2f} -> {path}"
+    return steps, max(1, steps // points)
+
+
+def run_seed(algo: str, env_id: str, tier: str, seed: int, scale: float, points: int, work: str) -> str:
+    steps, every = budget(algo, env_id, scale, points)
+    reports = train_and_evaluate(algo, env_id, task=tier, seeds=[seed], out=work, timesteps=steps, curve_every=every,
+                                 progress=False)
+    return " | ".join(f"{r.name} seed {seed}: mean {r.metrics['score_mean']:.3f}" for r in reports.values())
+
+
+def write_entries(algo: str, env_id: str, tier: str, seeds: list[int], scale: float, points: int, work: str,
+                  root: Path) -> str:
+    steps, every = budget(algo, env_id, scale, points)
+    reports = train_and_evaluate(algo, env_id, task=tier, seeds=seeds, out=work, timesteps=steps, curve_every=every,
+                                 progress=False)  # every seed is loaded from its folder
+    return "\n".join(f"{r.name}: IQM {r.metrics['score_iqm']:.3f} -> {r.save(root)}" for r in reports.values())
 
 
 def main() -> None:
@@ -47,23 +54,36 @@ def main() -> None:
     parser.add_argument("--version", default="v2", help="a pool benchmark version (default: v2)")
     parser.add_argument("--leaderboard", required=True, help="leaderboard root; entries go to <root>/<version>/<tier>/")
     parser.add_argument("--work", default=None, help="models, training records, scores (default: runs/rl-<version>)")
-    parser.add_argument("--workers", type=int, default=2, help="pieces trained at once (default: 2)")
+    parser.add_argument("--workers", type=int, default=2, help="seeds trained at once, one core each (default: 2)")
     parser.add_argument("--scale", type=float, default=1.0, help="multiplies every training budget (default: 1)")
+    parser.add_argument("--points", type=int, default=20, help="validation scorings per run after step 0 (default: 20)")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4], help="training seeds (default: 0-4)")
-    parser.add_argument("--algos", nargs="+", default=list(ALGOS), choices=ALGOS, help="algorithms (default: sac ppo)")
+    parser.add_argument("--algos", nargs="+", default=list(ALGOS), choices=ALGOS, help="algorithms (default: ppo sac)")
     parser.add_argument("--tiers", nargs="+", default=list(ALL_TIERS), choices=ALL_TIERS, help="tiers (default: all)")
+    parser.add_argument("--env-ids", nargs="+", default=None, help="env ids (default: the version's two)")
     args = parser.parse_args()
     version, work = args.version, args.work or f"runs/rl-{args.version}"
-    env_ids = spec_for_version(version).env_ids[::-1]  # residual first: the longer trainings start first
-    pieces = [(algo, env_id, tier) for algo in args.algos for env_id in env_ids for tier in args.tiers
-              if not (Path(args.leaderboard) / version / tier / f"{entry_name(algo, env_id, tier)}.json").exists()]
+    env_ids = args.env_ids or list(spec_for_version(version).env_ids)
+    groups = []
+    for tier in args.tiers:
+        for algo in args.algos:
+            for env_id in env_ids:
+                names = [entry_name(algo, spec_of(env_id), env_id, tier) + s for s in CHECKPOINTS.values()]
+                if not all((Path(args.leaderboard) / version / tier / f"{n}.json").exists() for n in names):
+                    groups.append((algo, env_id, tier))
     start = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as pool:
-        futures = [pool.submit(run_piece, *piece, args.seeds, args.scale, work, args.leaderboard, version)
-                   for piece in pieces]
-        for future in tqdm(as_completed(futures), total=len(futures), desc="RL study pieces"):
+        futures = {pool.submit(run_seed, *group, seed, args.scale, args.points, work): group
+                   for group in groups for seed in args.seeds}
+        left = {group: len(args.seeds) for group in groups}
+        for future in tqdm(as_completed(futures), total=len(futures), desc="RL study seeds"):
             tqdm.write(future.result())
-    print(f"{len(pieces)} pieces in {time.perf_counter() - start:.0f} s")
+            group = futures[future]
+            left[group] -= 1
+            if left[group] == 0:
+                tqdm.write(write_entries(*group, args.seeds, args.scale, args.points, work,
+                                         Path(args.leaderboard) / version / group[2]))
+    print(f"{len(groups)} entries pairs, {len(futures)} seeds in {time.perf_counter() - start:.0f} s")
 
 
 if __name__ == "__main__":

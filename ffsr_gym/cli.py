@@ -41,6 +41,13 @@ def build_targets() -> list[str]:
     return ["base", *PERTURBED_TIERS]
 
 
+def all_task_tiers() -> list[str]:
+    """Every tier of a pool version: easy, medium, hard and the perturbed ones."""
+    from ffsr_gym.tasks.tiers import ALL_TIERS
+
+    return list(ALL_TIERS)
+
+
 def tier_versions() -> list[str]:
     """The benchmark versions with task tiers (a rule file), newest last."""
     from ffsr_gym.model.benchmark import VERSIONS
@@ -89,23 +96,24 @@ def _ga(args: argparse.Namespace) -> None:
 
 def _train(args: argparse.Namespace) -> None:
     from ffsr_gym.bench.evaluation import spec_of
-    from ffsr_gym.optim.rl import train_and_evaluate
-
     from ffsr_gym.bench.options import free_entry, unique_seeds
-    from ffsr_gym.optim.rl import entry_name
+    from ffsr_gym.optim.rl import CHECKPOINTS, entry_name, train_and_evaluate
 
     spec = spec_of(args.env_id)
     task = args.task if spec.evaluation.protocol == "pool" else args.scenario
     folder = Path(args.leaderboard or ".") / spec.folder(args.env_id, task)
     unique_seeds(args.seeds)
+    checkpoints = list(CHECKPOINTS) if spec.evaluation.protocol == "pool" else ["last"]
     if args.leaderboard:  # before any training: a committed entry is never replaced by accident
-        free_entry(folder, entry_name(args.algo, spec, args.env_id, task), force=args.force)
-    report = train_and_evaluate(args.algo, args.env_id, task=task, seeds=args.seeds, out=args.out,
-                                timesteps=args.timesteps, hyperparams=args.hyperparams, curve_every=args.curve_every,
-                                progress=not args.no_progress, n_envs=args.n_envs, vec_env=args.vec_env)
-    print(f"{report.name}: {report.metrics}")
-    if args.leaderboard:
-        print("wrote", report.save(folder))
+        for checkpoint in checkpoints:
+            free_entry(folder, entry_name(args.algo, spec, args.env_id, task) + CHECKPOINTS[checkpoint], force=args.force)
+    reports = train_and_evaluate(args.algo, args.env_id, task=task, seeds=args.seeds, out=args.out,
+                                 timesteps=args.timesteps, hyperparams=args.hyperparams, curve_every=args.curve_every,
+                                 progress=not args.no_progress, n_envs=args.n_envs, vec_env=args.vec_env)
+    for report in reports.values():
+        print(f"{report.name}: {report.metrics}")
+        if args.leaderboard:
+            print("wrote", report.save(folder))
 
 
 def _leaderboard(args: argparse.Namespace) -> int:
@@ -319,6 +327,30 @@ def _tasks(args: argparse.Namespace) -> None:
               f"rejected {summary['rejection_counts']}")
 
 
+def _tasks_best_known(args: argparse.Namespace) -> None:
+    import shlex
+
+    import numpy as np
+
+    from ffsr_gym.optim import best_known_build as build
+    from ffsr_gym.tasks.splits import pool
+
+    work = Path(args.work)
+    if args.doubled:
+        rng = np.random.default_rng(0)
+        stored = [(t, s, i) for t in args.tiers for s in args.splits for i in range(len(pool(t, s, version=args.version)))]
+        sample = [stored[k] for k in sorted(rng.choice(len(stored), min(args.doubled, len(stored)), replace=False))]
+        summary = build.convergence(work, sample, version=args.version, progress=not args.no_progress)
+        print(f"doubled budget on {len(sample)} tasks: mean gap {summary['mean_gap']:.4f}, median relative gap "
+              f"{summary['median_relative_gap']:.4f}, max {summary['max_relative_gap']:.4f}")
+        return
+    for tier in args.tiers:
+        for split in args.splits:
+            build.run(tier, split, work, version=args.version, progress=not args.no_progress)
+    command = shlex.join(["ffsr-gym", "tasks", "best-known", "--tiers", *args.tiers, "--splits", *args.splits])
+    print("wrote", build.assemble(work, version=args.version, command=command))
+
+
 def _tasks_tables(args: argparse.Namespace) -> None:
     from ffsr_gym.provenance import write_text_atomic
     from ffsr_gym.tasks.build import docs_tables, splice_docs_tables
@@ -373,7 +405,8 @@ def _add_study_commands(sub: Any) -> None:
     tr.add_argument("--task", default="easy", choices=all_task_names(),
                     help="versions with tiers: the tier; trains on its training pool, scores its test pool (default: easy)")
     tr.add_argument("--curve-every", type=positive_int, default=5000,
-                    help="versions with tiers: env steps between learning-curve points (default: 5000)")
+                    help="versions with tiers: env steps between scorings on the validation pool (the learning curve "
+                         "and the checkpoint selection; default: 5000)")
     tr.add_argument("--seeds", type=natural, nargs="+", default=[0, 1, 2, 3, 4], help="training seeds (default: 0 1 2 3 4)")
     tr.add_argument("--timesteps", type=positive_int, default=None,
                     help="env steps per seed (default: n_timesteps of the hyperparameter file)")
@@ -406,6 +439,20 @@ def _add_study_commands(sub: Any) -> None:
     tb.add_argument("--max-candidates", type=positive_int, default=50_000, help="give up after this many per split (default: 50000)")
     tb.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     tb.set_defaults(func=_tasks)
+    bk = tasks_sub.add_parser("best-known", help="the best known score of every pool task (a per-task CMA-ES over "
+                                                 "action schedules; resumable) into envs/benchmark/<version>_best_known.json")
+    bk.add_argument("--version", default=tier_versions()[-1], choices=tier_versions(),
+                    help=f"benchmark version (default: {tier_versions()[-1]})")
+    bk.add_argument("--tiers", nargs="+", default=list(all_task_tiers()), choices=all_task_tiers(),
+                    help="tiers (default: all)")
+    bk.add_argument("--splits", nargs="+", default=["test", "validation"], choices=["train", "validation", "test"],
+                    help="pools searched (default: test validation)")
+    bk.add_argument("--work", default="runs/best-known", help="finished tasks, one jsonl per pool (default: runs/best-known)")
+    bk.add_argument("--doubled", type=positive_int, default=None, metavar="N",
+                    help="instead: re-run N random stored tasks of these pools with twice the generations and store "
+                         "the gap in the file")
+    bk.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    bk.set_defaults(func=_tasks_best_known)
     tt = tasks_sub.add_parser("tables", help="the tier tables of a version's pool files (docs/envs.md shows them)")
     tt.add_argument("--version", default=tier_versions()[-1], choices=tier_versions(),
                     help=f"benchmark version (default: {tier_versions()[-1]})")

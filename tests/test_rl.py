@@ -18,7 +18,10 @@ CASES = [(algo, env_id) for algo in ("ppo", "sac") for env_id in ("FFSR-v0", "FF
 
 
 def _smoke(algo, env_id, out, seeds=(0,)):
-    return train_and_evaluate(algo, env_id, seeds=list(seeds), out=out, timesteps=256, eval_seeds=[1, 2], progress=False)
+    reports = train_and_evaluate(algo, env_id, seeds=list(seeds), out=out, timesteps=256, eval_seeds=[1, 2],
+                                 progress=False)
+    assert list(reports) == ["last"]  # a version scored on seeds has no validation pool to select on
+    return reports["last"]
 
 
 @pytest.mark.parametrize(("algo", "env_id"), CASES)
@@ -30,7 +33,7 @@ def test_smoke_training_writes_a_valid_entry(algo, env_id, tmp_path):
     assert entry["metrics"]["episodes"] == 2
     assert leaderboard.recompute(entry)["feasible_rate"] == entry["metrics"]["feasible_rate"]
     assert entry["extra"]["runs"][0]["timesteps"] == 256
-    assert entry["extra"]["method"].endswith(", 1 training seed")  # not "1 training seeds"
+    assert ", 1 training seed, " in entry["extra"]["method"]  # not "1 training seeds"
     assert (tmp_path / "runs" / f"{algo}_{env_id}_paper_seed0" / "model.zip").is_file()
     assert any((tmp_path / "runs").rglob("events.out.tfevents*"))  # TensorBoard log
 
@@ -49,25 +52,41 @@ def test_hyperparameter_files_cover_every_id():
             assert params["n_timesteps"] > 0 and isinstance(params["policy_kwargs"], dict)
 
 
-def test_pool_training_records_a_validation_curve_scores_the_test_pool_and_resumes(tmp_path):
+def test_pool_training_selects_on_validation_scores_both_checkpoints_on_test_and_resumes(tmp_path):
+    from ffsr_gym.bench.evaluation import evaluate
     from ffsr_gym.bench.leaderboard import recompute as recompute_entry
+    from ffsr_gym.bench.policies import load_model
     from ffsr_gym.tasks.splits import pool
 
     def run():
-        return train_and_evaluate("ppo", "FFSR-v2", task="easy", seeds=[0], out=tmp_path, timesteps=256,
-                                     curve_every=128, curve_tasks=3, progress=False)
+        return train_and_evaluate("ppo", "FFSR-v2", task="easy", seeds=[0], out=tmp_path, timesteps=1024,
+                                  curve_every=256, curve_tasks=3, progress=False)  # 1024: one PPO rollout
 
-    report = run()
-    entry = report.to_json()
+    reports = run()
+    assert [r.name for r in reports.values()] == ["ppo_easy", "ppo_easy_valbest"]
+    entry = reports["last"].to_json()
     curve = entry["extra"]["runs"][0]["curve"]
-    assert [p["env_steps"] for p in curve["points"]][:2] == [0, 128] and len(curve["points"][0]["scores"]) == 3
+    assert [p["env_steps"] for p in curve["points"]] == [0, 256, 512, 768, 1024]
     assert curve["split"] == "validation" and curve["indices"] == [0, 24, 49]  # never the test pool
     assert len(entry["episodes"]) == len(pool("easy", "test"))
-    assert entry["extra"]["training_pool"] == "easy/train" and entry["extra"]["compute"]["env_steps"] == 256
-    recomputed = recompute_entry(entry)
-    assert entry["metrics"].keys() == recomputed.keys()
-    for key, value in recomputed.items():
-        assert entry["metrics"][key] == pytest.approx(value, rel=1e-12), key
-    started = (tmp_path / "ppo_FFSR-v2_easy_seed0" / "train_record.json").stat().st_mtime_ns
-    assert run().episodes == report.episodes  # resumed from the folder, not retrained
-    assert (tmp_path / "ppo_FFSR-v2_easy_seed0" / "train_record.json").stat().st_mtime_ns == started
+    assert entry["extra"]["training_pool"] == "easy/train" and entry["extra"]["compute"]["env_steps"] == 1024
+    assert entry["extra"]["selection_pool"] == "easy/validation"
+    for report in reports.values():
+        recomputed = recompute_entry(report.to_json())
+        assert report.metrics.keys() == recomputed.keys()
+        for key, value in recomputed.items():
+            assert report.metrics[key] == pytest.approx(value, rel=1e-12), key
+    # the selected checkpoint: the best validation mean, and the saved model scores exactly that again
+    folder = tmp_path / "ppo_FFSR-v2_easy_seed0"
+    means = [sum(p["scores"]) / 3 for p in curve["points"]]
+    best = entry["extra"]["runs"][0]["best_on_validation"]
+    assert best["validation_mean"] == pytest.approx(max(means), rel=1e-12)
+    assert best["env_steps"] == curve["points"][means.index(max(means))]["env_steps"]
+    chosen = load_model("ppo", folder / "best_on_validation.zip")
+    again = evaluate(chosen, "FFSR-v2", task="easy", split="validation", indices=[0, 24, 49])
+    assert [row["score"] for row in again.episodes] == curve["points"][means.index(max(means))]["scores"]
+    test = evaluate(chosen, "FFSR-v2", task="easy")
+    assert [row["score"] for row in test.episodes] == [row["score"] for row in reports["best_on_validation"].episodes]
+    started = (folder / "train_record.json").stat().st_mtime_ns
+    assert run()["last"].episodes == reports["last"].episodes  # resumed from the folder, not retrained
+    assert (folder / "train_record.json").stat().st_mtime_ns == started

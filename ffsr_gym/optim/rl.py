@@ -2,12 +2,20 @@
 
 Agents train where the version's spec says tasks come from (a scenario, or a tier's **training**
 pool) and are scored only through :func:`ffsr_gym.evaluate` (the version's protocol and score
-rule, never the RL return). One leaderboard entry aggregates several training seeds. On a pool
-version, a learning curve is recorded: every ``curve_every`` environment steps the policy is
-scored on ``curve_tasks`` evenly spaced test tasks (deterministic actions). A seed whose folder
-holds ``model.zip``, ``train_record.json`` and ``evaluation.json`` is loaded, never retrained or
-rescored, so an interrupted study resumes. stable-baselines3 and torch are optional
-(``pip install "ffsr-gym[rl]"``); the hyperparameters ship in ``ffsr_gym/hyperparams``.
+rule, never the RL return). One leaderboard entry aggregates several training seeds.
+
+On a pool version, checkpoints are **selected on the validation pool**: every ``curve_every``
+environment steps the policy (deterministic actions) is scored on ``curve_tasks`` evenly spaced
+tasks of the validation pool (default: all of them); these points are the learning curve, and the
+checkpoint with the best mean is kept as ``best_on_validation.zip``. The last and the selected
+checkpoint are each scored once on the test pool, as two entries (``<name>`` and
+``<name>_valbest``), so readers see how far training drifts from its best. The test pool never
+enters training or selection.
+
+A seed whose folder holds its models, ``train_record.json`` and its test scores is loaded, never
+retrained or rescored, so an interrupted study resumes seed by seed. stable-baselines3 and torch
+are optional (``pip install "ffsr-gym[rl]"``); the hyperparameters ship in
+``ffsr_gym/hyperparams``.
 """
 
 from __future__ import annotations
@@ -98,28 +106,47 @@ def curve_split(spec: BenchmarkSpec) -> str:
     return "validation" if "validation" in spec.tasks.splits else spec.evaluation.split
 
 
-def curve_indices(tier: str, count: int, split: str, version: str | None = None) -> list[int]:
-    """The tasks of the learning curve: ``count`` evenly spaced indices of ``tier``'s ``split`` pool."""
+def curve_indices(tier: str, count: int | None, split: str, version: str | None = None) -> list[int]:
+    """The tasks of the learning curve: ``count`` evenly spaced indices of ``tier``'s ``split`` pool (None: all)."""
     size = len(pool(tier, split, version=version))
+    if count is None:
+        return list(range(size))
     return sorted({int(i) for i in np.linspace(0, size - 1, max(1, min(count, size))).round()})
 
 
-def _curve_callback(env_id: str, tier: str, split: str, every: int, indices: list[int], points: list[dict[str, Any]]):
+#: The file of the checkpoint selected on the validation pool, in a seed's folder.
+BEST_MODEL = "best_on_validation.zip"
+#: The checkpoints a pool study scores on the test pool, and the entry-name suffix of each.
+CHECKPOINTS = {"last": "", "best_on_validation": "_valbest"}
+
+
+def _curve_callback(env_id: str, tier: str, split: str, every: int, indices: list[int], points: list[dict[str, Any]],
+                    best_path: Path, on_point: Any = None):
+    """Scores the policy on ``indices`` of the ``split`` pool every ``every`` env steps (and at 0 and at the end),
+    appends the points and saves the best-mean checkpoint (the earliest among equals) to ``best_path``.
+    ``on_point(steps, mean)`` may stop training by returning False (a tuner's pruning)."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Curve(BaseCallback):
-        def _score(self) -> None:
+        def _score(self) -> bool:
             report = evaluate(self.model, env_id, task=tier, split=split, indices=indices)
-            points.append({"env_steps": int(self.num_timesteps), "scores": [row["score"] for row in report.episodes]})
+            scores = [row["score"] for row in report.episodes]
+            steps, mean = int(self.num_timesteps), float(np.mean(scores))
+            points.append({"env_steps": steps, "scores": scores})
+            if self.best is None or mean > self.best:
+                self.best = mean
+                self.model.save(best_path)
+            return True if on_point is None else bool(on_point(steps, mean))
 
         def _on_training_start(self) -> None:
+            self.best = None
             self._score()  # the untrained policy, at 0 steps
             self.next = every
 
         def _on_step(self) -> bool:
             if self.num_timesteps >= self.next:
-                self._score()
                 self.next += every
+                return self._score()
             return True
 
         def _on_training_end(self) -> None:
@@ -127,6 +154,13 @@ def _curve_callback(env_id: str, tier: str, split: str, every: int, indices: lis
                 self._score()
 
     return Curve()
+
+
+def best_point(points: list[dict[str, Any]]) -> dict[str, Any]:
+    """The curve point with the best mean score (the earliest among equals): the selected checkpoint."""
+    means = [float(np.mean(p["scores"])) for p in points]
+    k = int(np.argmax(means))
+    return {"env_steps": points[k]["env_steps"], "validation_mean": means[k]}
 
 
 def entry_name(algo: str, spec: BenchmarkSpec, env_id: str, task: str) -> str:
@@ -165,19 +199,27 @@ def training_env(env_id: str, n_envs: int, seed: int, env_kwargs: dict[str, Any]
         return make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs)
     from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
 
-    env = BatchedVecEnv(env_id, n_envs, **env_kwargs)
+    env = BatchedVecEnv(env_id, n_envs, threads=1, **env_kwargs)  # one core per training run
     env.seed(seed)
     return env
 
 
+def _finished(out: Path, pooled: bool) -> bool:
+    return (out / "model.zip").is_file() and (out / "train_record.json").is_file() and (
+        not pooled or (out / BEST_MODEL).is_file())
+
+
 def train(algo: str, env_id: str, *, seed: int, out: str | Path, task: str | None = None, timesteps: int | None = None,
-          hyperparams: str | Path | None = None, curve_every: int = 5000, curve_tasks: int = 10,
-          progress: bool = True, n_envs: int | None = None, vec_env: str = "batched") -> tuple[Any, dict[str, Any]]:
-    """Train one agent; returns ``(model, record)`` (loaded if ``out`` holds a finished run).
+          hyperparams: str | Path | None = None, curve_every: int = 5000, curve_tasks: int | None = None,
+          progress: bool = True, n_envs: int | None = None, vec_env: str = "batched", params: dict | None = None,
+          on_point: Any = None) -> tuple[Any, dict[str, Any]]:
+    """Train one agent; returns ``(model, record)`` (the last model; loaded if ``out`` holds a finished run).
 
     TensorBoard logs, checkpoints and ``model.zip`` go to ``out``; on a pool version the record
-    holds the learning curve. ``n_envs`` overrides the hyperparameter file's; ``vec_env`` is one of
-    :data:`VEC_ENVS` (the same episodes either way).
+    holds the validation curve and ``out`` the selected checkpoint (:data:`BEST_MODEL`). ``n_envs``
+    overrides the hyperparameter file's; ``vec_env`` is one of :data:`VEC_ENVS` (the same episodes
+    either way); ``params`` replaces the file's hyperparameters (a tuner's trial). The batched env
+    and torch use one thread each, so a run costs one core.
     """
     spec = spec_of(env_id)
     task = task or spec.evaluation.default_task
@@ -185,9 +227,10 @@ def train(algo: str, env_id: str, *, seed: int, out: str | Path, task: str | Non
     sb3, torch = sb3_modules()
     from stable_baselines3.common.callbacks import CheckpointCallback
 
-    params = load_hyperparams(algo, env_id, hyperparams)
+    params = dict(params) if params is not None else load_hyperparams(algo, env_id, hyperparams)
     cls, out = getattr(sb3, SB3_CLASSES[algo]), Path(out)
-    if (out / "model.zip").is_file() and (out / "train_record.json").is_file():
+    pooled = spec.evaluation.protocol == "pool"
+    if _finished(out, pooled):
         record = json.loads((out / "train_record.json").read_text())
         wanted = int(timesteps or params["n_timesteps"])
         if record.get("timesteps") != wanted:
@@ -204,62 +247,85 @@ def train(algo: str, env_id: str, *, seed: int, out: str | Path, task: str | Non
     model = cls(policy, env, seed=seed, device="cpu", verbose=0, tensorboard_log=str(out / "tensorboard"), **params)
     callbacks = [CheckpointCallback(save_freq=max(1, steps // (4 * n_envs)), save_path=str(out / "checkpoints")),
                  progress_bar(steps, f"{algo} {env_id} {task} seed {seed}", progress)]
-    pooled = spec.evaluation.protocol == "pool"
     if pooled:
         split = curve_split(spec)
         indices = curve_indices(task, curve_tasks, split, spec.rules.version)
-        callbacks.insert(0, _curve_callback(env_id, task, split, curve_every, indices, points))
+        callbacks.insert(0, _curve_callback(env_id, task, split, curve_every, indices, points, out / BEST_MODEL,
+                                            on_point))
     model.learn(total_timesteps=steps, callback=callbacks)
     model.save(out / "model.zip")
     env.close()
     record = {"algo": algo, "env_id": env_id, "task": task, "training_pool": f"{task}/train" if pooled else task,
-              "seed": seed, "timesteps": steps, "n_envs": n_envs, "vec_env": vec_env, "policy": policy, "hyperparams": params,
-              "wall_time_s": time.perf_counter() - start}
+              "seed": seed, "timesteps": steps, "trained_steps": int(model.num_timesteps), "n_envs": n_envs,
+              "vec_env": vec_env, "policy": policy, "hyperparams": params, "wall_time_s": time.perf_counter() - start,
+              "cores": 1}
     if pooled:
-        record["curve"] = {"split": split, "indices": indices, "points": points}
+        record["curve"] = {"split": split, "indices": indices, "every": curve_every, "points": points}
+        record["best_on_validation"] = best_point(points)
     write_json_atomic(out / "train_record.json", record)
     return model, record
 
 
 def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | Path, task: str | None = None,
                        timesteps: int | None = None, hyperparams: str | Path | None = None,
-                       eval_seeds: list[int] | None = None, curve_every: int = 5000, curve_tasks: int = 10,
-                       progress: bool = True, n_envs: int | None = None, vec_env: str = "batched") -> EvalReport:
-    """Train one agent per seed and score all of them with :func:`evaluate` as one leaderboard entry."""
+                       eval_seeds: list[int] | None = None, curve_every: int = 5000, curve_tasks: int | None = None,
+                       progress: bool = True, n_envs: int | None = None,
+                       vec_env: str = "batched") -> dict[str, EvalReport]:
+    """Train one agent per seed and score them with :func:`evaluate`: one leaderboard entry per checkpoint.
+
+    Returns ``{"last": entry}``, and on a pool version also ``{"best_on_validation": entry}``
+    (see :data:`CHECKPOINTS`).
+    """
     if not seeds:
         raise InvalidInputError("at least one training seed is needed")
     spec = spec_of(env_id)
     task = task or spec.evaluation.default_task
     pooled = spec.evaluation.protocol == "pool"
-    start, rows, runs = time.perf_counter(), [], []
+    checkpoints = list(CHECKPOINTS) if pooled else ["last"]
+    start, rows, runs = time.perf_counter(), {c: [] for c in checkpoints}, []
     for seed in seeds:
         folder = Path(out) / f"{algo}_{env_id}_{task}_seed{seed}"
         model, record = train(algo, env_id, task=task, seed=seed, out=folder, timesteps=timesteps,
                               hyperparams=hyperparams, curve_every=curve_every, curve_tasks=curve_tasks,
                               progress=progress, n_envs=n_envs, vec_env=vec_env)
-        evaluation = _evaluation(model, spec, env_id, task, folder, eval_seeds)
-        rows += [row | {"train_seed": seed} for row in evaluation["episodes"]]
-        runs.append({key: record[key] for key in ("seed", "timesteps", "n_envs", "wall_time_s", "curve") if key in record}
-                    | {"metrics": evaluation["metrics"]})
-    compute = {"env_steps": sum(run["timesteps"] for run in runs), "wall_time_s": sum(run["wall_time_s"] for run in runs)}
-    extra = {"method": f"{SB3_CLASSES[algo]} (stable-baselines3), {len(seeds)} training seed{'s' * (len(seeds) != 1)}", "training_seeds": seeds,
-             "runs": runs, "compute": compute, "timesteps_per_seed": runs[0]["timesteps"]}
-    if pooled:
-        extra |= {"training_pool": f"{task}/train", "evaluation_pool": f"{task}/{spec.evaluation.split}"}
-        env_kwargs, scenarios = {spec.tasks.keyword: task, "split": spec.evaluation.split}, None
-    else:
-        env_kwargs, scenarios = {spec.tasks.keyword: task}, {"family": load_scenario(task).sha256()}
-    prov = provenance(**({"scenarios": scenarios} if scenarios else {}), seeds=seeds,
-                      wall_time_s=time.perf_counter() - start)
-    name = entry_name(algo, spec, env_id, task)
-    return EvalReport(env_id, env_kwargs, score_rule(spec).aggregate(rows), rows, prov, name=name, extra=extra,
-                      score_rule=spec.score.text)
+        run = {key: record[key] for key in ("seed", "timesteps", "n_envs", "wall_time_s", "curve", "best_on_validation")
+               if key in record}
+        for checkpoint in checkpoints:
+            if checkpoint != "last":
+                model = getattr(sb3_modules()[0], SB3_CLASSES[algo]).load(folder / BEST_MODEL, device="cpu")
+            evaluation = _evaluation(model, spec, env_id, task, folder, eval_seeds, checkpoint)
+            rows[checkpoint] += [row | {"train_seed": seed} for row in evaluation["episodes"]]
+            run.setdefault("metrics", {})[checkpoint] = evaluation["metrics"]
+        runs.append(run)
+    compute = {"env_steps": sum(run["timesteps"] for run in runs), "wall_time_s": sum(run["wall_time_s"] for run in runs),
+               "hardware": "1 CPU core per training seed"}
+    reports = {}
+    for checkpoint in checkpoints:
+        how = {"last": "last checkpoint", "best_on_validation": "checkpoint best on the validation pool"}[checkpoint]
+        steps = runs[0]["timesteps"]
+        extra = {"method": f"{SB3_CLASSES[algo]} (stable-baselines3), {len(seeds)} training seed"
+                           f"{'s' * (len(seeds) != 1)}, {steps:,} env steps each, {how}",
+                 "training_seeds": seeds, "checkpoint": checkpoint,
+                 "runs": [run | {"metrics": run["metrics"][checkpoint]} for run in runs],
+                 "compute": compute, "timesteps_per_seed": steps}
+        if pooled:
+            extra |= {"training_pool": f"{task}/train", "evaluation_pool": f"{task}/{spec.evaluation.split}",
+                      "selection_pool": f"{task}/{curve_split(spec)}"}
+            env_kwargs, scenarios = {spec.tasks.keyword: task, "split": spec.evaluation.split}, None
+        else:
+            env_kwargs, scenarios = {spec.tasks.keyword: task}, {"family": load_scenario(task).sha256()}
+        prov = provenance(**({"scenarios": scenarios} if scenarios else {}), seeds=seeds,
+                          wall_time_s=time.perf_counter() - start)
+        name = entry_name(algo, spec, env_id, task) + CHECKPOINTS[checkpoint]
+        reports[checkpoint] = EvalReport(env_id, env_kwargs, score_rule(spec).aggregate(rows[checkpoint]),
+                                         rows[checkpoint], prov, name=name, extra=extra, score_rule=spec.score.text)
+    return reports
 
 
 def _evaluation(model: Any, spec: BenchmarkSpec, env_id: str, task: str, folder: Path,
-                eval_seeds: list[int] | None) -> dict[str, Any]:
-    """A trained agent's entry (cached in ``folder/evaluation.json``: a resumed study never rescores)."""
-    scored = folder / "evaluation.json"
+                eval_seeds: list[int] | None, checkpoint: str = "last") -> dict[str, Any]:
+    """A trained agent's test scores (cached in ``folder``: a resumed study never rescores)."""
+    scored = folder / ("evaluation.json" if checkpoint == "last" else f"evaluation_{checkpoint}.json")
     if scored.is_file():
         return json.loads(scored.read_text())
     if spec.evaluation.protocol == "pool":

@@ -1,0 +1,137 @@
+"""``ffsr-gym tasks best-known``: the per-task search over whole pools, resumable, and the shipped file.
+
+Each (tier, split) is searched task by task into ``<work>/<tier>_<split>.jsonl`` (one line per
+finished task, appended and flushed; a line torn by a kill is ignored and that task searched
+again), so a killed run resumes at the task it was on. :func:`assemble` writes every finished
+record into ``envs/benchmark/<version>_best_known.json`` with the search budget, the pool files'
+hashes and provenance. :func:`convergence` re-runs a sample of tasks with twice the generations and
+stores how much the best known scores move (how far from converged they are).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from ffsr_gym.model.spec import spec_for_version
+from ffsr_gym.optim import best_known as search
+from ffsr_gym.provenance import provenance, write_json_atomic
+from ffsr_gym.scoring.rules import score_rule
+from ffsr_gym.tasks.best_known import best_known_path, load_best_known
+from ffsr_gym.tasks.schedule import FAMILIES
+from ffsr_gym.tasks.splits import pool, pool_path
+
+
+def popsize(family: str) -> int:
+    """cma's default population for the family's search dimension, 4 + floor(3 ln n)."""
+    return 4 + int(3 * np.log(search.KNOTS * FAMILIES[family]))
+
+
+def read_lines(path: Path) -> list[dict[str, Any]]:
+    """The whole records of a jsonl file (a torn last line is skipped)."""
+    if not path.is_file():
+        return []
+    out = []
+    for line in path.read_text(encoding="utf-8").splitlines():
+        try:
+            out.append(json.loads(line))
+        except ValueError:
+            continue
+    return out
+
+
+def _append(path: Path, record: dict[str, Any]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("a", encoding="utf-8") as handle:
+        handle.write(json.dumps(record, allow_nan=False) + "\n")
+        handle.flush()
+        os.fsync(handle.fileno())
+
+
+def run(tier: str, split: str, work: str | Path, *, version: str = "v2", generations: int = search.GENERATIONS,
+        indices: list[int] | None = None, progress: bool = True) -> Path:
+    """Search every task of ``tier``'s ``split`` pool (or ``indices`` of it) not yet in the work file."""
+    benchmark = score_rule(spec_for_version(version)).benchmark
+    path = Path(work) / f"{tier}_{split}.jsonl"
+    tasks = pool(tier, split, version=version)
+    wanted = list(range(len(tasks))) if indices is None else list(indices)
+    done = {r["index"] for r in read_lines(path)}
+    todo = [i for i in wanted if i not in done]
+    if not todo:
+        return path
+    populations = {family: search.Population(family, tier, split, popsize(family), version) for family in FAMILIES}
+    try:
+        for index in tqdm(todo, desc=f"best known {tier}/{split}", unit="task", disable=not progress):
+            _append(path, search.best_known(populations, tasks[index], tier, split, index, benchmark, generations))
+    finally:
+        for population in populations.values():
+            population.close()
+    return path
+
+
+def budget() -> dict[str, Any]:
+    """The search budget per task, as the file records it."""
+    return {"knots": search.KNOTS, "sigma0": search.SIGMA0, "generations": search.GENERATIONS,
+            "popsize": {family: popsize(family) for family in FAMILIES}, "cma_seed": search.CMA_SEED,
+            "tried_in_ensemble": search.TRIED, "env_ids": search.ENV_IDS}
+
+
+def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = None,
+             command: str | None = None) -> Path:
+    """Write every finished record in ``work`` into the best-known file (keeping its ``convergence``)."""
+    out = Path(out) if out is not None else best_known_path(version)
+    tasks: dict[str, dict[str, list]] = {}
+    evaluations, seconds = 0, 0.0
+    for path in sorted(Path(work).glob("*.jsonl")):
+        for record in read_lines(path):
+            if record.get("generations") != search.GENERATIONS:
+                continue
+            slot = tasks.setdefault(record["tier"], {}).setdefault(record["split"], [])
+            if all(r["index"] != record["index"] for r in slot):
+                slot.append(record)
+                evaluations += sum(f["evaluations"] for f in record["families"].values())
+                seconds += record["wall_time_s"]
+    for splits in tasks.values():
+        for slot in splits.values():
+            slot.sort(key=lambda r: r["index"])
+    tiers = sorted(tasks)
+    old = load_best_known(version, out) or {}
+    data = {"version": version, "budget": budget(),
+            "pool_files_sha256": {t: hashlib.sha256(pool_path(t, version).read_bytes()).hexdigest() for t in tiers},
+            "counts": {t: {s: len(v) for s, v in tasks[t].items()} for t in tiers},
+            "compute": {"objective_evaluations": evaluations, "wall_time_s": seconds, "cores": 1},
+            "provenance": provenance(command=command), "convergence": old.get("convergence"), "tasks": tasks}
+    write_json_atomic(out, data)
+    return out
+
+
+def convergence(work: str | Path, sample: list[tuple[str, str, int]], *, version: str = "v2",
+                out: str | Path | None = None, progress: bool = True) -> dict[str, Any]:
+    """Re-run the search with twice the generations on ``sample`` ((tier, split, index) of stored tasks) and
+    record, per task, the stored and the doubled-budget best known score (in the file's ``convergence``)."""
+    out = Path(out) if out is not None else best_known_path(version)
+    data = load_best_known(version, out)
+    doubled = 2 * search.GENERATIONS
+    start = time.perf_counter()
+    rows = []
+    for tier, split, index in tqdm(sample, desc="doubled budget", unit="task", disable=not progress):
+        path = run(tier, split, Path(work) / "doubled", version=version, generations=doubled, indices=[index],
+                   progress=False)
+        again = next(r for r in read_lines(path) if r["index"] == index)
+        stored = next(r for r in data["tasks"][tier][split] if r["index"] == index)
+        rows.append({"tier": tier, "split": split, "index": index, "stored": stored["best"]["score"],
+                     "doubled": again["best"]["score"]})
+    gaps = np.array([r["doubled"] - r["stored"] for r in rows])
+    rel = np.array([(r["doubled"] - r["stored"]) / r["stored"] for r in rows])
+    summary = {"generations": doubled, "tasks": rows, "mean_gap": float(gaps.mean()),
+               "median_relative_gap": float(np.median(rel)), "max_relative_gap": float(rel.max()),
+               "share_improved": float(np.mean(gaps > 0)), "wall_time_s": time.perf_counter() - start}
+    write_json_atomic(out, data | {"convergence": summary})
+    return summary

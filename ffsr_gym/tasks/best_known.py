@@ -1,0 +1,72 @@
+"""The best known score of every pool task, stored with the pools (``envs/benchmark/<version>_best_known.json``).
+
+Each stored task has the schedule (:class:`~ffsr_gym.tasks.schedule.Schedule`) that reached its
+best known score, the env whose actions it is, that score and its worst margins over the
+ensemble; ``ffsr-gym tasks best-known`` writes the file (:mod:`ffsr_gym.optim.best_known`).
+Leaderboards divide an entry's task scores by these (the normalised column).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.model.resources import envs_dir
+from ffsr_gym.tasks.schedule import Schedule
+from ffsr_gym.tasks.splits import live_version, pool_path
+
+
+def best_known_path(version: str | None = None) -> Path:
+    """The best-known file of ``version`` (may not exist)."""
+    return envs_dir() / "benchmark" / f"{live_version(version)}_best_known.json"
+
+
+@lru_cache(maxsize=8)
+def _load(path: str, stamp: int) -> dict[str, Any]:
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise InvalidInputError(f"{path}: not a readable best-known file ({type(exc).__name__}: {exc})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("tasks"), dict):
+        raise InvalidInputError(f"{path}: allowed: a JSON object with 'tasks': {{tier: {{split: [records]}}}}")
+    return data
+
+
+def load_best_known(version: str | None = None, path: str | Path | None = None) -> dict[str, Any] | None:
+    """The best-known file's content, or None when the version has none."""
+    path = Path(path) if path is not None else best_known_path(version)
+    if not path.is_file():
+        return None
+    return _load(str(path), path.stat().st_mtime_ns)
+
+
+def records(tier: str, split: str, version: str | None = None, path: str | Path | None = None) -> list[dict[str, Any]]:
+    """The stored records of ``tier``'s ``split`` pool, in pool order ([] when none are stored)."""
+    data = load_best_known(version, path)
+    if data is None:
+        return []
+    return sorted(data["tasks"].get(tier, {}).get(split, []), key=lambda r: r["index"])
+
+
+def scores(tier: str, split: str, size: int, version: str | None = None) -> np.ndarray | None:
+    """The best known score of each of the ``size`` tasks of a pool, or None unless every one is stored
+    and the pool file is the one they were searched on."""
+    data = load_best_known(version)
+    stored = records(tier, split, version)
+    if data is None or len(stored) != size or [r["index"] for r in stored] != list(range(size)):
+        return None
+    pools = hashlib.sha256(pool_path(tier, live_version(version)).read_bytes()).hexdigest()
+    if data.get("pool_files_sha256", {}).get(tier) != pools:
+        return None
+    return np.array([r["best"]["score"] for r in stored])
+
+
+def best_schedule(record: dict[str, Any]) -> Schedule:
+    """The schedule of a record's best family."""
+    return Schedule.from_dict(record["families"][record["best"]["family"]]["schedule"])
