@@ -99,3 +99,18 @@ def _import(target: str, spec: str) -> Any:
         raise
     except Exception as exc:  # noqa: BLE001 - a user's file: whatever it raises is reported by name
         raise InvalidInputError(f"--policy {spec!r}: {target!r} failed to import ({type(exc).__name__}: {exc})") from None
+
+
+def uniform_random_residual(observation: Any) -> Any:
+    """The lower reference of the residual tables: an action drawn uniformly from [-1, 1]^12 at every decision.
+
+    The draw is seeded by the observation's bytes (SHA-256), so the policy is a fixed function of
+    what it sees: episodes replay exactly whatever order or process they run in
+    (``ffsr-gym leaderboard verify``), and distinct observations get independent draws.
+    """
+    import hashlib
+
+    import numpy as np
+
+    digest = hashlib.sha256(np.ascontiguousarray(observation, dtype=np.float32).tobytes()).digest()
+    return np.random.default_rng(int.from_bytes(digest[:8], "little")).uniform(-1.0, 1.0, 12).astype(np.float32)

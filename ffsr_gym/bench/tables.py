@@ -2,6 +2,7 @@
 
 The columns follow the spec's ranking rule: ``feasible_then_iqm`` tables show the feasible rate
 and B's IQM; ``ci_separation`` tables show the score's IQM with its CI, the success rate, the
+normalised score (mean of score / the task's best known score, :mod:`ffsr_gym.bench.normalise`), the
 paper's B, peak rates, final error, convergence time, compute and the training pool. Metric
 names come from the spec (``[leaderboard]``).
 """
@@ -15,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ffsr_gym.bench.normalise import normalised_mean
 from ffsr_gym.model.spec import BenchmarkSpec
 
 
@@ -29,9 +31,9 @@ def header(spec: BenchmarkSpec, group: str) -> list[str]:
         return [f"### {group}", "", "| rank | entry | method | feasible rate | score IQM [95% CI] | score mean | episodes "
                 "| commit |", "|---|---|---|---|---|---|---|---|"]
     return [f"### {group} ({spec.evaluation.split} pool)", "",
-            "| rank | entry | score IQM [95% CI] | success | paper B (median) | peak rate mission / balance "
-            "[deg/s] | final error [m], successes | convergence [s], successes | compute | trained on | commit |",
-            "|---|---|---|---|---|---|---|---|---|---|---|"]
+            "| rank | entry | score IQM [95% CI] | success | normalised | paper B (median) | peak rate mission / "
+            "balance [deg/s] | final error [m], successes | convergence [s], successes | compute | trained on | "
+            "commit |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
 
 
 def commit(entry: dict[str, Any]) -> str:
@@ -64,6 +66,8 @@ def compute_text(compute: dict[str, Any]) -> str:
         parts.append(f"{compute['objective_evaluations']:,} episodes")
     if compute.get("wall_time_s") is not None:
         parts.append(f"{compute['wall_time_s']:.0f} s")
+    if compute.get("hardware"):
+        parts.append(safe(compute["hardware"]))
     return ", ".join(parts) or "none (fixed)"
 
 
@@ -78,7 +82,7 @@ def row(spec: BenchmarkSpec, label: str, e: dict[str, Any]) -> str:
                 f"{_g4(m['score_mean'])} | {m['episodes']}{runs} | {commit(e)} |")
     rows, extra = e["episodes"], e.get("extra", {})
     return (f"| {label} | `{e['name']}` | {m[names.iqm]:.3f} [{lo:.3f}, {hi:.3f}] | {m[names.rate]:.2f} | "
-            f"{_fmt(_median(rows, 'paper_B'))} | {_fmt(_median(rows, 'peak_rate_deg_s', 0), '.0f')} / "
+            f"{_fmt(normalised_mean(e, spec.rules.version), '.3f')} | {_fmt(_median(rows, 'paper_B'))} | {_fmt(_median(rows, 'peak_rate_deg_s', 0), '.0f')} / "
             f"{_fmt(_median(rows, 'peak_rate_deg_s', 1), '.0f')} | "
             f"{_fmt(_median(rows, 'final_ee_position_error_m', successes=True), '.1e')} | "
             f"{_fmt(_median(rows, 'convergence_time_s', successes=True), '.1f')} | {compute_text(extra.get('compute', {}))} | "
