@@ -159,6 +159,21 @@ def _leaderboard_plot(args: argparse.Namespace) -> None:
         print("wrote", pareto)
 
 
+def _leaderboard_aggregates(args: argparse.Namespace) -> None:
+    from ffsr_gym.bench.leaderboard import load_entries
+    from ffsr_gym.model.spec import ranked_spec
+    from ffsr_gym.report import aggregates
+
+    spec = ranked_spec()
+    entries = {group: [e for e in items if not e["_problems"]] for group, items in load_entries(args.root, spec).items()}
+    path = aggregates.write(args.root, spec, entries)
+    if path is None:
+        print(f"nothing to aggregate under {args.root}: no tier whose test tasks all have best known scores, or no "
+              f"{aggregates.REFERENCE.format(version=spec.rules.version)} entry")
+        return
+    print("wrote", path, "and", aggregates.plot(path))
+
+
 def _leaderboard_pareto(args: argparse.Namespace) -> None:
     from ffsr_gym.bench.pareto import task_pareto
     from ffsr_gym.bench.policies import load_model
@@ -494,6 +509,11 @@ def _add_board_commands(sub: Any) -> None:
                                              "curves, the Pareto plot) under <root>/<version>/, from the JSON only")
     plot.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
     plot.set_defaults(func=_leaderboard_plot)
+    agg = board_sub.add_parser("aggregates", help="rliable aggregates across tiers (IQM of score / best known score with "
+                                                  "stratified-bootstrap CIs, probability of improvement over the reference "
+                                                  "planner, performance profiles): <root>/<version>/aggregates.json and .png")
+    agg.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
+    agg.set_defaults(func=_leaderboard_aggregates)
     pareto = board_sub.add_parser("pareto", help="run the planner grid and every baseline on the first easy test task; "
                                                  "writes <root>/<version>/pareto.json")
     pareto.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")

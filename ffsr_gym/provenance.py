@@ -18,7 +18,7 @@ from ffsr_gym.exceptions import FFSRError
 
 #: numba compiles the kernel; mujoco runs the speed benchmark's reference (Pusher-v5), when installed.
 _PACKAGES = ("ffsr-gym", "numpy", "numba", "pin", "coal", "gymnasium", "matplotlib", "stable-baselines3", "torch",
-             "mujoco")
+             "mujoco", "cma", "optuna", "rliable", "minari")
 _SOURCE = Path(__file__).resolve().parent.parent
 
 

@@ -52,6 +52,22 @@ def test_hyperparameter_files_cover_every_id():
             assert params["n_timesteps"] > 0 and isinstance(params["policy_kwargs"], dict)
 
 
+def test_v2_hyperparameters_are_the_searched_best():
+    """The shipped v2 hyperparameters are the best trial of the search record next to them."""
+    search = Path(load_hyperparams.__globals__["DEFAULT_HYPERPARAMS"]) / "search"
+    records = sorted(search.glob("*.json"))
+    assert records, "no search record"
+    for path in records:
+        record = json.loads(path.read_text())
+        shipped = load_hyperparams(record["algo"], record["env_id"])
+        best = record["best"]["hyperparams"]
+        assert {k: v for k, v in shipped.items() if k != "n_timesteps"} == best, path.name
+        trials = [t["value"] for t in record["trials"] if t["state"] == "COMPLETE"]
+        assert record["best"]["value"] == max(trials)
+        assert record["cost"]["trials"] == len(record["trials"])
+        assert record["training_pool"].endswith("/train") and record["selection_pool"].endswith("/validation")
+
+
 def test_pool_training_selects_on_validation_scores_both_checkpoints_on_test_and_resumes(tmp_path):
     from ffsr_gym.bench.evaluation import evaluate
     from ffsr_gym.bench.leaderboard import recompute as recompute_entry

@@ -83,15 +83,16 @@ def budget() -> dict[str, Any]:
             "tried_in_ensemble": search.TRIED, "env_ids": search.ENV_IDS}
 
 
-def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = None,
-             command: str | None = None) -> Path:
-    """Write every finished record in ``work`` into the best-known file (keeping its ``convergence``)."""
+def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = None, command: str | None = None,
+             generations: int = search.GENERATIONS) -> Path:
+    """Write every finished record of ``generations`` in ``work`` into the best-known file (keeping its
+    ``convergence``)."""
     out = Path(out) if out is not None else best_known_path(version)
     tasks: dict[str, dict[str, list]] = {}
     evaluations, seconds = 0, 0.0
     for path in sorted(Path(work).glob("*.jsonl")):
         for record in read_lines(path):
-            if record.get("generations") != search.GENERATIONS:
+            if record.get("generations") != generations:
                 continue
             slot = tasks.setdefault(record["tier"], {}).setdefault(record["split"], [])
             if all(r["index"] != record["index"] for r in slot):
@@ -103,7 +104,7 @@ def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = 
             slot.sort(key=lambda r: r["index"])
     tiers = sorted(tasks)
     old = load_best_known(version, out) or {}
-    data = {"version": version, "budget": budget(),
+    data = {"version": version, "budget": budget() | {"generations": generations},
             "pool_files_sha256": {t: hashlib.sha256(pool_path(t, version).read_bytes()).hexdigest() for t in tiers},
             "counts": {t: {s: len(v) for s, v in tasks[t].items()} for t in tiers},
             "compute": {"objective_evaluations": evaluations, "wall_time_s": seconds, "cores": 1},

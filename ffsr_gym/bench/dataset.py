@@ -1,0 +1,123 @@
+"""``ffsr-gym dataset``: the best known trajectories of a tier's pool as a Minari dataset (offline RL, imitation).
+
+Each stored best-known record (:mod:`ffsr_gym.tasks.best_known`) whose schedule belongs to the
+chosen env (``FFSR-Residual-v2``: the residual family; ``FFSR-v2``: the (m, T_c) family) is played
+in that env, from ``reset(seed=0, options={"task_index": i})``, and recorded: observations (one
+more than actions), actions, rewards, terminations, truncations, and per step the task's seed and
+index (``infos``); the episode's ``seed`` and ``options`` are the reset's, so
+``env.reset(seed=ep.seed, options=...)`` then ``env.step`` of the stored actions reproduces the
+stored rewards. An episode whose replayed score differs from the stored best known score stops
+the writing (the file and the environment disagree). The env spec (id and ``task``/``split``
+kwargs) is stored, so ``dataset.recover_environment()`` builds the env again.
+
+Minari and h5py are optional: ``pip install "ffsr-gym[dataset]"``. Datasets go to
+``MINARI_DATASETS_PATH`` (or Minari's default folder), or to ``root`` when given.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from ffsr_gym.exceptions import FFSRError, InvalidInputError, MissingDependencyError
+from ffsr_gym.tasks import best_known
+from ffsr_gym.tasks.schedule import Schedule
+
+#: The schedule family whose actions each env takes.
+FAMILY_OF = {"FFSR-Residual-v2": "residual", "FFSR-v2": "parameters"}
+
+
+def minari_module():
+    """minari, or a named error with the install hint."""
+    try:
+        import minari
+    except ImportError as exc:
+        raise MissingDependencyError('datasets need: pip install "ffsr-gym[dataset]" (minari, h5py)') from exc
+    return minari
+
+
+def dataset_id(tier: str, env_id: str, split: str = "train") -> str:
+    """The Minari id of a tier's best-known dataset: ``ffsr/<env>/<tier>-<split>-best-known-v0``."""
+    env = "residual-v2" if env_id == "FFSR-Residual-v2" else "v2"
+    return f"ffsr/{env}/{tier}-{split}-best-known-v0"
+
+
+@contextlib.contextmanager
+def _datasets_root(root: str | Path | None) -> Iterator[None]:
+    """Minari reads its folder from ``MINARI_DATASETS_PATH``: set it to ``root`` for the duration."""
+    if root is None:
+        yield
+        return
+    old = os.environ.get("MINARI_DATASETS_PATH")
+    os.environ["MINARI_DATASETS_PATH"] = str(Path(root).resolve())
+    try:
+        yield
+    finally:
+        if old is None:
+            os.environ.pop("MINARI_DATASETS_PATH", None)
+        else:
+            os.environ["MINARI_DATASETS_PATH"] = old
+
+
+def record_episode(env: gym.Env, record: dict[str, Any], schedule: Schedule, episode_id: int) -> Any:
+    """Play ``schedule`` on the record's task in ``env`` and return the Minari episode buffer."""
+    from minari.data_collector import EpisodeBuffer
+
+    options = {"task_index": int(record["index"])}
+    obs, info = env.reset(seed=0, options=options)
+    actions = schedule.actions(env.unwrapped.scenario)
+    observations, taken, rewards, terminations, truncations = [obs], [], [], [], []
+    for action in actions:
+        obs, reward, terminated, truncated, info = env.step(action)
+        observations.append(obs)
+        taken.append(action)
+        rewards.append(reward)
+        terminations.append(terminated)
+        truncations.append(truncated)
+        if terminated or truncated:
+            break
+    stored = record["families"][schedule.family]["score"]
+    if info.get("score") != stored:
+        raise FFSRError(f"{record['tier']}/{record['split']} task {record['index']}: replayed score {info.get('score')} "
+                        f"!= the stored score {stored} of its {schedule.family} schedule")
+    steps = len(rewards) + 1
+    infos = {"task_index": np.full(steps, record["index"], dtype=np.int64),
+             "task_seed": np.full(steps, record["task_seed"], dtype=np.int64)}
+    return EpisodeBuffer(id=episode_id, seed=0, options=options, observations=np.asarray(observations),
+                         actions=np.asarray(taken), rewards=np.asarray(rewards, dtype=np.float64),
+                         terminations=np.asarray(terminations), truncations=np.asarray(truncations), infos=infos)
+
+
+def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "train", root: str | Path | None = None,
+                  best_known_file: str | Path | None = None, version: str = "v2") -> Any:
+    """Write the Minari dataset of ``tier``'s ``split`` pool for ``env_id`` and return it (a ``MinariDataset``).
+
+    Raises:
+        InvalidInputError: an env id without schedules, or no stored best-known record for the pool.
+    """
+    minari = minari_module()
+    if env_id not in FAMILY_OF:
+        raise InvalidInputError(f"env_id {env_id!r}; allowed: {sorted(FAMILY_OF)}")
+    family = FAMILY_OF[env_id]
+    stored = [r for r in best_known.records(tier, split, version, best_known_file)
+              if r["families"][family]["schedule"] is not None]
+    if not stored:
+        raise InvalidInputError(f"no best-known {family} schedule is stored for {tier}/{split} (run ffsr-gym tasks "
+                                f"best-known --tiers {tier} --splits {split})")
+    env = gym.make(env_id, task=tier, split=split)
+    buffers = [record_episode(env, r, Schedule.from_dict(r["families"][family]["schedule"]), k)
+               for k, r in enumerate(stored)]
+    name = dataset_id(tier, env_id, split)
+    with _datasets_root(root):
+        return minari.create_dataset_from_buffers(
+            name, buffers, env=env, algorithm_name="per-task CMA-ES over action schedules (ffsr_gym.optim.best_known)",
+            code_permalink="ffsr_gym/bench/dataset.py", author="ffsr-gym", author_email="-",
+            description=(f"The best {family} schedule found for each task of the {tier} tier's {split} pool of benchmark "
+                         f"{version}, played in {env_id}. infos: task_index, task_seed per step."),
+            data_format="hdf5")

@@ -1,0 +1,177 @@
+"""Aggregates across a pool version's tiers as rliable reports them (``ffsr-gym leaderboard aggregates``).
+
+Scores are normalised per task by the task's best known score (:mod:`ffsr_gym.bench.normalise`), so
+tiers can be pooled. Each method (an entry name without its tier) is a matrix of runs x tasks:
+the runs are its training seeds (one for a deterministic method), the tasks every test task of the
+tiers that have best known scores. With the rliable package (``pip install "ffsr-gym[analysis]"``):
+
+* IQM of the normalised scores with a 95 % stratified-bootstrap CI (runs resampled within each
+  task; percentile method);
+* performance profiles: the fraction of (run, task) scores above each threshold τ, with CIs;
+* the probability of improvement of each method over the reference planner: P(X > Y) per task
+  (Mann-Whitney over runs; for two deterministic methods 1, 0.5 or 0 as X beats, ties or loses),
+  averaged over tasks, with a stratified independent-bootstrap CI.
+
+rliable's bootstrap draws from NumPy's global generator, which is seeded with :data:`SEED` first.
+The per-tier tables rank by the entries' own CIs (a bootstrap over episodes), not by these.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ffsr_gym.bench.normalise import normalised_scores
+from ffsr_gym.bench.tables import method_name
+from ffsr_gym.exceptions import MissingDependencyError
+from ffsr_gym.model.spec import BenchmarkSpec
+from ffsr_gym.provenance import package_versions, provenance, write_json_atomic
+from ffsr_gym.tasks.tiers import ALL_TIERS
+
+#: The method every other is compared with (the reference planner at the version's default).
+REFERENCE = "reference_{version}_default"
+SEED = 0
+REPS = 2000
+TAUS = np.linspace(0.0, 1.1, 111)
+
+
+def rliable_modules():
+    """(rliable.library, rliable.metrics), or a named error with the install hint."""
+    try:
+        from rliable import library, metrics
+    except ImportError as exc:
+        raise MissingDependencyError('the aggregates need: pip install "ffsr-gym[analysis]" (rliable)') from exc
+    return library, metrics
+
+
+def improvement(scores_x: np.ndarray, scores_y: np.ndarray) -> float:
+    """rliable's probability of improvement of X over Y, vectorised: per task, the share of (run of X, run of Y)
+    pairs where X scores higher, ties counted half (the Mann-Whitney U over nx ny), averaged over tasks.
+    Equal to ``rliable.metrics.probability_of_improvement`` (tested), which calls SciPy once per task: too slow
+    to bootstrap over hundreds of tasks."""
+    x, y = scores_x[:, None, :], scores_y[None, :, :]
+    return float(np.mean(np.mean((x > y) + 0.5 * (x == y), axis=(0, 1))))
+
+
+def matrix(entry: dict[str, Any], version: str) -> np.ndarray | None:
+    """An entry's normalised scores as runs x tasks (runs: training seeds in order), or None."""
+    values = normalised_scores(entry, version)
+    if values is None:
+        return None
+    rows = entry["episodes"]
+    seeds = sorted({row.get("train_seed", 0) for row in rows})
+    tasks = sorted({row["task_index"] for row in rows})
+    out = np.full((len(seeds), len(tasks)), np.nan)
+    for value, row in zip(values, rows):
+        out[seeds.index(row.get("train_seed", 0)), tasks.index(row["task_index"])] = value
+    return None if np.isnan(out).any() else out
+
+
+def score_matrices(entries: dict[str, list[dict[str, Any]]], version: str) -> tuple[dict[str, np.ndarray], list[str]]:
+    """Each method's runs x tasks matrix over the tiers where every method present has one, and those tiers."""
+    per_tier: dict[str, dict[str, np.ndarray]] = {}
+    for tier in ALL_TIERS:
+        found = {method_name(e, tier): matrix(e, version) for e in entries.get(tier, [])}
+        if found and all(m is not None for m in found.values()):
+            per_tier[tier] = found
+    tiers = list(per_tier)
+    methods = set.intersection(*(set(v) for v in per_tier.values())) if per_tier else set()
+    out = {}
+    for method in sorted(methods):
+        parts = [per_tier[t][method] for t in tiers]
+        if len({p.shape[0] for p in parts}) == 1:
+            out[method] = np.concatenate(parts, axis=1)
+    return out, tiers
+
+
+def compute(entries: dict[str, list[dict[str, Any]]], spec: BenchmarkSpec) -> dict[str, Any] | None:
+    """The aggregates as a JSON-ready dict (None without a tier that has best known scores)."""
+    library, metrics = rliable_modules()
+    version = spec.rules.version
+    scores, tiers = score_matrices(entries, version)
+    reference = REFERENCE.format(version=version)
+    if not scores or reference not in scores:
+        return None
+    np.random.seed(SEED)
+    iqm, iqm_ci = library.get_interval_estimates(scores, lambda x: np.array([metrics.aggregate_iqm(x)]), reps=REPS)
+    np.random.seed(SEED)
+    pairs = {m: (scores[m], scores[reference]) for m in scores if m != reference}
+    poi, poi_ci = library.get_interval_estimates(pairs, improvement, reps=REPS)
+    np.random.seed(SEED)
+    profiles, profile_ci = library.create_performance_profile(scores, TAUS, reps=REPS)
+    methods = {}
+    for m, values in scores.items():
+        methods[m] = {"runs": int(values.shape[0]), "tasks": int(values.shape[1]), "iqm": float(iqm[m][0]),
+                      "iqm_ci95": [float(iqm_ci[m][0][0]), float(iqm_ci[m][1][0])], "mean": float(values.mean()),
+                      "profile": [float(x) for x in profiles[m]],
+                      "profile_ci95": [[float(x) for x in profile_ci[m][0]], [float(x) for x in profile_ci[m][1]]]}
+        if m in pairs:
+            methods[m] |= {"probability_of_improvement": float(poi[m]),
+                           "probability_of_improvement_ci95": [float(x) for x in np.ravel(poi_ci[m])]}
+    return {"version": version, "tiers": tiers, "score": "score / the task's best known score",
+            "reference": reference, "taus": [float(t) for t in TAUS],
+            "bootstrap": {"package": f"rliable {package_versions().get('rliable', '?')}", "method": "percentile",
+                          "reps": REPS, "seed": SEED, "strata": "runs resampled within each task"},
+            "methods": methods, "provenance": provenance()}
+
+
+def write(root: str | Path, spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> Path | None:
+    """Write ``<root>/<version>/aggregates.json`` (None when there is nothing to aggregate)."""
+    data = compute(entries, spec)
+    if data is None:
+        return None
+    path = Path(root) / spec.version / "aggregates.json"
+    write_json_atomic(path, data)
+    return path
+
+
+def markdown(path: str | Path) -> str:
+    """The aggregates file as a table (IQM, CI, probability of improvement over the reference)."""
+    data = json.loads(Path(path).read_text())
+    order = sorted(data["methods"], key=lambda m: -data["methods"][m]["iqm"])
+    lines = [f"Across {', '.join(data['tiers'])} ({sum(1 for _ in data['tiers'])} tiers, scores / best known; "
+             f"{data['bootstrap']['package']}, stratified bootstrap, {data['bootstrap']['reps']} resamples):", "",
+             f"| method | runs | IQM [95% CI] | mean | P(improves on `{data['reference']}`) [95% CI] |",
+             "|---|---|---|---|---|"]
+    for m in order:
+        v = data["methods"][m]
+        poi = (f"{v['probability_of_improvement']:.2f} [{v['probability_of_improvement_ci95'][0]:.2f}, "
+               f"{v['probability_of_improvement_ci95'][1]:.2f}]") if "probability_of_improvement" in v else "-"
+        lines.append(f"| `{m}` | {v['runs']} | {v['iqm']:.3f} [{v['iqm_ci95'][0]:.3f}, {v['iqm_ci95'][1]:.3f}] | "
+                     f"{v['mean']:.3f} | {poi} |")
+    return "\n".join(lines) + "\n"
+
+
+def plot(path: str | Path) -> Path:
+    """``aggregates.png`` next to the aggregates file: IQM, probability of improvement, performance profiles."""
+    from ffsr_gym.report.plotting import _pyplot, _save
+
+    data = json.loads(Path(path).read_text())
+    methods = sorted(data["methods"], key=lambda m: data["methods"][m]["iqm"])
+    fig, (left, middle, right) = _pyplot().subplots(1, 3, figsize=(17, 0.42 * len(methods) + 2.2))
+    for y, m in enumerate(methods):
+        v = data["methods"][m]
+        left.plot(v["iqm_ci95"], [y, y], color="C0", lw=5, alpha=0.35, solid_capstyle="butt")
+        left.plot(v["iqm"], y, "o", color="C0")
+        if "probability_of_improvement" in v:
+            middle.plot(v["probability_of_improvement_ci95"], [y, y], color="C1", lw=5, alpha=0.35, solid_capstyle="butt")
+            middle.plot(v["probability_of_improvement"], y, "o", color="C1")
+        right.plot(data["taus"], v["profile"], label=m, lw=1.2)
+    for ax in (left, middle):
+        ax.set_yticks(range(len(methods)), methods, fontsize=8)
+        ax.grid(True, axis="x", alpha=0.3)
+    tiers = ", ".join(data["tiers"])
+    left.set(xlabel="IQM of score / best known score, 95 % CI [-]", title=f"IQM over runs x tasks ({tiers})")
+    middle.axvline(0.5, color="grey", lw=0.8)
+    middle.set(xlabel=f"P(method beats {data['reference']} on a task), 95 % CI [-]", xlim=(-0.02, 1.02),
+               title="probability of improvement")
+    right.set(xlabel="threshold τ on score / best known score [-]", ylabel="fraction of runs x tasks above τ [-]",
+              title="performance profiles", ylim=(-0.02, 1.02))
+    right.grid(True, alpha=0.3)
+    right.legend(fontsize=7)
+    footer = (f"ffsr-gym leaderboard aggregates | {data['bootstrap']['package']} | commit "
+              f"{(data['provenance'].get('git_commit') or 'none')[:8]}")
+    return _save(fig, Path(path).with_suffix(".png"), footer)

@@ -1,0 +1,96 @@
+"""Normalised scores and the rliable aggregates: checked against closed forms on hand-made entries."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ffsr_gym.bench import normalise
+from ffsr_gym.model.spec import spec_for_version
+from ffsr_gym.scoring.aggregate import iqm
+
+rliable = pytest.importorskip("rliable")
+from rliable import metrics  # noqa: E402
+
+from ffsr_gym.report import aggregates  # noqa: E402
+
+SPEC = spec_for_version("v2")
+
+
+def test_the_leaderboard_iqm_is_rliables_trimmed_mean():
+    rng = np.random.default_rng(3)
+    for n in range(1, 41):
+        values = rng.uniform(0, 1, n)
+        assert iqm(values) == pytest.approx(metrics.aggregate_iqm(values.reshape(1, -1)), rel=1e-12, abs=0), n
+
+
+def test_the_vectorised_probability_of_improvement_is_rliables():
+    rng = np.random.default_rng(1)
+    for runs_x, runs_y in ((1, 1), (5, 1), (3, 4)):
+        x = rng.integers(0, 4, (runs_x, 30)) / 4.0  # coarse values: many ties
+        y = rng.integers(0, 4, (runs_y, 30)) / 4.0
+        assert aggregates.improvement(x, y) == pytest.approx(metrics.probability_of_improvement(x, y), abs=1e-12)
+    same = rng.uniform(0, 1, (2, 30))
+    assert aggregates.improvement(same, same) == metrics.probability_of_improvement(same, same) == 0.5
+
+
+def _entry(name, tier, scores, seeds=None):
+    """A minimal pool entry: rows of (train seed, task index, score)."""
+    seeds = seeds or [None]
+    rows = []
+    for k, seed in enumerate(seeds):
+        for i, s in enumerate(scores[k]):
+            row = {"seed": i, "task_index": i, "score": float(s)}
+            if seed is not None:
+                row["train_seed"] = seed
+            rows.append(row)
+    return {"name": f"{name}_{tier}", "episodes": rows, "extra": {"evaluation_pool": f"{tier}/test"}}
+
+
+@pytest.fixture
+def best_known_two(monkeypatch):
+    """Every task's best known score is 2 (so a normalised score is half the score)."""
+    monkeypatch.setattr(normalise.best_known, "scores", lambda tier, split, size, version=None: np.full(size, 2.0))
+
+
+def test_normalised_scores_divide_by_each_tasks_best_known(best_known_two, monkeypatch):
+    entry = _entry("x", "easy", [np.linspace(0, 1, 100)])
+    assert np.allclose(normalise.normalised_scores(entry, "v2"), np.linspace(0, 1, 100) / 2)
+    assert normalise.normalised_mean(entry, "v2") == pytest.approx(0.25)
+    monkeypatch.setattr(normalise.best_known, "scores", lambda *a, **k: None)  # not every task stored: no column
+    assert normalise.normalised_mean(entry, "v2") is None
+    assert normalise.normalised_mean({"episodes": [], "extra": {"evaluation_pool": "planet/test"}}, "v2") is None
+
+
+def test_aggregates_match_closed_forms(best_known_two):
+    rng = np.random.default_rng(0)
+    reference = {t: rng.uniform(0, 1, 100) for t in ("easy", "hard")}
+    better = {t: np.where(np.arange(100) < 70, reference[t] + 0.1, reference[t]) for t in reference}  # 70 wins, 30 ties
+    rl = {t: rng.uniform(0, 1, (5, 100)) for t in reference}
+    entries = {t: [_entry("reference_v2_default", t, [reference[t]]), _entry("better", t, [better[t]]),
+                   _entry("ppo", t, rl[t], seeds=[0, 1, 2, 3, 4])] for t in reference}
+    data = aggregates.compute(entries, SPEC)
+    assert data["tiers"] == ["easy", "hard"]
+    b, p = data["methods"]["better"], data["methods"]["ppo"]
+    assert (b["runs"], b["tasks"], p["runs"], p["tasks"]) == (1, 200, 5, 200)
+    # deterministic against deterministic: P = share of tasks won + half the ties
+    assert b["probability_of_improvement"] == pytest.approx((140 + 0.5 * 60) / 200, abs=1e-12)
+    assert b["probability_of_improvement_ci95"][0] == b["probability_of_improvement_ci95"][1]  # one run: no spread
+    # five runs against one: per task, the share of runs above the reference's score (no ties in continuous draws)
+    ref_all = np.concatenate([reference["easy"], reference["hard"]]) / 2
+    rl_all = np.concatenate([rl["easy"], rl["hard"]], axis=1) / 2
+    assert p["probability_of_improvement"] == pytest.approx(np.mean((rl_all > ref_all).mean(axis=0)), abs=1e-12)
+    assert p["iqm"] == pytest.approx(iqm(rl_all.ravel()), rel=1e-12)
+    assert p["iqm_ci95"][0] < p["iqm"] < p["iqm_ci95"][1]
+    taus = np.array(data["taus"])
+    assert np.allclose(p["profile"], [(rl_all > t).mean() for t in taus])
+    again = aggregates.compute(entries, SPEC)  # seeded: the same numbers every time
+    assert {k: v for k, v in again.items() if k != "provenance"} == {k: v for k, v in data.items() if k != "provenance"}
+
+
+def test_tiers_without_best_known_scores_are_left_out(monkeypatch):
+    monkeypatch.setattr(normalise.best_known, "scores",
+                        lambda tier, split, size, version=None: np.ones(size) if tier == "easy" else None)
+    entries = {t: [_entry("reference_v2_default", t, [np.ones(10)]), _entry("b", t, [np.zeros(10)])]
+               for t in ("easy", "hard")}
+    assert aggregates.compute(entries, SPEC)["tiers"] == ["easy"]
