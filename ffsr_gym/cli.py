@@ -159,10 +159,19 @@ def _leaderboard_plot(args: argparse.Namespace) -> None:
         print("wrote", pareto)
 
 
+def _dataset(args: argparse.Namespace) -> None:
+    from ffsr_gym.bench.dataset import write_dataset
+
+    dataset = write_dataset(args.tier, args.env_id, split=args.split, root=args.root)
+    print(f"wrote {dataset.spec.dataset_id}: {dataset.total_episodes} episodes, {dataset.total_steps} steps"
+          + (f" under {args.root}" if args.root else " (MINARI_DATASETS_PATH or Minari's default folder)"))
+
+
 def _leaderboard_aggregates(args: argparse.Namespace) -> None:
     from ffsr_gym.bench.leaderboard import load_entries
     from ffsr_gym.model.spec import ranked_spec
-    from ffsr_gym.report import aggregates
+    from ffsr_gym.bench import aggregates
+    from ffsr_gym.report.leaderboard_plots import plot_aggregates
 
     spec = ranked_spec()
     entries = {group: [e for e in items if not e["_problems"]] for group, items in load_entries(args.root, spec).items()}
@@ -171,7 +180,7 @@ def _leaderboard_aggregates(args: argparse.Namespace) -> None:
         print(f"nothing to aggregate under {args.root}: no tier whose test tasks all have best known scores, or no "
               f"{aggregates.REFERENCE.format(version=spec.rules.version)} entry")
         return
-    print("wrote", path, "and", aggregates.plot(path))
+    print("wrote", path, "and", plot_aggregates(path))
 
 
 def _leaderboard_pareto(args: argparse.Namespace) -> None:
@@ -490,6 +499,15 @@ def _add_study_commands(sub: Any) -> None:
     ev.add_argument("--force", action="store_true", help="replace an entry of the same name (default: refuse)")
     ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ev.set_defaults(func=_evaluate)
+    ds = sub.add_parser("dataset", help="the best known trajectories of a tier's pool as a Minari dataset (offline RL, "
+                                        "imitation); needs pip install \"ffsr-gym[dataset]\"")
+    ds.add_argument("--tier", default="easy", choices=all_task_tiers(), help="tier (default: easy)")
+    ds.add_argument("--env-id", default="FFSR-Residual-v2", choices=["FFSR-Residual-v2", "FFSR-v2"],
+                    help="the env whose actions are recorded (default: FFSR-Residual-v2)")
+    ds.add_argument("--split", default="train", choices=["train", "validation", "test"],
+                    help="pool (default: train; the others are for model selection and scoring)")
+    ds.add_argument("--root", default=None, help="datasets folder (default: MINARI_DATASETS_PATH or Minari's default)")
+    ds.set_defaults(func=_dataset)
     rd = sub.add_parser("render", help="an episode of a policy as an animated GIF")
     _add_policy_arguments(rd, env_id="FFSR-v2", policy="reference", task="easy", split="train", split_help="pool of a tier")
     rd.add_argument("--seed", type=natural, default=0, help="reset seed: picks a tier's task (default: 0)")

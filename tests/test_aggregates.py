@@ -12,7 +12,7 @@ from ffsr_gym.scoring.aggregate import iqm
 rliable = pytest.importorskip("rliable")
 from rliable import metrics  # noqa: E402
 
-from ffsr_gym.report import aggregates  # noqa: E402
+from ffsr_gym.bench import aggregates  # noqa: E402
 
 SPEC = spec_for_version("v2")
 

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.bench.normalise import normalised_mean
 from ffsr_gym.model.spec import BenchmarkSpec
 
@@ -90,9 +91,13 @@ def row(spec: BenchmarkSpec, label: str, e: dict[str, Any]) -> str:
 
 
 def method_name(entry: dict[str, Any], tier: str) -> str:
-    """An entry's name without its tier suffix (``ppo_residual_easy`` → ``ppo_residual``)."""
+    """An entry's name without its tier (``ppo_residual_easy`` → ``ppo_residual``, ``ppo_easy_valbest`` →
+    ``ppo_valbest``)."""
     name = entry["name"]
-    return name[: -len(tier) - 1] if name.endswith(f"_{tier}") else name
+    for suffix in CHECKPOINTS.values():
+        if name.endswith(f"_{tier}{suffix}"):
+            return name[: -len(tier) - 1 - len(suffix)] + suffix
+    return name
 
 
 def summary(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]],
@@ -113,10 +118,48 @@ def summary(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]],
     lines = ["| method | " + " | ".join(f"{tier}: IQM [95% CI] #rank" for tier in tiers) + " |",
              "|---|" + "---|" * len(tiers)]
     lines += [f"| `{method}` | " + " | ".join(cells[method].get(tier, "-") for tier in tiers) + " |" for method in order]
+    lines += ["", headroom(spec, entries)]
     rl = [e for items in entries.values() for e in items if e.get("extra", {}).get("compute", {}).get("env_steps")]
     if rl:
-        lines += ["", _rl_compute(rl)]
+        lines += ["", _rl_compute(rl), "", *rl_compute_table(entries)]
     return "\n".join(lines) + "\n"
+
+
+def headroom(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> str:
+    """Per tier, the best normalised score of an entry and the headroom 1 − it left to the best known scores."""
+    cells = []
+    for tier, items in entries.items():
+        values = [(normalised_mean(e, spec.rules.version), e["name"]) for e in items]
+        values = [(v, name) for v, name in values if v is not None]
+        if values:
+            best, name = max(values)
+            cells.append(f"{tier} {1.0 - best:.3f} (best: `{name}`, {best:.3f})")
+        elif items:
+            cells.append(f"{tier} - (no best known scores)")
+    return ("Headroom (1 − the best entry's normalised score, the mean over test tasks of score / the task's best "
+            "known score): " + "; ".join(cells) + ".")
+
+
+def rl_compute_table(entries: dict[str, list[dict[str, Any]]]) -> list[str]:
+    """Compute per RL entry (its last and best-on-validation checkpoints share one training): seeds x env steps per
+    seed, training wall time summed over seeds, cores."""
+    cells: dict[str, dict[str, str]] = {}
+    for tier, items in entries.items():
+        for e in items:
+            extra = e.get("extra", {})
+            compute = extra.get("compute", {})
+            if not compute.get("env_steps") or extra.get("checkpoint") == "best_on_validation":
+                continue
+            seeds = len(extra.get("runs", [])) or 1
+            cells.setdefault(method_name(e, tier), {})[tier] = (
+                f"{seeds} x {extra.get('timesteps_per_seed', compute['env_steps'] // seeds):,} steps, "
+                f"{compute['wall_time_s'] / 3600:.1f} h, {safe(compute.get('hardware', '-'))}")
+    if not cells:
+        return []
+    tiers = [t for t in entries if any(t in c for c in cells.values())]
+    return ["| RL entry | " + " | ".join(f"{t}: seeds x env steps, training time, cores" for t in tiers) + " |",
+            "|---|" + "---|" * len(tiers),
+            *[f"| `{m}` | " + " | ".join(cells[m].get(t, "-") for t in tiers) + " |" for m in sorted(cells)]]
 
 
 def _rl_compute(rl: list[dict[str, Any]]) -> str:

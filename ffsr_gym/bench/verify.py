@@ -28,6 +28,8 @@ from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.splits import pool, pool_path
 
 #: An entry's name: it becomes a file name, and a table cell (no newline, no ``|``).
+#: The checkpoints a trained method is entered with, and the suffix each adds to the entry name.
+CHECKPOINTS = {"last": "", "best_on_validation": "_valbest"}
 ENTRY_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,127}")
 
 

@@ -10,6 +10,7 @@ import numpy as np
 
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.kernel import decision
+from ffsr_gym.model.benchmark import action_to_parameters  # noqa: F401 - the environments' mapping, re-exported
 from ffsr_gym.model.benchmark import residual_rates as scaled_residual
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.scoring.score import score_vector
@@ -85,13 +86,6 @@ def physical_parameters(m: Any, T_c: Any) -> tuple[float, float]:
             raise InvalidInputError(f"{name} = {value!r}; allowed: a finite real number (m in (0, 1), T_c > 0 [s])")
         values.append(float(value))
     return values[0], values[1]
-
-
-def action_to_parameters(action: np.ndarray, task: Scenario) -> tuple[float, float]:
-    """Physical (m, T_c [s]) of a (clipped) (m, T_c) action, mapped linearly onto the task's box, in float64."""
-    a = np.asarray(action, dtype=np.float64)
-    (m_lo, m_hi), (t_lo, t_hi) = task.env.m_bounds, task.env.T_c_bounds_s
-    return m_lo + 0.5 * (a[0] + 1.0) * (m_hi - m_lo), t_lo + 0.5 * (a[1] + 1.0) * (t_hi - t_lo)
 
 
 def residual_rates(action: np.ndarray, task: Scenario, rule: Any, fades: bool, t: float) -> np.ndarray:

@@ -190,6 +190,13 @@ def residual_rates(action: Any, rate_deg_s: float) -> Any:
     return np.radians(rate_deg_s) * np.asarray(action, dtype=np.float64)
 
 
+def action_to_parameters(action: Any, task: Any) -> tuple[float, float]:
+    """Physical (m, T_c [s]) of a (clipped) (m, T_c) action, mapped linearly onto ``task``'s box, in float64."""
+    a = np.asarray(action, dtype=np.float64)
+    (m_lo, m_hi), (t_lo, t_hi) = task.env.m_bounds, task.env.T_c_bounds_s
+    return m_lo + 0.5 * (a[0] + 1.0) * (m_hi - m_lo), t_lo + 0.5 * (a[1] + 1.0) * (t_hi - t_lo)
+
+
 @lru_cache(maxsize=16)
 def load_rules(path: Path) -> Benchmark:
     """A benchmark rule file (score, planner defaults, action boxes, tier rule), validated.

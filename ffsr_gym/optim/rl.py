@@ -31,6 +31,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.entry import EvalReport
+from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.bench.evaluation import evaluate, spec_of
 from ffsr_gym.bench.policies import SB3_CLASSES, sb3_modules
 from ffsr_gym.exceptions import InvalidInputError
@@ -116,8 +117,6 @@ def curve_indices(tier: str, count: int | None, split: str, version: str | None 
 
 #: The file of the checkpoint selected on the validation pool, in a seed's folder.
 BEST_MODEL = "best_on_validation.zip"
-#: The checkpoints a pool study scores on the test pool, and the entry-name suffix of each.
-CHECKPOINTS = {"last": "", "best_on_validation": "_valbest"}
 
 
 def _curve_callback(env_id: str, tier: str, split: str, every: int, indices: list[int], points: list[dict[str, Any]],

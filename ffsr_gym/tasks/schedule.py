@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.benchmark import Benchmark, residual_rates
+from ffsr_gym.model.benchmark import Benchmark, action_to_parameters, residual_rates
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning.planner import planner_parameters
 from ffsr_gym.scoring.score import EpisodeScore, score_episode
@@ -113,8 +113,6 @@ class Schedule:
 def replay_schedule(task: Scenario, schedule: Schedule, benchmark: Benchmark, *, backend: str = "auto") -> EpisodeScore:
     """Play ``schedule`` on ``task`` the way the v2 environments step (decisions of the env's interval, stop
     at the first violation; residuals faded, on top of the default planner), and score the episode."""
-    from ffsr_gym.environments.actions import action_to_parameters
-
     actions = schedule.actions(task)
     residual = schedule.family == "residual"
     m, T_c = planner_parameters(task, "predefined_time", benchmark.planner.m, benchmark.planner.T_c_s)

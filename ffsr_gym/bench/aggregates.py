@@ -1,4 +1,5 @@
-"""Aggregates across a pool version's tiers as rliable reports them (``ffsr-gym leaderboard aggregates``).
+"""Aggregates across a pool version's tiers as rliable reports them (``ffsr-gym leaderboard aggregates``; the
+figure: :func:`ffsr_gym.report.leaderboard_plots.plot_aggregates`).
 
 Scores are normalised per task by the task's best known score (:mod:`ffsr_gym.bench.normalise`), so
 tiers can be pooled. Each method (an entry name without its tier) is a matrix of runs x tasks:
@@ -144,34 +145,3 @@ def markdown(path: str | Path) -> str:
                      f"{v['mean']:.3f} | {poi} |")
     return "\n".join(lines) + "\n"
 
-
-def plot(path: str | Path) -> Path:
-    """``aggregates.png`` next to the aggregates file: IQM, probability of improvement, performance profiles."""
-    from ffsr_gym.report.plotting import _pyplot, _save
-
-    data = json.loads(Path(path).read_text())
-    methods = sorted(data["methods"], key=lambda m: data["methods"][m]["iqm"])
-    fig, (left, middle, right) = _pyplot().subplots(1, 3, figsize=(17, 0.42 * len(methods) + 2.2))
-    for y, m in enumerate(methods):
-        v = data["methods"][m]
-        left.plot(v["iqm_ci95"], [y, y], color="C0", lw=5, alpha=0.35, solid_capstyle="butt")
-        left.plot(v["iqm"], y, "o", color="C0")
-        if "probability_of_improvement" in v:
-            middle.plot(v["probability_of_improvement_ci95"], [y, y], color="C1", lw=5, alpha=0.35, solid_capstyle="butt")
-            middle.plot(v["probability_of_improvement"], y, "o", color="C1")
-        right.plot(data["taus"], v["profile"], label=m, lw=1.2)
-    for ax in (left, middle):
-        ax.set_yticks(range(len(methods)), methods, fontsize=8)
-        ax.grid(True, axis="x", alpha=0.3)
-    tiers = ", ".join(data["tiers"])
-    left.set(xlabel="IQM of score / best known score, 95 % CI [-]", title=f"IQM over runs x tasks ({tiers})")
-    middle.axvline(0.5, color="grey", lw=0.8)
-    middle.set(xlabel=f"P(method beats {data['reference']} on a task), 95 % CI [-]", xlim=(-0.02, 1.02),
-               title="probability of improvement")
-    right.set(xlabel="threshold τ on score / best known score [-]", ylabel="fraction of runs x tasks above τ [-]",
-              title="performance profiles", ylim=(-0.02, 1.02))
-    right.grid(True, alpha=0.3)
-    right.legend(fontsize=7)
-    footer = (f"ffsr-gym leaderboard aggregates | {data['bootstrap']['package']} | commit "
-              f"{(data['provenance'].get('git_commit') or 'none')[:8]}")
-    return _save(fig, Path(path).with_suffix(".png"), footer)

@@ -1,0 +1,150 @@
+"""Best known scores: a small search end to end (resumable, replayable, certificate-tested), the shipped file's
+records replayed in the registered envs and through their ensemble, and the Minari dataset built from them."""
+
+from __future__ import annotations
+
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import ffsr_gym  # noqa: F401
+from ffsr_gym.model.spec import spec_for_version
+from ffsr_gym.scoring.rules import score_rule
+from ffsr_gym.tasks import best_known
+from ffsr_gym.tasks.certificate import Margins, ensemble_members
+from ffsr_gym.tasks.schedule import Schedule, replay_schedule
+from ffsr_gym.tasks.splits import pool, task_scenario
+
+pytest.importorskip("cma")
+from ffsr_gym.optim import best_known_build as build  # noqa: E402
+from ffsr_gym.optim.best_known import ENV_IDS  # noqa: E402
+
+BENCHMARK = score_rule(spec_for_version("v2")).benchmark
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    """Two easy training tasks searched for one generation, assembled into a file of their own."""
+    work = tmp_path_factory.mktemp("best-known")
+    build.run("easy", "train", work, generations=1, indices=[0, 1], progress=False)
+    path = build.assemble(work, out=work / "best_known.json", generations=1)
+    return work, path
+
+
+def _env_score(record, family):
+    """The score of a record's family schedule played through the registered env, decision by decision."""
+    schedule = Schedule.from_dict(record["families"][family]["schedule"])
+    env = gym.make(ENV_IDS[family], task=record["tier"], split=record["split"])
+    env.reset(seed=0, options={"task_index": record["index"]})
+    for action in schedule.actions(env.unwrapped.scenario):
+        _, _, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            return info["score"]
+    raise AssertionError("the schedule ended before the episode")
+
+
+def test_a_small_search_is_stored_resumes_and_replays(small):
+    work, path = small
+    data = json.loads(path.read_text())
+    records = data["tasks"]["easy"]["train"]
+    assert [r["index"] for r in records] == [0, 1] and data["counts"] == {"easy": {"train": 2}}
+    assert data["budget"]["generations"] == 1
+    lines = (work / "easy_train.jsonl").read_text()
+    build.run("easy", "train", work, generations=1, indices=[0, 1], progress=False)  # resumes: nothing to do
+    assert (work / "easy_train.jsonl").read_text() == lines
+    for record in records:
+        # the residual search starts at the zero residual, which is the certificate's default planner on easy
+        assert record["families"]["residual"]["origin"] == "default"
+        assert record["best"]["score"] >= record["certificate_score"]
+        best = record["families"][record["best"]["family"]]
+        assert best["score"] == record["best"]["score"]
+        for family, result in record["families"].items():
+            if result["schedule"] is not None:
+                assert _env_score(record, family) == result["score"]
+
+
+def _replay_in_ensemble(record, pinocchio):
+    """The worst margins of the record's best schedule over the task and its ensemble (all must succeed)."""
+    entry = pool(record["tier"], record["split"], version="v2")[record["index"]]
+    scenario = task_scenario(record["tier"], entry.seed, BENCHMARK)
+    schedule = best_known.best_schedule(record)
+    results = [replay_schedule(scenario, schedule, BENCHMARK)]
+    for member in ensemble_members(scenario, entry.seed, BENCHMARK.tasks.ensemble, pinocchio=pinocchio):
+        results.append(replay_schedule(member.task, schedule, BENCHMARK, backend=member.backend))
+    assert all(r.success for r in results), record["index"]
+    assert results[0].score == record["best"]["score"]
+    return Margins.worst(results)
+
+
+def test_the_small_search_passes_its_ensemble(small):
+    _, path = small
+    for record in json.loads(path.read_text())["tasks"]["easy"]["train"]:
+        margins = _replay_in_ensemble(record, pinocchio=True)
+        assert margins.short(BENCHMARK) is None
+        stored = Margins.from_dict(record["families"][record["best"]["family"]]["margins"])
+        assert margins.min_clearance_m <= stored.min_clearance_m + 1e-12  # the stored ones are kernel members only
+
+
+SHIPPED = best_known.load_best_known("v2")
+SHIPPED_POOLS = [] if SHIPPED is None else [(t, s) for t, splits in SHIPPED["tasks"].items() for s in splits]
+
+
+@pytest.mark.skipif(SHIPPED is None, reason="no shipped best-known file")
+@pytest.mark.parametrize(("tier", "split"), SHIPPED_POOLS)
+def test_shipped_best_known_scores_replay_exactly_in_the_env(tier, split):
+    records = best_known.records(tier, split, "v2")
+    for record in records[:: max(1, len(records) // 4)]:
+        assert _env_score(record, record["best"]["family"]) == record["best"]["score"]
+
+
+@pytest.mark.skipif(SHIPPED is None, reason="no shipped best-known file")
+def test_shipped_best_known_scores_pass_their_ensemble_sample():
+    for tier, split in SHIPPED_POOLS:
+        _replay_in_ensemble(best_known.records(tier, split, "v2")[0], pinocchio=False)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(SHIPPED is None, reason="no shipped best-known file")
+@pytest.mark.parametrize(("tier", "split"), SHIPPED_POOLS)
+def test_every_shipped_best_known_score_replays_through_its_whole_ensemble(tier, split):
+    for record in best_known.records(tier, split, "v2"):
+        assert _env_score(record, record["best"]["family"]) == record["best"]["score"]
+        assert _replay_in_ensemble(record, pinocchio=True).short(BENCHMARK) is None
+
+
+@pytest.mark.skipif(SHIPPED is None, reason="no shipped best-known file")
+def test_the_shipped_file_matches_the_pools_it_was_searched_on():
+    for tier, splits in SHIPPED["tasks"].items():
+        for split, records in splits.items():
+            tasks = pool(tier, split, version="v2")
+            assert all(r["task_seed"] == tasks[r["index"]].seed for r in records)
+            assert all(r["best"]["score"] >= r["certificate_score"] - 1e-9 for r in records)
+
+
+def test_the_dataset_loads_with_minari_and_replays_to_its_rewards(small, tmp_path, monkeypatch):
+    minari = pytest.importorskip("minari")
+    pytest.importorskip("h5py")
+    from ffsr_gym.bench.dataset import dataset_id, write_dataset
+
+    _, path = small
+    write_dataset("easy", "FFSR-Residual-v2", split="train", root=tmp_path, best_known_file=path)
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
+    dataset = minari.load_dataset(dataset_id("easy", "FFSR-Residual-v2", "train"))
+    assert dataset.total_episodes == 2
+    env = dataset.recover_environment()
+    records = json.loads(path.read_text())["tasks"]["easy"]["train"]
+    for episode, record in zip(dataset.iterate_episodes(), records):
+        assert int(episode.infos["task_seed"][0]) == record["task_seed"]
+        obs, _ = env.reset(seed=0, options={"task_index": int(episode.infos["task_index"][0])})
+        assert np.array_equal(obs, episode.observations[0])
+        rewards = []
+        for action in episode.actions:
+            obs, reward, terminated, truncated, info = env.step(action)
+            rewards.append(reward)
+        assert np.array_equal(np.array(rewards), episode.rewards)  # replays to the stored rewards, exactly
+        assert np.array_equal(obs, episode.observations[-1])
+        assert bool(terminated) == bool(episode.terminations[-1]) and bool(truncated) == bool(episode.truncations[-1])
+        assert info["score"] == record["families"]["residual"]["score"]
+        assert np.sum(episode.rewards) == pytest.approx(info["score"] - 1.0, abs=1e-12)  # rewards sum to score - 1
