@@ -19,6 +19,7 @@ import numpy as np
 from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.bench.normalise import normalised_mean
 from ffsr_gym.model.spec import BenchmarkSpec
+from ffsr_gym.tasks import best_known
 
 
 def safe(text: str) -> str:
@@ -136,8 +137,15 @@ def headroom(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> s
             cells.append(f"{tier} {1.0 - best:.3f} (best: `{name}`, {best:.3f})")
         elif items:
             cells.append(f"{tier} - (no best known scores)")
-    return ("Headroom (1 − the best entry's normalised score, the mean over test tasks of score / the task's best "
+    text = ("Headroom (1 − the best entry's normalised score, the mean over test tasks of score / the task's best "
             "known score): " + "; ".join(cells) + ".")
+    stored = best_known.load_best_known(spec.rules.version)
+    gap = (stored or {}).get("convergence")
+    if gap:
+        text += (f" Doubling the best-known search to {gap['generations']} generations on {len(gap['tasks'])} random "
+                 f"stored tasks raised their best known score on {gap['share_improved']:.0%} of them, by "
+                 f"{gap['median_relative_gap']:.1%} in the median and {gap['max_relative_gap']:.1%} at most.")
+    return text
 
 
 def rl_compute_table(entries: dict[str, list[dict[str, Any]]]) -> list[str]:
@@ -172,3 +180,22 @@ def _rl_compute(rl: list[dict[str, Any]]) -> str:
             "training on one core each (learning-curve scoring included, test-pool scoring not); "
             f"{(max(ends) - min(starts)) / 60:.0f} min of wall time from the first entry's start to the last "
             "one's end (entries' provenance).")
+
+
+def search_table(folder: Path | None = None) -> str:
+    """The RL hyperparameter searches (``ffsr_gym/hyperparams/search/*.json``): tier, trials, pruned, best
+    validation mean, and what each cost."""
+    import json
+    from pathlib import Path
+
+    folder = folder or Path(__file__).resolve().parents[1] / "hyperparams" / "search"
+    lines = ["| algorithm, env id | searched on | trials (pruned) | env steps per trial | best validation mean "
+             "(trial) | cost: env steps, wall time, cores |", "|---|---|---|---|---|---|"]
+    for path in sorted(folder.glob("*.json")):
+        r = json.loads(path.read_text())
+        cost = r["cost"]
+        lines.append(f"| {r['algo']}, {r['env_id']} | {r['training_pool']} + {r['selection_pool']} | {cost['trials']} "
+                     f"({cost['pruned']}) | {r['trial']['env_steps']:,} | {r['best']['value']:.4f} "
+                     f"(#{r['best']['number']}) | {cost['env_steps']:,}, {cost['wall_time_s'] / 60:.0f} min, "
+                     f"{cost['cores']} |")
+    return "\n".join(lines) + "\n"
