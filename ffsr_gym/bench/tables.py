@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from datetime import datetime
 from typing import Any
 
 import numpy as np
@@ -120,7 +119,8 @@ def summary(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]],
              "|---|" + "---|" * len(tiers)]
     lines += [f"| `{method}` | " + " | ".join(cells[method].get(tier, "-") for tier in tiers) + " |" for method in order]
     lines += ["", headroom(spec, entries)]
-    rl = [e for items in entries.values() for e in items if e.get("extra", {}).get("compute", {}).get("env_steps")]
+    rl = [e for items in entries.values() for e in items if e.get("extra", {}).get("compute", {}).get("env_steps")
+          and e["extra"].get("checkpoint") != "best_on_validation"]  # a checkpoint of a training counted once
     if rl:
         lines += ["", _rl_compute(rl), "", *rl_compute_table(entries)]
     return "\n".join(lines) + "\n"
@@ -174,12 +174,9 @@ def _rl_compute(rl: list[dict[str, Any]]) -> str:
     steps = sum(e["extra"]["compute"]["env_steps"] for e in rl)
     seconds = sum(e["extra"]["compute"]["wall_time_s"] for e in rl)
     agents = sum(len(e["extra"].get("runs", [])) for e in rl)
-    ends = [datetime.fromisoformat(e["provenance"]["created_utc"]).timestamp() for e in rl]
-    starts = [end - e["provenance"]["wall_time_s"] for end, e in zip(ends, rl)]
-    return (f"RL entries: {agents} trained agents, {steps:,} environment steps, {seconds / 60:.0f} min of "
-            "training on one core each (learning-curve scoring included, test-pool scoring not); "
-            f"{(max(ends) - min(starts)) / 60:.0f} min of wall time from the first entry's start to the last "
-            "one's end (entries' provenance).")
+    return (f"RL entries: {agents} trained agents, {steps:,} environment steps, {seconds / 3600:.1f} h of training "
+            "on one core each (validation scoring included, test-pool scoring not); each training gives a last and a "
+            "best-on-validation entry.")
 
 
 def search_table(folder: Path | None = None) -> str:

@@ -1,0 +1,51 @@
+"""The README summary's generated parts: method names across checkpoints, headroom, compute per RL entry."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ffsr_gym.bench import normalise, tables
+from ffsr_gym.model.spec import spec_for_version
+
+SPEC = spec_for_version("v2")
+
+
+def _entry(name, tier, scores, **extra):
+    rows = [{"seed": i, "task_index": i, "score": s} for i, s in enumerate(scores)]
+    return {"name": name, "episodes": rows, "extra": {"evaluation_pool": f"{tier}/test", **extra}}
+
+
+def test_method_names_drop_the_tier_before_the_checkpoint_suffix():
+    assert tables.method_name({"name": "ppo_residual_easy"}, "easy") == "ppo_residual"
+    assert tables.method_name({"name": "ppo_residual_easy_valbest"}, "easy") == "ppo_residual_valbest"
+    assert tables.method_name({"name": "reference_v2_default"}, "easy") == "reference_v2_default"
+
+
+def test_headroom_is_one_minus_the_best_normalised_score(monkeypatch):
+    monkeypatch.setattr(normalise.best_known, "scores",
+                        lambda tier, split, size, version=None: np.full(size, 0.5) if tier == "easy" else None)
+    monkeypatch.setattr(tables.best_known, "load_best_known", lambda version=None, path=None: None)
+    entries = {"easy": [_entry("a", "easy", [0.25] * 100), _entry("b", "easy", [0.4] * 100)],
+               "hard": [_entry("c", "hard", [0.1] * 100)]}
+    text = tables.headroom(SPEC, entries)
+    assert "easy 0.200 (best: `b`, 0.800)" in text  # 1 - 0.4 / 0.5
+    assert "hard - (no best known scores)" in text
+
+
+def test_compute_per_rl_entry_counts_each_training_once():
+    common = {"compute": {"env_steps": 5_000_000, "wall_time_s": 7200.0, "hardware": "1 CPU core per training seed"},
+              "runs": [{}] * 5, "timesteps_per_seed": 1_000_000}
+    entries = {"easy": [_entry("ppo_easy", "easy", [0.1], checkpoint="last", **common),
+                        _entry("ppo_easy_valbest", "easy", [0.1], checkpoint="best_on_validation", **common),
+                        _entry("reference_v2_default", "easy", [0.1])]}
+    lines = tables.rl_compute_table(entries)
+    assert lines[2:] == ["| `ppo` | 5 x 1,000,000 steps, 2.0 h, 1 CPU core per training seed |"]
+    rl = [e for e in entries["easy"] if e["extra"].get("checkpoint") == "last"]
+    assert tables._rl_compute(rl).startswith("RL entries: 5 trained agents, 5,000,000 environment steps, 2.0 h")
+
+
+@pytest.mark.parametrize("tier", ["easy", "debris"])
+def test_normalised_column_is_absent_without_best_known_scores(tier, monkeypatch):
+    monkeypatch.setattr(normalise.best_known, "scores", lambda *a, **k: None)
+    assert normalise.normalised_mean(_entry("a", tier, [0.3] * 100), "v2") is None
