@@ -8,9 +8,10 @@ training pool for the budget of ``ffsr_gym/hyperparams/<algo>.yml`` (times ``--s
 scored on the validation pool ``--points`` times (the learning curve and the checkpoint
 selection), and its last and best-on-validation checkpoints are scored once on the test pool
 (``ffsr_gym.optim.rl``). Pieces run on ``--workers`` processes, one core each. A piece whose
-folder in ``--work`` holds its models and scores is loaded, never retrained, so a killed study
-resumes where it stopped; when every seed of an (algorithm, env id, tier) is done, its two
-leaderboard entries (``<name>`` and ``<name>_valbest``) are written. An existing entry is kept.
+folder in ``--work`` holds its training record and test scores is taken from them, never retrained
+(``studies/`` keeps these small files in git, so a study resumes in any later session); when every
+seed of an (algorithm, env id, tier) is done, its two leaderboard entries (``<name>`` and
+``<name>_valbest``) are written. An existing entry is kept.
 """
 
 import argparse
@@ -53,7 +54,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", default="v2", help="a pool benchmark version (default: v2)")
     parser.add_argument("--leaderboard", required=True, help="leaderboard root; entries go to <root>/<version>/<tier>/")
-    parser.add_argument("--work", default=None, help="models, training records, scores (default: runs/rl-<version>)")
+    parser.add_argument("--work", default=None, help="training records and scores, models (default: studies/rl-<version>; "
+                                                     "the records are kept in git, the models not)")
     parser.add_argument("--workers", type=int, default=2, help="seeds trained at once, one core each (default: 2)")
     parser.add_argument("--scale", type=float, default=1.0, help="multiplies every training budget (default: 1)")
     parser.add_argument("--points", type=int, default=20, help="validation scorings per run after step 0 (default: 20)")
@@ -62,7 +64,7 @@ def main() -> None:
     parser.add_argument("--tiers", nargs="+", default=list(ALL_TIERS), choices=ALL_TIERS, help="tiers (default: all)")
     parser.add_argument("--env-ids", nargs="+", default=None, help="env ids (default: the version's two)")
     args = parser.parse_args()
-    version, work = args.version, args.work or f"runs/rl-{args.version}"
+    version, work = args.version, args.work or f"studies/rl-{args.version}"
     env_ids = args.env_ids or list(spec_for_version(version).env_ids)
     groups = []
     for tier in args.tiers:

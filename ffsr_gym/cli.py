@@ -471,7 +471,8 @@ def _add_study_commands(sub: Any) -> None:
                     help="tiers (default: all)")
     bk.add_argument("--splits", nargs="+", default=["test", "validation"], choices=["train", "validation", "test"],
                     help="pools searched (default: test validation)")
-    bk.add_argument("--work", default="runs/best-known", help="finished tasks, one jsonl per pool (default: runs/best-known)")
+    bk.add_argument("--work", default="studies/best-known",
+                    help="finished tasks, one jsonl per pool (default: studies/best-known, kept in git)")
     bk.add_argument("--doubled", type=positive_int, default=None, metavar="N",
                     help="instead: re-run N random stored tasks of these pools with twice the generations and store "
                          "the gap in the file")

@@ -12,8 +12,9 @@ checkpoint are each scored once on the test pool, as two entries (``<name>`` and
 ``<name>_valbest``), so readers see how far training drifts from its best. The test pool never
 enters training or selection.
 
-A seed whose folder holds its models, ``train_record.json`` and its test scores is loaded, never
-retrained or rescored, so an interrupted study resumes seed by seed. stable-baselines3 and torch
+A seed whose folder holds ``train_record.json`` and its test scores is taken from them, never retrained
+or rescored (the models are not needed then, so a study's small records can be kept in git while
+its models stay out), and an interrupted study resumes seed by seed. stable-baselines3 and torch
 are optional (``pip install "ffsr-gym[rl]"``); the hyperparameters ship in
 ``ffsr_gym/hyperparams``.
 """
@@ -284,17 +285,21 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
     start, rows, runs = time.perf_counter(), {c: [] for c in checkpoints}, []
     for seed in seeds:
         folder = Path(out) / f"{algo}_{env_id}_{task}_seed{seed}"
-        model, record = train(algo, env_id, task=task, seed=seed, out=folder, timesteps=timesteps,
-                              hyperparams=hyperparams, curve_every=curve_every, curve_tasks=curve_tasks,
-                              progress=progress, n_envs=n_envs, vec_env=vec_env)
+        record, evaluations = _scored_seed(folder, checkpoints)
+        if evaluations is None:  # not finished and scored yet (a scored seed needs no model: records suffice)
+            model, record = train(algo, env_id, task=task, seed=seed, out=folder, timesteps=timesteps,
+                                  hyperparams=hyperparams, curve_every=curve_every, curve_tasks=curve_tasks,
+                                  progress=progress, n_envs=n_envs, vec_env=vec_env)
+            evaluations = {}
+            for checkpoint in checkpoints:
+                if checkpoint != "last":
+                    model = getattr(sb3_modules()[0], SB3_CLASSES[algo]).load(folder / BEST_MODEL, device="cpu")
+                evaluations[checkpoint] = _evaluation(model, spec, env_id, task, folder, eval_seeds, checkpoint)
         run = {key: record[key] for key in ("seed", "timesteps", "n_envs", "wall_time_s", "curve", "best_on_validation")
                if key in record}
         for checkpoint in checkpoints:
-            if checkpoint != "last":
-                model = getattr(sb3_modules()[0], SB3_CLASSES[algo]).load(folder / BEST_MODEL, device="cpu")
-            evaluation = _evaluation(model, spec, env_id, task, folder, eval_seeds, checkpoint)
-            rows[checkpoint] += [row | {"train_seed": seed} for row in evaluation["episodes"]]
-            run.setdefault("metrics", {})[checkpoint] = evaluation["metrics"]
+            rows[checkpoint] += [row | {"train_seed": seed} for row in evaluations[checkpoint]["episodes"]]
+            run.setdefault("metrics", {})[checkpoint] = evaluations[checkpoint]["metrics"]
         runs.append(run)
     compute = {"env_steps": sum(run["timesteps"] for run in runs), "wall_time_s": sum(run["wall_time_s"] for run in runs),
                "hardware": "1 CPU core per training seed"}
@@ -321,10 +326,23 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
     return reports
 
 
+def _evaluation_file(folder: Path, checkpoint: str) -> Path:
+    return folder / ("evaluation.json" if checkpoint == "last" else f"evaluation_{checkpoint}.json")
+
+
+def _scored_seed(folder: Path, checkpoints: list[str]) -> tuple[dict[str, Any] | None, dict[str, Any] | None]:
+    """A finished seed's training record and test scores per checkpoint, or (None, None) while any is missing."""
+    files = [folder / "train_record.json", *(_evaluation_file(folder, c) for c in checkpoints)]
+    if not all(f.is_file() for f in files):
+        return None, None
+    return (json.loads(files[0].read_text()),
+            {c: json.loads(_evaluation_file(folder, c).read_text()) for c in checkpoints})
+
+
 def _evaluation(model: Any, spec: BenchmarkSpec, env_id: str, task: str, folder: Path,
                 eval_seeds: list[int] | None, checkpoint: str = "last") -> dict[str, Any]:
     """A trained agent's test scores (cached in ``folder``: a resumed study never rescores)."""
-    scored = folder / ("evaluation.json" if checkpoint == "last" else f"evaluation_{checkpoint}.json")
+    scored = _evaluation_file(folder, checkpoint)
     if scored.is_file():
         return json.loads(scored.read_text())
     if spec.evaluation.protocol == "pool":

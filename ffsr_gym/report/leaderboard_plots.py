@@ -84,10 +84,12 @@ def plot_profiles(root: str | Path) -> Path | None:
 
 
 def plot_learning_curves(root: str | Path) -> Path | None:
-    """RL learning curves: score on fixed test tasks against environment steps, IQM over training
-    seeds (of each seed's mean over the curve's tasks) with a 95 % bootstrap band over seeds."""
+    """RL learning curves: mean score on the curve's validation tasks against environment steps, IQM over
+    training seeds with a 95 % bootstrap band over seeds (one curve per training: the last and the
+    best-on-validation entries share it)."""
     root = Path(root)
-    entries = {tier: [e for e in items if any("curve" in run for run in e.get("extra", {}).get("runs", []))]
+    entries = {tier: [e for e in items if any("curve" in run for run in e.get("extra", {}).get("runs", []))
+                      and e["extra"].get("checkpoint") != "best_on_validation"]  # the same training as its last entry
                for tier, items in _entries(root).items()}
     tiers = [t for t in TIER_ORDER if entries[t]]
     if not tiers:
