@@ -22,10 +22,10 @@ from tqdm.auto import tqdm
 
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.optim import best_known as search
-from ffsr_gym.provenance import provenance, write_json_atomic
+from ffsr_gym.provenance import provenance, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.best_known import best_known_path, load_best_known
-from ffsr_gym.tasks.schedule import FAMILIES
+from ffsr_gym.tasks.schedule import FAMILIES, Schedule
 from ffsr_gym.tasks.splits import pool, pool_path
 
 
@@ -95,6 +95,9 @@ def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = 
             if record.get("generations") != generations:
                 continue
             slot = tasks.setdefault(record["tier"], {}).setdefault(record["split"], [])
+            for result in record["families"].values():  # the shortest float32 text of each knot
+                if result["schedule"] is not None:
+                    result["schedule"] = Schedule.from_dict(result["schedule"]).as_dict()
             if all(r["index"] != record["index"] for r in slot):
                 slot.append(record)
                 evaluations += sum(f["evaluations"] for f in record["families"].values())
@@ -109,8 +112,29 @@ def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = 
             "counts": {t: {s: len(v) for s, v in tasks[t].items()} for t in tiers},
             "compute": {"objective_evaluations": evaluations, "wall_time_s": seconds, "cores": 1},
             "provenance": provenance(command=command), "convergence": old.get("convergence"), "tasks": tasks}
-    write_json_atomic(out, data)
+    _write(out, data)
     return out
+
+
+def _write(path: Path, data: dict[str, Any]) -> None:
+    """The file as compact JSON, one line per task record (it ships in the wheel: small, and diffs by task)."""
+    head = {k: v for k, v in data.items() if k != "tasks"}
+    lines = [json.dumps(head, allow_nan=False)[:-1] + ', "tasks": {']
+    tiers = list(data["tasks"])
+    for t, tier in enumerate(tiers):
+        splits = list(data["tasks"][tier])
+        lines.append(f"{json.dumps(tier)}: {{")
+        for k, split in enumerate(splits):
+            records = data["tasks"][tier][split]
+            lines.append(f"{json.dumps(split)}: [")
+            lines += [json.dumps(r, allow_nan=False, separators=(",", ":")) + ("," if i < len(records) - 1 else "")
+                      for i, r in enumerate(records)]
+            lines.append("]" + ("," if k < len(splits) - 1 else ""))
+        lines.append("}" + ("," if t < len(tiers) - 1 else ""))
+    lines.append("}}")
+    text = "\n".join(lines) + "\n"
+    json.loads(text)  # the hand-joined text is one JSON document
+    write_text_atomic(path, text)
 
 
 def convergence(work: str | Path, sample: list[tuple[str, str, int]], *, version: str = "v2",
@@ -134,5 +158,5 @@ def convergence(work: str | Path, sample: list[tuple[str, str, int]], *, version
     summary = {"generations": doubled, "tasks": rows, "mean_gap": float(gaps.mean()),
                "median_relative_gap": float(np.median(rel)), "max_relative_gap": float(rel.max()),
                "share_improved": float(np.mean(gaps > 0)), "wall_time_s": time.perf_counter() - start}
-    write_json_atomic(out, data | {"convergence": summary})
+    _write(out, data | {"convergence": summary})
     return summary

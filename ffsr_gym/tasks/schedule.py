@@ -91,12 +91,14 @@ class Schedule:
         return np.clip(out, -1.0, 1.0).astype(np.float32)
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready dict."""
-        return {"family": self.family, "knots": [list(row) for row in self.knots]}
+        """JSON-ready dict; each knot as the shortest decimal that reads back as its float32 (:meth:`from_dict`)."""
+        return {"family": self.family,
+                "knots": [[float(np.format_float_positional(np.float32(x), unique=True, trim="-")) for x in row]
+                          for row in self.knots]}
 
     @classmethod
     def from_dict(cls, data: Any) -> Schedule:
-        """Inverse of :meth:`as_dict`.
+        """Inverse of :meth:`as_dict` (values rounded to float32, as env actions are).
 
         Raises:
             InvalidInputError: not a dict with ``family`` and ``knots`` (values as above).
@@ -104,8 +106,8 @@ class Schedule:
         if not isinstance(data, dict) or set(data) != {"family", "knots"}:
             raise InvalidInputError(f"schedule must be a dict with keys family, knots; got {data!r}")
         try:
-            knots = tuple(tuple(float(x) for x in row) for row in data["knots"])
-        except (TypeError, ValueError) as exc:
+            knots = tuple(tuple(float(np.float32(float(x))) for x in row) for row in data["knots"])
+        except (TypeError, ValueError, OverflowError) as exc:
             raise InvalidInputError(f"schedule knots {data['knots']!r}: {exc}") from None
         return cls(data["family"], knots)
 
