@@ -6,12 +6,15 @@ tiers can be pooled. Each method (an entry name without its tier) is a matrix of
 the runs are its training seeds (one for a deterministic method), the tasks every test task of the
 tiers that have best known scores. With the rliable package (``pip install "ffsr-gym[analysis]"``):
 
-* IQM of the normalised scores with a 95 % stratified-bootstrap CI (runs resampled within each
-  task; percentile method);
+* IQM of the normalised scores with a 95 % stratified-bootstrap CI (percentile method);
 * performance profiles: the fraction of (run, task) scores above each threshold τ, with CIs;
 * the probability of improvement of each method over the reference planner: P(X > Y) per task
   (Mann-Whitney over runs; for two deterministic methods 1, 0.5 or 0 as X beats, ties or loses),
-  averaged over tasks, with a stratified independent-bootstrap CI.
+  averaged over tasks, with its CI.
+
+The bootstraps resample tasks as well as runs within each task (rliable's ``task_bootstrap``): the
+test tasks are a sample of each tier's task distribution, and with runs alone a deterministic
+method's CI would have zero width.
 
 rliable's bootstrap draws from NumPy's global generator, which is seeded with :data:`SEED` first.
 The per-tier tables rank by the entries' own CIs (a bootstrap over episodes), not by these.
@@ -27,7 +30,7 @@ import numpy as np
 
 from ffsr_gym.bench.normalise import normalised_scores
 from ffsr_gym.bench.tables import method_name
-from ffsr_gym.exceptions import MissingDependencyError
+from ffsr_gym.exceptions import InvalidInputError, MissingDependencyError
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.provenance import package_versions, provenance, write_json_atomic
 from ffsr_gym.tasks.tiers import ALL_TIERS
@@ -97,12 +100,18 @@ def compute(entries: dict[str, list[dict[str, Any]]], spec: BenchmarkSpec) -> di
     if not scores or reference not in scores:
         return None
     np.random.seed(SEED)
-    iqm, iqm_ci = library.get_interval_estimates(scores, lambda x: np.array([metrics.aggregate_iqm(x)]), reps=REPS)
+    iqm, iqm_ci = library.get_interval_estimates(scores, lambda x: np.array([metrics.aggregate_iqm(x)]), reps=REPS,
+                                                 task_bootstrap=True)
     np.random.seed(SEED)
-    pairs = {m: (scores[m], scores[reference]) for m in scores if m != reference}
-    poi, poi_ci = library.get_interval_estimates(pairs, improvement, reps=REPS)
+    if scores[reference].shape[0] != 1:
+        raise InvalidInputError(f"{reference} has {scores[reference].shape[0]} runs; the comparison needs one "
+                                "(a deterministic planner)")
+    pairs = {m: np.stack([x, np.repeat(scores[reference], x.shape[0], axis=0)], axis=-1)
+             for m, x in scores.items() if m != reference}  # a deterministic Y repeated: P(X > Y) is unchanged
+    poi, poi_ci = library.get_interval_estimates(pairs, lambda a: np.array([improvement(a[..., 0], a[..., 1])]),
+                                                 reps=REPS, task_bootstrap=True)
     np.random.seed(SEED)
-    profiles, profile_ci = library.create_performance_profile(scores, TAUS, reps=REPS)
+    profiles, profile_ci = library.create_performance_profile(scores, TAUS, reps=REPS, task_bootstrap=True)
     methods = {}
     for m, values in scores.items():
         methods[m] = {"runs": int(values.shape[0]), "tasks": int(values.shape[1]), "iqm": float(iqm[m][0]),
@@ -110,12 +119,13 @@ def compute(entries: dict[str, list[dict[str, Any]]], spec: BenchmarkSpec) -> di
                       "profile": [float(x) for x in profiles[m]],
                       "profile_ci95": [[float(x) for x in profile_ci[m][0]], [float(x) for x in profile_ci[m][1]]]}
         if m in pairs:
-            methods[m] |= {"probability_of_improvement": float(poi[m]),
+            methods[m] |= {"probability_of_improvement": float(poi[m][0]),
                            "probability_of_improvement_ci95": [float(x) for x in np.ravel(poi_ci[m])]}
     return {"version": version, "tiers": tiers, "score": "score / the task's best known score",
             "reference": reference, "taus": [float(t) for t in TAUS],
             "bootstrap": {"package": f"rliable {package_versions().get('rliable', '?')}", "method": "percentile",
-                          "reps": REPS, "seed": SEED, "strata": "runs resampled within each task"},
+                          "reps": REPS, "seed": SEED,
+                          "resampled": "tasks, and runs within each task (rliable's task_bootstrap)"},
             "methods": methods, "provenance": provenance()}
 
 
@@ -133,8 +143,9 @@ def markdown(path: str | Path) -> str:
     """The aggregates file as a table (IQM, CI, probability of improvement over the reference)."""
     data = json.loads(Path(path).read_text())
     order = sorted(data["methods"], key=lambda m: -data["methods"][m]["iqm"])
-    lines = [f"Across {', '.join(data['tiers'])} ({sum(1 for _ in data['tiers'])} tiers, scores / best known; "
-             f"{data['bootstrap']['package']}, stratified bootstrap, {data['bootstrap']['reps']} resamples):", "",
+    where = f"the {data['tiers'][0]} tier" if len(data["tiers"]) == 1 else f"the tiers {', '.join(data['tiers'])}"
+    lines = [f"Across {where} (score / the task's best known score; "
+             f"{data['bootstrap']['package']}, bootstrap over tasks and runs, {data['bootstrap']['reps']} resamples):", "",
              f"| method | runs | IQM [95% CI] | mean | P(improves on `{data['reference']}`) [95% CI] |",
              "|---|---|---|---|---|"]
     for m in order:
