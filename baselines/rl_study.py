@@ -31,7 +31,7 @@ ALGOS = ("ppo", "sac")
 
 def budget(algo: str, env_id: str, scale: float, points: int) -> tuple[int, int]:
     """(env steps per seed, steps between validation scorings)."""
-    steps = int(round(load_hyperparams(algo, env_id)["n_timesteps"] * scale))
+    steps = round(load_hyperparams(algo, env_id)["n_timesteps"] * scale)
     return steps, max(1, steps // points)
 
 

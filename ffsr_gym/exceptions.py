@@ -29,3 +29,16 @@ class MissingDependencyError(FFSRError, ImportError):
 
 class UnknownArgumentError(InvalidInputError, TypeError):
     """A keyword argument that the function or environment does not take (never silently ignored)."""
+
+
+def require(module: str, extra: str, packages: str, what: str):
+    """Import an optional ``module``, or raise :class:`MissingDependencyError` naming the extra that installs it.
+
+    ``what`` says what needs it ("the aggregates need"), ``packages`` what the extra brings.
+    """
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise MissingDependencyError(f'{what}: pip install "ffsr-gym[{extra}]" ({packages})') from exc

@@ -10,9 +10,9 @@ from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.aggregate import iqm
 
 rliable = pytest.importorskip("rliable")
-from rliable import metrics  # noqa: E402
+from rliable import metrics
 
-from ffsr_gym.bench import aggregates  # noqa: E402
+from ffsr_gym.bench import aggregates
 
 SPEC = spec_for_version("v2")
 

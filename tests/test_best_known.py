@@ -9,17 +9,16 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import ffsr_gym  # noqa: F401
+import ffsr_gym  # noqa: F401 - registers the ids
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks import best_known
 from ffsr_gym.tasks.certificate import Margins, ensemble_members
-from ffsr_gym.tasks.schedule import Schedule, replay_schedule
+from ffsr_gym.tasks.schedule import ENV_IDS, Schedule, replay_schedule
 from ffsr_gym.tasks.splits import pool, task_scenario
 
 pytest.importorskip("cma")
-from ffsr_gym.optim import best_known_build as build  # noqa: E402
-from ffsr_gym.optim.best_known import ENV_IDS  # noqa: E402
+from ffsr_gym.optim import best_known_build as build
 
 BENCHMARK = score_rule(spec_for_version("v2")).benchmark
 

@@ -57,7 +57,7 @@ def test_vector_round_trip_and_bad_knots_are_refused_by_name():
                                                         ("parameters", "FFSR-v2", "medium"),
                                                         ("residual", "FFSR-Residual-v2", "debris")])
 def test_a_schedule_replays_as_the_env_plays_its_actions(family, env_id, tier):
-    entry, task = _task(tier, 2)
+    _, task = _task(tier, 2)
     rng = np.random.default_rng(5)
     schedule = Schedule.from_vector(family, rng.uniform(-0.4, 0.4, 3 * (12 if family == "residual" else 2)))
     result = replay_schedule(task, schedule, BENCHMARK)

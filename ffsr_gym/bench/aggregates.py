@@ -30,7 +30,7 @@ import numpy as np
 
 from ffsr_gym.bench.normalise import normalised_scores
 from ffsr_gym.bench.tables import method_name
-from ffsr_gym.exceptions import InvalidInputError, MissingDependencyError
+from ffsr_gym.exceptions import InvalidInputError, require
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.provenance import package_versions, provenance, write_json_atomic
 from ffsr_gym.tasks.tiers import ALL_TIERS
@@ -44,11 +44,8 @@ TAUS = np.linspace(0.0, 1.1, 111)
 
 def rliable_modules():
     """(rliable.library, rliable.metrics), or a named error with the install hint."""
-    try:
-        from rliable import library, metrics
-    except ImportError as exc:
-        raise MissingDependencyError('the aggregates need: pip install "ffsr-gym[analysis]" (rliable)') from exc
-    return library, metrics
+    need = ("analysis", "rliable", "the aggregates need")
+    return require("rliable.library", *need), require("rliable.metrics", *need)
 
 
 def improvement(scores_x: np.ndarray, scores_y: np.ndarray) -> float:
@@ -144,9 +141,9 @@ def markdown(path: str | Path) -> str:
     data = json.loads(Path(path).read_text())
     order = sorted(data["methods"], key=lambda m: -data["methods"][m]["iqm"])
     where = f"the {data['tiers'][0]} tier" if len(data["tiers"]) == 1 else f"the tiers {', '.join(data['tiers'])}"
-    lines = [f"Across {where} (score / the task's best known score; "
-             f"{data['bootstrap']['package']}, bootstrap over tasks and runs, {data['bootstrap']['reps']} resamples):", "",
-             f"| method | runs | IQM [95% CI] | mean | P(improves on `{data['reference']}`) [95% CI] |",
+    lines = [(f"Across {where} (score / the task's best known score; "
+              f"{data['bootstrap']['package']}, bootstrap over tasks and runs, {data['bootstrap']['reps']} resamples):"),
+             "", f"| method | runs | IQM [95% CI] | mean | P(improves on `{data['reference']}`) [95% CI] |",
              "|---|---|---|---|---|"]
     for m in order:
         v = data["methods"][m]

@@ -25,21 +25,12 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ffsr_gym.exceptions import FFSRError, InvalidInputError, MissingDependencyError
+from ffsr_gym.exceptions import FFSRError, InvalidInputError, require
 from ffsr_gym.tasks import best_known
-from ffsr_gym.tasks.schedule import Schedule
+from ffsr_gym.tasks.schedule import ENV_IDS, Schedule
 
 #: The schedule family whose actions each env takes.
-FAMILY_OF = {"FFSR-Residual-v2": "residual", "FFSR-v2": "parameters"}
-
-
-def minari_module():
-    """minari, or a named error with the install hint."""
-    try:
-        import minari
-    except ImportError as exc:
-        raise MissingDependencyError('datasets need: pip install "ffsr-gym[dataset]" (minari, h5py)') from exc
-    return minari
+FAMILY_OF = {env_id: family for family, env_id in ENV_IDS.items()}
 
 
 def dataset_id(tier: str, env_id: str, split: str = "train") -> str:
@@ -101,7 +92,7 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
     Raises:
         InvalidInputError: an env id without schedules, or no stored best-known record for the pool.
     """
-    minari = minari_module()
+    minari = require("minari", "dataset", "minari, h5py", "datasets need")
     if env_id not in FAMILY_OF:
         raise InvalidInputError(f"env_id {env_id!r}; allowed: {sorted(FAMILY_OF)}")
     family = FAMILY_OF[env_id]

@@ -9,14 +9,16 @@ names come from the spec (``[leaderboard]``).
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.bench.normalise import normalised_mean
+from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.tasks import best_known
 
@@ -32,9 +34,9 @@ def header(spec: BenchmarkSpec, group: str) -> list[str]:
         return [f"### {group}", "", "| rank | entry | method | feasible rate | score IQM [95% CI] | score mean | episodes "
                 "| commit |", "|---|---|---|---|---|---|---|---|"]
     return [f"### {group} ({spec.evaluation.split} pool)", "",
-            "| rank | entry | score IQM [95% CI] | success | normalised | paper B (median) | peak rate mission / "
-            "balance [deg/s] | final error [m], successes | convergence [s], successes | compute | trained on | "
-            "commit |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+            ("| rank | entry | score IQM [95% CI] | success | normalised | paper B (median) | peak rate mission / "
+             "balance [deg/s] | final error [m], successes | convergence [s], successes | compute | trained on | "
+             "commit |"), "|---|---|---|---|---|---|---|---|---|---|---|---|"]
 
 
 def commit(entry: dict[str, Any]) -> str:
@@ -182,12 +184,9 @@ def _rl_compute(rl: list[dict[str, Any]]) -> str:
 def search_table(folder: Path | None = None) -> str:
     """The RL hyperparameter searches (``ffsr_gym/hyperparams/search/*.json``): tier, trials, pruned, best
     validation mean, and what each cost."""
-    import json
-    from pathlib import Path
-
     folder = folder or Path(__file__).resolve().parents[1] / "hyperparams" / "search"
-    lines = ["| algorithm, env id | searched on | trials (pruned) | env steps per trial | best validation mean "
-             "(trial) | cost: env steps, wall time, cores |", "|---|---|---|---|---|---|"]
+    lines = [("| algorithm, env id | searched on | trials (pruned) | env steps per trial | best validation mean "
+              "(trial) | cost: env steps, wall time, cores |"), "|---|---|---|---|---|---|"]
     for path in sorted(folder.glob("*.json")):
         r = json.loads(path.read_text())
         cost = r["cost"]

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ffsr_gym.exceptions import InvalidInputError, MissingDependencyError
+from ffsr_gym.exceptions import InvalidInputError, require
 from ffsr_gym.model.benchmark import Benchmark
 from ffsr_gym.tasks.certificate import Margins, ensemble_members
 from ffsr_gym.tasks.schedule import FAMILIES, Schedule, replay_schedule
@@ -37,17 +37,6 @@ GENERATIONS = 30
 CMA_SEED = 1
 #: Candidates of a search tried against the ensemble, best first, before the start.
 TRIED = 5
-#: The env each family's actions belong to.
-ENV_IDS = {"residual": "FFSR-Residual-v2", "parameters": "FFSR-v2"}
-
-
-def cma_module():
-    """cma, or a named error with the install hint."""
-    try:
-        import cma
-    except ImportError as exc:
-        raise MissingDependencyError('the best-known search needs: pip install "ffsr-gym[baselines]" (cma)') from exc
-    return cma
 
 
 def start(task: PoolTask, family: str, benchmark: Benchmark) -> tuple[Schedule, str]:
@@ -132,7 +121,7 @@ def passes(task: PoolTask, tier: str, schedule: Schedule, benchmark: Benchmark, 
 def search_family(population: Population, task: PoolTask, tier: str, index: int, benchmark: Benchmark,
                   generations: int = GENERATIONS) -> FamilyResult:
     """CMA-ES over one family's knots on one task, then the ensemble check of its best candidates."""
-    cma = cma_module()
+    cma = require("cma", "baselines", "cma", "the best-known search needs")
     family = population.family
     first, origin = start(task, family, benchmark)
     options = {"bounds": [-1.0, 1.0], "seed": CMA_SEED, "popsize": population.size, "verbose": -9,

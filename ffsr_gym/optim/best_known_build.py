@@ -25,7 +25,7 @@ from ffsr_gym.optim import best_known as search
 from ffsr_gym.provenance import provenance, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.best_known import best_known_path, load_best_known
-from ffsr_gym.tasks.schedule import FAMILIES, Schedule
+from ffsr_gym.tasks.schedule import ENV_IDS, FAMILIES, Schedule
 from ffsr_gym.tasks.splits import pool, pool_path
 
 
@@ -80,7 +80,7 @@ def budget() -> dict[str, Any]:
     """The search budget per task, as the file records it."""
     return {"knots": search.KNOTS, "sigma0": search.SIGMA0, "generations": search.GENERATIONS,
             "popsize": {family: popsize(family) for family in FAMILIES}, "cma_seed": search.CMA_SEED,
-            "tried_in_ensemble": search.TRIED, "env_ids": search.ENV_IDS}
+            "tried_in_ensemble": search.TRIED, "env_ids": ENV_IDS}
 
 
 def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = None, command: str | None = None,

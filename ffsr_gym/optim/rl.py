@@ -32,9 +32,9 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.entry import EvalReport
-from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.bench.evaluation import evaluate, spec_of
 from ffsr_gym.bench.policies import SB3_CLASSES, sb3_modules
+from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.model.spec import BenchmarkSpec

@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ffsr_gym.exceptions import InvalidInputError, MissingDependencyError
+from ffsr_gym.exceptions import InvalidInputError, require
 
 #: Environment copies every trial trains on (batched env; PPO and SAC).
 N_ENVS = {"ppo": 16, "sac": 8}
@@ -25,11 +25,7 @@ N_ENVS = {"ppo": 16, "sac": 8}
 
 def optuna_module():
     """optuna, or a named error with the install hint."""
-    try:
-        import optuna
-    except ImportError as exc:
-        raise MissingDependencyError('the hyperparameter search needs: pip install "ffsr-gym[tune]" (optuna)') from exc
-    return optuna
+    return require("optuna", "tune", "optuna", "the hyperparameter search needs")
 
 
 def search_space(algo: str, residual: bool) -> dict[str, list[Any] | tuple[str, float, float]]:

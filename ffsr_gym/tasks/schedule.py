@@ -32,6 +32,8 @@ from ffsr_gym.sim.simulate import make_rollout
 
 #: Schedule families and the width of their actions.
 FAMILIES = {"residual": 12, "parameters": 2}
+#: The registered v2 env whose actions each family is.
+ENV_IDS = {"residual": "FFSR-Residual-v2", "parameters": "FFSR-v2"}
 
 
 @dataclass(frozen=True)
@@ -74,15 +76,15 @@ class Schedule:
     def span(self, task: Scenario) -> int:
         """Decisions the knots spread over: those starting before the motion ends (residual), or all."""
         interval = task.env.decision_interval_s
-        decisions = int(round(task.simulation.duration_s / interval))
+        decisions = round(task.simulation.duration_s / interval)
         if self.family == "parameters":
             return decisions
-        return min(decisions, int(math.ceil(task.desired_path.motion_time_s / interval - 1e-9)))
+        return min(decisions, math.ceil(task.desired_path.motion_time_s / interval - 1e-9))
 
     def actions(self, task: Scenario) -> np.ndarray:
         """(decisions, width) float32: the env action of every decision of an episode of ``task``."""
         interval = task.env.decision_interval_s
-        decisions = int(round(task.simulation.duration_s / interval))
+        decisions = round(task.simulation.duration_s / interval)
         values = np.asarray(self.knots, dtype=float)
         span = self.span(task)
         at = np.minimum(np.arange(decisions), span - 1).astype(float)
@@ -119,7 +121,7 @@ def replay_schedule(task: Scenario, schedule: Schedule, benchmark: Benchmark, *,
     residual = schedule.family == "residual"
     m, T_c = planner_parameters(task, "predefined_time", benchmark.planner.m, benchmark.planner.T_c_s)
     rollout = make_rollout(task, backend=backend, m=m, T_c=T_c)  # (m, T_c) family: reset at every decision
-    per_decision = max(1, int(round(task.env.decision_interval_s / task.simulation.dt_s)))
+    per_decision = max(1, round(task.env.decision_interval_s / task.simulation.dt_s))
     motion_time, k = task.desired_path.motion_time_s, 0
     while rollout.k < rollout.n_steps:
         action = actions[min(k, len(actions) - 1)]
