@@ -29,8 +29,10 @@ def test_headroom_is_one_minus_the_best_normalised_score(monkeypatch):
     entries = {"easy": [_entry("a", "easy", [0.25] * 100), _entry("b", "easy", [0.4] * 100)],
                "hard": [_entry("c", "hard", [0.1] * 100)]}
     text = tables.headroom(SPEC, entries)
-    assert "easy 0.200 (best: `b`, 0.800)" in text  # 1 - 0.4 / 0.5
+    assert "easy 0.200 (best: `b`, 0.800; no entry beats the best known score on any test task)" in text  # 1 - 0.4/0.5
     assert "hard - (no best known scores)" in text
+    entries["easy"].append(_entry("c", "easy", [0.6, 0.55] + [0.0] * 98))  # beats it on tasks 0 and 1
+    assert "entries beat the best known score on 2 test tasks, by up to 20.0%" in tables.headroom(SPEC, entries)
 
 
 def test_compute_per_rl_entry_counts_each_training_once():

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ffsr_gym.bench.normalise import normalised_mean
+from ffsr_gym.bench.normalise import normalised_mean, normalised_scores
 from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.tasks import best_known
@@ -136,7 +136,13 @@ def headroom(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> s
         values = [(v, name) for v, name in values if v is not None]
         if values:
             best, name = max(values)
-            cells.append(f"{tier} {1.0 - best:.3f} (best: `{name}`, {best:.3f})")
+            pairs = [(e, r) for e in items if (r := normalised_scores(e, spec.rules.version)) is not None]
+            beaten = {row["task_index"] for e, r in pairs for row, x in zip(e["episodes"], r) if x > 1.0}
+            top = max(float(r.max()) for _, r in pairs)
+            beats = (f"entries beat the best known score on {len(beaten)} test task{'s' * (len(beaten) != 1)}, by up to "
+                     f"{top - 1.0:.1%}" if beaten
+                     else "no entry beats the best known score on any test task")
+            cells.append(f"{tier} {1.0 - best:.3f} (best: `{name}`, {best:.3f}; {beats})")
         elif items:
             cells.append(f"{tier} - (no best known scores)")
     text = ("Headroom (1 − the best entry's normalised score, the mean over test tasks of score / the task's best "
