@@ -13,7 +13,7 @@ import ffsr_gym  # noqa: F401 - registers the ids
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks import best_known
-from ffsr_gym.tasks.certificate import Margins, ensemble_members
+from ffsr_gym.tasks.certificate import Margins, ensemble_members, replay
 from ffsr_gym.tasks.schedule import ENV_IDS, Schedule, replay_schedule
 from ffsr_gym.tasks.splits import pool, task_scenario
 
@@ -33,15 +33,28 @@ def small(tmp_path_factory):
 
 
 def _env_score(record, family):
-    """The score of a record's family schedule played through the registered env, decision by decision."""
-    schedule = Schedule.from_dict(record["families"][family]["schedule"])
-    env = gym.make(ENV_IDS[family], task=record["tier"], split=record["split"])
-    env.reset(seed=0, options={"task_index": record["index"]})
-    for action in schedule.actions(env.unwrapped.scenario):
-        _, _, terminated, truncated, info = env.step(action)
+    """The score of a record's family schedule (or of the task's certificate) played through the registered env,
+    decision by decision."""
+    if family == "certificate":
+        cert = pool(record["tier"], record["split"], version="v2")[record["index"]].certificate
+        env = gym.make("FFSR-v2" if cert.residual is None else "FFSR-Residual-v2", task=record["tier"],
+                       split=record["split"])
+        env.reset(seed=0, options={"task_index": record["index"]})
+        action = None if cert.residual is None else np.array(cert.residual, dtype=np.float32)
+        step = (lambda: env.unwrapped.step_with_parameters(cert.m, cert.T_c_s)) if action is None else (
+            lambda: env.step(action))
+        actions = [None] * 200
+    else:
+        schedule = Schedule.from_dict(record["families"][family]["schedule"])
+        env = gym.make(ENV_IDS[family], task=record["tier"], split=record["split"])
+        env.reset(seed=0, options={"task_index": record["index"]})
+        actions = schedule.actions(env.unwrapped.scenario)
+        step = None
+    for action in actions:
+        _, _, terminated, truncated, info = step() if step is not None else env.step(action)
         if terminated or truncated:
             return info["score"]
-    raise AssertionError("the schedule ended before the episode")
+    raise AssertionError("the actions ended before the episode")
 
 
 def test_a_small_search_is_stored_resumes_and_replays(small):
@@ -57,6 +70,7 @@ def test_a_small_search_is_stored_resumes_and_replays(small):
         # the residual search starts at the zero residual, which is the certificate's default planner on easy
         assert record["families"]["residual"]["origin"] == "default"
         assert record["best"]["score"] >= record["certificate_score"]
+        assert record["best"]["family"] != "certificate"  # on easy the default planner is a residual schedule
         best = record["families"][record["best"]["family"]]
         assert best["score"] == record["best"]["score"]
         for family, result in record["families"].items():
@@ -69,9 +83,15 @@ def _replay_in_ensemble(record, pinocchio):
     entry = pool(record["tier"], record["split"], version="v2")[record["index"]]
     scenario = task_scenario(record["tier"], entry.seed, BENCHMARK)
     schedule = best_known.best_schedule(record)
-    results = [replay_schedule(scenario, schedule, BENCHMARK)]
+
+    def play(task, backend="auto"):
+        if schedule is None:  # the best known is the certificate
+            return replay(task, entry.certificate, BENCHMARK, backend=backend)
+        return replay_schedule(task, schedule, BENCHMARK, backend=backend)
+
+    results = [play(scenario)]
     for member in ensemble_members(scenario, entry.seed, BENCHMARK.tasks.ensemble, pinocchio=pinocchio):
-        results.append(replay_schedule(member.task, schedule, BENCHMARK, backend=member.backend))
+        results.append(play(member.task, member.backend))
     assert all(r.success for r in results), record["index"]
     assert results[0].score == record["best"]["score"]
     return Margins.worst(results)
@@ -82,7 +102,7 @@ def test_the_small_search_passes_its_ensemble(small):
     for record in json.loads(path.read_text())["tasks"]["easy"]["train"]:
         margins = _replay_in_ensemble(record, pinocchio=True)
         assert margins.short(BENCHMARK) is None
-        stored = Margins.from_dict(record["families"][record["best"]["family"]]["margins"])
+        stored = Margins.from_dict(record["families"][record["best"]["family"]]["margins"])  # not a certificate
         assert margins.min_clearance_m <= stored.min_clearance_m + 1e-12  # the stored ones are kernel members only
 
 
@@ -147,3 +167,16 @@ def test_the_dataset_loads_with_minari_and_replays_to_its_rewards(small, tmp_pat
         assert bool(terminated) == bool(episode.terminations[-1]) and bool(truncated) == bool(episode.truncations[-1])
         assert info["score"] == record["families"]["residual"]["score"]
         assert np.sum(episode.rewards) == pytest.approx(info["score"] - 1.0, abs=1e-12)  # rewards sum to score - 1
+
+
+def test_when_no_schedule_passes_the_certificate_is_the_best_known(monkeypatch):
+    from ffsr_gym.optim import best_known as search
+
+    monkeypatch.setattr(search, "passes", lambda *a, **k: None)  # e.g. a (m, T_c) certificate's float32 action fails
+    tier, index = "medium", 0
+    task = pool(tier, "test", version="v2")[index]
+    populations = {f: search.Population(f, tier, "test", build.popsize(f)) for f in ("residual", "parameters")}
+    record = search.best_known(populations, task, tier, "test", index, BENCHMARK, generations=1)
+    assert record["best"] == {"family": "certificate", "score": task.certificate_score}
+    assert best_known.best_schedule(record) is None
+    assert _env_score(record, "certificate") == pytest.approx(task.certificate_score, abs=1e-12)

@@ -67,6 +67,7 @@ def scores(tier: str, split: str, size: int, version: str | None = None) -> np.n
     return np.array([r["best"]["score"] for r in stored])
 
 
-def best_schedule(record: dict[str, Any]) -> Schedule:
-    """The schedule of a record's best family."""
-    return Schedule.from_dict(record["families"][record["best"]["family"]]["schedule"])
+def best_schedule(record: dict[str, Any]) -> Schedule | None:
+    """The schedule of a record's best family (None when the best is the task's certificate)."""
+    family = record["best"]["family"]
+    return None if family == "certificate" else Schedule.from_dict(record["families"][family]["schedule"])
