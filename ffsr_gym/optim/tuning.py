@@ -31,9 +31,9 @@ def optuna_module():
 def search_space(algo: str, residual: bool) -> dict[str, list[Any] | tuple[str, float, float]]:
     """The searched hyperparameters: a list of choices, or ``("log", low, high)`` for a log-uniform number.
 
-    SAC takes 1 or 2 gradient steps per step of its 8 copies (a replay ratio of 1/8 or 1/4): at one
-    gradient step per environment step, SAC's usual ratio, 300k steps cost about 50 min of one core
-    per seed here, 40 h for the study's 50 seeds.
+    SAC takes 1 or 2 gradient steps per step of its 8 copies (a replay ratio of 1/8 or 1/4): SAC's
+    usual ratio, one gradient step per environment step, costs 4 to 8 times as many updates, whose
+    time dominates SAC's, and the study's 50 seeds of 300k steps would not fit on 2 cores.
     """
     log_std = [-3.0, -2.0, -1.0] if residual else [-1.0, -0.5, 0.0]
     if algo == "ppo":
