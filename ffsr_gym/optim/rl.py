@@ -282,7 +282,7 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
     task = task or spec.evaluation.default_task
     pooled = spec.evaluation.protocol == "pool"
     checkpoints = list(CHECKPOINTS) if pooled else ["last"]
-    start, rows, runs = time.perf_counter(), {c: [] for c in checkpoints}, []
+    start, rows, runs, recorded = time.perf_counter(), {c: [] for c in checkpoints}, [], {}
     for seed in seeds:
         folder = Path(out) / f"{algo}_{env_id}_{task}_seed{seed}"
         record, evaluations = _scored_seed(folder, checkpoints)
@@ -300,6 +300,10 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
         for checkpoint in checkpoints:
             rows[checkpoint] += [row | {"train_seed": seed} for row in evaluations[checkpoint]["episodes"]]
             run.setdefault("metrics", {})[checkpoint] = evaluations[checkpoint]["metrics"]
+            scored = {key: evaluations[checkpoint]["extra"].get(key) for key in ("pool_file_sha256", "dt_s")}
+            if recorded.setdefault(checkpoint, scored) != scored:
+                raise InvalidInputError(f"{folder}: scored on another pool file or step than seed {seeds[0]} "
+                                        f"({scored} vs {recorded[checkpoint]}); delete its evaluation files to rescore")
         runs.append(run)
     compute = {"env_steps": sum(run["timesteps"] for run in runs), "wall_time_s": sum(run["wall_time_s"] for run in runs),
                "hardware": "1 CPU core per training seed"}
@@ -314,7 +318,8 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
                  "compute": compute, "timesteps_per_seed": steps}
         if pooled:
             extra |= {"training_pool": f"{task}/train", "evaluation_pool": f"{task}/{spec.evaluation.split}",
-                      "selection_pool": f"{task}/{curve_split(spec)}"}
+                      "selection_pool": f"{task}/{curve_split(spec)}",  # and what evaluate recorded: pool file, step
+                      **{key: value for key, value in recorded[checkpoint].items() if value is not None}}
             env_kwargs, scenarios = {spec.tasks.keyword: task, "split": spec.evaluation.split}, None
         else:
             env_kwargs, scenarios = {spec.tasks.keyword: task}, {"family": load_scenario(task).sha256()}
