@@ -85,7 +85,7 @@ def main() -> None:
             if left[group] == 0:
                 tqdm.write(write_entries(*group, args.seeds, args.scale, args.points, work,
                                          Path(args.leaderboard) / version / group[2]))
-    print(f"{len(groups)} entries pairs, {len(futures)} seeds in {time.perf_counter() - start:.0f} s")
+    print(f"{len(groups)} entry pair{'s' * (len(groups) != 1)}, {len(futures)} seeds in {time.perf_counter() - start:.0f} s")
 
 
 if __name__ == "__main__":
