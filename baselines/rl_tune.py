@@ -31,7 +31,8 @@ def main() -> None:
     parser.add_argument("--trials", type=int, default=24, help="finished trials wanted (default: 24)")
     parser.add_argument("--timesteps", type=int, default=200_000, help="env steps per trial (default: 200000)")
     parser.add_argument("--points", type=int, default=10, help="validation scorings per trial (default: 10)")
-    parser.add_argument("--work", default="runs/tune", help="study database and trial runs (default: runs/tune)")
+    parser.add_argument("--work", default="studies/tune",
+                        help="study database (kept in git) and trial runs (default: studies/tune)")
     parser.add_argument("--out", default=None, help="the record (default: ffsr_gym/hyperparams/search/<algo>_<env id>.json)")
     args = parser.parse_args()
     optuna = optuna_module()
