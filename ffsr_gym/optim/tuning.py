@@ -6,9 +6,9 @@ curve point, and is worth its best validation mean (the same checkpoint selectio
 study, :mod:`ffsr_gym.optim.rl`). Optuna's median pruner stops a trial whose validation mean
 lies below the median of earlier trials at the same point. The test pool is never touched.
 
-The study lives in an SQLite file (`studies/tune/` keeps it in git), so a killed search resumes with the trials it finished;
-:func:`summary` turns it into the JSON record shipped next to the hyperparameter files (search
-space, every trial, the best, and what the search cost). Needs ``pip install "ffsr-gym[tune]"``.
+The study lives in an SQLite file (``studies/tune/`` keeps it in git), so a killed search resumes
+with the trials it finished; :func:`summary` turns it into the JSON record shipped next to the
+hyperparameter files (search space, every trial, the best, and what the search cost). Needs ``pip install "ffsr-gym[tune]"``.
 """
 
 from __future__ import annotations
