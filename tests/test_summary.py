@@ -51,3 +51,14 @@ def test_compute_per_rl_entry_counts_each_training_once():
 def test_normalised_column_is_absent_without_best_known_scores(tier, monkeypatch):
     monkeypatch.setattr(normalise.best_known, "scores", lambda *a, **k: None)
     assert normalise.normalised_mean(_entry("a", tier, [0.3] * 100), "v2") is None
+
+
+def test_the_aggregates_file_goes_stale_when_an_entry_changes():
+    from ffsr_gym.bench.aggregates import inputs
+
+    entries = {"easy": [_entry("a", "easy", [0.25] * 10)]}
+    before = inputs(entries)
+    entries["easy"][0]["episodes"][3]["score"] = 0.26
+    assert inputs(entries) != before and list(before) == ["easy/a"]
+    entries["easy"][0]["_problems"] = []  # what the loader adds is not content
+    assert inputs({"easy": [{k: v for k, v in entries["easy"][0].items()}]}) == inputs(entries)

@@ -88,6 +88,16 @@ def score_matrices(entries: dict[str, list[dict[str, Any]]], version: str) -> tu
     return out, tiers
 
 
+def inputs(entries: dict[str, list[dict[str, Any]]]) -> dict[str, str]:
+    """``tier/name`` → SHA-256 of each entry's content: what an aggregates file was computed from (a stale file is
+    one whose inputs differ from the entries now, :func:`ffsr_gym.bench.leaderboard.check`)."""
+    import hashlib
+
+    return {f"{tier}/{e['name']}": hashlib.sha256(json.dumps({k: v for k, v in e.items() if not k.startswith("_")},
+                                                             sort_keys=True).encode()).hexdigest()
+            for tier, items in entries.items() for e in items}
+
+
 def compute(entries: dict[str, list[dict[str, Any]]], spec: BenchmarkSpec) -> dict[str, Any] | None:
     """The aggregates as a JSON-ready dict (None without a tier that has best known scores)."""
     library, metrics = rliable_modules()
@@ -123,7 +133,7 @@ def compute(entries: dict[str, list[dict[str, Any]]], spec: BenchmarkSpec) -> di
             "bootstrap": {"package": f"rliable {package_versions().get('rliable', '?')}", "method": "percentile",
                           "reps": REPS, "seed": SEED,
                           "resampled": "tasks, and runs within each task (rliable's task_bootstrap)"},
-            "methods": methods, "provenance": provenance()}
+            "methods": methods, "inputs": inputs(entries), "provenance": provenance()}
 
 
 def write(root: str | Path, spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> Path | None:

@@ -252,9 +252,16 @@ def check(root: str | Path, readme: str | Path | None = None) -> list[str]:
                 for group, name, reasons in refused(entries)]
     if render_readme(root, loaded) != (Path(root) / "README.md").read_text():
         problems.append(f"out of date: {Path(root) / 'README.md'}; run ffsr-gym leaderboard render")
+    ranked = ranked_spec()
+    aggregated = Path(root) / ranked.version / "aggregates.json"
+    if aggregated.is_file():
+        from ffsr_gym.bench.aggregates import inputs
+
+        verified = {group: [e for e in items if not e["_problems"]] for group, items in loaded[ranked.version].items()}
+        if json.loads(aggregated.read_text()).get("inputs") != inputs(verified):
+            problems.append(f"out of date: {aggregated} (the entries changed); run ffsr-gym leaderboard aggregates")
     if readme is not None:
         text = Path(readme).read_text(encoding="utf-8")
-        ranked = ranked_spec()
         if splice_summary(text, root, ranked, loaded[ranked.version]) != text:
             problems.append(f"out of date: {readme}; run ffsr-gym leaderboard render --readme {readme}")
     return problems
