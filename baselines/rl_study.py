@@ -22,6 +22,7 @@ from pathlib import Path
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.evaluation import spec_of
+from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.optim.rl import CHECKPOINTS, entry_name, load_hyperparams, train_and_evaluate
 from ffsr_gym.tasks.tiers import ALL_TIERS
@@ -35,10 +36,16 @@ def budget(algo: str, env_id: str, scale: float, points: int) -> tuple[int, int]
     return steps, max(1, steps // points)
 
 
-def run_seed(algo: str, env_id: str, tier: str, seed: int, scale: float, points: int, work: str) -> str:
+def run_seed(algo: str, env_id: str, tier: str, seed: int, scale: float, points: int, work: str) -> str | None:
+    """One piece; None when another process is training it (its folder's lock)."""
     steps, every = budget(algo, env_id, scale, points)
-    reports = train_and_evaluate(algo, env_id, task=tier, seeds=[seed], out=work, timesteps=steps, curve_every=every,
-                                 progress=False)
+    try:
+        reports = train_and_evaluate(algo, env_id, task=tier, seeds=[seed], out=work, timesteps=steps,
+                                     curve_every=every, progress=False)
+    except InvalidInputError as exc:
+        if "is being trained by process" in str(exc):
+            return None
+        raise
     return " | ".join(f"{r.name} seed {seed}: mean {r.metrics['score_mean']:.3f}" for r in reports.values())
 
 
@@ -77,12 +84,14 @@ def main() -> None:
     with ProcessPoolExecutor(args.workers) as pool:
         futures = {pool.submit(run_seed, *group, seed, args.scale, args.points, work): group
                    for group in groups for seed in args.seeds}
-        left = {group: len(args.seeds) for group in groups}
+        left, blocked = {group: len(args.seeds) for group in groups}, set()
         for future in tqdm(as_completed(futures), total=len(futures), desc="RL study seeds"):
-            tqdm.write(future.result())
-            group = futures[future]
+            done, group = future.result(), futures[future]
+            if done is None:
+                blocked.add(group)
+            tqdm.write(done or f"{group}: a seed is being trained by another process; its entries are left for later")
             left[group] -= 1
-            if left[group] == 0:
+            if left[group] == 0 and group not in blocked:
                 tqdm.write(write_entries(*group, args.seeds, args.scale, args.points, work,
                                          Path(args.leaderboard) / version / group[2]))
     print(f"{len(groups)} entry pair{'s' * (len(groups) != 1)}, {len(futures)} seeds in {time.perf_counter() - start:.0f} s")

@@ -110,3 +110,26 @@ def test_pool_training_selects_on_validation_scores_both_checkpoints_on_test_and
     again = run()
     assert {c: r.episodes for c, r in again.items()} == {c: r.episodes for c, r in reports.items()}
     assert (folder / "train_record.json").stat().st_mtime_ns == started  # not retrained
+
+
+def test_a_seed_being_trained_elsewhere_is_refused_by_name(tmp_path):
+    import subprocess
+    import sys
+
+    from ffsr_gym.exceptions import InvalidInputError
+    from ffsr_gym.optim.rl import train
+
+    other = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        folder = tmp_path / "seed"
+        folder.mkdir()
+        (folder / ".training").write_text(str(other.pid))  # a live process holds it
+        with pytest.raises(InvalidInputError, match=f"being trained by process {other.pid}"):
+            train("ppo", "FFSR-v2", seed=0, out=folder, task="easy", timesteps=256, n_envs=2, progress=False)
+    finally:
+        other.kill()
+        other.wait()
+    # its process is gone: the lock is taken, the seed trains, and the lock is released
+    train("ppo", "FFSR-v2", seed=0, out=folder, task="easy", timesteps=256, n_envs=2, curve_every=10_000,
+          curve_tasks=1, progress=False)
+    assert (folder / "model.zip").is_file() and not (folder / ".training").exists()

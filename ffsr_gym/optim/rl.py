@@ -22,9 +22,12 @@ are optional (``pip install "ffsr-gym[rl]"``); the hyperparameters ship in
 from __future__ import annotations
 
 import ast
+import contextlib
 import json
+import os
 import time
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -225,8 +228,6 @@ def train(algo: str, env_id: str, *, seed: int, out: str | Path, task: str | Non
     task = task or spec.evaluation.default_task
     env_kwargs = training_kwargs(spec, task)
     sb3, torch = sb3_modules()
-    from stable_baselines3.common.callbacks import CheckpointCallback
-
     params = dict(params) if params is not None else load_hyperparams(algo, env_id, hyperparams)
     cls, out = getattr(sb3, SB3_CLASSES[algo]), Path(out)
     pooled = spec.evaluation.protocol == "pool"
@@ -237,6 +238,54 @@ def train(algo: str, env_id: str, *, seed: int, out: str | Path, task: str | Non
             warnings.warn(f"{out}: resumed a finished seed trained for {record.get('timesteps')} steps, not the "
                           f"{wanted} asked for; use another --out to train anew", stacklevel=2)
         return cls.load(out / "model.zip", device="cpu"), record
+    with _training_lock(out):
+        return _train_new(cls, algo, env_id, spec, task, env_kwargs, params, out, seed, timesteps, curve_every,
+                          curve_tasks, progress, n_envs, vec_env, on_point, torch, pooled)
+
+
+def _lock_holder(lock: Path) -> int | None:
+    """The live process holding ``lock``, or None (no lock, unreadable, or its process is gone)."""
+    try:
+        holder = int(lock.read_text())
+        os.kill(holder, 0)
+    except (OSError, ValueError) as exc:
+        return holder if isinstance(exc, PermissionError) else None  # PermissionError: alive, another user's
+    return holder
+
+
+@contextlib.contextmanager
+def _training_lock(out: Path) -> Iterator[None]:
+    """Hold ``out/.training`` (this process's id) while a seed trains: a second study on the same folder is refused
+    by name instead of writing models and records over the first one's. A lock left by a dead process is taken."""
+    out.mkdir(parents=True, exist_ok=True)
+    lock = out / ".training"
+    for _ in range(2):
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+            break
+        except FileExistsError:
+            holder = _lock_holder(lock)
+            if holder is not None:
+                raise InvalidInputError(f"{out} is being trained by process {holder}; wait for it, or train into "
+                                        "another --out / --work") from None
+            lock.unlink(missing_ok=True)  # left by a process that is gone
+    else:
+        raise InvalidInputError(f"{lock}: could not be taken (another process keeps creating it)")
+    try:
+        os.write(fd, str(os.getpid()).encode())
+        os.close(fd)
+        yield
+    finally:
+        lock.unlink(missing_ok=True)
+
+
+def _train_new(cls: Any, algo: str, env_id: str, spec: BenchmarkSpec, task: str, env_kwargs: dict[str, Any],
+               params: dict[str, Any], out: Path, seed: int, timesteps: int | None, curve_every: int,
+               curve_tasks: int | None, progress: bool, n_envs: int | None, vec_env: str, on_point: Any, torch: Any,
+               pooled: bool) -> tuple[Any, dict[str, Any]]:
+    """A new training of one seed into ``out`` (see :func:`train`)."""
+    from stable_baselines3.common.callbacks import CheckpointCallback
+
     torch.set_num_threads(1)
     file_envs, steps = int(params.pop("n_envs", 1)), int(timesteps or params.pop("n_timesteps"))
     n_envs = file_envs if n_envs is None else n_envs
