@@ -344,8 +344,8 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
                 if checkpoint != "last":
                     model = getattr(sb3_modules()[0], SB3_CLASSES[algo]).load(folder / BEST_MODEL, device="cpu")
                 evaluations[checkpoint] = _evaluation(model, spec, env_id, task, folder, eval_seeds, checkpoint)
-        run = {key: record[key] for key in ("seed", "timesteps", "n_envs", "wall_time_s", "curve", "best_on_validation")
-               if key in record}
+        run = {key: record[key] for key in ("seed", "timesteps", "trained_steps", "n_envs", "wall_time_s", "curve",
+                                            "best_on_validation") if key in record}
         for checkpoint in checkpoints:
             rows[checkpoint] += [row | {"train_seed": seed} for row in evaluations[checkpoint]["episodes"]]
             run.setdefault("metrics", {})[checkpoint] = evaluations[checkpoint]["metrics"]
@@ -354,7 +354,9 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
                 raise InvalidInputError(f"{folder}: scored on another pool file or step than seed {seeds[0]} "
                                         f"({scored} vs {recorded[checkpoint]}); delete its evaluation files to rescore")
         runs.append(run)
-    compute = {"env_steps": sum(run["timesteps"] for run in runs), "wall_time_s": sum(run["wall_time_s"] for run in runs),
+    # the steps trained (PPO rounds the budget up to whole rollouts), not the budget
+    compute = {"env_steps": sum(run.get("trained_steps", run["timesteps"]) for run in runs),
+               "wall_time_s": sum(run["wall_time_s"] for run in runs),
                "hardware": "1 CPU core per training seed"}
     reports = {}
     for checkpoint in checkpoints:
