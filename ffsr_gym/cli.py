@@ -356,13 +356,16 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
 
     import numpy as np
 
+    from ffsr_gym.exceptions import InvalidInputError
     from ffsr_gym.optim import best_known_build as build
-    from ffsr_gym.tasks.splits import pool
+    from ffsr_gym.tasks.best_known import records
 
     work = Path(args.work)
     if args.doubled:
         rng = np.random.default_rng(0)
-        stored = [(t, s, i) for t in args.tiers for s in args.splits for i in range(len(pool(t, s, version=args.version)))]
+        stored = [(t, s, r["index"]) for t in args.tiers for s in args.splits for r in records(t, s, args.version)]
+        if not stored:
+            raise InvalidInputError(f"--doubled: no stored best known score in {args.tiers} x {args.splits} yet")
         sample = [stored[k] for k in sorted(rng.choice(len(stored), min(args.doubled, len(stored)), replace=False))]
         summary = build.convergence(work, sample, version=args.version, progress=not args.no_progress)
         print(f"doubled budget on {len(sample)} tasks: mean gap {summary['mean_gap']:.4f}, median relative gap "
@@ -529,8 +532,9 @@ def _add_board_commands(sub: Any) -> None:
     plot.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
     plot.set_defaults(func=_leaderboard_plot)
     agg = board_sub.add_parser("aggregates", help="rliable aggregates across tiers (IQM of score / best known score with "
-                                                  "stratified-bootstrap CIs, probability of improvement over the reference "
-                                                  "planner, performance profiles): <root>/<version>/aggregates.json and .png")
+                                                  "bootstrap CIs over tasks and runs, probability of improvement over the "
+                                                  "reference planner, performance profiles): "
+                                                  "<root>/<version>/aggregates.json and .png")
     agg.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
     agg.set_defaults(func=_leaderboard_aggregates)
     pareto = board_sub.add_parser("pareto", help="run the planner grid and every baseline on the first easy test task; "

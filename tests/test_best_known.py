@@ -180,3 +180,17 @@ def test_when_no_schedule_passes_the_certificate_is_the_best_known(monkeypatch):
     assert record["best"] == {"family": "certificate", "score": task.certificate_score}
     assert best_known.best_schedule(record) is None
     assert _env_score(record, "certificate") == pytest.approx(task.certificate_score, abs=1e-12)
+
+
+def test_an_existing_dataset_is_refused_by_name(small, tmp_path):
+    pytest.importorskip("minari")
+    pytest.importorskip("h5py")
+    from ffsr_gym.bench.dataset import write_dataset
+    from ffsr_gym.exceptions import InvalidInputError
+
+    _, path = small
+    write_dataset("easy", "FFSR-Residual-v2", root=tmp_path, best_known_file=path)
+    with pytest.raises(InvalidInputError, match="already exists"):
+        write_dataset("easy", "FFSR-Residual-v2", root=tmp_path, best_known_file=path)
+    with pytest.raises(InvalidInputError, match="env_id"):
+        write_dataset("easy", "FFSR-v0", root=tmp_path, best_known_file=path)

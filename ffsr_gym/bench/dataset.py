@@ -101,10 +101,16 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
     if not stored:
         raise InvalidInputError(f"no best-known {family} schedule is stored for {tier}/{split} (run ffsr-gym tasks "
                                 f"best-known --tiers {tier} --splits {split})")
+    name = dataset_id(tier, env_id, split)
+    with _datasets_root(root):
+        from minari.storage.datasets_root_dir import get_dataset_path
+
+        if get_dataset_path(name).exists():  # before the episodes are played: Minari never overwrites one
+            raise InvalidInputError(f"dataset {name} already exists at {get_dataset_path(name)}; delete it or pass "
+                                    "another root")
     env = gym.make(env_id, task=tier, split=split)
     buffers = [record_episode(env, r, Schedule.from_dict(r["families"][family]["schedule"]), k)
                for k, r in enumerate(stored)]
-    name = dataset_id(tier, env_id, split)
     with _datasets_root(root):
         return minari.create_dataset_from_buffers(
             name, buffers, env=env, eval_env=env.spec, algorithm_name="per-task CMA-ES over action schedules (ffsr_gym.optim.best_known)",
