@@ -8,11 +8,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-
-from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.bench.options import natural, positive_float, positive_int
+from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.model.spec import all_splits, all_task_names, registered_ids
-
 
 DESCRIPTION = ("Dual-arm free-floating space robot: reproduce the paper's predefined-time planner, play and score "
                "the Gymnasium benchmark ({ids}), train baselines, build task pools and render leaderboards.")
@@ -168,9 +166,9 @@ def _dataset(args: argparse.Namespace) -> None:
 
 
 def _leaderboard_aggregates(args: argparse.Namespace) -> None:
+    from ffsr_gym.bench import aggregates
     from ffsr_gym.bench.leaderboard import load_entries
     from ffsr_gym.model.spec import ranked_spec
-    from ffsr_gym.bench import aggregates
     from ffsr_gym.report.leaderboard_plots import plot_aggregates
 
     spec = ranked_spec()
@@ -186,9 +184,8 @@ def _leaderboard_aggregates(args: argparse.Namespace) -> None:
 def _leaderboard_pareto(args: argparse.Namespace) -> None:
     from ffsr_gym.bench.pareto import task_pareto
     from ffsr_gym.bench.policies import load_model
-    from ffsr_gym.report.leaderboard_plots import PARETO_FILE
-
     from ffsr_gym.model.spec import ranked_spec
+    from ffsr_gym.report.leaderboard_plots import PARETO_FILE
 
     out = Path(args.root) / ranked_spec().version / PARETO_FILE
     print("wrote", task_pareto(args.root, out, args.models, load_model=load_model, progress=not args.no_progress,
@@ -259,9 +256,8 @@ def _evaluate(args: argparse.Namespace) -> None:
     from concurrent.futures import ProcessPoolExecutor
 
     from ffsr_gym.bench.evaluation import evaluate, spec_of
-    from ffsr_gym.exceptions import InvalidInputError
-
     from ffsr_gym.bench.options import free_entry
+    from ffsr_gym.exceptions import InvalidInputError
 
     spec = spec_of(args.env_id)
     pooled = spec.evaluation.protocol == "pool"
