@@ -194,3 +194,33 @@ def test_an_existing_dataset_is_refused_by_name(small, tmp_path):
         write_dataset("easy", "FFSR-Residual-v2", root=tmp_path, best_known_file=path)
     with pytest.raises(InvalidInputError, match="env_id"):
         write_dataset("easy", "FFSR-v0", root=tmp_path, best_known_file=path)
+
+
+def test_a_policys_better_episodes_are_absorbed_as_exact_schedules(small, tmp_path, monkeypatch):
+    import shutil
+
+    from ffsr_gym.bench.evaluation import evaluate
+
+    work, path = small
+    mine = tmp_path / "work"
+    shutil.copytree(work, mine)
+    monkeypatch.setattr(best_known, "best_known_path", lambda version=None: path)  # records() reads the small file
+    constant = tuple(float(x) for x in np.float32(np.linspace(-0.3, 0.3, 12)))  # a fixed residual, played as is
+    played = evaluate(constant, "FFSR-Residual-v2", task="easy", split="train", indices=[0, 1])
+    before = {r["index"]: r for r in json.loads(path.read_text())["tasks"]["easy"]["train"]}
+    better = [row["task_index"] for row in played.episodes
+              if row["success"] and row["score"] > before[row["task_index"]]["families"]["residual"]["score"]]
+    improved = build.absorb(constant, "FFSR-Residual-v2", "easy", "train", mine, "a constant", progress=False)
+    assert 1 <= improved <= len(better)  # the certificate test may keep some out, never lets more in
+    out = build.assemble(mine, out=tmp_path / "merged.json", generations=1)
+    merged = {r["index"]: r for r in json.loads(out.read_text())["tasks"]["easy"]["train"]}
+    assert json.loads(out.read_text())["absorbed"] == improved
+    for index, record in merged.items():
+        residual = record["families"]["residual"]
+        if residual["origin"] == "a constant":
+            assert residual["score"] == next(r["score"] for r in played.episodes if r["task_index"] == index)
+            assert len(residual["schedule"]["knots"]) == 100  # one knot per decision of the motion
+            assert _env_score(record, "residual") == residual["score"]  # the stored schedule is the episode
+        else:
+            assert residual == before[index]["families"]["residual"]
+        assert record["best"]["score"] == max(f["score"] for f in record["families"].values())
