@@ -1,0 +1,63 @@
+"""Raise the best known scores with the baselines' own episodes (``ffsr_gym.optim.best_known_build.absorb``).
+
+    python baselines/absorb_best_known.py --leaderboard leaderboards [--models runs/rl-v2] [--tiers easy hard]
+                                          [--splits test validation] [--work studies/best-known]
+
+For each tier with stored best known scores, it plays on each stored pool task the fixed residual
+actions of the tier's entries (``extra.policy.fixed`` on ``FFSR-Residual-v2``) and, with
+``--models``, every trained model of the RL study for that tier (``<algo>_<env id>_<tier>_seed<s>/
+{model.zip, best_on_validation.zip}``). An episode that beats the stored score of its family and
+passes the certificate test is kept as that family's schedule; the file is then assembled again.
+A closed-loop policy can beat the per-task search's open-loop schedules, so without this the
+normalised scores of such entries exceed 1.
+"""
+
+import argparse
+import json
+import shlex
+import sys
+from pathlib import Path
+
+from ffsr_gym.bench.policies import load_model
+from ffsr_gym.optim import best_known_build as build
+from ffsr_gym.tasks.best_known import records
+
+
+def policies(leaderboard: Path, models: Path | None, tier: str) -> list[tuple[str, str, object]]:
+    """(origin, env id, policy) of a tier: fixed residual entries, then the RL study's models."""
+    out = []
+    for path in sorted((leaderboard / "v2" / tier).glob("*.json")):
+        entry = json.loads(path.read_text())
+        fixed = (entry.get("extra", {}).get("policy") or {}).get("fixed")
+        if entry["env_id"] == "FFSR-Residual-v2" and fixed is not None:
+            out.append((f"entry {entry['name']}", entry["env_id"], tuple(fixed)))
+    for folder in sorted(models.glob(f"*_{tier}_seed*")) if models else []:
+        algo, env_id = folder.name.split("_")[:2]
+        for checkpoint in ("model.zip", "best_on_validation.zip"):
+            if (folder / checkpoint).is_file():
+                out.append((f"{folder.name}/{checkpoint}", env_id, load_model(algo, folder / checkpoint)))
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--leaderboard", required=True, help="leaderboard root (entries under <root>/v2/<tier>/)")
+    parser.add_argument("--models", default=None, help="the RL study's work folder with its models (default: none)")
+    parser.add_argument("--tiers", nargs="+", default=["easy", "medium", "hard", "debris", "robust"])
+    parser.add_argument("--splits", nargs="+", default=["test", "validation"])
+    parser.add_argument("--work", default="studies/best-known", help="the best-known work folder")
+    args = parser.parse_args()
+    models = Path(args.models) if args.models else None
+    for tier in args.tiers:
+        splits = [s for s in args.splits if records(tier, s, "v2")]
+        if not splits:
+            continue
+        for origin, env_id, policy in policies(Path(args.leaderboard), models, tier):
+            for split in splits:
+                kept = build.absorb(policy, env_id, tier, split, args.work, origin, progress=False)
+                print(f"{tier}/{split}: {origin}: {kept} tasks improved")
+    print("wrote", build.assemble(args.work, command=shlex.join(["python", *sys.argv])))
+
+
+if __name__ == "__main__":
+    main()
