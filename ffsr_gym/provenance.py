@@ -78,9 +78,11 @@ def provenance(*, scenarios: dict[str, str] | None = None, seeds: list[int] | No
     """
     tree, source = _git_tree()
     commit = None if tree is None else _git("rev-parse", "HEAD", cwd=tree)
-    # Generated results (leaderboard entries and tables, the long studies' records) do not make the code dirty.
+    # Generated results (leaderboard entries and tables, the long studies' records, the best known scores) do not
+    # make the code dirty.
     dirty = None if commit is None else bool(_git("status", "--porcelain", "--untracked-files=no", "--", ".",
-                                                 ":(exclude)leaderboards", ":(exclude)studies", cwd=tree))
+                                                 ":(exclude)leaderboards", ":(exclude)studies",
+                                                 ":(exclude)envs/benchmark/*_best_known.json", cwd=tree))
     return {
         "git_commit": commit,
         "git_dirty": dirty,
