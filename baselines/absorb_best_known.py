@@ -1,6 +1,6 @@
 """Raise the best known scores with the baselines' own episodes (``ffsr_gym.optim.best_known_build.absorb``).
 
-    python baselines/absorb_best_known.py --leaderboard leaderboards [--models runs/rl-v2] [--tiers easy hard]
+    python baselines/absorb_best_known.py --leaderboard leaderboards [--models studies/rl-v2] [--tiers easy hard]
                                           [--splits test validation] [--work studies/best-known]
 
 For each tier with stored best known scores, it plays on each stored pool task the fixed residual
