@@ -125,17 +125,24 @@ class EvalReport:
         return path
 
 
+def actor(policy: Policy) -> Callable[[np.ndarray], Any]:
+    """The env action ``policy`` takes given an observation: a tuple is a constant action (float32), an object with
+    ``predict`` its deterministic prediction, a callable its value."""
+    if isinstance(policy, tuple):
+        action = np.array(policy, dtype=np.float32)
+        return lambda _obs: action
+    if isinstance(policy, PredictsActions):
+        return lambda obs: policy.predict(obs, deterministic=True)[0]
+    if callable(policy):
+        return policy
+    raise InvalidInputError(f"policy must be callable, have .predict, or be a tuple ((m, T_c), or a constant residual "
+                            f"action); got {type(policy).__name__}")
+
+
 def stepper(policy: Policy, env: gym.Env) -> Callable[[np.ndarray], tuple]:
     """One env step for ``policy`` given the last observation (fixed (m, T_c) bypass float32 actions; on a residual
     env a tuple is a constant action)."""
-    if isinstance(policy, tuple):
-        if env.unwrapped.residual:  # a constant residual action (checked by ``evaluate``)
-            action = np.array(policy, dtype=np.float32)
-            return lambda _obs: env.step(action)
+    if isinstance(policy, tuple) and not env.unwrapped.residual:
         return lambda _obs: env.unwrapped.step_with_parameters(*policy)
-    if isinstance(policy, PredictsActions):
-        return lambda obs: env.step(policy.predict(obs, deterministic=True)[0])
-    if callable(policy):
-        return lambda obs: env.step(policy(obs))
-    raise InvalidInputError(f"policy must be callable, have .predict, or be a tuple ((m, T_c), or a constant residual "
-                            f"action); got {type(policy).__name__}")
+    act = actor(policy)  # a tuple on a residual env: a constant action (checked by ``evaluate``)
+    return lambda obs: env.step(act(obs))

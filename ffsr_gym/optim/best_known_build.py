@@ -156,7 +156,7 @@ def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, or
     """
     import gymnasium as gym
 
-    from ffsr_gym.bench.entry import PredictsActions
+    from ffsr_gym.bench.entry import actor
     from ffsr_gym.tasks.best_known import records
 
     family = {v: k for k, v in ENV_IDS.items()}[env_id]
@@ -165,18 +165,12 @@ def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, or
     tasks = pool(tier, split, version=version)
     path = Path(work) / f"{ABSORBED}{tier}_{split}.jsonl"
     env = gym.make(env_id, task=tier, split=split)
-    improved = 0
+    act, improved = actor(policy), 0
     for index in tqdm(sorted(stored), desc=f"absorb {origin} {tier}/{split}", unit="task", disable=not progress):
         obs, _ = env.reset(seed=0, options={"task_index": index})
         played, done = [], False
         while not done:
-            if isinstance(policy, tuple):
-                action = np.asarray(policy)
-            elif isinstance(policy, PredictsActions):
-                action = policy.predict(obs, deterministic=True)[0]
-            else:
-                action = policy(obs)
-            applied = np.clip(np.asarray(action, dtype=np.float32).reshape(-1), -1.0, 1.0)
+            applied = np.clip(np.asarray(act(obs), dtype=np.float32).reshape(-1), -1.0, 1.0)
             played.append(applied)
             obs, _, terminated, truncated, info = env.step(applied)
             done = terminated or truncated
