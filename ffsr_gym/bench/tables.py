@@ -132,11 +132,9 @@ def headroom(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> s
     """Per tier, the best normalised score of an entry and the headroom 1 − it left to the best known scores."""
     cells = []
     for tier, items in entries.items():
-        values = [(normalised_mean(e, spec.rules.version), e["name"]) for e in items]
-        values = [(v, name) for v, name in values if v is not None]
-        if values:
-            best, name = max(values)
-            pairs = [(e, r) for e in items if (r := normalised_scores(e, spec.rules.version)) is not None]
+        pairs = [(e, r) for e in items if (r := normalised_scores(e, spec.rules.version)) is not None]
+        if pairs:
+            best, name = max((float(r.mean()), e["name"]) for e, r in pairs)  # normalised_mean, from the same scores
             beaten = {row["task_index"] for e, r in pairs for row, x in zip(e["episodes"], r) if x > 1.0}
             top = max(float(r.max()) for _, r in pairs)
             beats = (f"entries beat the best known score on {len(beaten)} test task{'s' * (len(beaten) != 1)}, by up to "
