@@ -253,6 +253,12 @@ def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
             batched, "s", f"single env {alone:.2f} s", alone / batched, "<= 0.25 s", batched <= 0.25)
         row(f"pool_{tier}_workers", f"(0.3, 4 s) on the {tier} test pool, {workers} worker processes", spread, "s",
             f"single env {alone:.2f} s", alone / spread, "faster than single env", spread < alone)
+    ours, mujoco_time, extra = servo_speed(repeats)
+    row("servo", "servo plant, 1 simulated second at a 1 ms physics step (12 velocity servos, free base), kernel",
+        ours * 1e3, "ms per simulated s",
+        "MuJoCo " + ("n/a" if mujoco_time is None else f"{mujoco_time * 1e3:.1f} ms (same bodies, drives, step; "
+                     f"implicitfast)"), None if mujoco_time is None else ours / mujoco_time, "ratio <= 1",
+        None if mujoco_time is None else ours <= mujoco_time)
     training = training_throughput("FFSR-Residual-v2", 8, 8192)
     if training is not None:
         batched_rate, single_rate = training
@@ -265,6 +271,80 @@ def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
         row("dask", f"(0.3, 4 s) on the easy test pool, Dask LocalCluster, {workers} workers", many, "s",
             f"1 worker {one:.2f} s", one / many, "scales with workers (ratio > 1)", one / many > 1.0)
     return rows, budget
+
+
+def servo_mjcf(model, drive: np.ndarray, h: float) -> str:
+    """A MuJoCo model of the robot's servo plant: the same bodies (from the kernel's arrays), a free joint, 12
+    velocity servos with the drives' gains and torque limits, armature and damping; ``implicitfast`` at step ``h``."""
+    import mujoco
+
+    def quat(R: np.ndarray) -> str:
+        q = np.zeros(4)
+        mujoco.mju_mat2Quat(q, np.ascontiguousarray(R).ravel())
+        return " ".join(f"{v:.17g}" for v in q)
+
+    def inertial(b: int) -> str:
+        I = model.inertia[b]
+        full = " ".join(f"{v:.17g}" for v in (I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]))
+        pos = " ".join(f"{v:.17g}" for v in model.lever[b])
+        return f'<inertial pos="{pos}" mass="{model.mass[b]:.17g}" fullinertia="{full}"/>'
+
+    def body(k: int) -> str:
+        pos = " ".join(f"{v:.17g}" for v in model.placement_p[k])
+        axis = " ".join(f"{v:.17g}" for v in model.axis[k])
+        children = "".join(body(c) for c in range(12) if model.parent[c] == k)
+        return (f'<body name="link{k}" pos="{pos}" quat="{quat(model.placement_R[k])}">'
+                f'<joint name="j{k}" type="hinge" axis="{axis}" armature="{drive[k, 2]:.17g}" damping="{drive[k, 3]:.17g}"/>'
+                f'{inertial(k + 1)}{children}</body>')
+
+    roots = "".join(body(k) for k in range(12) if model.parent[k] < 0)
+    servos = "".join(f'<velocity joint="j{k}" kv="{drive[k, 0]:.17g}" forcelimited="true" '
+                     f'forcerange="{-drive[k, 1]:.17g} {drive[k, 1]:.17g}"/>' for k in range(12))
+    return (f'<mujoco><option timestep="{h}" integrator="implicitfast" gravity="0 0 0"/><worldbody>'
+            f'<body name="base"><freejoint/>{inertial(0)}{roots}</body></worldbody>'
+            f'<actuator>{servos}</actuator></mujoco>')
+
+
+def servo_speed(repeats: int, h: float = 0.001, seconds: float = 1.0) -> tuple[float, float | None, dict]:
+    """Wall time per simulated second [s/s] of the kernel's servo plant and of MuJoCo on a model of the same
+    robot and drives (None without MuJoCo), the same commands at the same step; and their final joint rates'
+    largest difference [rad/s] (the two are different integrators of the same dynamics)."""
+    from ffsr_gym.kernel import servo
+    from ffsr_gym.model.scenario import load_scenario
+    from ffsr_gym.sim.setup import prepare
+
+    setup = prepare(load_scenario("paper"))
+    kernel, mdl, drive = setup.assets.kernel, setup.assets.kernel_arrays, setup.plant_arrays[3]
+    if not drive.any():
+        from ffsr_gym.model.drives import drive_array, drives_path, load_drives
+        from ffsr_gym.model.resources import robot_dir
+
+        drive = drive_array(load_drives(drives_path(robot_dir("ffsr_dual_arm"))))
+    n = int(round(seconds / h))
+    cmds = np.sin(3.0 * np.arange(n)[:, None] * h + np.arange(12)[None, :])  # [rad/s]
+    start = np.zeros(servo.N_STATE)
+    start[:7], start[7:19] = setup.q0[:7], setup.q0[kernel.q_index]
+    states, torques = np.zeros((n + 1, servo.N_STATE)), np.zeros((n, 12))
+    ours = best_of(lambda: servo.drive_open_loop(start.copy(), mdl, cmds, drive, h, np.zeros(6), states, torques),
+                   repeats) / seconds
+    try:
+        import mujoco
+    except ImportError:
+        return ours, None, {}
+    mj = mujoco.MjModel.from_xml_string(servo_mjcf(kernel, drive, h))
+    data = mujoco.MjData(mj)
+
+    def run_mujoco() -> None:
+        mujoco.mj_resetData(mj, data)
+        data.qpos[:3], data.qpos[3] = setup.q0[:3], setup.q0[6]  # MuJoCo's quaternion is (w, x, y, z)
+        data.qpos[4:7], data.qpos[7:] = setup.q0[3:6], setup.q0[kernel.q_index]
+        for k in range(n):
+            data.ctrl[:] = cmds[k]
+            mujoco.mj_step(mj, data)
+
+    theirs = best_of(run_mujoco, repeats) / seconds
+    gap = float(np.abs(data.qvel[6:] - states[-1, servo.X_V + 6:servo.X_V + 18]).max())
+    return ours, theirs, {"final_joint_rate_gap_rad_s": gap}
 
 
 def training_throughput(env_id: str, n_envs: int, steps: int) -> tuple[float, float] | None:

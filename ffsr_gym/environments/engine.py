@@ -29,6 +29,7 @@ from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.kernel import batch as kernel_batch
 from ffsr_gym.kernel import decision
 from ffsr_gym.kernel import planner as kp
+from ffsr_gym.kernel import servo
 from ffsr_gym.model import portable
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning import ptsf
@@ -75,7 +76,7 @@ class EpisodeEngine:
         self._obs0 = self.obs[0]  # copy 0's row (the single env's compiled step writes it)
         self._mode = decision.MODE_RESIDUAL if residual else decision.MODE_PARAMETERS
         self._no_action = np.zeros(2, dtype=np.float32)  # the action of a decision with (m, T_c) already set
-        self.last_rates, self.X = np.zeros((N, 12)), np.zeros((N, 19))
+        self.last_rates, self.X = np.zeros((N, 12)), np.zeros((N, servo.N_STATE))
         # Per-copy scalars: step k, clipped actions, smoothness cost so far, shaping potential, clearance [m] and
         # EE position error [m]. One copy keeps them in lists (a Python element access costs a third of numpy's,
         # which the single env's microsecond budget notices); N copies in arrays for the vectorised bookkeeping.
@@ -83,7 +84,7 @@ class EpisodeEngine:
         self.cost_so_far, self.potential = _scalars(N, float, self.single), _scalars(N, float, self.single)
         self.clearance, self.ee_error = _scalars(N, float, self.single), _scalars(N, float, self.single)
         self.FP, self.IP = np.zeros((N, kp.N_FP)), np.zeros((N, kp.N_IP), dtype=np.int64)
-        self.plants = (np.zeros((N, 13)), np.zeros((N, 13, 3)), np.zeros((N, 13, 3, 3)))
+        self.plants = (np.zeros((N, 13)), np.zeros((N, 13, 3)), np.zeros((N, 13, 3, 3)), np.zeros((N, 12, servo.N_DRIVE)))
         self.DS, self.scratch = np.zeros((N, decision.N_DS)), np.zeros((N, decision.N_SCRATCH))
         self.logs = new_log(self.n_steps + 1, N) if self.compiled else None
         self.out = np.zeros((N, 7))

@@ -43,8 +43,8 @@ def decide_batch(mdl, plants, WS, X, K, active, n_total, n_max, FP, IP, DS, acti
     :func:`workspaces`, episode e's in ``WS[e]``; a new episode clears its planned flag in
     ``SCRATCH[e]`` (:func:`ffsr_gym.kernel.decision.forget_plan`).
     """
-    PM, PL, PI = plants
-    LX, LV, LDQ, LERR, LCLEAR, LSELF, LMU, LCDF, LSMIN = logs
+    PM, PL, PI, PD = plants
+    LX, LV, LDQ, LERR, LCLEAR, LSELF, LMU, LCDF, LSMIN, LTAU = logs
     n = X.shape[0]
     for g in prange(n_groups):
         for e in range(g, n, n_groups):
@@ -52,8 +52,8 @@ def decide_batch(mdl, plants, WS, X, K, active, n_total, n_max, FP, IP, DS, acti
                 continue
             k = K[e]
             rows, status, clipped, increment, cost, clearance, ee_error = decide(
-                mdl, (PM[e], PL[e], PI[e]), WS[e], X[e], k, n_total, n_max, FP[e], IP[e], DS[e], actions[e], mode, True,
-                (LX[e], LV[e], LDQ[e], LERR[e], LCLEAR[e], LSELF[e], LMU[e], LCDF[e], LSMIN[e]), k, LAST[e],
+                mdl, (PM[e], PL[e], PI[e], PD[e]), WS[e], X[e], k, n_total, n_max, FP[e], IP[e], DS[e], actions[e], mode, True,
+                (LX[e], LV[e], LDQ[e], LERR[e], LCLEAR[e], LSELF[e], LMU[e], LCDF[e], LSMIN[e], LTAU[e]), k, LAST[e],
                 SCRATCH[e], OBS[e], True)
             K[e] = k + rows
             out[e, 0], out[e, 1], out[e, 2], out[e, 3] = rows, status, clipped, increment

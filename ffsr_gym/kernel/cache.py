@@ -13,10 +13,10 @@ from pathlib import Path
 
 from numba.core.registry import CPUDispatcher
 
-from ffsr_gym.kernel import batch, borrow, collision, decision, linalg, loop, physics, planner, score_terms
+from ffsr_gym.kernel import batch, borrow, collision, decision, dynamics, linalg, loop, physics, planner, score_terms, servo
 
 #: Modules with compiled functions (their caches are flushed together).
-MODULES = (linalg, physics, collision, planner, loop, score_terms, decision, batch)
+MODULES = (linalg, physics, dynamics, servo, collision, planner, loop, score_terms, decision, batch)
 #: Everything compiled into those functions: the modules and the intrinsics they use.
 SOURCES = (borrow, *MODULES)
 

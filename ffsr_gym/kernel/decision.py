@@ -114,7 +114,7 @@ def decide(mdl_owner, plant_owner, ws_owner, x, k, n_total, n_max, fp, ip, ds, a
            last_rates, scratch, obs, own_workspace):
     """One decision from step ``k``: up to ``n_max`` physics steps, then the next observation into ``obs``.
 
-    ``logs``: the 9 trajectory arrays of :class:`~ffsr_gym.sim.compiled.KernelRollout`, written
+    ``logs``: the 10 trajectory arrays of :class:`~ffsr_gym.sim.compiled.KernelRollout`, written
     from row ``row0``; ``x`` and ``last_rates`` (12) advance in place; ``stop``: end on a violation.
     ``own_workspace``: nothing else writes to ``ws`` between decisions, so the planner step the
     observation computed is reused by the next decision's first physics step when its state and
@@ -137,11 +137,11 @@ def decide(mdl_owner, plant_owner, ws_owner, x, k, n_total, n_max, fp, ip, ds, a
     planned = (own_workspace and scratch[_PLANNED] == 1.0 and scratch[_PLANNED + 1] == k
                and scratch[_PLANNED + 2] == fp[F_M] and scratch[_PLANNED + 3] == fp[F_TC])
     scratch[_PLANNED] = 0.0
-    LX, LV, LDQ, LERR, LCLEAR, LSELF, LMU, LCDF, LSMIN = logs
+    LX, LV, LDQ, LERR, LCLEAR, LSELF, LMU, LCDF, LSMIN, LTAU = logs
     _, rows, status = run_into(mdl, plant_owner, ws, x, k, n_total, n_max, fp, ip, residual, stop, False, planned,
                                LX[row0:],
                                LV[row0:], LDQ[row0:], LERR[row0:], LCLEAR[row0:], LSELF[row0:], LMU[row0:],
-                               LCDF[row0:], LSMIN[row0:])
+                               LCDF[row0:], LSMIN[row0:], LTAU[row0:])
     if rows == 0 or status == STATUS_NONFINITE:
         return rows, status, clipped, 0.0, 0.0, 0.0, 0.0
     applied = LDQ[row0:row0 + rows]
@@ -177,7 +177,7 @@ class Episode(structref.StructRefProxy):
     """The arrays :func:`decide` needs for one episode, passed to :func:`step_episode` as one argument.
 
     Fields: ``mdl``, ``plant``, ``ws`` (tuples of the kernel model, plant and workspace), ``x``
-    (19,), ``fp``, ``ip``, ``ds`` (:data:`N_DS`), ``logs`` (9 trajectory arrays), ``last_rates``
+    (``ffsr_gym.kernel.servo.N_STATE``,), ``fp``, ``ip``, ``ds`` (:data:`N_DS`), ``logs`` (10 trajectory arrays), ``last_rates``
     (12,), ``scratch`` (:data:`N_SCRATCH`). The arrays are shared, not copied: the episode's
     owner sees them advance.
     """

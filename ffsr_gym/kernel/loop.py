@@ -21,11 +21,13 @@ from ffsr_gym.kernel.planner import (
     I_N_OBS,
     I_PLANT,
     I_SCOPE,
+    I_SUBSTEPS,
     OBSTACLE_FIELDS,
     obstacle_at,
     plan,
     true_error_into,
 )
+from ffsr_gym.kernel.servo import X_V, servo_period_into
 
 STATUS_OK, STATUS_RATE, STATUS_COLLISION, STATUS_NONFINITE = 0, 1, 2, 3
 
@@ -72,24 +74,32 @@ def _violation(dq, clear, self_c, fp, ip):
 
 @njit(cache=True, error_model="numpy")
 def run(mdl, plant, x_start, k0, n_total, n_max, fp, ip, residual, stop_on_violation, record_only, out_x, out_v,
-        out_dq, out_err, out_clear, out_self, out_mu, out_cdf, out_smin):
+        out_dq, out_err, out_clear, out_self, out_mu, out_cdf, out_smin, out_tau):
     """Advance up to ``n_max`` steps from step ``k0`` (or only record when ``record_only``).
 
-    ``plant``: the (mass, lever, inertia) arrays of the robot the physics integrates (``mdl``'s own
-    unless ``ip[I_PLANT]``: then the planner's model ``mdl`` and the plant differ).
+    ``plant``: the (mass, lever, inertia, drive) arrays of the robot the physics integrates (the
+    inertials are ``mdl``'s own unless ``ip[I_PLANT]``: then the planner's model ``mdl`` and the
+    plant differ; ``drive``: the servo plant's drives, ``ffsr_gym.kernel.servo``).
+
+    The state ``x`` holds the 19 configuration floats, and for the servo plant
+    (``ip[I_SUBSTEPS]`` > 0) the servo state after them (``ffsr_gym.kernel.servo.N_STATE``). The
+    kinematic plant applies the planned rates exactly; the servo plant takes them as its drives'
+    commands, and the logged rates ``out_dq`` are the ones it produced (the joints' mean rates over
+    the step), which the violation test and the score use. ``out_tau``: the drive torques of each
+    step (``servo_period_into``; zero for the kinematic plant).
 
     Writes one sample per step into the ``out_*`` arrays (from row 0) and returns
     ``(x_next, rows, status)``: status 0 ok, 1 rate-limit violation, 2 collision, 3 non-finite rates.
     """
     return run_into(mdl, plant, workspace(len(mdl.cap_radius)), x_start.copy(), k0, n_total, n_max, fp, ip, residual,
                     stop_on_violation, record_only, False, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf,
-                    out_smin)
+                    out_smin, out_tau)
 
 
 @njit(cache=True, error_model="numpy")
 def run_into(mdl_owner, plant_owner, ws_owner, x_owner, k0, n_total, n_max, fp_owner, ip_owner, residual,
              stop_on_violation, record_only, planned, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf,
-             out_smin):
+             out_smin, out_tau):
     """:func:`run` in the caller's workspace, advancing the state ``x_owner`` in place (and returning it).
 
     Works on borrowed arrays (``ffsr_gym.kernel.borrow``): the caller owns every argument for the call.
@@ -97,11 +107,11 @@ def run_into(mdl_owner, plant_owner, ws_owner, x_owner, k0, n_total, n_max, fp_o
     settings (an observation just computed it), so the first step reuses it.
     """
     mdl, ws, x, fp, ip = borrowed(mdl_owner), borrowed(ws_owner), borrowed(x_owner), borrowed(fp_owner), borrowed(ip_owner)
-    mass, lever, inertia = borrowed(plant_owner)  # the plant: the planner's kinematics, its own inertias
+    mass, lever, inertia, drive = borrowed(plant_owner)  # the plant: the planner's kinematics, its own inertias
     body = ModelArrays(mdl.parent, mdl.placement_R, mdl.placement_p, mdl.axis, mass, lever, inertia, mdl.ee_parent,
                        mdl.ee_R, mdl.ee_p, mdl.cap_parent, mdl.cap_a, mdl.cap_b, mdl.cap_radius, mdl.cap_arm,
                        mdl.cap_vs_base, mdl.box_half, mdl.q_index, mdl.v_index, mdl.axis_code)
-    mismatch = ip[I_PLANT] == 1
+    mismatch, substeps = ip[I_PLANT] == 1, ip[I_SUBSTEPS]
     dt, h = fp[F_DT], fp[F_H:F_H + 6]
     rows = 0
     steps = 1 if record_only else min(n_max, n_total - k0)
@@ -118,16 +128,23 @@ def run_into(mdl_owner, plant_owner, ws_owner, x_owner, k0, n_total, n_max, fp_o
             if not math.isfinite(dq[j]):
                 return x_owner, rows, STATUS_NONFINITE
         clear, self_c = _clearances(mdl, x, (k0 + i) * dt, fp, ip, ws)
-        if mismatch:  # the planner's momentum matrices were the model's; the base moves by the plant's
-            momentum_into(body, x, ws)
-        velocity_into(v0, x, dq, h, ws)
+        if substeps == 0:
+            if mismatch:  # the planner's momentum matrices were the model's; the base moves by the plant's
+                momentum_into(body, x, ws)
+            velocity_into(v0, x, dq, h, ws)
+            for j in range(6):
+                out_v[i, j] = v0[j]
+            for j in range(12):
+                out_v[i, 6 + j] = dq[j]
+                out_dq[i, j] = dq[j]
+                out_tau[i, j] = 0.0
+        else:
+            for j in range(18):
+                out_v[i, j] = x[X_V + j]
+            for j in range(12):
+                out_dq[i, j] = x[X_V + 6 + j]  # the rate at the sample: what a final sample records
         for j in range(19):
             out_x[i, j] = x[j]
-        for j in range(6):
-            out_v[i, j] = v0[j]
-        for j in range(12):
-            out_v[i, 6 + j] = dq[j]
-            out_dq[i, j] = dq[j]
         out_err[i, 0] = math.sqrt(logged[0] * logged[0] + logged[1] * logged[1] + logged[2] * logged[2])
         out_err[i, 1] = math.sqrt(logged[3] * logged[3] + logged[4] * logged[4] + logged[5] * logged[5])
         out_err[i, 2] = math.sqrt(e0[0] * e0[0] + e0[1] * e0[1] + e0[2] * e0[2])
@@ -139,7 +156,13 @@ def run_into(mdl_owner, plant_owner, ws_owner, x_owner, k0, n_total, n_max, fp_o
         rows += 1
         if record_only:
             return x_owner, rows, STATUS_OK
-        midpoint_into(x, body, x, v0, dq, dt, h, ws)
+        if substeps == 0:
+            midpoint_into(x, body, x, v0, dq, dt, h, ws)
+        else:  # the drives follow the planned rates; the step's rates are those the joints made
+            servo_period_into(x, body, dq, drive, dt, substeps, h, ws, out_tau[i])
+            for j in range(12):
+                dq[j] = (x[7 + j] - out_x[i, 7 + j]) / dt
+                out_dq[i, j] = dq[j]
         if stop_on_violation:
             status = _violation(dq, clear, self_c, fp, ip)
             if status != STATUS_OK:

@@ -37,8 +37,10 @@ F_KEEP_OUT = F_OBSTACLES + OBSTACLE_FIELDS * MAX_OBSTACLES
 #: records like ``F_TRUE``'s, record k used for t in [k, k + 1) · ``fp[F_EST_DT]``
 #: (``ffsr_gym.planning.target_estimate``; one record, the true target, without noise).
 N_FP = F_KEEP_OUT + 1
-I_METHOD, I_PHI, I_SPLIT, I_ATT, I_MU, I_BAL_AVOID, I_N_OBS, I_SCOPE, I_PLANT, I_N_EST = range(10)
-N_IP = 10
+#: ``ip[I_SUBSTEPS]``: 0 for the kinematic plant, else the servo plant's physics steps per planner step
+#: (``ffsr_gym.kernel.servo``).
+I_METHOD, I_PHI, I_SPLIT, I_ATT, I_MU, I_BAL_AVOID, I_N_OBS, I_SCOPE, I_PLANT, I_N_EST, I_SUBSTEPS = range(11)
+N_IP = 11
 #: ``ffsr_gym.planning.target_estimate.INDEX_SLACK``.
 _INDEX_SLACK = 1e-9
 METHOD_CODES = {"no_avoidance": 0, "no_feedback": 1, "proportional": 2, "predefined_time": 3}

@@ -21,6 +21,7 @@ from typing import Any
 
 from ffsr_gym.exceptions import InvalidInputError, RobotFileError, ScenarioError
 from ffsr_gym.model import portable
+from ffsr_gym.model.drives import drives_path
 from ffsr_gym.model.resources import is_shipped_robot, robot_dir, scenario_path
 from ffsr_gym.model.schema import (
     file_key,
@@ -50,10 +51,30 @@ SCHEMA_VERSION = 1
 
 @dataclass(frozen=True)
 class Simulation:
-    """Time settings. ``duration_s`` [s] is the episode length, ``dt_s`` [s] the planner step."""
+    """Time settings and plant. ``duration_s`` [s] is the episode length, ``dt_s`` [s] the planner step.
+
+    ``plant``: ``"kinematic"`` (the default: the joints move exactly at the planned rates, the base by
+    momentum conservation) or ``"servo"`` (the planned rates command torque-limited joint servos
+    driving the free-floating multibody dynamics; section ``[servo]``, docs/model.md "Dynamics").
+    """
 
     duration_s: float = field(metadata=number(0.0, 3600.0, lo_open=True))
     dt_s: float = field(metadata=number(1e-5, 0.1))
+    plant: str = field(default="kinematic", metadata=choice("kinematic", "servo"))
+
+
+@dataclass(frozen=True)
+class ServoSettings:
+    """The servo plant (beyond the paper; docs/model.md "Dynamics"); used with ``simulation.plant = "servo"``.
+
+    The drives are the robot's ``drives/servo.toml``. ``physics_step_s`` [s]: the dynamics' step, a
+    whole fraction of ``simulation.dt_s``; ``gain_scale`` multiplies every servo gain;
+    ``torque_limited = false`` lifts the torque limits (a study of the kinematic limit).
+    """
+
+    physics_step_s: float = field(default=0.001, metadata=number(1e-6, 0.1))
+    gain_scale: float = field(default=1.0, metadata=number(0.0, 1e6, lo_open=True))
+    torque_limited: bool = field(default=True, metadata=BOOL)
 
 
 @dataclass(frozen=True)
@@ -244,6 +265,7 @@ class Scenario:
     obstacle: Obstacle | None = field(default=None, metadata=section(Obstacle))
     debris: Debris | None = field(default=None, metadata=section(Debris))
     plant: Plant | None = field(default=None, metadata=section(Plant))
+    servo: ServoSettings | None = field(default=None, metadata=section(ServoSettings))
     target_noise: TargetNoise | None = field(default=None, metadata=section(TargetNoise))
     objective: ObjectiveSettings = field(default=ObjectiveSettings(), metadata=section(ObjectiveSettings))
     env: EnvSettings = field(default=EnvSettings(), metadata=section(EnvSettings))
@@ -287,7 +309,24 @@ class Scenario:
                 raise InvalidInputError(f"dt_s = {dt_s!r} does not divide {name} = {span} s into whole steps; allowed: "
                                         f"{span} / n for a whole n, at most 0.1 s (the benchmark's own: "
                                         f"{self.simulation.dt_s} s)")
-        return dataclasses.replace(self, simulation=dataclasses.replace(self.simulation, dt_s=dt))
+        moved = dataclasses.replace(self, simulation=dataclasses.replace(self.simulation, dt_s=dt))
+        try:
+            _check_servo(moved, "")
+        except ScenarioError as exc:
+            raise InvalidInputError(f"dt_s = {dt_s!r}: {exc}") from None
+        return moved
+
+    @property
+    def servo_settings(self) -> ServoSettings:
+        """The ``[servo]`` section, or its defaults when the file has none."""
+        return self.servo if self.servo is not None else ServoSettings()
+
+    @property
+    def physics_substeps(self) -> int:
+        """Physics steps per planner step: 0 for the kinematic plant."""
+        if self.simulation.plant != "servo":
+            return 0
+        return int(round(self.simulation.dt_s / self.servo_settings.physics_step_s))
 
     def sha256(self) -> str:
         """Hash of the scenario's content and of its robot's files (provenance, staleness).
@@ -304,6 +343,8 @@ class Scenario:
                 if path.is_file():
                     digest.update(path.name.encode())
                     digest.update(path.read_bytes())
+            if self.simulation.plant == "servo":  # the drives, kept apart so that kinematic scenarios' hashes do not see them
+                digest.update(drives_path(folder).read_bytes())
             cached = digest.hexdigest()
             object.__setattr__(self, "_sha256", cached)
         return cached
@@ -314,14 +355,14 @@ class Scenario:
 #: Keys added after schema version 1, with their defaults. At the default they are left out of
 #: :func:`to_dict`, so a scenario that does not set them keeps the layout, and the hash, it had
 #: before they existed.
-ADDED_KEYS = {("objective", "keep_out_m"): 0.0}
+ADDED_KEYS = {("objective", "keep_out_m"): 0.0, ("simulation", "plant"): "kinematic"}
 
 
 def to_dict(scenario: Scenario) -> dict[str, Any]:
     """Return the scenario as plain data (the TOML layout), without its source path."""
     data = _plain(scenario)
     data.pop("source")
-    for optional in ("obstacle", "debris", "plant", "target_noise", "randomization"):
+    for optional in ("obstacle", "debris", "plant", "servo", "target_noise", "randomization"):
         if data[optional] is None:
             data.pop(optional)
     for (table, key), default in ADDED_KEYS.items():
@@ -469,6 +510,7 @@ def _check_cross_fields(s: Scenario, where: str) -> None:
     if s.plant is not None and len(s.plant.com_offset_m) not in (0, 12):
         raise ScenarioError(f"{where}key 'plant.com_offset_m' lists {len(s.plant.com_offset_m)} rows; allowed: none, "
                             "or one [x, y, z] per link (12)")
+    _check_servo(s, where)
     if s.randomization is not None and s.obstacle is None:
         raise ScenarioError(f"{where}section 'randomization' needs an 'obstacle' section (its radii are used)")
     try:
@@ -479,6 +521,26 @@ def _check_cross_fields(s: Scenario, where: str) -> None:
             check_robot_folder(s.robot)
     except RobotFileError as exc:
         raise RobotFileError(f"{where}key 'robot': {exc}") from None
+
+
+def _check_servo(s: Scenario, where: str) -> None:
+    """The ``[servo]`` section only with the servo plant, and a physics step that divides ``dt_s``."""
+    if s.servo is not None and s.simulation.plant != "servo":
+        raise ScenarioError(f"{where}section 'servo' needs key 'simulation.plant' = 'servo' (it is "
+                            f"{s.simulation.plant!r})")
+    if s.simulation.plant == "servo":
+        h, dt = s.servo_settings.physics_step_s, s.simulation.dt_s
+        n = round(dt / h)
+        if n < 1 or abs(n * h - dt) > 1e-9 * dt:
+            raise ScenarioError(f"{where}key 'servo.physics_step_s' = {h} is out of range; allowed: dt_s / n for a "
+                                f"whole n >= 1 (dt_s = {dt} s)")
+        try:
+            path = drives_path(robot_dir(s.robot))
+        except RobotFileError:
+            return  # the robot key's own check names the problem
+        if not path.is_file():
+            raise RobotFileError(f"{where}key 'simulation.plant' = 'servo' needs the robot's drive file {str(path)!r}, "
+                                 "which does not exist (docs/robots.md)")
 
 
 def _normalised(s: Scenario) -> Scenario:

@@ -11,6 +11,7 @@ from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.kernel import cache as kernel_cache
 from ffsr_gym.kernel import loop as kernel_loop
 from ffsr_gym.kernel import planner as kp
+from ffsr_gym.kernel import servo
 from ffsr_gym.model.robot import check_state
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning import ptsf
@@ -51,12 +52,13 @@ def settings_vectors(setup: ScenarioSetup, *, method: str, m: float, T_c: float)
     records[:, :3], records[:, 3:6], records[:, 6] = field.positions_m, field.velocities_m_s, field.radii_m
     ip[:] = (kp.METHOD_CODES[method], s.phi_form == "printed", s.phi_split, s.attitude_error == "body",
              s.mu_law == "distance", s.balance_avoids, len(field),
-             scenario.objective.rate_limit_scope == "balance_arm", scenario.plant is not None, len(estimates))
+             scenario.objective.rate_limit_scope == "balance_arm", scenario.plant is not None, len(estimates),
+             scenario.physics_substeps)
     return fp, ip
 
 
 LOG_FIELDS = {"x": (19,), "v": (18,), "dq": (12,), "err": (4,), "clear": (), "self": (), "mu": (2,), "cdf": (2,),
-              "smin": (2,)}
+              "smin": (2,), "tau": (12,)}
 
 
 def new_log(rows: int, *batch: int) -> dict[str, Array]:
@@ -84,11 +86,20 @@ class KernelRollout:
         if q0 is not None:
             check_state(q0)
         q = setup.q0 if q0 is None else np.array(q0, dtype=float)
-        self.x = np.concatenate((q[:7], q[self.model.q_index]))
+        self.x = self._state(q)
         self.fp, self.ip = settings_vectors(setup, method=method, m=m, T_c=T_c)
         self.dt, self.n_steps = scenario.simulation.dt_s, scenario.n_steps
         self.k, self.rows, self.finished = 0, 0, False
         self._log = new_log(self.n_steps + 1) if log is None else log
+
+    def _state(self, q: Array) -> Array:
+        """The kernel state of configuration ``q`` (Pinocchio order) at rest: the servo plant's joints still,
+        its base moving as the scenario's momentum makes it (``ffsr_gym.kernel.servo``)."""
+        x = np.zeros(servo.N_STATE)
+        x[:7], x[7:19] = q[:7], q[self.model.q_index]
+        if self.scenario.simulation.plant == "servo":
+            x[servo.X_V:servo.X_V + 6] = self.setup.plant.velocity(q, np.zeros(12), self.scenario.initial.momentum)[:6]
+        return x
 
     @property
     def t(self) -> float:
@@ -100,7 +111,7 @@ class KernelRollout:
         """Current configuration in Pinocchio order (19,)."""
         q = np.empty(19)
         q[:7] = self.x[:7]
-        q[self.model.q_index] = self.x[7:]
+        q[self.model.q_index] = self.x[7:19]
         return q
 
     @property
@@ -155,15 +166,15 @@ class KernelRollout:
         Does not change this rollout. Returns the sample as a dict of :class:`Trajectory` field
         names (one row each) and the next configuration in Pinocchio order.
         """
-        x = np.concatenate((q[:7], q[self.model.q_index]))
+        x = self._state(q)
         outs = list(new_log(1).values())
         x_next, _, _ = kernel_loop.run(self._mdl, self.plant, x, k, self.n_steps, 1, self.fp, self.ip, np.zeros(12),
                                        False, False, *outs)
-        _, v, dq, err, clear, self_c, mu, cdf, smin = (o[0] for o in outs)
+        _, v, dq, err, clear, self_c, mu, cdf, smin, _ = (o[0] for o in outs)
         v_pin = np.zeros(18)
         v_pin[:6], v_pin[self.model.v_index] = v[:6], v[6:]
         q_next = np.empty(19)
-        q_next[:7], q_next[self.model.q_index] = x_next[:7], x_next[7:]
+        q_next[:7], q_next[self.model.q_index] = x_next[:7], x_next[7:19]
         sample = {"v": v_pin, "dq_joints": dq, "ee_position_error_m": err[0], "ee_attitude_error": err[1],
                   "base_position_error_m": err[2], "base_attitude_error": err[3], "clearance_m": clear,
                   "self_clearance_m": self_c, "mu": mu, "cdf": cdf, "sigma_min": smin}
@@ -191,9 +202,21 @@ class KernelRollout:
         err = log["err"][:n]
         info: dict[str, Any] = {"scenario": self.scenario.name, "scenario_sha256": self.scenario.sha256(),
                                 "method": self.method, "m": self.m, "T_c_s": self.T_c,
-                                "dt_s": self.dt, "duration_s": self.scenario.simulation.duration_s, "backend": "kernel"}
+                                "dt_s": self.dt, "duration_s": self.scenario.simulation.duration_s, "backend": "kernel",
+                                "plant": self.scenario.simulation.plant}
+        servo_plant = self.scenario.simulation.plant == "servo"
+        if servo_plant:
+            info["torque_saturation"] = self.saturation()
         return Trajectory(t=np.arange(n) * self.dt, q=q, v=v, dq_joints=log["dq"][:n].copy(),
                           ee_position_error_m=err[:, 0].copy(), ee_attitude_error=err[:, 1].copy(),
                           base_position_error_m=err[:, 2].copy(), base_attitude_error=err[:, 3].copy(),
                           clearance_m=log["clear"][:n].copy(), self_clearance_m=log["self"][:n].copy(),
-                          mu=log["mu"][:n].copy(), cdf=log["cdf"][:n].copy(), sigma_min=log["smin"][:n].copy(), info=info)
+                          mu=log["mu"][:n].copy(), cdf=log["cdf"][:n].copy(), sigma_min=log["smin"][:n].copy(), info=info,
+                          joint_torque_Nm=log["tau"][:n].copy() if servo_plant else None)
+
+    def saturation(self) -> dict[str, float]:
+        """The servo plant's torque saturation so far: physics steps, the fraction of them with a joint at its
+        torque limit, and the peak |τ| / τ_max."""
+        steps = float(self.x[servo.X_STEPS])
+        return {"physics_steps": int(steps), "saturated_fraction": float(self.x[servo.X_SATURATED]) / max(steps, 1.0),
+                "peak_torque_ratio": float(self.x[servo.X_PEAK])}

@@ -15,6 +15,7 @@ import numpy as np
 
 from ffsr_gym.kernel.arrays import KernelModel, ModelArrays, extract
 from ffsr_gym.model.collision import CollisionModel
+from ffsr_gym.model.drives import drive_array, drives_path, load_drives
 from ffsr_gym.model.obstacles import ObstacleField, obstacle_field
 from ffsr_gym.model.resources import is_shipped_robot, robot_dir, robot_files
 from ffsr_gym.model.robot import Robot, files_stamp, load_robot
@@ -86,7 +87,8 @@ class ScenarioSetup:
         q0: the nominal initial configuration (19,), Pinocchio order.
         obstacles: the obstacles (``[obstacle]`` and ``[debris]``), positions at any time.
         plant: the robot the physics integrates (``[plant]``; the nominal robot without it).
-        plant_arrays: the plant's (mass, lever, inertia) kernel arrays (the nominal ones without it).
+        plant_arrays: the plant's (mass, lever, inertia, drive) kernel arrays (the nominal inertials
+            without ``[plant]``; ``drive`` (12, 4) the servo plant's drives, zeros for the kinematic plant).
         path: the desired end-effector path (to the true target).
         estimates: the planner's desired paths, one per target estimate (``(path,)`` without
             ``[target_noise]``; :mod:`ffsr_gym.planning.target_estimate`).
@@ -118,6 +120,15 @@ def prepare(scenario: Scenario) -> ScenarioSetup:
     return _prepare(scenario, stamp)
 
 
+def _drive(scenario: Scenario) -> Array:
+    """The kernel's drive array of the scenario's plant (zeros for the kinematic plant)."""
+    if scenario.simulation.plant != "servo":
+        return np.zeros((12, 4))
+    settings = scenario.servo_settings
+    drives = load_drives(drives_path(robot_dir(scenario.robot)))
+    return drive_array(drives, gain_scale=settings.gain_scale, torque_limited=settings.torque_limited)
+
+
 @lru_cache(maxsize=64)
 def _prepare(scenario: Scenario, stamp: tuple) -> ScenarioSetup:
     assets = robot_assets(scenario.robot)
@@ -131,7 +142,7 @@ def _prepare(scenario: Scenario, stamp: tuple) -> ScenarioSetup:
                                                    changes.com_offset_m or np.zeros((12, 3)))
         kernel = extract(plant, assets.collision)
     return ScenarioSetup(scenario=scenario, assets=assets, q0=q0, obstacles=obstacle_field(scenario), plant=plant,
-                         plant_arrays=(kernel.mass, kernel.lever, kernel.inertia),
+                         plant_arrays=(kernel.mass, kernel.lever, kernel.inertia, _drive(scenario)),
                          path=path, estimates=estimated_paths(scenario, path),
                          estimate_interval_s=0.0 if scenario.target_noise is None else scenario.target_noise.interval_s,
                          base_target=base_target)

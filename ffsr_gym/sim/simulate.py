@@ -31,6 +31,9 @@ def make_rollout(scenario: Scenario, *, backend: str = "auto", **kwargs: Any) ->
     """
     if backend not in BACKENDS:
         raise InvalidInputError(f"backend {backend!r}; allowed: {list(BACKENDS)}")
+    if scenario.simulation.plant == "servo" and (backend == "pinocchio" or not kernel_available()):
+        raise InvalidInputError(f"scenario {scenario.name!r}: the servo plant (simulation.plant = 'servo') runs on the "
+                                "kernel backend only (numba); backend 'kernel' or 'auto'")
     if backend == "kernel" or (backend == "auto" and kernel_available()):
         from ffsr_gym.sim.compiled import KernelRollout  # needs numba, an optional speed-up
 

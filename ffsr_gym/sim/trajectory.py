@@ -21,7 +21,9 @@ class Trajectory:
         t: (n+1,) time [s].
         q: (n+1, 19) configuration, Pinocchio order (free-flyer first, quaternion x, y, z, w).
         v: (n+1, 18) velocity, Pinocchio order (base part in the base frame) [m/s, rad/s].
-        dq_joints: (n+1, 12) planned joint rates [rad/s], mission arm first.
+        dq_joints: (n+1, 12) joint rates [rad/s], mission arm first: the planned ones on the
+            kinematic plant; on the servo plant the ones the joints made (their mean over the step;
+            the last sample's: its rates at that instant).
         ee_position_error_m: (n+1,) ||p_e − p_d|| [m].
         ee_attitude_error: (n+1,) ||e_o|| of the end-effector (sin of half the error angle).
         base_position_error_m: (n+1,) ||r_0 − r_0d|| [m].
@@ -31,7 +33,10 @@ class Trajectory:
         mu: (n+1, 2) blend factors (mission, balance).
         cdf: (n+1, 2) danger field of each arm at the obstacle.
         sigma_min: (n+1, 2) smallest singular values of J_m¹ and J_c².
-        info: run description (scenario, method, m, T_c, dt, ...).
+        info: run description (scenario, method, m, T_c, dt, plant, ...; the servo plant adds its
+            torque saturation).
+        joint_torque_Nm: (n+1, 12) the servo plant's drive torques [N m], per step the one of largest
+            magnitude (None for the kinematic plant; the last sample's row is 0).
     """
 
     t: Array
@@ -48,6 +53,7 @@ class Trajectory:
     cdf: Array
     sigma_min: Array
     info: dict[str, Any] = field(default_factory=dict)
+    joint_torque_Nm: Array | None = None
 
     @property
     def dt(self) -> float:

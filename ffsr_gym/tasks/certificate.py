@@ -29,6 +29,7 @@ from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning.planner import planner_parameters
 from ffsr_gym.scoring.score import EpisodeScore, score_episode
 from ffsr_gym.sim.simulate import make_rollout
+from ffsr_gym.sim.trajectory import Trajectory
 
 KINDS = ("constant", "residual")
 
@@ -104,10 +105,15 @@ def planner_episode(task: Scenario, benchmark: Benchmark, *, method: str, m: flo
     the environments do.
     """
     played = planner_task(task, method, gain_per_s)
+    return score_episode(planner_run(played, method=method, m=m, T_c=T_c, backend=backend), played, benchmark)
+
+
+def planner_run(played: Scenario, *, method: str, m: float | None, T_c: float | None, backend: str = "auto") -> Trajectory:
+    """The trajectory of :func:`planner_episode` (``played``: the task as :func:`planner_task` returns it)."""
     rollout = make_rollout(played, backend=backend, method=method, m=m, T_c=T_c)
     rollout.advance(played.n_steps, stop_on_violation=True)
     rollout.finish()
-    return score_episode(rollout.trajectory(), played, benchmark)
+    return rollout.trajectory()
 
 
 def replay(task: Scenario, certificate: Certificate, benchmark: Benchmark, *, backend: str = "auto") -> EpisodeScore:
