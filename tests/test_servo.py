@@ -140,12 +140,13 @@ def test_servo_scenarios_are_validated_and_hashed():
 
     with pytest.raises(ScenarioError, match="section 'servo' needs key 'simulation.plant'"):
         paper.replace(servo=ServoSettings())
-    with pytest.raises(ScenarioError, match=r"servo.physics_step_s' = 0.003"):
-        servo_scenario(paper, physics_step_s=0.003)
+    assert servo_scenario(paper, physics_step_s=0.003).physics_substeps == 4  # 2.5 ms: the longest step <= 3 ms
+    assert servo.at_step(0.0025).physics_substeps == 3  # the ensemble's dt / 4: 0.83 ms steps
+    assert servo_scenario(paper, physics_step_s=0.1).physics_substeps == 1
     with pytest.raises(ScenarioError, match="simulation.plant"):
         paper.replace(simulation=dataclasses.replace(paper.simulation, plant="hydraulic"))
-    with pytest.raises(InvalidInputError, match="physics_step_s"):
-        servo_scenario(paper, physics_step_s=0.005).at_step(0.002)
+    with pytest.raises(ScenarioError, match=r"servo.physics_step_s' = 0.0"):
+        servo_scenario(paper, physics_step_s=0.0)
     with pytest.raises(InvalidInputError, match="kernel backend"):
         simulate(servo, backend="pinocchio")
 
@@ -197,3 +198,18 @@ def test_an_environment_steps_the_servo_plant_like_simulate():
     np.testing.assert_array_equal(played.q, expected.q)
     np.testing.assert_array_equal(played.dq_joints, expected.dq_joints)
     assert played.info["torque_saturation"] == expected.info["torque_saturation"]
+
+
+def test_a_malformed_drive_file_names_its_key(tmp_path):
+    from ffsr_gym.exceptions import RobotFileError
+
+    shipped = drives_path(robot_dir("ffsr_dual_arm")).read_text()
+    bad = tmp_path / "servo.toml"
+    bad.write_text(shipped.replace("torque_limit_Nm = [423.7", "torque_limit_Nm = [-423.7"))
+    with pytest.raises(RobotFileError, match=r"mission.torque_limit_Nm"):
+        load_drives(bad)
+    bad.write_text(shipped.replace("gear_ratio = [101.0, 101.0, 101.0, 101.0, 101.0, 101.0]\nrotor", "rotor", 1))
+    with pytest.raises(RobotFileError, match=r"missing key 'mission.gear_ratio'"):
+        load_drives(bad)
+    with pytest.raises(RobotFileError, match="does not exist"):
+        load_drives(tmp_path / "none.toml")
