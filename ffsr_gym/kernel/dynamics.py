@@ -20,6 +20,7 @@ import numpy as np
 from numba import njit
 
 from ffsr_gym.kernel.linalg import solve_into
+from ffsr_gym.kernel.physics import _rot_into
 
 #: Buffers of one dynamics call: body transforms and spatial inertias, velocities, the ABA's
 #: articulated inertias and bias forces, and scratch.
@@ -73,12 +74,7 @@ def _transforms_into(mdl, q_joints, dyn):
     """
     rot = dyn.rot
     for k in range(12):
-        c, s = math.cos(q_joints[k]), math.sin(q_joints[k])
-        x, y, z = mdl.axis[k, 0], mdl.axis[k, 1], mdl.axis[k, 2]
-        C = 1.0 - c
-        rot[0, 0], rot[0, 1], rot[0, 2] = c + x * x * C, x * y * C - z * s, x * z * C + y * s
-        rot[1, 0], rot[1, 1], rot[1, 2] = y * x * C + z * s, c + y * y * C, y * z * C - x * s
-        rot[2, 0], rot[2, 1], rot[2, 2] = z * x * C - y * s, z * y * C + x * s, c + z * z * C
+        _rot_into(rot, mdl.axis[k], math.cos(q_joints[k]), math.sin(q_joints[k]))
         L, p, X = mdl.placement_R[k], mdl.placement_p[k], dyn.X[k]
         X[:, :] = 0.0
         for a in range(3):
@@ -93,6 +89,7 @@ def _transforms_into(mdl, q_joints, dyn):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _mv6(out, A, v):
+    """out = A v (6 x 6)."""
     for a in range(6):
         acc = 0.0
         for b in range(6):
