@@ -85,7 +85,7 @@ def open_loop(paper: Scenario, commands: np.ndarray, h: float) -> tuple[np.ndarr
     costs = []
     for _ in range(2):
         begin = time.perf_counter()
-        servo_kernel.drive_open_loop(start.copy(), setup.assets.kernel_arrays, held, drive, h, np.zeros(6), states,
+        servo_kernel.drive_open_loop(start.copy(), setup.assets.kernel_arrays, held, drive, h, np.zeros(6), substeps, states,
                                      torques)
         costs.append(time.perf_counter() - begin)
     return states[::substeps], min(costs) / (len(commands) * paper.simulation.dt_s)
@@ -235,6 +235,12 @@ def tables(result: dict) -> str:
     for row in result["stiffness"]:
         lines.append(f"| {row['gain_scale']:g} | {row['joint_angle_rad']:.2e} | {row['ee_position_m']:.2e} | "
                      f"{row['joint_rate_rad_s']:.2e} |")
+    speed = result["speed"]
+    if speed["mujoco_s_per_simulated_s"] is not None:
+        lines += ["", f"Speed, the plant alone at 1 ms (one simulated second, best of 5, one core): kernel "
+                  f"{1e3 * speed['kernel_s_per_simulated_s']:.2f} ms, MuJoCo {1e3 * speed['mujoco_s_per_simulated_s']:.2f} ms "
+                  f"({speed['mujoco_loop']}), ratio {speed['kernel_s_per_simulated_s'] / speed['mujoco_s_per_simulated_s']:.2f}; "
+                  f"final joint rates {speed['final_joint_rate_gap_rad_s']:.1e} rad/s apart."]
     p = result["pool"]
     lines += ["", f"Reference planner (m = {p['planner']['m']:g}, T_c = {p['planner']['T_c_s']:g} s) on the "
               f"{p['tier']} {p['split']} pool ({p['tasks']} tasks, dt = 0.01 s):", "",
@@ -258,8 +264,13 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     paper = load_scenario("paper")
     start = time.perf_counter()
+    sys.path.insert(0, str(Path(__file__).parent))
+    import bench  # benchmarks/bench.py, next to this script: the same speed row as the speed benchmark's
+
+    ours, theirs, extra = bench.servo_speed(5)
     result = {"physics_step": step_study(paper), "pool_physics_step": pool_step_study(args.version),
-              "stiffness": stiffness_study(paper), "pool": pool_study(args.version)}
+              "stiffness": stiffness_study(paper), "pool": pool_study(args.version),
+              "speed": {"kernel_s_per_simulated_s": ours, "mujoco_s_per_simulated_s": theirs, **extra}}
     if args.figure is not None:
         figure(paper, args.figure)
     result["provenance"] = provenance(scenarios={"paper": paper.sha256(), "paper (servo)": on_servo(paper).sha256()},
