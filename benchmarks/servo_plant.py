@@ -1,4 +1,4 @@
-"""The servo plant against the kinematic one: physics step, servo stiffness, paper figure, easy test pool.
+"""The servo plant against the kinematic one: physics step, servo stiffness, paper figure, easy and servo test pools.
 
 Four studies, each from the closed loop of the reference planner:
 
@@ -10,8 +10,9 @@ Four studies, each from the closed loop of the reference planner:
 * **stiffness**: ``paper`` without torque limits at servo gains × 1 ... × 10⁵ against the kinematic
   plant: the servo plant must converge to it as the gain grows;
 * **paper figure**: joint rates of both arms, EE error and torques against their limits, both plants;
-* **easy test pool**: the benchmark's reference planner on every easy test task on both plants:
-  success, mean score and the drives' saturation.
+* **easy and servo test pools**: the benchmark's reference planner on every easy test task, and on
+  every task of the ``servo`` tier's test pool (tier tasks certified on the servo plant), on both
+  plants: success, by the task's base tier, mean score and the drives' saturation.
 
     python benchmarks/servo_plant.py --out benchmarks/servo_plant.json --docs docs/model.md \
         --figure docs/servo_paper.png [--version v2]
@@ -41,6 +42,7 @@ from ffsr_gym.sim.simulate import simulate
 from ffsr_gym.sim.trajectory import Trajectory
 from ffsr_gym.tasks.certificate import planner_run
 from ffsr_gym.tasks.splits import pool, task_scenario
+from ffsr_gym.tasks.tiers import TIERS
 
 STEPS_S = (0.01, 0.005, 0.002, 0.001, 0.0005, 0.0002)
 REFERENCE_STEP_S = 0.00002
@@ -120,21 +122,34 @@ def stiffness_study(paper: Scenario) -> list[dict]:
     return rows
 
 
+def both_plants(task: Scenario) -> dict[str, Scenario]:
+    """``task`` on the kinematic plant and on the servo plant (a servo tier task: its own settings; else the default)."""
+    if task.simulation.plant == "servo":
+        return {"kinematic": task.replace(simulation=dataclasses.replace(task.simulation, plant="kinematic"), servo=None),
+                "servo": task}
+    return {"kinematic": task, "servo": on_servo(task)}
+
+
 def pool_study(version: str, tier: str = "easy", split: str = "test") -> dict:
-    """The version's reference planner on every task of a pool, on both plants."""
+    """The version's reference planner on every task of a pool, on both plants (the ``servo`` tier: its tasks, and
+    the same tasks on the kinematic plant), with the base tier of each task."""
     benchmark = load_benchmark(version)
     planner = benchmark.planner
     runs: dict[str, list] = {"kinematic": [], "servo": []}
-    for task in tqdm(pool(tier, split, version=version), desc=f"{tier} {split} pool, both plants"):
-        scenario = task_scenario(tier, task.seed, benchmark)
-        for plant, played in (("kinematic", scenario), ("servo", on_servo(scenario))):
+    tasks = pool(tier, split, version=version)
+    base_tier = {t.seed: name for name in TIERS for t in pool(name, split, version=version)}
+    for task in tqdm(tasks, desc=f"{tier} {split} pool, both plants"):
+        for plant, played in both_plants(task_scenario(tier, task.seed, benchmark)).items():
             run = planner_run(played, method="predefined_time", m=planner.m, T_c=planner.T_c_s)
             runs[plant].append((score_episode(run, played, benchmark), run.info.get("torque_saturation")))
     out: dict = {"tier": tier, "split": split, "tasks": len(runs["servo"]),
-                 "planner": {"method": "predefined_time", "m": planner.m, "T_c_s": planner.T_c_s}}
+                 "planner": {"method": "predefined_time", "m": planner.m, "T_c_s": planner.T_c_s},
+                 "base_tiers": {name: sum(base_tier.get(t.seed) == name for t in tasks) for name in TIERS}}
     for plant, rows in runs.items():
         out[plant] = {"success_rate": float(np.mean([e.success for e, _ in rows])),
-                      "mean_score": float(np.mean([e.score for e, _ in rows]))}
+                      "mean_score": float(np.mean([e.score for e, _ in rows])),
+                      "success_by_base_tier": {name: int(sum(e.success for (e, _), t in zip(rows, tasks)
+                                                             if base_tier.get(t.seed) == name)) for name in TIERS}}
     saturation = [info for _, info in runs["servo"]]
     out["servo"].update(
         median_saturated_fraction=float(np.median([s["saturated_fraction"] for s in saturation])),
@@ -241,17 +256,20 @@ def tables(result: dict) -> str:
                   f"{1e3 * speed['kernel_s_per_simulated_s']:.2f} ms, MuJoCo {1e3 * speed['mujoco_s_per_simulated_s']:.2f} ms "
                   f"({speed['mujoco_loop']}), ratio {speed['kernel_s_per_simulated_s'] / speed['mujoco_s_per_simulated_s']:.2f}; "
                   f"final joint rates {speed['final_joint_rate_gap_rad_s']:.1e} rad/s apart."]
-    p = result["pool"]
-    lines += ["", f"Reference planner (m = {p['planner']['m']:g}, T_c = {p['planner']['T_c_s']:g} s) on the "
-              f"{p['tier']} {p['split']} pool ({p['tasks']} tasks, dt = 0.01 s):", "",
-              "| plant | success | mean score |", "|---|---|---|"]
-    for plant in ("kinematic", "servo"):
-        lines.append(f"| {plant} | {p[plant]['success_rate']:.2f} | {p[plant]['mean_score']:.3f} |")
-    s = p["servo"]
-    lines += ["", f"Same verdict on both plants: {100 * p['same_verdict']:.0f} % of the tasks. Servo plant: "
-              f"{s['episodes_at_a_torque_limit']} of {p['tasks']} episodes reach a torque limit; median share of "
-              f"physics steps at a limit {100 * s['median_saturated_fraction']:.2f} %, largest "
-              f"{100 * s['max_saturated_fraction']:.2f} %.", ""]
+    for p in result["pools"]:
+        lines += ["", f"Reference planner (m = {p['planner']['m']:g}, T_c = {p['planner']['T_c_s']:g} s) on the "
+                  f"{p['tier']} {p['split']} pool ({p['tasks']} tasks; by base tier "
+                  + ", ".join(f"{n} {name}" for name, n in p["base_tiers"].items() if n) + "; dt = 0.01 s):", "",
+                  "| plant | success | successes on easy / medium / hard base tasks | mean score |", "|---|---|---|---|"]
+        for plant in ("kinematic", "servo"):
+            by_tier = " / ".join(str(p[plant]["success_by_base_tier"][name]) for name in TIERS)
+            lines.append(f"| {plant} | {p[plant]['success_rate']:.2f} | {by_tier} | {p[plant]['mean_score']:.3f} |")
+        s = p["servo"]
+        lines += ["", f"Same verdict on both plants: {100 * p['same_verdict']:.0f} % of the tasks. Servo plant: "
+                  f"{s['episodes_at_a_torque_limit']} of {p['tasks']} episodes reach a torque limit; median share of "
+                  f"physics steps at a limit {100 * s['median_saturated_fraction']:.2f} %, largest "
+                  f"{100 * s['max_saturated_fraction']:.2f} %."]
+    lines.append("")
     return "\n".join(lines)
 
 
@@ -269,7 +287,8 @@ def main(argv: list[str] | None = None) -> int:
 
     ours, theirs, extra = bench.servo_speed(5)
     result = {"physics_step": step_study(paper), "pool_physics_step": pool_step_study(args.version),
-              "stiffness": stiffness_study(paper), "pool": pool_study(args.version),
+              "stiffness": stiffness_study(paper),
+              "pools": [pool_study(args.version, "easy"), pool_study(args.version, "servo")],
               "speed": {"kernel_s_per_simulated_s": ours, "mujoco_s_per_simulated_s": theirs, **extra}}
     if args.figure is not None:
         figure(paper, args.figure)

@@ -20,6 +20,7 @@ from ffsr_gym.sim.setup import initial_configuration
 from ffsr_gym.sim.simulate import make_rollout
 from ffsr_gym.tasks.certificate import Certificate, Margins, Member, ensemble_members, replay_members
 from ffsr_gym.tasks.generator import draw_task, screen
+from ffsr_gym.tasks.perturbation import confirmation_member
 from ffsr_gym.tasks.splits import LABEL_CODES, SEED_RANGES, load_pools, pool, task_scenario
 from ffsr_gym.tasks.tiers import ALL_TIERS, TIERS, classify
 
@@ -76,7 +77,8 @@ def ensemble_problems(tier: str, split: str, index: int) -> list[str]:
     differs from the worst margins the pool file stores."""
     entry = pool(tier, split)[index]
     task = task_scenario(tier, entry.seed, BENCH)
-    members = [Member("dt", task), *ensemble_members(task, entry.seed, BENCH.tasks.ensemble)]
+    members = [Member("dt", task), *ensemble_members(task, entry.seed, BENCH.tasks.ensemble, pinocchio=False),
+               confirmation_member(task, "v2")]  # Pinocchio, or a servo task's finer physics step
     failed, results = replay_members(members, entry.certificate, BENCH)
     if failed is not None:
         return [f"{tier}/{split}[{index}]: fails at {failed} ({results[-1].failure})"]

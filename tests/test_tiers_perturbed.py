@@ -1,5 +1,6 @@
-"""Perturbed tiers ``debris`` and ``robust``: zero perturbation is the base task, pools are the first certified
-base tier tasks, draws stay in the documented ranges. Their certificates are replayed through the
+"""Perturbed tiers ``debris``, ``robust`` and ``servo``: zero perturbation is the base task, pools are the first
+certified base tier tasks, draws stay in the documented ranges (the servo tier's own checks:
+``tests/test_servo_tier.py``). Their certificates are replayed through the
 environments and the ensemble with the base tiers' (``tests/test_tasks.py``: a sample in CI, all with ``-m slow``).
 """
 
@@ -19,7 +20,7 @@ from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.sim.simulate import make_rollout
 from ffsr_gym.tasks.generator import draw_task
-from ffsr_gym.tasks.perturbation import PERTURBED_TIERS, load_perturbed_rule, perturbed_task
+from ffsr_gym.tasks.perturbation import DRAWN_TIERS, PERTURBED_TIERS, load_perturbed_rule, perturbed_task
 from ffsr_gym.tasks.splits import SEED_RANGES, load_pools, pool
 from ffsr_gym.tasks.tiers import certify, classify_perturbed
 
@@ -43,7 +44,7 @@ def _trajectory(task, certificate):
     return rollout.trajectory()
 
 
-@pytest.mark.parametrize("tier", PERTURBED_TIERS)
+@pytest.mark.parametrize("tier", DRAWN_TIERS)
 def test_zero_perturbation_reproduces_the_medium_tier_bit_for_bit(tier):
     """With every range collapsed, the perturbed code paths (debris section, plant, momentum, noise)
     find the base task's certificate and its score, and move exactly as the base task."""
@@ -181,7 +182,7 @@ def test_what_the_perturbations_change_for_the_reference_planner():
     def succeeds(task):
         return planner_episode(task, BENCH, method="predefined_time", m=0.3, T_c=4.0).success
 
-    for tier in PERTURBED_TIERS:
+    for tier in DRAWN_TIERS:
         pairs = [(succeeds(draw_task(e.seed, BENCH)), succeeds(task_scenario(tier, e.seed, BENCH)))
                  for e in pool(tier, "test")]
         lost, gained = sum(a and not b for a, b in pairs), sum(b and not a for a, b in pairs)

@@ -34,9 +34,12 @@ from tqdm.auto import tqdm
 
 from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.model.benchmark import load_benchmark
-from ffsr_gym.model.resources import envs_dir
+from ffsr_gym.model.resources import envs_dir, robot_dir
 from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic
-from ffsr_gym.tasks.perturbation import PERTURBED_TIERS, load_perturbed_rule, perturbed_rule_sha256
+from ffsr_gym.model.drives import drives_path
+from ffsr_gym.model.scenario import load_scenario
+from ffsr_gym.tasks.perturbation import (PERTURBED_TIERS, confirmation_member, load_perturbed_rule,
+                                         perturbed_rule_sha256, servo_rule_path)
 from ffsr_gym.tasks.certificate import Certificate, Margins, replay
 from ffsr_gym.tasks.splits import LABEL_CODES, SEED_RANGES, expected_count, load_pools, pool_path, task_scenario
 from ffsr_gym.tasks.tiers import PERTURBED_REJECTIONS, REJECTIONS, TIERS, Verdict, classify, classify_perturbed
@@ -57,12 +60,16 @@ def _check_target(target: str, version: str) -> None:
 
 def rule_sha256(target: str, version: str) -> str:
     """Hash of the rule a pool file was built under (``<version>.toml``; a perturbed tier: also
-    ``<version>_perturbed.toml`` and the version's pool file its candidates come from)."""
+    ``<version>_perturbed.toml`` and the version's pool file its candidates come from; ``servo``: also
+    ``<version>_servo.toml`` and the robot's drive file)."""
     _check_target(target, version)
     digest = hashlib.sha256((envs_dir() / "benchmark" / f"{version}.toml").read_bytes())
     if target in PERTURBED_TIERS:
         digest.update(perturbed_rule_sha256(version).encode())
         digest.update(pool_path(version=version).read_bytes())
+    if target == "servo":  # its plant settings, and the drives of the family's robot
+        digest.update(Path(servo_rule_path(version)).read_bytes())
+        digest.update(drives_path(robot_dir(load_scenario(load_benchmark(version).tasks.family).robot)).read_bytes())
     return digest.hexdigest()
 
 
@@ -91,13 +98,14 @@ def classify_chunk(split: str, start: int, stop: int, target: str, version: str)
 
 
 def confirm(tier: str, seed: int, certificate: dict[str, Any], version: str) -> dict[str, Any]:
-    """The ensemble's Pinocchio member: ``certificate`` replayed on the Pinocchio backend (a worker's unit of work).
+    """The ensemble's last member (:func:`~ffsr_gym.tasks.perturbation.confirmation_member`: the Pinocchio
+    backend, or a servo task's finer physics step): ``certificate`` replayed there (a worker's unit of work).
 
     Returns ``{"seed", "success", "margins"}``: success with the ensemble's margins, and that episode's margins.
     """
     benchmark = load_benchmark(version)
-    task = task_scenario(tier, seed, benchmark)
-    result = replay(task, Certificate.from_dict(certificate), benchmark, backend="pinocchio")
+    member = confirmation_member(task_scenario(tier, seed, benchmark), version)
+    result = replay(member.task, Certificate.from_dict(certificate), benchmark, backend=member.backend)
     margins = Margins.worst([result])
     return {"seed": int(seed), "success": result.success and margins.short(benchmark) is None,
             "margins": margins.as_dict()}
@@ -181,7 +189,7 @@ def _confirm(pending: list[Verdict], confirmed: dict[int, dict[str, Any]], path:
     """Replay ``pending`` on the Pinocchio backend, saving ``confirmed`` atomically after every batch."""
     run: Callable = executor.map if executor is not None else map
     batch = max(1, workers) * 4
-    with tqdm(total=len(pending), desc=f"pinocchio {path.parent.name}", unit="task", disable=not progress) as bar:
+    with tqdm(total=len(pending), desc=f"last ensemble member, {path.parent.name}", unit="task", disable=not progress) as bar:
         for i in range(0, len(pending), batch):
             part = pending[i:i + batch]
             for row in run(confirm, [v.tier for v in part], [v.seed for v in part],
@@ -343,7 +351,8 @@ def _perturbed_table(data: dict[str, Any], tier: str) -> str:
                 if cause != "base_rejected" and cause in data["splits"]["train"]["rejection_counts"]]
     version = data["version"]
     default = load_benchmark(version).planner
-    lines = [f"| split | seeds examined | {version} tier tasks perturbed | certified (in the pool) | certified share | "
+    played = "on the servo plant" if tier == "servo" else "perturbed"
+    lines = [f"| split | seeds examined | {version} tier tasks {played} | certified (in the pool) | certified share | "
              + " | ".join(f"`{cause}`" for cause in unsolved)
              + f" | reference ({default.m:g}, {default.T_c_s:g} s) succeeds, pool |",
              "|---" * (6 + len(unsolved)) + "|"]

@@ -171,6 +171,9 @@ def ensemble_members(task: Scenario, seed: int, ensemble: Ensemble, *, pinocchio
     members += [Member(f"start {draw + 1}", offset_start(task, start_offsets(seed, draw, ensemble.start_offset_deg)))
                 for draw in range(ensemble.start_draws)]
     if ensemble.pinocchio if pinocchio is None else pinocchio:
+        if task.simulation.plant == "servo":
+            raise InvalidInputError(f"task {task.name!r}: the servo plant runs on the kernel only, so it has no "
+                                    "Pinocchio member; its last member is ffsr_gym.tasks.perturbation.confirmation_member")
         members.append(Member("pinocchio", task, "pinocchio"))
     return members
 

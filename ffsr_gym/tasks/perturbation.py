@@ -8,7 +8,11 @@ within the ranges of ``envs/benchmark/<version>_perturbed.toml`` (docs/envs.md "
   the time the end effector passes there (``[debris]``, docs/model.md §14);
 * ``robust`` (stream 3): the plant's masses, inertias and centres of mass differ from the
   planner's model (``[plant]``, §15), the robot starts with momentum C (eq. 12), and the planner
-  sees the target through a bias and white noise (``[target_noise]``, §16).
+  sees the target through a bias and white noise (``[target_noise]``, §16);
+* ``servo`` (nothing drawn): the task on the servo plant, torque-limited joint servos driving the
+  free-floating multibody dynamics (``simulation.plant = "servo"``, §21), with the settings of
+  ``envs/benchmark/<version>_servo.toml``. Its certificates' Pinocchio member, which the servo
+  plant does not have, becomes the task at a finer physics step (:func:`confirmation_member`).
 
 With every range collapsed to zero (:meth:`PerturbedRule.zero`) a perturbed task moves exactly as
 its base task (``tests/test_tiers_perturbed.py``).
@@ -29,14 +33,18 @@ from ffsr_gym.model import portable
 from ffsr_gym.model.benchmark import Benchmark
 from ffsr_gym.model.collision import SphereObstacle
 from ffsr_gym.model.resources import envs_dir
-from ffsr_gym.model.scenario import Debris, Plant, Scenario, TargetNoise
+from ffsr_gym.model.scenario import Debris, Plant, Scenario, ServoSettings, TargetNoise
 from ffsr_gym.model.schema import load_table, number, section, vector
 from ffsr_gym.sim.setup import prepare
+from ffsr_gym.tasks.certificate import Member
 from ffsr_gym.tasks.generator import draw_task
 
 
-PERTURBED_TIERS = ("debris", "robust")
-#: The generator stream of each tier (stream 1 draws the residual trials of the tier rule).
+#: The perturbed tiers whose perturbation is drawn per task.
+DRAWN_TIERS = ("debris", "robust")
+#: Every tier built on top of a version's tier tasks (``servo``: the same tasks on the servo plant).
+PERTURBED_TIERS = DRAWN_TIERS + ("servo",)
+#: The generator stream of each drawn tier (stream 1 draws the residual trials of the tier rule).
 STREAMS = {"debris": 2, "robust": 3}
 
 
@@ -124,6 +132,48 @@ def load_perturbed_rule(version: str) -> PerturbedRule:
         if pair[0] > pair[1]:
             raise ScenarioError(f"{path}: key {name!r} = {list(pair)}; allowed: [low, high] with low <= high")
     return rule
+
+
+@dataclass(frozen=True)
+class ServoTierRule:
+    """``envs/benchmark/<version>_servo.toml``: the plant of the ``servo`` tier's tasks and its ensemble's
+    physics-step member (pool sizes: the perturbed rule's)."""
+
+    schema_version: int = field(metadata={"kind": "integer", "options": (1,)})
+    physics_step_divisor: float = field(metadata=number(1.0, 64.0, lo_open=True))
+    servo: ServoSettings = field(metadata=section(ServoSettings))
+
+
+def servo_rule_path(version: str) -> str:
+    """The shipped ``servo`` tier rule file of benchmark ``version``."""
+    return str(envs_dir() / "benchmark" / f"{version}_servo.toml")
+
+
+@lru_cache(maxsize=4)
+def load_servo_rule(version: str) -> ServoTierRule:
+    """The shipped :class:`ServoTierRule` of benchmark ``version``.
+
+    Raises:
+        ScenarioError: unreadable file, or a key missing, unknown or out of range (named).
+    """
+    return load_table(ServoTierRule, servo_rule_path(version))
+
+
+def on_servo_plant(task: Scenario, settings: ServoSettings) -> Scenario:
+    """``task`` played on the servo plant with ``settings``; every other value kept bit for bit."""
+    return with_sections(task, simulation=dataclasses.replace(task.simulation, plant="servo"), servo=settings)
+
+
+def confirmation_member(task: Scenario, version: str) -> Member:
+    """The ensemble member a pool candidate is confirmed in after the kernel members: the Pinocchio backend, or,
+    for a servo-plant task (kernel only), the task at its physics step divided by the servo rule's
+    ``physics_step_divisor``."""
+    if task.simulation.plant != "servo":
+        return Member("pinocchio", task, "pinocchio")
+    divisor = load_servo_rule(version).physics_step_divisor
+    settings = task.servo_settings
+    finer = dataclasses.replace(settings, physics_step_s=settings.physics_step_s / divisor)
+    return Member(f"physics step/{divisor:g}", with_sections(task, servo=finer))
 
 
 def with_sections(base: Scenario, **sections: Any) -> Scenario:
@@ -228,11 +278,13 @@ def perturbed_task(tier: str, seed: int, benchmark: Benchmark, rule: PerturbedRu
 @lru_cache(maxsize=1024)
 def _perturbed_task(tier: str, seed: int, benchmark: Benchmark, rule: PerturbedRule) -> Scenario | None:
     base = draw_task(seed, benchmark)
-    rng = np.random.default_rng([seed, STREAMS[tier]])
-    if tier == "robust":
+    if tier == "servo":
+        task = on_servo_plant(base, load_servo_rule(benchmark.version).servo)
+    elif tier == "robust":
+        rng = np.random.default_rng([seed, STREAMS[tier]])
         task = draw_robust(base, rng, rule.robust)
     else:
-        debris = draw_debris(base, rng, rule.debris)
+        debris = draw_debris(base, np.random.default_rng([seed, STREAMS[tier]]), rule.debris)
         if debris is None:
             return None
         task = with_sections(base, debris=debris)

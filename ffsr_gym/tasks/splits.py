@@ -37,7 +37,7 @@ SEED_RANGES = {"train": (0, 1_000_000), "validation": (2_000_000, 3_000_000), "t
 #: One character per candidate label in the pool file.
 LABEL_CODES = {"easy": "e", "medium": "m", "hard": "h", "nominal_final_error": "f", "balance_singularity": "b",
                "self_collision": "s", "unsolved_rate_limit": "r", "unsolved_collision": "c", "unsolved_final_error": "t",
-               "debris": "D", "robust": "R", "base_rejected": "x", "draw_failed": "d", "fragile": "g"}
+               "debris": "D", "robust": "R", "servo": "S", "base_rejected": "x", "draw_failed": "d", "fragile": "g"}
 assert set(LABEL_CODES) == set(ALL_TIERS + REJECTIONS + PERTURBED_REJECTIONS)
 
 
