@@ -19,10 +19,11 @@ RECORD = json.loads((ROOT / "benchmarks" / "kernel_change.json").read_text(encod
 
 def test_the_record_is_the_leaderboards_in_the_tree():
     """The 'after' side is what the committed entries hold now (a regenerated entry needs a regenerated record).
-    Entries added since the kernel change are not in the record; ranks are compared among the recorded ones."""
+    Entries and tiers (servo) added since the kernel change are not in the record; ranks are compared among the
+    recorded ones."""
     script = benchmark_script("kernel_change")
     now = script.entries_at(None, RECORD["version"])
-    assert set(now) == set(RECORD["tiers"])
+    assert set(RECORD["tiers"]) <= set(now) and set(RECORD["tiers"]) >= {"easy", "medium", "hard", "debris", "robust"}
     for tier, data in RECORD["tiers"].items():
         recorded = {row["name"] for row in data["entries"]}
         assert recorded <= set(now[tier]), tier

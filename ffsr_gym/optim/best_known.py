@@ -27,6 +27,7 @@ import numpy as np
 from ffsr_gym.exceptions import InvalidInputError, require
 from ffsr_gym.model.benchmark import Benchmark
 from ffsr_gym.tasks.certificate import Margins, ensemble_members
+from ffsr_gym.tasks.perturbation import confirmation_member
 from ffsr_gym.tasks.schedule import FAMILIES, Schedule, replay_schedule
 from ffsr_gym.tasks.splits import PoolTask, task_scenario
 
@@ -108,7 +109,9 @@ def passes(task: PoolTask, tier: str, schedule: Schedule, benchmark: Benchmark, 
     or a margin lies in the hair's-breadth band (the certificate test)."""
     scenario = task_scenario(tier, task.seed, benchmark)
     results = [replay_schedule(scenario, schedule, benchmark)]
-    members = ensemble_members(scenario, task.seed, benchmark.tasks.ensemble, pinocchio=pinocchio)
+    members = ensemble_members(scenario, task.seed, benchmark.tasks.ensemble, pinocchio=False)
+    if pinocchio:  # the Pinocchio backend, or a servo task's finer physics step
+        members.append(confirmation_member(scenario, benchmark.version))
     for member in members if results[0].success else []:
         results.append(replay_schedule(member.task, schedule, benchmark, backend=member.backend))
         if not results[-1].success:
