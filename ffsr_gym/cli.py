@@ -451,7 +451,7 @@ def _add_study_commands(sub: Any) -> None:
     tb.add_argument("--version", default=tier_versions()[-1], choices=tier_versions(),
                     help=f"benchmark version whose rule files apply (default: {tier_versions()[-1]})")
     tb.add_argument("--tier", default="base", choices=build_targets(),
-                    help="base: the easy, medium and hard pools; debris or robust: that perturbed tier, on top of the "
+                    help="base: the easy, medium and hard pools; debris, robust or servo: that tier, on top of the "
                          "version's pool file's tier tasks (default: base)")
     tb.add_argument("--work", default=None, help="folder of the finished chunks (default: runs/tasks-<version>; "
                                                  "a perturbed tier uses <work>/<tier>)")

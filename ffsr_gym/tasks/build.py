@@ -7,12 +7,13 @@ killed build resumes where it stopped and never reruns a finished chunk. When th
 examined and the counts are written to ``envs/benchmark/<version>_tasks.json`` (atomically).
 
 With an ensemble whose ``pinocchio`` is set (v2), the pool candidates are then replayed on the
-Pinocchio backend in seed order (a second, resumable stage: ``<work>/<split>/pinocchio.json``); a
-candidate that fails there is relabelled ``fragile`` and the next candidate of its tier takes its
-place. The kernel members run for every candidate, the Pinocchio member (about 150 times slower)
+Pinocchio backend in seed order (a second, resumable stage: ``<work>/<split>/pinocchio.json``; the
+``servo`` tier, whose plant only the kernel runs, replays them at a finer physics step instead,
+:func:`~ffsr_gym.tasks.perturbation.confirmation_member`); a candidate that fails there is
+relabelled ``fragile`` and the next candidate of its tier takes its place. The kernel members run for every candidate, the Pinocchio member (about 150 times slower)
 for the pool candidates only.
 
-``--tier debris`` (``robust``) builds a perturbed tier the same way, into ``<work>/<tier>`` and
+``--tier debris`` (``robust``, ``servo``) builds a perturbed tier the same way, into ``<work>/<tier>`` and
 ``envs/benchmark/<version>_<tier>_tasks.json``; its candidates are the seeds that the version's
 pool file labels easy, medium or hard (:mod:`ffsr_gym.tasks.perturbation`).
 """
@@ -34,10 +35,10 @@ from tqdm.auto import tqdm
 
 from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.model.benchmark import load_benchmark
-from ffsr_gym.model.resources import envs_dir, robot_dir
-from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic
 from ffsr_gym.model.drives import drives_path
+from ffsr_gym.model.resources import envs_dir, robot_dir
 from ffsr_gym.model.scenario import load_scenario
+from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic
 from ffsr_gym.tasks.perturbation import (PERTURBED_TIERS, confirmation_member, load_perturbed_rule,
                                          perturbed_rule_sha256, servo_rule_path)
 from ffsr_gym.tasks.certificate import Certificate, Margins, replay
@@ -186,7 +187,8 @@ def _confirmed(verdict: Verdict, row: dict[str, Any] | None) -> Verdict:
 
 def _confirm(pending: list[Verdict], confirmed: dict[int, dict[str, Any]], path: Path, version: str,
              executor: Executor | None, workers: int, progress: bool) -> None:
-    """Replay ``pending`` on the Pinocchio backend, saving ``confirmed`` atomically after every batch."""
+    """Replay ``pending`` in the ensemble's last member (:func:`confirm`), saving ``confirmed`` atomically after
+    every batch."""
     run: Callable = executor.map if executor is not None else map
     batch = max(1, workers) * 4
     with tqdm(total=len(pending), desc=f"last ensemble member, {path.parent.name}", unit="task", disable=not progress) as bar:
