@@ -18,6 +18,8 @@ from ffsr_gym.scoring.aggregate import iqm
 from ffsr_gym.tasks.tiers import ALL_TIERS
 
 TIER_ORDER = ALL_TIERS
+#: Tier panels side by side before a figure starts a new row.
+PANELS_PER_ROW = 3
 #: The points of the Pareto plot, under ``<root>/<version>/`` (written by ``ffsr-gym leaderboard pareto``).
 PARETO_FILE = "pareto.json"
 
@@ -32,15 +34,20 @@ def _footer(entries: dict[str, list[dict]]) -> str:
 
 
 def _panels(root: Path, height: float | None = None, **kwargs):
-    """The entries, the tiers that have entries, and one panel per such tier (None without entries)."""
+    """The entries, the tiers that have entries, and one panel per such tier, at most :data:`PANELS_PER_ROW` to a
+    row (None without entries)."""
     entries = _entries(root)
     tiers = [t for t in TIER_ORDER if entries[t]]
     if not tiers:
         return None
     rows = max(len(entries[t]) for t in tiers)
-    fig, axes = _pyplot().subplots(1, len(tiers), figsize=(5.2 * len(tiers), height or rows * 0.45 + 1.4), squeeze=False,
-                                   **kwargs)
-    return entries, tiers, fig, axes[0]
+    columns = min(PANELS_PER_ROW, len(tiers))
+    lines = -(-len(tiers) // columns)
+    fig, axes = _pyplot().subplots(lines, columns, figsize=(5.2 * columns, lines * (height or rows * 0.45 + 1.4)),
+                                   squeeze=False, **kwargs)
+    for ax in axes.flat[len(tiers):]:
+        ax.set_visible(False)
+    return entries, tiers, fig, list(axes.flat[:len(tiers)])
 
 
 def plot_iqm(root: str | Path) -> Path | None:
