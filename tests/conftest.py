@@ -74,3 +74,29 @@ def retired_v1_rules():
     return dataclasses.replace(v2, version="v1", score=dataclasses.replace(v2.score, keep_out_m=0.0),
                                planner=dataclasses.replace(v2.planner, mu_law="cdf"),
                                tasks=dataclasses.replace(v2.tasks, ensemble=None, validation_tasks=0))
+
+
+def assert_edited_rule_file_is_named(monkeypatch: pytest.MonkeyPatch, tmp_path: Path, name: str, path_function: str,
+                                     loader, edit: tuple[str, str], message: str) -> None:
+    """Load the shipped rule file ``envs/benchmark/<name>`` with one edit (``old`` -> ``new``) through ``loader`` (a
+    cached loader of :mod:`ffsr_gym.tasks.perturbation`, whose ``path_function`` names the file's path), and expect
+    a :class:`~ffsr_gym.exceptions.ScenarioError` containing ``message``."""
+    import re
+
+    from ffsr_gym.exceptions import ScenarioError
+    from ffsr_gym.model.resources import envs_dir
+    from ffsr_gym.tasks import perturbation
+
+    old, new = edit
+    text = (envs_dir() / "benchmark" / name).read_text()
+    assert old in text
+    path = tmp_path / name
+    path.write_text(text.replace(old, new))
+    monkeypatch.setattr(perturbation, path_function, lambda version: str(path))
+    loader.cache_clear()
+    try:
+        with pytest.raises(ScenarioError, match=re.escape(message)):
+            loader("v2")
+    finally:
+        monkeypatch.undo()
+        loader.cache_clear()

@@ -7,14 +7,13 @@ the rule re-run, batched envs, docs tables, certificates through the env and the
 from __future__ import annotations
 
 import dataclasses
-import re
 
 import numpy as np
 import pytest
+from conftest import assert_edited_rule_file_is_named
 
-from ffsr_gym.exceptions import InvalidInputError, ScenarioError
+from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.benchmark import load_benchmark
-from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.scenario import ServoSettings
 from ffsr_gym.tasks import perturbation
 from ffsr_gym.tasks.certificate import ensemble_members, planner_episode, replay
@@ -23,7 +22,6 @@ from ffsr_gym.tasks.splits import load_pools, pool, task_scenario
 from ffsr_gym.tasks.tiers import TIERS
 
 BENCH = load_benchmark("v2")
-RULE_TEXT = (envs_dir() / "benchmark" / "v2_servo.toml").read_text()
 
 
 def test_a_servo_task_is_its_base_task_on_the_servo_plant_and_nothing_else():
@@ -87,17 +85,8 @@ def test_the_servo_pools_hold_every_base_tier_and_torque_limits_bite():
     ("gain_scale = 1.0", "gain_scale = 1.0\nstiffness = 3", "unknown key 'servo.stiffness'"),
 ])
 def test_a_malformed_servo_rule_is_named(tmp_path, monkeypatch, old, new, message):
-    path = tmp_path / "v2_servo.toml"
-    assert old in RULE_TEXT
-    path.write_text(RULE_TEXT.replace(old, new))
-    monkeypatch.setattr(perturbation, "servo_rule_path", lambda version: str(path))
-    perturbation.load_servo_rule.cache_clear()
-    try:
-        with pytest.raises(ScenarioError, match=re.escape(message)):
-            perturbation.load_servo_rule("v2")
-    finally:
-        monkeypatch.undo()
-        perturbation.load_servo_rule.cache_clear()
+    assert_edited_rule_file_is_named(monkeypatch, tmp_path, "v2_servo.toml", "servo_rule_path",
+                                     perturbation.load_servo_rule, (old, new), message)
 
 
 def test_the_servo_tier_in_an_environment_logs_torques_and_saturation():

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import assert_edited_rule_file_is_named
 from test_tasks import CODES
 from test_vector_env import lockstep, make_vec
 
@@ -198,20 +199,7 @@ def test_what_the_perturbations_change_for_the_reference_planner():
     ("interval_s = 0.1", "interval_s = 0.1\nspin = 1", "unknown key 'robust.spin'"),
 ])
 def test_malformed_perturbed_rule_is_named(tmp_path, monkeypatch, old, new, message):
-    import re
-
-    from ffsr_gym.exceptions import ScenarioError
     from ffsr_gym.tasks import perturbation
 
-    path = tmp_path / "v2_perturbed.toml"
-    text = (envs_dir() / "benchmark" / "v2_perturbed.toml").read_text()
-    assert old in text
-    path.write_text(text.replace(old, new))
-    monkeypatch.setattr(perturbation, "rule_path", lambda version: str(path))
-    perturbation.load_perturbed_rule.cache_clear()
-    try:
-        with pytest.raises(ScenarioError, match=re.escape(message)):
-            perturbation.load_perturbed_rule("v2")
-    finally:
-        monkeypatch.undo()
-        perturbation.load_perturbed_rule.cache_clear()
+    assert_edited_rule_file_is_named(monkeypatch, tmp_path, "v2_perturbed.toml", "rule_path",
+                                     perturbation.load_perturbed_rule, (old, new), message)
