@@ -84,6 +84,7 @@ class FFSREnv(gym.Env):
     * v2: verdicts of the closed loop, not of the time step: the distance blend law, a 1 cm
       keep-out distance, tiers certified over an ensemble (dt/2, dt/4, starts 1e-6 deg off,
       Pinocchio) with margins, train / validation / test pools, ``dt_s=`` for sensitivity studies.
+      Tier ``servo`` (the tier tasks on the torque-level plant) added later; no other pool changed.
     * v1 (retired): bounded score that ranks, rewards that sum to it, 1 mm tolerance, fading
       residual, certified task tiers (easy / medium / hard, debris, robust); its verdicts were set
       by the 0.01 s step (docs/envs.md, Version history).
