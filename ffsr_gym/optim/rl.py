@@ -239,8 +239,10 @@ def train(algo: str, env_id: str, *, seed: int, out: str | Path, task: str | Non
                           f"{wanted} asked for; use another --out to train anew", stacklevel=2)
         return cls.load(out / "model.zip", device="cpu"), record
     with _training_lock(out):
-        return _train_new(cls, algo, env_id, spec, task, env_kwargs, params, out, seed, timesteps, curve_every,
-                          curve_tasks, progress, n_envs, vec_env, on_point, torch, pooled)
+        return _train_new(cls, algo, env_id, spec, out=out, task=task, env_kwargs=env_kwargs, params=params,
+                          seed=seed, timesteps=timesteps, curve_every=curve_every, curve_tasks=curve_tasks,
+                          progress=progress, n_envs=n_envs, vec_env=vec_env, on_point=on_point, torch=torch,
+                          pooled=pooled)
 
 
 def _lock_holder(lock: Path) -> int | None:
@@ -279,8 +281,8 @@ def _training_lock(out: Path) -> Iterator[None]:
         lock.unlink(missing_ok=True)
 
 
-def _train_new(cls: Any, algo: str, env_id: str, spec: BenchmarkSpec, task: str, env_kwargs: dict[str, Any],
-               params: dict[str, Any], out: Path, seed: int, timesteps: int | None, curve_every: int,
+def _train_new(cls: Any, algo: str, env_id: str, spec: BenchmarkSpec, *, out: Path, task: str,
+               env_kwargs: dict[str, Any], params: dict[str, Any], seed: int, timesteps: int | None, curve_every: int,
                curve_tasks: int | None, progress: bool, n_envs: int | None, vec_env: str, on_point: Any, torch: Any,
                pooled: bool) -> tuple[Any, dict[str, Any]]:
     """A new training of one seed into ``out`` (see :func:`train`)."""
