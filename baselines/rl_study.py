@@ -1,7 +1,7 @@
 """RL study on a pool benchmark version: PPO and SAC on FFSR-v2 and FFSR-Residual-v2, every tier, 5 seeds each.
 
     python baselines/rl_study.py --leaderboard leaderboards [--version v2] [--work runs/rl-v2] [--workers 2]
-                                 [--algos ppo sac] [--tiers easy hard] [--seeds 0 1 2 3 4] [--points 20]
+                                 [--algos ppo sac] [--tiers easy hard] [--seeds 0 1 2 3 4] [--points 20] [--plan]
 
 One piece is one (algorithm, env id, tier, training seed): the agent trains on the tier's
 training pool for the budget of ``ffsr_gym/hyperparams/<algo>.yml`` (times ``--scale``), is
@@ -21,10 +21,10 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
-from ffsr_gym.bench.evaluation import spec_of
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import spec_for_version
-from ffsr_gym.optim.rl import CHECKPOINTS, entry_name, load_hyperparams, train_and_evaluate
+from ffsr_gym.optim import study_plan
+from ffsr_gym.optim.rl import load_hyperparams, train_and_evaluate
 from ffsr_gym.tasks.tiers import ALL_TIERS
 
 ALGOS = ("ppo", "sac")
@@ -70,16 +70,16 @@ def main() -> None:
     parser.add_argument("--algos", nargs="+", default=list(ALGOS), choices=ALGOS, help="algorithms (default: ppo sac)")
     parser.add_argument("--tiers", nargs="+", default=list(ALL_TIERS), choices=ALL_TIERS, help="tiers (default: all)")
     parser.add_argument("--env-ids", nargs="+", default=None, help="env ids (default: the version's two)")
+    parser.add_argument("--plan", action="store_true", help="print what is left (seeds done and left, and the core-hours "
+                                                            "left, estimated from finished seeds) and stop")
     args = parser.parse_args()
     version, work = args.version, args.work or f"studies/rl-{args.version}"
     env_ids = args.env_ids or list(spec_for_version(version).env_ids)
-    groups = []
-    for tier in args.tiers:
-        for algo in args.algos:
-            for env_id in env_ids:
-                names = [entry_name(algo, spec_of(env_id), env_id, tier) + s for s in CHECKPOINTS.values()]
-                if not all((Path(args.leaderboard) / version / tier / f"{n}.json").exists() for n in names):
-                    groups.append((algo, env_id, tier))
+    groups = [(algo, env_id, tier) for tier in args.tiers for algo in args.algos for env_id in env_ids
+              if not study_plan.entries_written(Path(args.leaderboard), version, algo, env_id, tier)]
+    if args.plan:
+        print(study_plan.render(study_plan.plan(groups, args.seeds, work, args.leaderboard, version)))
+        return
     start = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as pool:
         futures = {pool.submit(run_seed, *group, seed, args.scale, args.points, work): group

@@ -335,7 +335,7 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
     checkpoints = list(CHECKPOINTS) if pooled else ["last"]
     start, rows, runs, recorded = time.perf_counter(), {c: [] for c in checkpoints}, [], {}
     for seed in seeds:
-        folder = Path(out) / f"{algo}_{env_id}_{task}_seed{seed}"
+        folder = seed_folder(out, algo, env_id, task, seed)
         record, evaluations = _scored_seed(folder, checkpoints)
         if evaluations is None:  # not finished and scored yet (a scored seed needs no model: records suffice)
             model, record = train(algo, env_id, task=task, seed=seed, out=folder, timesteps=timesteps,
@@ -384,16 +384,26 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
     return reports
 
 
+def seed_folder(out: str | Path, algo: str, env_id: str, task: str, seed: int) -> Path:
+    """The folder of one training seed of a study rooted at ``out`` (model, record, test scores)."""
+    return Path(out) / f"{algo}_{env_id}_{task}_seed{seed}"
+
+
+def scored_seed_files(folder: Path, checkpoints: list[str] | None = None) -> bool:
+    """Whether a seed's folder holds its training record and the test scores of every checkpoint."""
+    checkpoints = list(CHECKPOINTS) if checkpoints is None else checkpoints
+    return all(f.is_file() for f in (folder / "train_record.json", *(_evaluation_file(folder, c) for c in checkpoints)))
+
+
 def _evaluation_file(folder: Path, checkpoint: str) -> Path:
     return folder / ("evaluation.json" if checkpoint == "last" else f"evaluation_{checkpoint}.json")
 
 
 def _scored_seed(folder: Path, checkpoints: list[str]) -> tuple[dict[str, Any] | None, dict[str, Any] | None]:
     """A finished seed's training record and test scores per checkpoint, or (None, None) while any is missing."""
-    files = [folder / "train_record.json", *(_evaluation_file(folder, c) for c in checkpoints)]
-    if not all(f.is_file() for f in files):
+    if not scored_seed_files(folder, checkpoints):
         return None, None
-    return (json.loads(files[0].read_text()),
+    return (json.loads((folder / "train_record.json").read_text()),
             {c: json.loads(_evaluation_file(folder, c).read_text()) for c in checkpoints})
 
 

@@ -1,0 +1,100 @@
+"""What a resumed RL study has left (``baselines/rl_study.py --plan``).
+
+Per (algorithm, env id, tier) whose two leaderboard entries are not written yet: the training
+seeds already finished and scored (their records in the study folder), the seeds left, and the
+core-hours left, estimated as the seeds left times the median wall time of one finished seed of
+the same algorithm and env id. The wall times come from the study folder's training records and
+from the written entries (``extra.runs``); the tier's own runs are used when there are any, else
+every other tier's, and the plan says which (another tier's runs underestimate a tier whose
+episodes cost more, such as ``servo``, whose plant takes ten physics steps per planner step).
+Nothing is trained or scored here.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from statistics import median
+from typing import Any
+
+from ffsr_gym.bench.evaluation import spec_of
+from ffsr_gym.bench.verify import CHECKPOINTS
+from ffsr_gym.optim.rl import entry_name, scored_seed_files, seed_folder
+
+
+@dataclass(frozen=True)
+class GroupPlan:
+    """One (algorithm, env id, tier) of the study that has no entries yet.
+
+    ``hours_per_seed`` [h of one core]: the median over finished seeds of ``measured_on``
+    ("this tier", "other tiers"), or None when no seed of the algorithm and env id has finished.
+    """
+
+    algo: str
+    env_id: str
+    tier: str
+    done: tuple[int, ...]
+    left: tuple[int, ...]
+    hours_per_seed: float | None
+    measured_on: str
+
+    @property
+    def hours_left(self) -> float | None:
+        return None if self.hours_per_seed is None else self.hours_per_seed * len(self.left)
+
+
+def entries_written(root: Path, version: str, algo: str, env_id: str, tier: str) -> bool:
+    """Whether both entries (last, best on validation) of the group are in the leaderboard ``root``."""
+    name = entry_name(algo, spec_of(env_id), env_id, tier)
+    return all((root / version / tier / f"{name}{suffix}.json").is_file() for suffix in CHECKPOINTS.values())
+
+
+def _wall_times(work: Path, root: Path, version: str, algo: str, env_id: str) -> dict[str, list[float]]:
+    """Per tier, the wall times [s] of the finished seeds of ``algo`` on ``env_id`` (records, then entries)."""
+    times: dict[str, dict[int, float]] = {}
+    for path in sorted(work.glob(f"{algo}_{env_id}_*_seed*/train_record.json")):
+        record = json.loads(path.read_text(encoding="utf-8"))
+        if record.get("algo") == algo and record.get("env_id") == env_id:
+            times.setdefault(record["task"], {})[record["seed"]] = record["wall_time_s"]
+    for path in sorted((root / version).glob(f"*/{entry_name(algo, spec_of(env_id), env_id, '*')}.json")):
+        entry: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+        tier = entry.get("env_kwargs", {}).get("task")
+        if entry.get("env_id") != env_id or entry.get("extra", {}).get("checkpoint") != "last" or tier is None:
+            continue
+        for run in entry["extra"].get("runs", []):
+            times.setdefault(tier, {}).setdefault(run["seed"], run["wall_time_s"])
+    return {tier: list(by_seed.values()) for tier, by_seed in times.items()}
+
+
+def plan(groups: list[tuple[str, str, str]], seeds: list[int], work: str | Path, root: str | Path,
+         version: str = "v2") -> list[GroupPlan]:
+    """The plan of every (algorithm, env id, tier) of ``groups`` whose entries are not written in ``root``."""
+    work, root = Path(work), Path(root)
+    out = []
+    for algo, env_id, tier in groups:
+        if entries_written(root, version, algo, env_id, tier):
+            continue
+        done = tuple(s for s in seeds if scored_seed_files(seed_folder(work, algo, env_id, tier, s)))
+        times = _wall_times(work, root, version, algo, env_id)
+        own = times.get(tier, [])
+        others = [t for other, values in times.items() if other != tier for t in values]
+        pick, where = (own, "this tier") if own else (others, "other tiers") if others else ([], "none")
+        out.append(GroupPlan(algo, env_id, tier, done, tuple(s for s in seeds if s not in done),
+                             median(pick) / 3600.0 if pick else None, where))
+    return out
+
+
+def render(plans: list[GroupPlan]) -> str:
+    """The plan as a Markdown table, and the total core-hours left."""
+    lines = ["| algorithm | env id | tier | seeds done | seeds left | h per seed (measured on) | h left |",
+             "|---|---|---|---|---|---|---|"]
+    for p in plans:
+        per = "unknown" if p.hours_per_seed is None else f"{p.hours_per_seed:.2f} ({p.measured_on})"
+        left = "unknown" if p.hours_left is None else f"{p.hours_left:.1f}"
+        lines.append(f"| {p.algo} | {p.env_id} | {p.tier} | {list(p.done)} | {list(p.left)} | {per} | {left} |")
+    known = [p.hours_left for p in plans if p.hours_left is not None]
+    unknown = sum(p.hours_left is None for p in plans)
+    lines.append(f"\n{sum(len(p.left) for p in plans)} seeds left, about {sum(known):.1f} h of one core"
+                 + (f" (and {unknown} groups with no finished seed to estimate from)" if unknown else ""))
+    return "\n".join(lines)
