@@ -71,12 +71,14 @@ def plan(groups: list[tuple[str, str, str]], seeds: list[int], work: str | Path,
          version: str = "v2") -> list[GroupPlan]:
     """The plan of every (algorithm, env id, tier) of ``groups`` whose entries are not written in ``root``."""
     work, root = Path(work), Path(root)
-    out = []
+    out, read = [], {}
     for algo, env_id, tier in groups:
         if entries_written(root, version, algo, env_id, tier):
             continue
         done = tuple(s for s in seeds if scored_seed_files(seed_folder(work, algo, env_id, tier, s)))
-        times = _wall_times(work, root, version, algo, env_id)
+        if (algo, env_id) not in read:  # the records and entries are read once per algorithm and env id
+            read[algo, env_id] = _wall_times(work, root, version, algo, env_id)
+        times = read[algo, env_id]
         own = times.get(tier, [])
         others = [t for other, values in times.items() if other != tier for t in values]
         pick, where = (own, "this tier") if own else (others, "other tiers") if others else ([], "none")
