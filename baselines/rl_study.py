@@ -11,7 +11,9 @@ selection), and its last and best-on-validation checkpoints are scored once on t
 folder in ``--work`` holds its training record and test scores is taken from them, never retrained
 (``studies/`` keeps these small files in git, so a study resumes in any later session); when every
 seed of an (algorithm, env id, tier) is done, its two leaderboard entries (``<name>`` and
-``<name>_valbest``) are written. An existing entry is kept.
+``<name>_valbest``) are written, but only when ``--seeds`` covers the study's five (0-4): a run
+with fewer seeds trains and records its pieces and leaves the entries to the full run. An existing
+entry is kept; one written from fewer seeds than asked is refused by name.
 """
 
 import argparse
@@ -77,9 +79,15 @@ def main() -> None:
     env_ids = args.env_ids or list(spec_for_version(version).env_ids)
     groups = [(algo, env_id, tier) for tier in args.tiers for algo in args.algos for env_id in env_ids
               if not study_plan.entries_written(Path(args.leaderboard), version, algo, env_id, tier)]
+    study_plan.check_entry_seeds(Path(args.leaderboard), version,
+                                 [(a, e, t) for t in args.tiers for a in args.algos for e in env_ids], args.seeds)
     if args.plan:
         print(study_plan.render(study_plan.plan(groups, args.seeds, work, args.leaderboard, version)))
         return
+    writes = study_plan.writes_entries(args.seeds)
+    if not writes:
+        print(f"seeds {args.seeds} do not cover the study's {list(study_plan.STUDY_SEEDS)}: "
+              "pieces are trained and recorded, entries are left to a run with every seed")
     start = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as pool:
         futures = {pool.submit(run_seed, *group, seed, args.scale, args.points, work): group
@@ -91,7 +99,7 @@ def main() -> None:
                 blocked.add(group)
             tqdm.write(done or f"{group}: a seed is being trained by another process; its entries are left for later")
             left[group] -= 1
-            if left[group] == 0 and group not in blocked:
+            if left[group] == 0 and group not in blocked and writes:
                 tqdm.write(write_entries(*group, args.seeds, args.scale, args.points, work,
                                          Path(args.leaderboard) / version / group[2]))
     print(f"{len(groups)} entry pair{'s' * (len(groups) != 1)}, {len(futures)} seeds in {time.perf_counter() - start:.0f} s")

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.optim import study_plan
 
 
@@ -51,3 +52,23 @@ def test_plan_counts_seeds_and_estimates_from_the_tier_then_other_tiers(tmp_path
     text = study_plan.render(list(plans.values()))
     assert f"{3 + 5 + 5} seeds left, about {(3 * 300.0 + 5 * 500.0) / 3600.0:.1f} h" in text
     assert "1 groups with no finished seed" in text
+
+
+def test_only_a_run_covering_the_study_seeds_writes_entries():
+    assert study_plan.writes_entries([0, 1, 2, 3, 4]) and study_plan.writes_entries([4, 3, 2, 1, 0, 5])
+    assert not study_plan.writes_entries([0]) and not study_plan.writes_entries([0, 1, 2, 3])
+
+
+def test_an_entry_from_fewer_seeds_than_asked_is_refused_by_name(tmp_path):
+    root = tmp_path / "lb"
+    groups = [("ppo", "FFSR-v2", "debris")]
+    for suffix, checkpoint in (("", "last"), ("_valbest", "best_on_validation")):
+        _entry(root, f"ppo_debris{suffix}", "FFSR-v2", "debris", checkpoint, [1.0])
+    for path in (root / "v2" / "debris").glob("*.json"):  # as a `--seeds 0` run would have written them
+        entry = json.loads(path.read_text())
+        entry["extra"]["training_seeds"] = [0]
+        path.write_text(json.dumps(entry))
+    study_plan.check_entry_seeds(root, "v2", groups, [0])  # what it was written from: kept
+    study_plan.check_entry_seeds(root, "v2", [("sac", "FFSR-v2", "debris")], [0, 1, 2, 3, 4])  # no entry yet
+    with pytest.raises(InvalidInputError, match=r"ppo_debris(_valbest)?\.json: extra\.training_seeds is \[0\]"):
+        study_plan.check_entry_seeds(root, "v2", groups, [0, 1, 2, 3, 4])

@@ -8,6 +8,11 @@ from the written entries (``extra.runs``); the tier's own runs are used when the
 every other tier's, and the plan says which (another tier's runs underestimate a tier whose
 episodes cost more, such as ``servo``, whose plant takes ten physics steps per planner step).
 Nothing is trained or scored here.
+
+The study's entries are written from its five training seeds (``STUDY_SEEDS``) or more: a run
+with fewer seeds (``--seeds 0`` to train one piece) records its pieces and writes no entry, and an
+entry already written from fewer seeds than asked is refused by name (``check_entry_seeds``), since
+the study keeps existing entries and would otherwise publish it.
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ from typing import Any
 
 from ffsr_gym.bench.evaluation import spec_of
 from ffsr_gym.bench.verify import CHECKPOINTS
+from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.optim.rl import entry_name, scored_seed_files, seed_folder
 
 
@@ -48,6 +54,35 @@ def entries_written(root: Path, version: str, algo: str, env_id: str, tier: str)
     """Whether both entries (last, best on validation) of the group are in the leaderboard ``root``."""
     name = entry_name(algo, spec_of(env_id), env_id, tier)
     return all((root / version / tier / f"{name}{suffix}.json").is_file() for suffix in CHECKPOINTS.values())
+
+
+STUDY_SEEDS = (0, 1, 2, 3, 4)
+
+
+def writes_entries(seeds: list[int] | tuple[int, ...]) -> bool:
+    """Whether a run with these training seeds may write the study's entries (it covers ``STUDY_SEEDS``)."""
+    return set(STUDY_SEEDS) <= set(seeds)
+
+
+def check_entry_seeds(root: Path, version: str, groups: list[tuple[str, str, str]],
+                      seeds: list[int] | tuple[int, ...]) -> None:
+    """Refuse, by file, an entry of ``groups`` written from fewer training seeds than ``seeds``.
+
+    The study keeps an entry it finds; one written from a subset of the seeds asked for would be
+    published in their place. The user deletes it (and its pair) to have it rewritten.
+    """
+    for algo, env_id, tier in groups:
+        name = entry_name(algo, spec_of(env_id), env_id, tier)
+        for suffix in CHECKPOINTS.values():
+            path = root / version / tier / f"{name}{suffix}.json"
+            if not path.is_file():
+                continue
+            written = json.loads(path.read_text(encoding="utf-8")).get("extra", {}).get("training_seeds", [])
+            if not set(seeds) <= set(written):
+                raise InvalidInputError(
+                    f"{path}: extra.training_seeds is {sorted(written)}, but the study asks for seeds {sorted(seeds)}; "
+                    f"the study keeps an existing entry, so delete {path.name} and its pair to have them "
+                    "rewritten from every seed")
 
 
 def _wall_times(work: Path, root: Path, version: str, algo: str, env_id: str) -> dict[str, list[float]]:
