@@ -56,7 +56,8 @@ def main() -> None:
             for split in splits:
                 kept = build.absorb(policy, env_id, tier, split, args.work, origin, progress=False)
                 print(f"{tier}/{split}: {origin}: {kept} tasks improved")
-    print("wrote", build.assemble(args.work, command=shlex.join(["python", *sys.argv])))
+    for path in build.assemble(args.work, command=shlex.join(["python", *sys.argv])):
+        print("wrote", path)
 
 
 if __name__ == "__main__":

@@ -371,7 +371,8 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
         for split in args.splits:
             build.run(tier, split, work, version=args.version, progress=not args.no_progress)
     command = shlex.join(["ffsr-gym", "tasks", "best-known", "--tiers", *args.tiers, "--splits", *args.splits])
-    print("wrote", build.assemble(work, version=args.version, command=command))
+    for path in build.assemble(work, version=args.version, command=command):
+        print("wrote", path)
 
 
 def _tasks_tables(args: argparse.Namespace) -> None:
@@ -463,7 +464,8 @@ def _add_study_commands(sub: Any) -> None:
     tb.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     tb.set_defaults(func=_tasks)
     bk = tasks_sub.add_parser("best-known", help="the best known score of every pool task (a per-task CMA-ES over "
-                                                 "action schedules; resumable) into envs/benchmark/<version>_best_known.json")
+                                                 "action schedules; resumable) into envs/benchmark/<version>_best_known.json "
+                                                 "(training pools: <version>_best_known_train.json)")
     bk.add_argument("--version", default=tier_versions()[-1], choices=tier_versions(),
                     help=f"benchmark version (default: {tier_versions()[-1]})")
     bk.add_argument("--tiers", nargs="+", default=list(all_task_tiers()), choices=all_task_tiers(),

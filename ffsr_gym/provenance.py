@@ -82,7 +82,7 @@ def provenance(*, scenarios: dict[str, str] | None = None, seeds: list[int] | No
     # make the code dirty.
     dirty = None if commit is None else bool(_git("status", "--porcelain", "--untracked-files=no", "--", ".",
                                                  ":(exclude)leaderboards", ":(exclude)studies",
-                                                 ":(exclude)envs/benchmark/*_best_known.json", cwd=tree))
+                                                 ":(exclude)envs/benchmark/*_best_known*.json", cwd=tree))
     return {
         "git_commit": commit,
         "git_dirty": dirty,

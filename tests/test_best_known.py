@@ -28,7 +28,7 @@ def small(tmp_path_factory):
     """Two easy training tasks searched for one generation, assembled into a file of their own."""
     work = tmp_path_factory.mktemp("best-known")
     build.run("easy", "train", work, generations=1, indices=[0, 1], progress=False)
-    path = build.assemble(work, out=work / "best_known.json", generations=1)
+    [path] = build.assemble(work, out=work / "best_known.json", generations=1)
     return work, path
 
 
@@ -204,7 +204,7 @@ def test_a_policys_better_episodes_are_absorbed_as_exact_schedules(small, tmp_pa
     work, path = small
     mine = tmp_path / "work"
     shutil.copytree(work, mine)
-    monkeypatch.setattr(best_known, "best_known_path", lambda version=None: path)  # records() reads the small file
+    monkeypatch.setattr(best_known, "best_known_path", lambda version=None, split=None: path)  # records() reads it
     constant = tuple(float(x) for x in np.float32(np.linspace(-0.3, 0.3, 12)))  # a fixed residual, played as is
     played = evaluate(constant, "FFSR-Residual-v2", task="easy", split="train", indices=[0, 1])
     before = {r["index"]: r for r in json.loads(path.read_text())["tasks"]["easy"]["train"]}
@@ -212,7 +212,7 @@ def test_a_policys_better_episodes_are_absorbed_as_exact_schedules(small, tmp_pa
               if row["success"] and row["score"] > before[row["task_index"]]["families"]["residual"]["score"]]
     improved = build.absorb(constant, "FFSR-Residual-v2", "easy", "train", mine, "a constant", progress=False)
     assert 1 <= improved <= len(better)  # the certificate test may keep some out, never lets more in
-    out = build.assemble(mine, out=tmp_path / "merged.json", generations=1)
+    [out] = build.assemble(mine, out=tmp_path / "merged.json", generations=1)
     merged = {r["index"]: r for r in json.loads(out.read_text())["tasks"]["easy"]["train"]}
     assert json.loads(out.read_text())["absorbed"] == improved
     for index, record in merged.items():
@@ -224,3 +224,28 @@ def test_a_policys_better_episodes_are_absorbed_as_exact_schedules(small, tmp_pa
         else:
             assert residual == before[index]["families"]["residual"]
         assert record["best"]["score"] == max(f["score"] for f in record["families"].values())
+
+
+def test_training_records_are_assembled_into_a_file_of_their_own(small, tmp_path, monkeypatch):
+    import shutil
+
+    assert best_known.best_known_path("v2", "train").name == "v2_best_known_train.json"
+    assert best_known.best_known_path("v2", "test").name == best_known.best_known_path("v2").name == "v2_best_known.json"
+    work, _ = small
+    mine = tmp_path / "work"
+    shutil.copytree(work, mine)
+    build.run("easy", "test", mine, generations=1, indices=[3], progress=False)
+    files = {"train": tmp_path / "bk_train.json", "test": tmp_path / "bk.json", "validation": tmp_path / "bk.json"}
+    for module in (build, best_known):  # the shipped files stay untouched
+        monkeypatch.setattr(module, "best_known_path", lambda version=None, split=None: files.get(split, files["test"]))
+    written = build.assemble(mine, generations=1)
+    assert written == sorted({files["train"], files["test"]})
+    for split, indices in (("train", [0, 1]), ("test", [3])):
+        data = json.loads(files[split].read_text())
+        assert data["counts"] == {"easy": {split: len(indices)}}
+        lines = build.read_lines(mine / f"easy_{split}.jsonl")
+        assert data["compute"]["objective_evaluations"] == sum(f["evaluations"] for r in lines
+                                                               for f in r["families"].values())
+        assert data["compute"]["wall_time_s"] == pytest.approx(sum(r["wall_time_s"] for r in lines))
+        assert [r["index"] for r in best_known.records("easy", split, "v2")] == indices  # read from the split's file
+    assert best_known.records("easy", "validation", "v2") == []

@@ -1,6 +1,7 @@
 """``ffsr-gym dataset``: the best known trajectories of a tier's pool as a Minari dataset (offline RL, imitation).
 
-Each stored best-known record (:mod:`ffsr_gym.tasks.best_known`) whose schedule belongs to the
+Each stored best-known record (:mod:`ffsr_gym.tasks.best_known`; the training pools' are in
+``envs/benchmark/<version>_best_known_train.json``) whose schedule belongs to the
 chosen env (``FFSR-Residual-v2``: the residual family; ``FFSR-v2``: the (m, T_c) family) is played
 in that env, from ``reset(seed=0, options={"task_index": i})``, and recorded: observations (one
 more than actions), actions, rewards, terminations, truncations, and per step the task's seed and

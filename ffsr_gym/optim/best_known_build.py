@@ -84,43 +84,48 @@ def budget() -> dict[str, Any]:
 
 
 def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = None, command: str | None = None,
-             generations: int = search.GENERATIONS) -> Path:
-    """Write every finished record of ``generations`` in ``work`` into the best-known file (keeping its
-    ``convergence``)."""
-    out = Path(out) if out is not None else best_known_path(version)
-    tasks: dict[str, dict[str, list]] = {}
-    evaluations, seconds = 0, 0.0
+             generations: int = search.GENERATIONS) -> list[Path]:
+    """Write every finished record of ``generations`` in ``work`` into the best-known files: the test and
+    validation records into ``<version>_best_known.json`` (keeping its ``convergence``), the training records
+    into ``<version>_best_known_train.json`` (:func:`~ffsr_gym.tasks.best_known.best_known_path`), or all of
+    them into ``out``. Returns the files written."""
+    files: dict[Path, dict[str, dict[str, list]]] = {}
+    cost: dict[Path, list[float]] = {}  # per file: the search's objective evaluations and wall time [s]
     for path in sorted(Path(work).glob("*.jsonl")):
         if path.name.startswith(ABSORBED):
             continue
         for record in read_lines(path):
             if record.get("generations") != generations:
                 continue
-            slot = tasks.setdefault(record["tier"], {}).setdefault(record["split"], [])
+            target = Path(out) if out is not None else best_known_path(version, record["split"])
+            slot = files.setdefault(target, {}).setdefault(record["tier"], {}).setdefault(record["split"], [])
             for result in record["families"].values():  # the shortest float32 text of each knot
                 if result["schedule"] is not None:
                     result["schedule"] = Schedule.from_dict(result["schedule"]).as_dict()
             if all(r["index"] != record["index"] for r in slot):
                 slot.append(record)
-                evaluations += sum(f["evaluations"] for f in record["families"].values())
-                seconds += record["wall_time_s"]
-    absorbed = 0
-    for tier, splits in tasks.items():
-        for split, slot in splits.items():
-            slot.sort(key=lambda r: r["index"])
-            lines = read_lines(Path(work) / f"{ABSORBED}{tier}_{split}.jsonl")
-            absorbed += sum(_merge_absorbed(record, [a for a in lines if a["index"] == record["index"]])
-                            for record in slot)
-    tiers = sorted(tasks)
-    old = load_best_known(version, out) or {}
-    data = {"version": version, "budget": budget() | {"generations": generations},
-            "pool_files_sha256": {t: hashlib.sha256(pool_path(t, version).read_bytes()).hexdigest() for t in tiers},
-            "counts": {t: {s: len(v) for s, v in tasks[t].items()} for t in tiers},
-            "compute": {"objective_evaluations": evaluations, "wall_time_s": seconds, "cores": 1},
-            "absorbed": absorbed,
-            "provenance": provenance(command=command), "convergence": old.get("convergence"), "tasks": tasks}
-    _write(out, data)
-    return out
+                spent = cost.setdefault(target, [0, 0.0])
+                spent[0] += sum(f["evaluations"] for f in record["families"].values())
+                spent[1] += record["wall_time_s"]
+    provenance_now = provenance(command=command)
+    for target, tasks in files.items():
+        absorbed = 0
+        for tier, splits in tasks.items():
+            for split, slot in splits.items():
+                slot.sort(key=lambda r: r["index"])
+                lines = read_lines(Path(work) / f"{ABSORBED}{tier}_{split}.jsonl")
+                absorbed += sum(_merge_absorbed(record, [a for a in lines if a["index"] == record["index"]])
+                                for record in slot)
+        tiers = sorted(tasks)
+        old = load_best_known(version, target) or {}
+        data = {"version": version, "budget": budget() | {"generations": generations},
+                "pool_files_sha256": {t: hashlib.sha256(pool_path(t, version).read_bytes()).hexdigest() for t in tiers},
+                "counts": {t: {s: len(v) for s, v in tasks[t].items()} for t in tiers},
+                "compute": {"objective_evaluations": cost[target][0], "wall_time_s": cost[target][1], "cores": 1},
+                "absorbed": absorbed,
+                "provenance": provenance_now, "convergence": old.get("convergence"), "tasks": tasks}
+        _write(target, data)
+    return sorted(files)
 
 
 #: The work files of :func:`absorb`: ``absorbed_<tier>_<split>.jsonl``.

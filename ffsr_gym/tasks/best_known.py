@@ -1,6 +1,9 @@
-"""The best known score of every pool task, stored with the pools (``envs/benchmark/<version>_best_known.json``).
+"""The best known score of every pool task, stored with the pools.
 
-Each stored task has the schedule (:class:`~ffsr_gym.tasks.schedule.Schedule`) that reached its
+The test and validation pools' records are in ``envs/benchmark/<version>_best_known.json`` (the
+leaderboards' normalised column reads it); the training pools', which only the offline datasets
+use (:mod:`ffsr_gym.bench.dataset`), are in ``<version>_best_known_train.json``, so that loading
+the first never parses the second. Each stored task has the schedule (:class:`~ffsr_gym.tasks.schedule.Schedule`) that reached its
 best known score, the env whose actions it is, that score and its worst margins over the
 ensemble; ``ffsr-gym tasks best-known`` writes the file (:mod:`ffsr_gym.optim.best_known`).
 Leaderboards divide an entry's task scores by these (the normalised column).
@@ -22,9 +25,14 @@ from ffsr_gym.tasks.schedule import Schedule
 from ffsr_gym.tasks.splits import live_version, pool_path
 
 
-def best_known_path(version: str | None = None) -> Path:
-    """The best-known file of ``version`` (may not exist)."""
-    return envs_dir() / "benchmark" / f"{live_version(version)}_best_known.json"
+#: The splits whose records are stored in a file of their own, and its name's suffix.
+OWN_FILE = {"train": "_train"}
+
+
+def best_known_path(version: str | None = None, split: str | None = None) -> Path:
+    """The best-known file of ``version`` that holds ``split``'s records (may not exist); without ``split``,
+    the test and validation file."""
+    return envs_dir() / "benchmark" / f"{live_version(version)}_best_known{OWN_FILE.get(split, '')}.json"
 
 
 @lru_cache(maxsize=8)
@@ -47,8 +55,9 @@ def load_best_known(version: str | None = None, path: str | Path | None = None) 
 
 
 def records(tier: str, split: str, version: str | None = None, path: str | Path | None = None) -> list[dict[str, Any]]:
-    """The stored records of ``tier``'s ``split`` pool, in pool order ([] when none are stored)."""
-    data = load_best_known(version, path)
+    """The stored records of ``tier``'s ``split`` pool, in pool order ([] when none are stored); ``path``
+    overrides the split's shipped file."""
+    data = load_best_known(version, path if path is not None else best_known_path(version, split))
     if data is None:
         return []
     return sorted(data["tasks"].get(tier, {}).get(split, []), key=lambda r: r["index"])
@@ -57,7 +66,7 @@ def records(tier: str, split: str, version: str | None = None, path: str | Path 
 def scores(tier: str, split: str, size: int, version: str | None = None) -> np.ndarray | None:
     """The best known score of each of the ``size`` tasks of a pool, or None unless every one is stored
     and the pool file is the one they were searched on."""
-    data = load_best_known(version)
+    data = load_best_known(version, best_known_path(version, split))
     stored = records(tier, split, version)
     if data is None or len(stored) != size or [r["index"] for r in stored] != list(range(size)):
         return None
