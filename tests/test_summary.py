@@ -63,3 +63,36 @@ def test_the_aggregates_file_goes_stale_when_an_entry_changes():
     changed = inputs(entries)
     entries["easy"][0]["_problems"] = []  # what the loader adds is not content
     assert inputs(entries) == changed
+
+
+def _ranked(name, env_id, iqm, lo, hi, rate, checkpoint=None):
+    extra = {} if checkpoint is None else {"training_seeds": [0, 1, 2, 3, 4], "checkpoint": checkpoint}
+    return {"name": name, "env_id": env_id, "extra": extra,
+            "metrics": {"score_iqm": iqm, "score_iqm_ci95": [lo, hi], "success_rate": rate}}
+
+
+def test_the_rl_study_table_compares_the_selected_rl_entry_with_the_classical_ones():
+    from ffsr_gym.bench import rl_comparison
+
+    easy = [_ranked("reference_best_constant", "planner", 0.25, 0.23, 0.27, 0.98),
+            _ranked("ga_v2", "planner", 0.24, 0.22, 0.26, 0.97),
+            _ranked("cmaes_residual", "FFSR-Residual-v2", 0.33, 0.32, 0.35, 0.99),
+            _ranked("sac_residual_easy_valbest", "FFSR-Residual-v2", 0.30, 0.29, 0.31, 0.97, "best_on_validation"),
+            _ranked("sac_residual_easy", "FFSR-Residual-v2", 0.20, 0.19, 0.21, 0.87, "last"),
+            _ranked("ppo_easy_valbest", "FFSR-v2", 0.26, 0.25, 0.27, 0.9, "best_on_validation"),
+            _ranked("ppo_easy", "FFSR-v2", 0.05, 0.04, 0.06, 0.3, "last")]
+    debris = [_ranked("reference_best_constant", "planner", 0.19, 0.15, 0.23, 0.7),
+              _ranked("ppo_debris_valbest", "FFSR-v2", 0.192, 0.17, 0.21, 0.7, "best_on_validation"),
+              _ranked("ppo_debris", "FFSR-v2", 0.13, 0.12, 0.15, 0.69, "last")]
+    text = rl_comparison.table(SPEC, {"easy": easy, "medium": easy[:3], "debris": debris})
+    rows = {line.split(" | ")[0][2:]: line.split(" | ") for line in text.splitlines()[2:]}
+    assert set(rows) == {"easy", "debris"}  # medium has no RL entry
+    easy_row = rows["easy"]
+    assert easy_row[1] == "`sac_residual_valbest` 0.300 [0.290, 0.310], 97%"  # 0.30 beats PPO's 0.26
+    assert easy_row[2] == "`sac_residual` 0.200 [0.190, 0.210], 87%"
+    assert easy_row[3].startswith("`reference_best_constant` 0.250") and easy_row[4] == "above"  # 0.29 > 0.27
+    assert easy_row[5].startswith("`cmaes_residual` 0.330") and easy_row[6] == "below"  # 0.31 < 0.32
+    assert easy_row[7] == "`ppo` +0.210"  # PPO falls 0.26 - 0.05, SAC only 0.10
+    assert easy_row[8] == "2 of 4 |"
+    assert rows["debris"][4] == rows["debris"][6] == "CIs overlap"  # [0.17, 0.21] against [0.15, 0.23]
+    assert rl_comparison.table(SPEC, {"easy": easy[:3]}) == "No RL entries yet.\n"
