@@ -8,11 +8,16 @@ actions of the tier's entries (``extra.policy.fixed`` on ``FFSR-Residual-v2``) a
 ``--models``, every trained model of the RL study for that tier (``<algo>_<env id>_<tier>_seed<s>/
 {model.zip, best_on_validation.zip}``). An episode that beats the stored score of its family and
 passes the certificate test is kept as that family's schedule; the file is then assembled again.
+A policy finished on a pool is recorded with a hash of its content (the model file, or the fixed
+action), so an interrupted run resumes at the first policy not finished; ``--only`` plays only the
+origins matching one of its patterns (``fnmatch``, e.g. ``'sac_*'``).
 A closed-loop policy can beat the per-task search's open-loop schedules, so without this the
 normalised scores of such entries exceed 1.
 """
 
 import argparse
+import fnmatch
+import hashlib
 import json
 import shlex
 import sys
@@ -23,19 +28,25 @@ from ffsr_gym.optim import best_known_build as build
 from ffsr_gym.tasks.best_known import records
 
 
-def policies(leaderboard: Path, models: Path | None, tier: str) -> list[tuple[str, str, object]]:
-    """(origin, env id, policy) of a tier: fixed residual entries, then the RL study's models."""
+def policies(leaderboard: Path, models: Path | None, tier: str) -> list[tuple[str, str, str, object]]:
+    """(origin, key, env id, policy loader) of a tier: fixed residual entries, then the RL study's models. The key
+    is the origin and the sha256 of what the policy is (the fixed action's JSON, the model file)."""
     out = []
     for path in sorted((leaderboard / "v2" / tier).glob("*.json")):
         entry = json.loads(path.read_text())
         fixed = (entry.get("extra", {}).get("policy") or {}).get("fixed")
         if entry["env_id"] == "FFSR-Residual-v2" and fixed is not None:
-            out.append((f"entry {entry['name']}", entry["env_id"], tuple(fixed)))
+            origin = f"entry {entry['name']}"
+            digest = hashlib.sha256(json.dumps(fixed).encode()).hexdigest()
+            out.append((origin, f"{origin} {digest}", entry["env_id"], lambda fixed=fixed: tuple(fixed)))
     for folder in sorted(models.glob(f"*_{tier}_seed*")) if models else []:
         algo, env_id = folder.name.split("_")[:2]
         for checkpoint in ("model.zip", "best_on_validation.zip"):
             if (folder / checkpoint).is_file():
-                out.append((f"{folder.name}/{checkpoint}", env_id, load_model(algo, folder / checkpoint)))
+                origin = f"{folder.name}/{checkpoint}"
+                digest = hashlib.sha256((folder / checkpoint).read_bytes()).hexdigest()
+                out.append((origin, f"{origin} {digest}", env_id,
+                            lambda algo=algo, path=folder / checkpoint: load_model(algo, path)))
     return out
 
 
@@ -46,15 +57,24 @@ def main() -> None:
     parser.add_argument("--tiers", nargs="+", default=["easy", "medium", "hard", "debris", "robust"])
     parser.add_argument("--splits", nargs="+", default=["test", "validation"])
     parser.add_argument("--work", default="studies/best-known", help="the best-known work folder")
+    parser.add_argument("--only", nargs="+", default=None, metavar="PATTERN",
+                        help="play only the origins matching one of these fnmatch patterns (default: every one)")
     args = parser.parse_args()
     models = Path(args.models) if args.models else None
     for tier in args.tiers:
         splits = [s for s in args.splits if records(tier, s, "v2")]
         if not splits:
             continue
-        for origin, env_id, policy in policies(Path(args.leaderboard), models, tier):
+        for origin, key, env_id, load in policies(Path(args.leaderboard), models, tier):
+            if args.only and not any(fnmatch.fnmatch(origin, pattern) for pattern in args.only):
+                continue
+            left = [s for s in splits if not build.is_absorbed(args.work, tier, s, key)]
+            policy = load() if left else None
             for split in splits:
-                kept = build.absorb(policy, env_id, tier, split, args.work, origin, progress=False)
+                if split not in left:
+                    print(f"{tier}/{split}: {origin}: already absorbed")
+                    continue
+                kept = build.absorb(policy, env_id, tier, split, args.work, origin, progress=False, key=key)
                 print(f"{tier}/{split}: {origin}: {kept} tasks improved")
     for path in build.assemble(args.work, command=shlex.join(["python", *sys.argv])):
         print("wrote", path)

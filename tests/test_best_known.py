@@ -249,3 +249,28 @@ def test_training_records_are_assembled_into_a_file_of_their_own(small, tmp_path
         assert data["compute"]["wall_time_s"] == pytest.approx(sum(r["wall_time_s"] for r in lines))
         assert [r["index"] for r in best_known.records("easy", split, "v2")] == indices  # read from the split's file
     assert best_known.records("easy", "validation", "v2") == []
+
+
+def test_a_pool_a_policy_finished_is_recorded_and_an_interrupted_one_is_not(small, tmp_path, monkeypatch):
+    import shutil
+
+    work, path = small
+    mine = tmp_path / "work"
+    shutil.copytree(work, mine)
+    monkeypatch.setattr(best_known, "best_known_path", lambda version=None, split=None: path)
+
+    def broken(obs):  # fails at its second decision, in the middle of the pool
+        broken.calls += 1
+        if broken.calls > 1:
+            raise RuntimeError("interrupted")
+        return np.zeros(12)
+
+    broken.calls = 0
+    with pytest.raises(RuntimeError, match="interrupted"):
+        build.absorb(broken, "FFSR-Residual-v2", "easy", "train", mine, "broken", progress=False, key="broken k1")
+    assert not build.is_absorbed(mine, "easy", "train", "broken k1")
+    zero = tuple([0.0] * 12)
+    build.absorb(zero, "FFSR-Residual-v2", "easy", "train", mine, "zero", progress=False, key="zero k2")
+    assert build.is_absorbed(mine, "easy", "train", "zero k2")
+    assert not build.is_absorbed(mine, "easy", "train", "zero k3")  # another content hash
+    assert not build.is_absorbed(mine, "easy", "test", "zero k2")  # another pool

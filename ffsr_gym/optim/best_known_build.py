@@ -148,8 +148,19 @@ def _merge_absorbed(record: dict[str, Any], lines: list[dict[str, Any]]) -> bool
     return changed
 
 
+def _done_path(work: str | Path, tier: str, split: str) -> Path:
+    return Path(work) / f"{ABSORBED}{tier}_{split}.done"
+
+
+def is_absorbed(work: str | Path, tier: str, split: str, key: str) -> bool:
+    """Whether a policy with this ``key`` (its origin and a hash of its content) was already played on every stored
+    task of the pool: playing it again cannot raise a stored score, since the stored scores only rise."""
+    path = _done_path(work, tier, split)
+    return path.is_file() and key in path.read_text(encoding="utf-8").splitlines()
+
+
 def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, origin: str, *,
-           version: str = "v2", progress: bool = True) -> int:
+           version: str = "v2", progress: bool = True, key: str | None = None) -> int:
     """Play ``policy`` (SB3-style ``predict``, a callable, or a constant action tuple) on every stored task of a pool,
     and keep each episode that beats the stored score of its env's family and passes the certificate test
     (ensemble with margins, and Pinocchio) as that family's schedule: its actions, clipped to [-1, 1] in float32,
@@ -157,7 +168,9 @@ def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, or
     to ``<work>/absorbed_<tier>_<split>.jsonl``; :func:`assemble` merges them. Returns how many tasks improved.
 
     This makes the best known score at least every absorbed policy's: a closed-loop policy can beat the
-    search's open-loop schedules of a few knots.
+    search's open-loop schedules of a few knots. With ``key``, a finished pool is recorded in
+    ``<work>/absorbed_<tier>_<split>.done`` (:func:`is_absorbed`), so that an interrupted run of many
+    policies resumes at the first one not finished.
     """
     import gymnasium as gym
 
@@ -194,6 +207,11 @@ def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, or
         _append(path, {"index": index, "family": family, "score": info["score"], "result": result})
         improved += 1
     env.close()
+    if key is not None:
+        with _done_path(work, tier, split).open("a", encoding="utf-8") as handle:
+            handle.write(key + "\n")
+            handle.flush()
+            os.fsync(handle.fileno())
     return improved
 
 
