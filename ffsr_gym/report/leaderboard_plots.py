@@ -12,7 +12,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ffsr_gym.bench.tables import method_name
 from ffsr_gym.model.spec import ranked_spec
 from ffsr_gym.report.plotting import _pyplot, _save
 from ffsr_gym.scoring.aggregate import iqm
@@ -103,11 +102,11 @@ def plot_learning_curves(root: str | Path) -> Path | None:
     if panels is None:
         return None
     entries, tiers, fig, axes = panels
-    methods = sorted({method_name(e, tier) for tier in tiers for e in entries[tier]})
+    methods = sorted({e["name"].removesuffix(f"_{tier}") for tier in tiers for e in entries[tier]})  # last entries
     rng = np.random.default_rng(0)
     for ax, tier in zip(axes, tiers):
         for e in entries[tier]:
-            method = method_name(e, tier)
+            method = e["name"].removesuffix(f"_{tier}")
             curves = [run["curve"]["points"] for run in e["extra"]["runs"]]
             steps = [p["env_steps"] for p in curves[0]]
             per_seed = np.array([[np.mean(p["scores"]) for p in c[:len(steps)]] for c in curves])  # (seeds, points)
