@@ -28,22 +28,27 @@ from ffsr_gym.optim import best_known_build as build
 from ffsr_gym.tasks.best_known import records
 
 
-def policies(leaderboard: Path, models: Path | None, tier: str) -> list[tuple[str, str, str, object]]:
-    """(origin, key, env id, policy loader) of a tier: fixed residual entries, then the RL study's models. The key
-    is the origin and the sha256 of what the policy is (the fixed action's JSON, the model file)."""
+def policies(leaderboard: Path, models: Path | None, tier: str,
+             only: list[str] | None = None) -> list[tuple[str, str, str, object]]:
+    """(origin, key, env id, policy loader) of a tier: fixed residual entries, then the RL study's models, those
+    whose origin matches a pattern of ``only`` when given. The key is the origin and the sha256 of what the policy
+    is (the fixed action's JSON, the model file)."""
+    def wanted(origin: str) -> bool:
+        return not only or any(fnmatch.fnmatch(origin, pattern) for pattern in only)
+
     out = []
     for path in sorted((leaderboard / "v2" / tier).glob("*.json")):
         entry = json.loads(path.read_text())
         fixed = (entry.get("extra", {}).get("policy") or {}).get("fixed")
-        if entry["env_id"] == "FFSR-Residual-v2" and fixed is not None:
-            origin = f"entry {entry['name']}"
+        origin = f"entry {entry['name']}"
+        if entry["env_id"] == "FFSR-Residual-v2" and fixed is not None and wanted(origin):
             digest = hashlib.sha256(json.dumps(fixed).encode()).hexdigest()
             out.append((origin, f"{origin} {digest}", entry["env_id"], lambda fixed=fixed: tuple(fixed)))
     for folder in sorted(models.glob(f"*_{tier}_seed*")) if models else []:
         algo, env_id = folder.name.split("_")[:2]
         for checkpoint in ("model.zip", "best_on_validation.zip"):
-            if (folder / checkpoint).is_file():
-                origin = f"{folder.name}/{checkpoint}"
+            origin = f"{folder.name}/{checkpoint}"
+            if (folder / checkpoint).is_file() and wanted(origin):
                 digest = hashlib.sha256((folder / checkpoint).read_bytes()).hexdigest()
                 out.append((origin, f"{origin} {digest}", env_id,
                             lambda algo=algo, path=folder / checkpoint: load_model(algo, path)))
@@ -65,9 +70,7 @@ def main() -> None:
         splits = [s for s in args.splits if records(tier, s, "v2")]
         if not splits:
             continue
-        for origin, key, env_id, load in policies(Path(args.leaderboard), models, tier):
-            if args.only and not any(fnmatch.fnmatch(origin, pattern) for pattern in args.only):
-                continue
+        for origin, key, env_id, load in policies(Path(args.leaderboard), models, tier, args.only):
             left = [s for s in splits if not build.is_absorbed(args.work, tier, s, key)]
             policy = load() if left else None
             for split in splits:

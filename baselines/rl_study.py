@@ -77,10 +77,9 @@ def main() -> None:
     args = parser.parse_args()
     version, work = args.version, args.work or f"studies/rl-{args.version}"
     env_ids = args.env_ids or list(spec_for_version(version).env_ids)
-    groups = [(algo, env_id, tier) for tier in args.tiers for algo in args.algos for env_id in env_ids
-              if not study_plan.entries_written(Path(args.leaderboard), version, algo, env_id, tier)]
-    study_plan.check_entry_seeds(Path(args.leaderboard), version,
-                                 [(a, e, t) for t in args.tiers for a in args.algos for e in env_ids], args.seeds)
+    asked = [(algo, env_id, tier) for tier in args.tiers for algo in args.algos for env_id in env_ids]
+    study_plan.check_entry_seeds(Path(args.leaderboard), version, asked, args.seeds)
+    groups = [group for group in asked if not study_plan.entries_written(Path(args.leaderboard), version, *group)]
     if args.plan:
         print(study_plan.render(study_plan.plan(groups, args.seeds, work, args.leaderboard, version)))
         return

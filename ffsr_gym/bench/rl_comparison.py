@@ -65,11 +65,12 @@ def table(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> str:
         best = _best(spec, selected)
         planner = _best(spec, [e for e in items if not is_trained(e) and e.get("env_id") != spec.env_ids[1]])
         untrained = _best(spec, [e for e in items if not is_trained(e)])
-        drops = [(e["metrics"][iqm] - last[e["name"][: -len(suffix)]]["metrics"][iqm],
-                  method_name(last[e["name"][: -len(suffix)]], tier)) for e in selected if e["name"][: -len(suffix)] in last]
+        pair = {e["name"]: last.get(e["name"].removesuffix(suffix)) for e in selected}  # its last checkpoints
+        drops = [(e["metrics"][iqm] - pair[e["name"]]["metrics"][iqm], method_name(pair[e["name"]], tier))
+                 for e in selected if pair[e["name"]] is not None]
         drop, dropped = max(drops, default=(None, None))
         lines.append(
-            f"| {tier} | {_cell(spec, best, tier)} | {_cell(spec, last.get(best['name'][: -len(suffix)]), tier)} | "
+            f"| {tier} | {_cell(spec, best, tier)} | {_cell(spec, pair[best['name']], tier)} | "
             f"{_cell(spec, planner, tier)} | {'-' if planner is None else verdict(spec, best, planner)} | "
             f"{_cell(spec, untrained, tier)} | {'-' if untrained is None else verdict(spec, best, untrained)} | "
             f"{'-' if drop is None else f'`{dropped}` {drop:+.3f}'} | {len(selected)} of {PAIRS_PER_TIER} |")

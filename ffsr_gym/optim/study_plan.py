@@ -50,10 +50,15 @@ class GroupPlan:
         return None if self.hours_per_seed is None else self.hours_per_seed * len(self.left)
 
 
+def entry_paths(root: Path, version: str, algo: str, env_id: str, tier: str) -> list[Path]:
+    """The group's two entry files (last, best on validation) in the leaderboard ``root``."""
+    name = entry_name(algo, spec_of(env_id), env_id, tier)
+    return [root / version / tier / f"{name}{suffix}.json" for suffix in CHECKPOINTS.values()]
+
+
 def entries_written(root: Path, version: str, algo: str, env_id: str, tier: str) -> bool:
     """Whether both entries (last, best on validation) of the group are in the leaderboard ``root``."""
-    name = entry_name(algo, spec_of(env_id), env_id, tier)
-    return all((root / version / tier / f"{name}{suffix}.json").is_file() for suffix in CHECKPOINTS.values())
+    return all(path.is_file() for path in entry_paths(root, version, algo, env_id, tier))
 
 
 STUDY_SEEDS = (0, 1, 2, 3, 4)
@@ -71,10 +76,8 @@ def check_entry_seeds(root: Path, version: str, groups: list[tuple[str, str, str
     The study keeps an entry it finds; one written from a subset of the seeds asked for would be
     published in their place. The user deletes it (and its pair) to have it rewritten.
     """
-    for algo, env_id, tier in groups:
-        name = entry_name(algo, spec_of(env_id), env_id, tier)
-        for suffix in CHECKPOINTS.values():
-            path = root / version / tier / f"{name}{suffix}.json"
+    for group in groups:
+        for path in entry_paths(root, version, *group):
             if not path.is_file():
                 continue
             written = json.loads(path.read_text(encoding="utf-8")).get("extra", {}).get("training_seeds", [])
