@@ -72,6 +72,7 @@ def test_pool_training_selects_on_validation_scores_both_checkpoints_on_test_and
     from ffsr_gym.bench.evaluation import evaluate
     from ffsr_gym.bench.leaderboard import recompute as recompute_entry
     from ffsr_gym.bench.policies import load_model
+    from ffsr_gym.exceptions import InvalidInputError
     from ffsr_gym.tasks.splits import pool
 
     def run():
@@ -99,7 +100,17 @@ def test_pool_training_selects_on_validation_scores_both_checkpoints_on_test_and
     best = entry["extra"]["runs"][0]["best_on_validation"]
     assert best["validation_mean"] == pytest.approx(max(means), rel=1e-12)
     assert best["env_steps"] == curve["points"][means.index(max(means))]["env_steps"]
+    import torch
+    torch.set_num_threads(2)
     chosen = load_model("ppo", folder / "best_on_validation.zip")
+    assert torch.get_num_threads() == 1  # one observation at a time: one thread (load_model's threads=1)
+    torch.set_num_threads(2)
+    load_model("ppo", folder / "best_on_validation.zip", threads=None)
+    assert torch.get_num_threads() == 2  # None leaves the process's setting
+    torch.set_num_threads(1)
+    for bad in (0, 1.5, True):
+        with pytest.raises(InvalidInputError, match="threads"):
+            load_model("ppo", folder / "best_on_validation.zip", threads=bad)
     again = evaluate(chosen, "FFSR-v2", task="easy", split="validation", indices=[0, 24, 49])
     assert [row["score"] for row in again.episodes] == curve["points"][means.index(max(means))]["scores"]
     test = evaluate(chosen, "FFSR-v2", task="easy")
