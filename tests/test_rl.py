@@ -69,6 +69,8 @@ def test_v2_hyperparameters_are_the_searched_best():
 
 
 def test_pool_training_selects_on_validation_scores_both_checkpoints_on_test_and_resumes(tmp_path):
+    import torch
+
     from ffsr_gym.bench.evaluation import evaluate
     from ffsr_gym.bench.leaderboard import recompute as recompute_entry
     from ffsr_gym.bench.policies import load_model
@@ -100,7 +102,6 @@ def test_pool_training_selects_on_validation_scores_both_checkpoints_on_test_and
     best = entry["extra"]["runs"][0]["best_on_validation"]
     assert best["validation_mean"] == pytest.approx(max(means), rel=1e-12)
     assert best["env_steps"] == curve["points"][means.index(max(means))]["env_steps"]
-    import torch
     torch.set_num_threads(2)
     chosen = load_model("ppo", folder / "best_on_validation.zip")
     assert torch.get_num_threads() == 1  # one observation at a time: one thread (load_model's threads=1)
