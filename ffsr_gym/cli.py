@@ -371,7 +371,7 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
         for split in args.splits:
             build.run(tier, split, work, version=args.version, progress=not args.no_progress)
     command = shlex.join(["ffsr-gym", "tasks", "best-known", "--tiers", *args.tiers, "--splits", *args.splits])
-    for path in build.assemble(work, version=args.version, command=command):
+    for path in build.assemble(work, version=args.version, command=command, splits=args.splits):
         print("wrote", path)
 
 

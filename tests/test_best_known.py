@@ -249,6 +249,11 @@ def test_training_records_are_assembled_into_a_file_of_their_own(small, tmp_path
         assert data["compute"]["wall_time_s"] == pytest.approx(sum(r["wall_time_s"] for r in lines))
         assert [r["index"] for r in best_known.records("easy", split, "v2")] == indices  # read from the split's file
     assert best_known.records("easy", "validation", "v2") == []
+    test_file = files["test"].read_text()
+    build.run("easy", "train", mine, generations=1, indices=[2], progress=False)
+    assert build.assemble(mine, generations=1, splits=["train"]) == [files["train"]]  # the test file stays as it was
+    assert files["test"].read_text() == test_file
+    assert [r["index"] for r in best_known.records("easy", "train", "v2")] == [0, 1, 2]
 
 
 def test_a_pool_a_policy_finished_is_recorded_and_an_interrupted_one_is_not(small, tmp_path, monkeypatch):

@@ -84,11 +84,13 @@ def budget() -> dict[str, Any]:
 
 
 def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = None, command: str | None = None,
-             generations: int = search.GENERATIONS) -> list[Path]:
+             generations: int = search.GENERATIONS, splits: list[str] | None = None) -> list[Path]:
     """Write every finished record of ``generations`` in ``work`` into the best-known files: the test and
     validation records into ``<version>_best_known.json`` (keeping its ``convergence``), the training records
     into ``<version>_best_known_train.json`` (:func:`~ffsr_gym.tasks.best_known.best_known_path`), or all of
-    them into ``out``. Returns the files written."""
+    them into ``out``. With ``splits``, only the files those splits live in are written, so a run on the
+    training pools leaves the test file and its provenance alone. Returns the files written."""
+    wanted = None if splits is None or out is not None else {best_known_path(version, s) for s in splits}
     files: dict[Path, dict[str, dict[str, list]]] = {}
     cost: dict[Path, list[float]] = {}  # per file: the search's objective evaluations and wall time [s]
     for path in sorted(Path(work).glob("*.jsonl")):
@@ -98,6 +100,8 @@ def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = 
             if record.get("generations") != generations:
                 continue
             target = Path(out) if out is not None else best_known_path(version, record["split"])
+            if wanted is not None and target not in wanted:
+                continue
             slot = files.setdefault(target, {}).setdefault(record["tier"], {}).setdefault(record["split"], [])
             for result in record["families"].values():  # the shortest float32 text of each knot
                 if result["schedule"] is not None:
