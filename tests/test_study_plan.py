@@ -52,6 +52,8 @@ def test_plan_counts_seeds_and_estimates_from_the_tier_then_other_tiers(tmp_path
     text = study_plan.render(list(plans.values()))
     assert f"{3 + 5 + 5} seeds left, about {(3 * 300.0 + 5 * 500.0) / 3600.0:.1f} h" in text
     assert "1 groups with no finished seed" in text
+    assert study_plan.render(study_plan.plan([("ppo", "FFSR-v2", "medium")], [0, 1, 2, 3, 4], work, root)).startswith(
+        "nothing left")
 
 
 def test_only_a_run_covering_the_study_seeds_writes_entries():

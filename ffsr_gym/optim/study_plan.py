@@ -126,7 +126,9 @@ def plan(groups: list[tuple[str, str, str]], seeds: list[int], work: str | Path,
 
 
 def render(plans: list[GroupPlan]) -> str:
-    """The plan as a Markdown table, and the total core-hours left."""
+    """The plan as a Markdown table, and the total core-hours left (one line when nothing is left)."""
+    if not plans:
+        return "nothing left: every entry pair asked for is written"
     lines = ["| algorithm | env id | tier | seeds done | seeds left | h per seed (measured on) | h left |",
              "|---|---|---|---|---|---|---|"]
     for p in plans:
