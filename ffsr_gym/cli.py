@@ -158,10 +158,12 @@ def _leaderboard_plot(args: argparse.Namespace) -> None:
 
 
 def _dataset(args: argparse.Namespace) -> None:
-    from ffsr_gym.bench.dataset import write_dataset
+    from ffsr_gym.bench.dataset import coverage, write_dataset
+    from ffsr_gym.tasks.splits import pool
 
     dataset = write_dataset(args.tier, args.env_id, split=args.split, root=args.root)
-    print(f"wrote {dataset.spec.dataset_id}: {dataset.total_episodes} episodes, {dataset.total_steps} steps"
+    print(f"wrote {dataset.spec.dataset_id}: {dataset.total_episodes} episodes "
+          f"({coverage(dataset.total_episodes, len(pool(args.tier, args.split)))}), {dataset.total_steps} steps"
           + (f" under {args.root}" if args.root else " (MINARI_DATASETS_PATH or Minari's default folder)"))
 
 

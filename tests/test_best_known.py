@@ -152,6 +152,7 @@ def test_the_dataset_loads_with_minari_and_replays_to_its_rewards(small, tmp_pat
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
     dataset = minari.load_dataset(dataset_id("easy", "FFSR-Residual-v2", "train"))
     assert dataset.total_episodes == 2
+    assert "2 of the pool's 200 tasks (the rest have no stored" in dataset.storage.metadata["description"]  # a partial pool says so
     env = dataset.recover_environment()
     records = json.loads(path.read_text())["tasks"]["easy"]["train"]
     for episode, record in zip(dataset.iterate_episodes(), records):

@@ -29,9 +29,16 @@ import numpy as np
 from ffsr_gym.exceptions import FFSRError, InvalidInputError, require
 from ffsr_gym.tasks import best_known
 from ffsr_gym.tasks.schedule import ENV_IDS, Schedule
+from ffsr_gym.tasks.splits import pool
 
 #: The schedule family whose actions each env takes.
 FAMILY_OF = {env_id: family for family, env_id in ENV_IDS.items()}
+
+
+def coverage(episodes: int, pool_size: int) -> str:
+    """How much of its pool a dataset holds, in words (its description and the command's report)."""
+    return f"{episodes} of the pool's {pool_size} tasks" + (
+        "" if episodes == pool_size else " (the rest have no stored best-known schedule of this env yet)")
 
 
 def dataset_id(tier: str, env_id: str, split: str = "train") -> str:
@@ -102,6 +109,7 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
     if not stored:
         raise InvalidInputError(f"no best-known {family} schedule is stored for {tier}/{split} (run ffsr-gym tasks "
                                 f"best-known --tiers {tier} --splits {split})")
+    size = len(pool(tier, split, version=version))
     name = dataset_id(tier, env_id, split)
     with _datasets_root(root):
         from minari.storage.datasets_root_dir import get_dataset_path
@@ -118,5 +126,6 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
             algorithm_name="best known schedules: per-task CMA-ES, or a baseline's absorbed episode (ffsr_gym.optim)",
             code_permalink="ffsr_gym/bench/dataset.py", author="ffsr-gym", author_email="-",
             description=(f"The best {family} schedule found for each task of the {tier} tier's {split} pool of benchmark "
-                         f"{version}, played in {env_id}. infos: task_index, task_seed per step."),
+                         f"{version}, played in {env_id}: {coverage(len(stored), size)}. infos: task_index, "
+                         "task_seed per step."),
             data_format="hdf5")
