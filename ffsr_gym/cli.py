@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ffsr_gym.bench.options import natural, positive_float, positive_int
+from ffsr_gym.bench.options import natural, positive_float, positive_int, shard
 from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.model.spec import all_splits, all_task_names, registered_ids
 
@@ -359,6 +359,8 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
     from ffsr_gym.tasks.best_known import records
 
     work = Path(args.work)
+    if args.doubled and args.shard is not None:
+        raise InvalidInputError("--shard shares the search between processes; allowed with --doubled: none")
     if args.doubled:
         rng = np.random.default_rng(0)
         stored = [(t, s, r["index"]) for t in args.tiers for s in args.splits for r in records(t, s, args.version)]
@@ -371,8 +373,9 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
         return
     for tier in args.tiers:
         for split in args.splits:
-            build.run(tier, split, work, version=args.version, progress=not args.no_progress)
-    command = shlex.join(["ffsr-gym", "tasks", "best-known", "--tiers", *args.tiers, "--splits", *args.splits])
+            build.run(tier, split, work, version=args.version, shard=args.shard, progress=not args.no_progress)
+    command = shlex.join(["ffsr-gym", "tasks", "best-known", "--tiers", *args.tiers, "--splits", *args.splits]
+                         + ([] if args.shard is None else ["--shard", "/".join(map(str, args.shard))]))
     for path in build.assemble(work, version=args.version, command=command, splits=args.splits):
         print("wrote", path)
 
@@ -476,6 +479,9 @@ def _add_study_commands(sub: Any) -> None:
                     help="pools searched (default: test validation)")
     bk.add_argument("--work", default="studies/best-known",
                     help="finished tasks, one jsonl per pool (default: studies/best-known, kept in git)")
+    bk.add_argument("--shard", type=shard, default=None, metavar="K/N",
+                    help="only the tasks whose index is K modulo N, into a work file of the shard's own: run N "
+                         "processes with 0/N ... N-1/N to share the pools (default: every task)")
     bk.add_argument("--doubled", type=positive_int, default=None, metavar="N",
                     help="instead: re-run N random stored tasks of these pools with twice the generations and store "
                          "the gap in the file")

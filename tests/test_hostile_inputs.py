@@ -216,3 +216,15 @@ def test_cli_render_writes_a_gif_of_an_episode(tmp_path, capsys):
         frame = np.asarray(gif.convert("RGB"))
     assert frame.std() > 10  # a drawn scene, not a blank frame
     assert main(["render", "--every", "0", "--out", str(out)]) == 2
+
+
+@pytest.mark.parametrize("bad", ["2/2", "-1/2", "1/0", "1", "a/b", "0/2/3"])
+def test_cli_best_known_shard_is_named_with_its_range(tmp_path, capsys, bad):
+    from ffsr_gym.cli import main
+
+    assert main(["tasks", "best-known", "--work", str(tmp_path), f"--shard={bad}"]) == 2
+    err = capsys.readouterr().err
+    assert "--shard" in err and ("0 <= K < N" in err or "not an integer" in err)
+    assert not any(tmp_path.iterdir())  # refused before any work
+    assert main(["tasks", "best-known", "--work", str(tmp_path), "--shard", "0/2", "--doubled", "1"]) == 2
+    assert "--shard" in capsys.readouterr().err

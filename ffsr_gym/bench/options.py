@@ -1,6 +1,6 @@
 """Checks of command-line options and output places, made before any work starts.
 
-The ``argparse`` types (:func:`positive_int`, :func:`natural`, :func:`positive_float`) make a bad
+The ``argparse`` types (:func:`positive_int`, :func:`natural`, :func:`positive_float`, :func:`shard`) make a bad
 number an ``ffsr-gym: error: argument --x: ...`` line naming the option and the allowed range;
 :func:`writable_folder` and :func:`free_entry` refuse an output place that would lose the run's
 result at its end (a file where a folder is needed, a folder without write permission, an entry
@@ -49,6 +49,17 @@ def positive_float(text: str) -> float:
     if not math.isfinite(value) or value <= 0.0:
         raise argparse.ArgumentTypeError(f"{value}; allowed: a finite number > 0")
     return value
+
+
+def shard(text: str) -> tuple[int, int]:
+    """``K/N``: the K-th of N interleaved shares of a pool (tasks whose index is K modulo N), 0 <= K < N."""
+    parts = text.split("/")
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"{text!r}; allowed: K/N with integers 0 <= K < N, e.g. 0/2")
+    k, n = (_integer(part) for part in parts)
+    if n < 1 or not 0 <= k < n:
+        raise argparse.ArgumentTypeError(f"{text!r}; allowed: K/N with integers 0 <= K < N, e.g. 0/2")
+    return k, n
 
 
 def writable_folder(path: str | Path, option: str) -> Path:

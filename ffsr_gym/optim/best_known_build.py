@@ -2,7 +2,8 @@
 
 Each (tier, split) is searched task by task into ``<work>/<tier>_<split>.jsonl`` (one line per
 finished task, appended and flushed; a line torn by a kill is ignored and that task searched
-again), so a killed run resumes at the task it was on. :func:`assemble` writes every finished
+again), so a killed run resumes at the task it was on; processes sharing a pool each take a shard
+(every n-th task) into a file of their own, and every run skips the tasks any of them finished. :func:`assemble` writes every finished
 record into ``envs/benchmark/<version>_best_known.json`` with the search budget, the pool files'
 hashes and provenance. :func:`convergence` re-runs a sample of tasks with twice the generations and
 stores how much the best known scores move (how far from converged they are).
@@ -55,20 +56,33 @@ def _append(path: Path, record: dict[str, Any]) -> None:
         os.fsync(handle.fileno())
 
 
+def pool_files(work: str | Path, tier: str, split: str) -> list[Path]:
+    """The work files of one pool: ``<tier>_<split>.jsonl`` and its shards' ``<tier>_<split>.shard<K>of<N>.jsonl``."""
+    work = Path(work)
+    return sorted(p for p in [work / f"{tier}_{split}.jsonl", *work.glob(f"{tier}_{split}.shard*of*.jsonl")]
+                  if p.is_file())
+
+
 def run(tier: str, split: str, work: str | Path, *, version: str = "v2", generations: int = search.GENERATIONS,
-        indices: list[int] | None = None, progress: bool = True) -> Path:
-    """Search every task of ``tier``'s ``split`` pool (or ``indices`` of it) not yet in the work file."""
+        indices: list[int] | None = None, shard: tuple[int, int] | None = None, progress: bool = True) -> Path:
+    """Search every task of ``tier``'s ``split`` pool (or ``indices`` of it) not yet in one of the pool's work
+    files. With ``shard`` ``(k, n)``, only the tasks whose index is k modulo n, into a work file of the shard's
+    own, so that n processes share a pool without writing into one file."""
     benchmark = score_rule(spec_for_version(version)).benchmark
-    path = Path(work) / f"{tier}_{split}.jsonl"
+    name = f"{tier}_{split}" if shard is None else f"{tier}_{split}.shard{shard[0]}of{shard[1]}"
+    path = Path(work) / f"{name}.jsonl"
     tasks = pool(tier, split, version=version)
     wanted = list(range(len(tasks))) if indices is None else list(indices)
-    done = {r["index"] for r in read_lines(path)}
+    if shard is not None:
+        wanted = [i for i in wanted if i % shard[1] == shard[0]]
+    done = {r["index"] for f in pool_files(work, tier, split) for r in read_lines(f)}
     todo = [i for i in wanted if i not in done]
     if not todo:
         return path
     populations = {family: search.Population(family, tier, split, popsize(family), version) for family in FAMILIES}
     try:
-        for index in tqdm(todo, desc=f"best known {tier}/{split}", unit="task", disable=not progress):
+        label = f"best known {tier}/{split}" + ("" if shard is None else f" shard {shard[0]}/{shard[1]}")
+        for index in tqdm(todo, desc=label, unit="task", disable=not progress):
             _append(path, search.best_known(populations, tasks[index], tier, split, index, benchmark, generations))
     finally:
         for population in populations.values():
