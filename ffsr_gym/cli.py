@@ -360,7 +360,7 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
 
     work = Path(args.work)
     if args.doubled and args.shard is not None:
-        raise InvalidInputError("--shard shares the search between processes; allowed with --doubled: none")
+        raise InvalidInputError("--shard with --doubled; allowed: --shard only for the search (without --doubled)")
     if args.doubled:
         rng = np.random.default_rng(0)
         stored = [(t, s, r["index"]) for t in args.tiers for s in args.splits for r in records(t, s, args.version)]

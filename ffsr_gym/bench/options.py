@@ -1,10 +1,10 @@
 """Checks of command-line options and output places, made before any work starts.
 
-The ``argparse`` types (:func:`positive_int`, :func:`natural`, :func:`positive_float`, :func:`shard`) make a bad
-number an ``ffsr-gym: error: argument --x: ...`` line naming the option and the allowed range;
-:func:`writable_folder` and :func:`free_entry` refuse an output place that would lose the run's
-result at its end (a file where a folder is needed, a folder without write permission, an entry
-that a previous run saved).
+The ``argparse`` types (:func:`positive_int`, :func:`natural`, :func:`positive_float`,
+:func:`shard`) make a bad number an ``ffsr-gym: error: argument --x: ...`` line naming the option
+and the allowed range; :func:`writable_folder` and :func:`free_entry` refuse an output place that
+would lose the run's result at its end (a file where a folder is needed, a folder without write
+permission, an entry that a previous run saved).
 """
 
 from __future__ import annotations

@@ -2,11 +2,12 @@
 
 Each (tier, split) is searched task by task into ``<work>/<tier>_<split>.jsonl`` (one line per
 finished task, appended and flushed; a line torn by a kill is ignored and that task searched
-again), so a killed run resumes at the task it was on; processes sharing a pool each take a shard
-(every n-th task) into a file of their own, and every run skips the tasks any of them finished. :func:`assemble` writes every finished
-record into ``envs/benchmark/<version>_best_known.json`` with the search budget, the pool files'
-hashes and provenance. :func:`convergence` re-runs a sample of tasks with twice the generations and
-stores how much the best known scores move (how far from converged they are).
+again), so a killed run resumes at the task it was on. Processes sharing a pool each take a shard
+(every n-th task) into a file of their own, and every run skips the tasks any of them finished.
+:func:`assemble` writes every finished record into ``envs/benchmark/<version>_best_known.json``
+with the search budget, the pool files' hashes and provenance. :func:`convergence` re-runs a sample
+of tasks with twice the generations and stores how much the best known scores move (how far from
+converged they are).
 """
 
 from __future__ import annotations
