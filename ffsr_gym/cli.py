@@ -158,13 +158,12 @@ def _leaderboard_plot(args: argparse.Namespace) -> None:
 
 
 def _dataset(args: argparse.Namespace) -> None:
-    from ffsr_gym.bench.dataset import coverage, write_dataset
-    from ffsr_gym.tasks.splits import pool
+    from ffsr_gym.bench.dataset import write_dataset
 
     dataset = write_dataset(args.tier, args.env_id, split=args.split, root=args.root)
-    print(f"wrote {dataset.spec.dataset_id}: {dataset.total_episodes} episodes "
-          f"({coverage(dataset.total_episodes, len(pool(args.tier, args.split)))}), {dataset.total_steps} steps"
-          + (f" under {args.root}" if args.root else " (MINARI_DATASETS_PATH or Minari's default folder)"))
+    print(f"wrote {dataset.spec.dataset_id}: {dataset.total_episodes} episodes, {dataset.total_steps} steps"
+          + (f" under {args.root}" if args.root else " (MINARI_DATASETS_PATH or Minari's default folder)")
+          + f"\n{dataset.storage.metadata['description']}")  # says how much of the pool it holds
 
 
 def _leaderboard_aggregates(args: argparse.Namespace) -> None:

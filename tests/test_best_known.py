@@ -151,7 +151,8 @@ def test_the_dataset_loads_with_minari_and_replays_to_its_rewards(small, tmp_pat
     write_dataset("easy", "FFSR-Residual-v2", split="train", root=tmp_path, best_known_file=path)
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
     dataset = minari.load_dataset(dataset_id("easy", "FFSR-Residual-v2", "train"))
-    assert dataset.total_episodes == 2  # a partial pool says so:
+    assert dataset.total_episodes == 2
+    # a partial pool says so
     assert "2 of the pool's 200 tasks (the rest have no stored" in dataset.storage.metadata["description"]
     env = dataset.recover_environment()
     records = json.loads(path.read_text())["tasks"]["easy"]["train"]

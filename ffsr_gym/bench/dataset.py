@@ -35,8 +35,8 @@ from ffsr_gym.tasks.splits import pool
 FAMILY_OF = {env_id: family for family, env_id in ENV_IDS.items()}
 
 
-def coverage(episodes: int, pool_size: int) -> str:
-    """How much of its pool a dataset holds, in words (its description and the command's report)."""
+def _coverage(episodes: int, pool_size: int) -> str:
+    """How much of its pool a dataset holds, in words (for its description)."""
     return f"{episodes} of the pool's {pool_size} tasks" + (
         "" if episodes == pool_size else " (the rest have no stored best-known schedule of this env yet)")
 
@@ -126,6 +126,6 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
             algorithm_name="best known schedules: per-task CMA-ES, or a baseline's absorbed episode (ffsr_gym.optim)",
             code_permalink="ffsr_gym/bench/dataset.py", author="ffsr-gym", author_email="-",
             description=(f"The best {family} schedule found for each task of the {tier} tier's {split} pool of benchmark "
-                         f"{version}, played in {env_id}: {coverage(len(stored), size)}. infos: task_index, "
+                         f"{version}, played in {env_id}: {_coverage(len(stored), size)}. infos: task_index, "
                          "task_seed per step."),
             data_format="hdf5")

@@ -54,12 +54,11 @@ def positive_float(text: str) -> float:
 def shard(text: str) -> tuple[int, int]:
     """``K/N``: the K-th of N interleaved shares of a pool (tasks whose index is K modulo N), 0 <= K < N."""
     parts = text.split("/")
-    if len(parts) != 2:
-        raise argparse.ArgumentTypeError(f"{text!r}; allowed: K/N with integers 0 <= K < N, e.g. 0/2")
-    k, n = (_integer(part) for part in parts)
-    if n < 1 or not 0 <= k < n:
-        raise argparse.ArgumentTypeError(f"{text!r}; allowed: K/N with integers 0 <= K < N, e.g. 0/2")
-    return k, n
+    if len(parts) == 2:
+        k, n = (_integer(part) for part in parts)
+        if 0 <= k < n:
+            return k, n
+    raise argparse.ArgumentTypeError(f"{text!r}; allowed: K/N with integers 0 <= K < N, e.g. 0/2")
 
 
 def writable_folder(path: str | Path, option: str) -> Path:

@@ -57,11 +57,16 @@ def _append(path: Path, record: dict[str, Any]) -> None:
         os.fsync(handle.fileno())
 
 
+def work_file(work: str | Path, tier: str, split: str, shard: tuple[int, int] | None = None) -> Path:
+    """Where a run writes one pool's records: ``<tier>_<split>.jsonl``, or ``<tier>_<split>.shard<K>of<N>.jsonl``."""
+    name = f"{tier}_{split}" if shard is None else f"{tier}_{split}.shard{shard[0]}of{shard[1]}"
+    return Path(work) / f"{name}.jsonl"
+
+
 def pool_files(work: str | Path, tier: str, split: str) -> list[Path]:
-    """The work files of one pool: ``<tier>_<split>.jsonl`` and its shards' ``<tier>_<split>.shard<K>of<N>.jsonl``."""
-    work = Path(work)
-    return sorted(p for p in [work / f"{tier}_{split}.jsonl", *work.glob(f"{tier}_{split}.shard*of*.jsonl")]
-                  if p.is_file())
+    """Every work file of one pool: the unsharded one and its shards' (:func:`work_file`)."""
+    whole = work_file(work, tier, split)
+    return sorted(p for p in [whole, *Path(work).glob(f"{tier}_{split}.shard*of*.jsonl")] if p.is_file())
 
 
 def run(tier: str, split: str, work: str | Path, *, version: str = "v2", generations: int = search.GENERATIONS,
@@ -70,8 +75,7 @@ def run(tier: str, split: str, work: str | Path, *, version: str = "v2", generat
     files. With ``shard`` ``(k, n)``, only the tasks whose index is k modulo n, into a work file of the shard's
     own, so that n processes share a pool without writing into one file."""
     benchmark = score_rule(spec_for_version(version)).benchmark
-    name = f"{tier}_{split}" if shard is None else f"{tier}_{split}.shard{shard[0]}of{shard[1]}"
-    path = Path(work) / f"{name}.jsonl"
+    path = work_file(work, tier, split, shard)
     tasks = pool(tier, split, version=version)
     wanted = list(range(len(tasks))) if indices is None else list(indices)
     if shard is not None:
