@@ -136,7 +136,7 @@ def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = 
         for tier, splits in tasks.items():
             for split, slot in splits.items():
                 slot.sort(key=lambda r: r["index"])
-                lines = read_lines(Path(work) / f"{ABSORBED}{tier}_{split}.jsonl")
+                lines = read_lines(_absorbed_path(work, tier, split))
                 absorbed += sum(_merge_absorbed(record, [a for a in lines if a["index"] == record["index"]])
                                 for record in slot)
         tiers = sorted(tasks)
@@ -169,6 +169,10 @@ def _merge_absorbed(record: dict[str, Any], lines: list[dict[str, Any]]) -> bool
         if best["score"] > record["best"]["score"]:
             record["best"] = {"family": best["family"], "score": best["score"]}
     return changed
+
+
+def _absorbed_path(work: str | Path, tier: str, split: str) -> Path:
+    return Path(work) / f"{ABSORBED}{tier}_{split}.jsonl"
 
 
 def _done_path(work: str | Path, tier: str, split: str) -> Path:
@@ -204,7 +208,7 @@ def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, or
     benchmark = score_rule(spec_for_version(version)).benchmark
     stored = {r["index"]: r for r in records(tier, split, version)}
     tasks = pool(tier, split, version=version)
-    path = Path(work) / f"{ABSORBED}{tier}_{split}.jsonl"
+    path = _absorbed_path(work, tier, split)
     env = gym.make(env_id, task=tier, split=split)
     act, improved = actor(policy), 0
     for index in tqdm(sorted(stored), desc=f"absorb {origin} {tier}/{split}", unit="task", disable=not progress):
