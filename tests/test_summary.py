@@ -35,6 +35,18 @@ def test_headroom_is_one_minus_the_best_normalised_score(monkeypatch):
     assert "entries beat the best known score on 2 test tasks, by up to 20.0%" in tables.headroom(SPEC, entries)
 
 
+def test_best_known_cost_sums_each_file_and_skips_a_missing_one(monkeypatch, tmp_path):
+    files = {"test": {"counts": {"easy": {"test": 100, "validation": 50}, "hard": {"test": 100}},
+                      "compute": {"objective_evaluations": 12_345, "wall_time_s": 5400.0, "cores": 1}},
+             "train": None}
+    monkeypatch.setattr(tables.best_known, "load_best_known",
+                        lambda version=None, path=None: files["train" if "_train" in str(path) else "test"])
+    assert tables.best_known_cost("v2") == ("The best-known search cost: 250 tasks of the test and validation pools, "
+                                            "12,345 search episodes (certificate checks not counted), 1.5 core-hours.")
+    files["test"] = None
+    assert tables.best_known_cost("v2") == ""
+
+
 def test_compute_per_rl_entry_counts_each_training_once():
     common = {"compute": {"env_steps": 5_000_000, "wall_time_s": 7200.0, "hardware": "1 CPU core per training seed"},
               "runs": [{}] * 5, "timesteps_per_seed": 1_000_000}

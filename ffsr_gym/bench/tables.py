@@ -151,7 +151,24 @@ def headroom(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> s
         text += (f" Doubling the best-known search to {gap['generations']} generations on {len(gap['tasks'])} random "
                  f"stored tasks raised their best known score on {gap['share_improved']:.0%} of them, by "
                  f"{gap['median_relative_gap']:.1%} in the median and {gap['max_relative_gap']:.1%} at most.")
-    return text
+    cost = best_known_cost(spec.rules.version)
+    return text + (" " + cost if cost else "")
+
+
+def best_known_cost(version: str) -> str:
+    """What the stored best-known searches cost (their files' ``counts`` and ``compute``): for the test and
+    validation pools, and for the training pools, which only the offline datasets read."""
+    parts = []
+    for split, label in ((None, "the test and validation pools"), ("train", "the training pools (offline datasets)")):
+        data = best_known.load_best_known(version, best_known.best_known_path(version, split))
+        if not data or not data.get("compute"):
+            continue
+        tasks = sum(n for splits in data["counts"].values() for n in splits.values())
+        compute = data["compute"]
+        hours = compute["wall_time_s"] * compute["cores"] / 3600
+        parts.append(f"{tasks:,} tasks of {label}, {compute['objective_evaluations']:,} search episodes "
+                     f"(certificate checks not counted), {hours:.1f} core-hours")
+    return ("The best-known search cost: " + "; ".join(parts) + ".") if parts else ""
 
 
 def rl_compute_table(entries: dict[str, list[dict[str, Any]]]) -> list[str]:
