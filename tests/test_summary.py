@@ -41,8 +41,8 @@ def test_best_known_cost_sums_each_file_and_skips_a_missing_one(monkeypatch, tmp
              "train": None}
     monkeypatch.setattr(tables.best_known, "load_best_known",
                         lambda version=None, path=None: files["train" if "_train" in str(path) else "test"])
-    assert tables.best_known_cost("v2") == ("The best-known search cost: 250 tasks of the test and validation pools, "
-                                            "12,345 search episodes (certificate checks not counted), 1.5 core-hours.")
+    assert tables.best_known_cost("v2").endswith(": 250 tasks of the test and validation pools, 12,345 episodes, "
+                                                 "1.5 core-hours.")
     files["test"] = None
     assert tables.best_known_cost("v2") == ""
 

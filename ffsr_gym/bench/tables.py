@@ -166,9 +166,9 @@ def best_known_cost(version: str) -> str:
         tasks = sum(n for splits in data["counts"].values() for n in splits.values())
         compute = data["compute"]
         hours = compute["wall_time_s"] * compute["cores"] / 3600
-        parts.append(f"{tasks:,} tasks of {label}, {compute['objective_evaluations']:,} search episodes "
-                     f"(certificate checks not counted), {hours:.1f} core-hours")
-    return ("The best-known search cost: " + "; ".join(parts) + ".") if parts else ""
+        parts.append(f"{tasks:,} tasks of {label}, {compute['objective_evaluations']:,} episodes, {hours:.1f} core-hours")
+    return ("The best-known search cost (its episodes; the certificate checks of its results not counted): "
+            + "; ".join(parts) + ".") if parts else ""
 
 
 def rl_compute_table(entries: dict[str, list[dict[str, Any]]]) -> list[str]:
