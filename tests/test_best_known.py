@@ -153,7 +153,7 @@ def test_the_dataset_loads_with_minari_and_replays_to_its_rewards(small, tmp_pat
     dataset = minari.load_dataset(dataset_id("easy", "FFSR-Residual-v2", "train"))
     assert dataset.total_episodes == 2
     # a partial pool says so
-    assert "2 of the pool's 200 tasks (the rest have no stored" in dataset.storage.metadata["description"]
+    assert "2 of the pool's 200 tasks (198 not searched yet)" in dataset.storage.metadata["description"]
     env = dataset.recover_environment()
     records = json.loads(path.read_text())["tasks"]["easy"]["train"]
     for episode, record in zip(dataset.iterate_episodes(), records):
@@ -169,6 +169,16 @@ def test_the_dataset_loads_with_minari_and_replays_to_its_rewards(small, tmp_pat
         assert bool(terminated) == bool(episode.terminations[-1]) and bool(truncated) == bool(episode.truncations[-1])
         assert info["score"] == record["families"]["residual"]["score"]
         assert np.sum(episode.rewards) == pytest.approx(info["score"] - 1.0, abs=1e-12)  # rewards sum to score - 1
+
+
+def test_a_dataset_says_why_tasks_are_missing():
+    from ffsr_gym.bench.dataset import _coverage
+
+    assert _coverage(200, 200, 200, "residual") == "200 of the pool's 200 tasks"
+    assert _coverage(12, 200, 200, "parameters") == ("12 of the pool's 200 tasks (188 where no parameters schedule "
+                                                     "passed the certificate test)")
+    assert _coverage(5, 7, 10, "residual") == ("5 of the pool's 10 tasks (3 not searched yet; 2 where no residual "
+                                               "schedule passed the certificate test)")
 
 
 def test_when_no_schedule_passes_the_certificate_is_the_best_known(monkeypatch):

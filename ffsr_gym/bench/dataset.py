@@ -35,10 +35,15 @@ from ffsr_gym.tasks.splits import pool
 FAMILY_OF = {env_id: family for family, env_id in ENV_IDS.items()}
 
 
-def _coverage(episodes: int, pool_size: int) -> str:
-    """How much of its pool a dataset holds, in words (for its description)."""
-    return f"{episodes} of the pool's {pool_size} tasks" + (
-        "" if episodes == pool_size else " (the rest have no stored best-known schedule of this env yet)")
+def _coverage(episodes: int, searched: int, pool_size: int, family: str) -> str:
+    """How much of its pool a dataset holds, and why the rest is missing, in words (for its description):
+    ``searched`` tasks have a stored best-known record, ``episodes`` of them a schedule of the dataset's env."""
+    missing = []
+    if searched < pool_size:
+        missing.append(f"{pool_size - searched} not searched yet")
+    if episodes < searched:
+        missing.append(f"{searched - episodes} where no {family} schedule passed the certificate test")
+    return f"{episodes} of the pool's {pool_size} tasks" + (f" ({'; '.join(missing)})" if missing else "")
 
 
 def dataset_id(tier: str, env_id: str, split: str = "train") -> str:
@@ -104,8 +109,8 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
     if env_id not in FAMILY_OF:
         raise InvalidInputError(f"env_id {env_id!r}; allowed: {sorted(FAMILY_OF)}")
     family = FAMILY_OF[env_id]
-    stored = [r for r in best_known.records(tier, split, version, best_known_file)
-              if r["families"][family]["schedule"] is not None]
+    searched = best_known.records(tier, split, version, best_known_file)
+    stored = [r for r in searched if r["families"][family]["schedule"] is not None]
     if not stored:
         raise InvalidInputError(f"no best-known {family} schedule is stored for {tier}/{split} (run ffsr-gym tasks "
                                 f"best-known --tiers {tier} --splits {split})")
@@ -126,6 +131,6 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
             algorithm_name="best known schedules: per-task CMA-ES, or a baseline's absorbed episode (ffsr_gym.optim)",
             code_permalink="ffsr_gym/bench/dataset.py", author="ffsr-gym", author_email="-",
             description=(f"The best {family} schedule found for each task of the {tier} tier's {split} pool of benchmark "
-                         f"{version}, played in {env_id}: {_coverage(len(stored), size)}. infos: task_index, "
+                         f"{version}, played in {env_id}: {_coverage(len(stored), len(searched), size, family)}. infos: task_index, "
                          "task_seed per step."),
             data_format="hdf5")
