@@ -35,7 +35,7 @@ def test_headroom_is_one_minus_the_best_normalised_score(monkeypatch):
     assert "entries beat the best known score on 2 test tasks, by up to 20.0%" in tables.headroom(SPEC, entries)
 
 
-def test_best_known_cost_sums_each_file_and_skips_a_missing_one(monkeypatch, tmp_path):
+def test_best_known_cost_sums_each_file_and_skips_a_missing_one(monkeypatch):
     files = {"test": {"counts": {"easy": {"test": 100, "validation": 50}, "hard": {"test": 100}},
                       "compute": {"objective_evaluations": 12_345, "wall_time_s": 5400.0, "cores": 1}},
              "train": None}
@@ -43,7 +43,11 @@ def test_best_known_cost_sums_each_file_and_skips_a_missing_one(monkeypatch, tmp
                         lambda version=None, path=None: files["train" if "_train" in str(path) else "test"])
     assert tables.best_known_cost("v2").endswith(": 250 tasks of the test and validation pools, 12,345 episodes, "
                                                  "1.5 core-hours.")
-    files["test"] = None
+    files["train"] = {"counts": {"easy": {"train": 200}},
+                      "compute": {"objective_evaluations": 1_000, "wall_time_s": 3600.0, "cores": 2}}
+    assert tables.best_known_cost("v2").endswith("12,345 episodes, 1.5 core-hours; 200 tasks of the training pools "
+                                                 "(offline datasets), 1,000 episodes, 2.0 core-hours.")
+    files["test"] = files["train"] = None
     assert tables.best_known_cost("v2") == ""
 
 

@@ -131,6 +131,6 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
             algorithm_name="best known schedules: per-task CMA-ES, or a baseline's absorbed episode (ffsr_gym.optim)",
             code_permalink="ffsr_gym/bench/dataset.py", author="ffsr-gym", author_email="-",
             description=(f"The best {family} schedule found for each task of the {tier} tier's {split} pool of benchmark "
-                         f"{version}, played in {env_id}: {_coverage(len(stored), len(searched), size, family)}. infos: task_index, "
-                         "task_seed per step."),
+                         f"{version}, played in {env_id}: {_coverage(len(stored), len(searched), size, family)}. "
+                         "infos: task_index, task_seed per step."),
             data_format="hdf5")

@@ -166,7 +166,8 @@ def best_known_cost(version: str) -> str:
         tasks = sum(n for splits in data["counts"].values() for n in splits.values())
         compute = data["compute"]
         hours = compute["wall_time_s"] * compute["cores"] / 3600
-        parts.append(f"{tasks:,} tasks of {label}, {compute['objective_evaluations']:,} episodes, {hours:.1f} core-hours")
+        episodes = compute["objective_evaluations"]
+        parts.append(f"{tasks:,} tasks of {label}, {episodes:,} episodes, {hours:.1f} core-hours")
     return ("The best-known search cost (its episodes; the certificate checks of its results not counted): "
             + "; ".join(parts) + ".") if parts else ""
 
