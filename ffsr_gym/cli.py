@@ -221,7 +221,7 @@ def _add_policy_arguments(parser: argparse.ArgumentParser, *, env_id: str | None
                         help="scenario name or TOML path; v0: the scenario (default: paper); versions with tiers: a "
                              "custom task played instead of --task (unranked; default: none)")
     parser.add_argument("--trust-model", action="store_true",
-                        help="load an SB3 .zip from outside the working folder (loading unpickles: it can run code)")
+                        help="load the SB3 .zip of --policy (loading unpickles it: it can run any code its maker chose)")
 
 
 def _env_kwargs(args: argparse.Namespace) -> dict:
@@ -300,9 +300,9 @@ def _evaluate(args: argparse.Namespace) -> None:
 def _verify(args: argparse.Namespace) -> int:
     from ffsr_gym.bench.replay import replay_entry
 
-    same, what = replay_entry(args.entry, trust=args.trust_model)
-    print(f"{args.entry}: {what}", file=sys.stdout if same else sys.stderr)
-    return 0 if same else 1
+    verdict = replay_entry(args.entry, run_code=args.run_code)
+    print(f"{args.entry}: {verdict.status}: {verdict.text}", file=sys.stdout if verdict.exit_code == 0 else sys.stderr)
+    return verdict.exit_code
 
 
 def _render(args: argparse.Namespace) -> None:
@@ -550,9 +550,12 @@ def _add_board_commands(sub: Any) -> None:
                              "without it RL entries are listed as not run (default: none)")
     pareto.add_argument("--no-progress", action="store_true", help="hide the progress bars")
     pareto.set_defaults(func=_leaderboard_pareto)
-    verify = board_sub.add_parser("verify", help="re-run what an entry names and compare its rows exactly (exit 1: differ)")
+    verify = board_sub.add_parser("verify", help="replay an entry's trace (or planner, fixed parameters) and compare its "
+                                                 "rows exactly (exit 0: reproduced, 1: differ, 3: skipped code)")
     verify.add_argument("entry", help="the entry's JSON file")
-    verify.add_argument("--trust-model", action="store_true", help="load an SB3 model from outside the working folder")
+    verify.add_argument("--run-code", default=None, metavar="TEXT",
+                        help="consent to run the code the entry names: exactly its extra.policy callable or SB3 .zip "
+                             "(importing a file or unpickling a model runs code of its maker's choosing)")
     verify.set_defaults(func=_verify)
     render = board_sub.add_parser("render", help="regenerate the tables in <root>/README.md from the JSON entries")
     render.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")

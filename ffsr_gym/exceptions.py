@@ -23,6 +23,10 @@ class InvalidInputError(FFSRError, ValueError):
     """A function argument (state, action, parameter) is non-finite, wrongly shaped or out of range."""
 
 
+class UserFileError(InvalidInputError):
+    """A file that cannot be read safely: not a regular file, too large, nested too deep, unreadable or not UTF-8."""
+
+
 class MissingDependencyError(FFSRError, ImportError):
     """An optional dependency is needed for the requested feature but is not installed."""
 

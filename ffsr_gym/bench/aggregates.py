@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from ffsr_gym.bench.normalise import normalised_scores
-from ffsr_gym.bench.tables import method_name
+from ffsr_gym.bench.tables import method_name, safe
 from ffsr_gym.exceptions import InvalidInputError, require
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.provenance import package_versions, provenance, write_json_atomic
@@ -153,13 +153,13 @@ def markdown(path: str | Path) -> str:
     where = f"the {data['tiers'][0]} tier" if len(data["tiers"]) == 1 else f"the tiers {', '.join(data['tiers'])}"
     lines = [(f"Across {where} (score / the task's best known score; "
               f"{data['bootstrap']['package']}, bootstrap over tasks and runs, {data['bootstrap']['reps']} resamples):"),
-             "", f"| method | runs | IQM [95% CI] | mean | P(improves on `{data['reference']}`) [95% CI] |",
+             "", f"| method | runs | IQM [95% CI] | mean | P(improves on `{safe(data['reference'])}`) [95% CI] |",
              "|---|---|---|---|---|"]
     for m in order:
         v = data["methods"][m]
         poi = (f"{v['probability_of_improvement']:.2f} [{v['probability_of_improvement_ci95'][0]:.2f}, "
                f"{v['probability_of_improvement_ci95'][1]:.2f}]") if "probability_of_improvement" in v else "-"
-        lines.append(f"| `{m}` | {v['runs']} | {v['iqm']:.3f} [{v['iqm_ci95'][0]:.3f}, {v['iqm_ci95'][1]:.3f}] | "
+        lines.append(f"| `{safe(m)}` | {v['runs']} | {v['iqm']:.3f} [{v['iqm_ci95'][0]:.3f}, {v['iqm_ci95'][1]:.3f}] | "
                      f"{v['mean']:.3f} | {poi} |")
     return "\n".join(lines) + "\n"
 

@@ -23,8 +23,9 @@ import gymnasium as gym
 import numpy as np
 from tqdm.auto import tqdm
 
-from ffsr_gym.bench.entry import EvalReport, Policy, PredictsActions, check_compute, stepper
+from ffsr_gym.bench.entry import EvalReport, Policy, PredictsActions, actor, check_compute, stepper
 from ffsr_gym.bench.planner_scores import objective_for_params
+from ffsr_gym.bench.trace import encode, trace_record
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import BenchmarkSpec, spec_for_env_id
 from ffsr_gym.provenance import provenance
@@ -207,12 +208,15 @@ def _row(seed: int, info: dict[str, Any], rule_row: dict[str, Any], pooled: bool
 
 def _episodes(policy: Any, env_id: str, kwargs: dict[str, Any], pooled: bool,
               jobs: Sequence[tuple[int, int | None]]) -> list[tuple[dict, str, str]]:
-    """The scored episodes of ``jobs`` with each played scenario's key and hash (module level: executors run chunks)."""
+    """The scored episodes of ``jobs``: each row, the played scenario's key and hash, and (a policy that is code) the
+    trace of the actions it applied (:mod:`ffsr_gym.bench.trace`). Module level: executors run chunks."""
     env = gym.make(env_id, **kwargs)
-    step, engine = stepper(policy, env), env.unwrapped.engine
+    engine = env.unwrapped.engine
     out = []
     for seed, index in jobs:
         obs, info = env.reset(seed=seed, options=None if index is None else {"task_index": index})
+        applied: list[np.ndarray] | None = None if isinstance(policy, tuple) else []
+        step = stepper(policy, env) if applied is None else _recording_stepper(policy, env, applied)
         done = False
         while not done:
             obs, _, terminated, truncated, _ = step(obs)
@@ -221,9 +225,23 @@ def _episodes(policy: Any, env_id: str, kwargs: dict[str, Any], pooled: bool,
         result = engine.results[0] or engine.rule.result(traj, played)  # scored at the episode's end already
         row = _row(seed, info, engine.rule.row(result, traj), pooled)
         key = played.name if played.randomization is None or pooled else f"{played.name}/seed={seed}"
-        out.append((row, key, played.sha256()))
+        trace = None if applied is None else encode(np.reshape(applied, (len(applied), *env.action_space.shape)))
+        out.append((row, key, played.sha256(), trace))
     env.close()
     return out
+
+
+def _recording_stepper(policy: Any, env: gym.Env, applied: list[np.ndarray]):
+    """:func:`stepper` of a policy that is code, appending to ``applied`` each action as the env applies it."""
+    from ffsr_gym.environments.actions import check_action
+
+    act, shape = actor(policy), env.action_space.shape
+
+    def step(obs: np.ndarray) -> tuple:
+        action, _ = check_action(act(obs), shape)
+        applied.append(action)
+        return env.step(action)
+    return step
 
 
 def _batched_episodes(parameters: tuple[float, float], version: str, kwargs: dict[str, Any],
@@ -242,7 +260,7 @@ def _batched_episodes(parameters: tuple[float, float], version: str, kwargs: dic
         task_seed = int(info["task_seed"][i])
         traj = engine.trajectory(i) if engine.rule.row_needs_trajectory else None
         row = _row(seed, {"task_seed": None if task_seed < 0 else task_seed}, engine.rule.row(engine.results[i], traj), True)
-        results.append((row, engine.scenarios[i].name, engine.scenarios[i].sha256()))
+        results.append((row, engine.scenarios[i].name, engine.scenarios[i].sha256(), None))
     venv.close()
     return results
 
@@ -277,6 +295,28 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
     A task that is not a tier (a :class:`Scenario`, a scenario TOML path or a shipped scenario
     name, as ``task=`` or ``env_kwargs={"task": ...}``) is a custom task: one episode per seed of
     ``seeds`` (default ``[0]``), recorded as unranked (``extra.custom_task`` holds the scenario).
+
+    A policy that is code (a callable, a model) gets its applied actions recorded in the entry
+    (``extra.trace``, :mod:`ffsr_gym.bench.trace`), so that ``ffsr-gym leaderboard verify`` replays
+    the entry without running it.
+    """
+    plan = plan_evaluation(policy, env_id, seeds=seeds, env_kwargs=env_kwargs, task=task, split=split,
+                           training_pool=training_pool, executor=executor, indices=indices, batched=batched)
+    if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
+        raise InvalidInputError(f"chunk = {chunk!r}; allowed: an integer >= 1")
+    if compute is not None:
+        plan.extra["compute"] = check_compute(compute)
+    return run_plan(policy, plan, name=name, progress=progress, executor=executor, chunk=chunk, batched=batched)
+
+
+def plan_evaluation(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None, env_kwargs: dict | None = None,
+                    task: str | None = None, split: str | None = None, training_pool: str | None = None,
+                    executor: Executor | None = None, indices: Sequence[int] | None = None,
+                    batched: bool | None = None) -> Plan:
+    """The checked :class:`Plan` of an :func:`evaluate` call (its arguments, the same meaning).
+
+    Raises:
+        InvalidInputError: any argument outside what the version's protocol allows (named).
     """
     spec = spec_of(env_id)
     if spec.evaluation.protocol == "seeds":
@@ -285,14 +325,10 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
     else:
         plan = _pool_plan(spec, env_id, task=task, split=split, indices=indices, env_kwargs=env_kwargs,
                           training_pool=training_pool, seeds=seeds)
-    if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
-        raise InvalidInputError(f"chunk = {chunk!r}; allowed: an integer >= 1")
     _check_protocol(spec, plan.kwargs)
     if isinstance(policy, tuple):
         _check_constant(policy, plan)
-    if compute is not None:
-        plan.extra["compute"] = check_compute(compute)
-    return _run(policy, plan, name=name, progress=progress, executor=executor, chunk=chunk, batched=batched)
+    return plan
 
 
 def _runner(policy: Any, plan: Plan, executor: Executor | None, chunk: int, batched: bool | None):
@@ -313,20 +349,22 @@ def _runner(policy: Any, plan: Plan, executor: Executor | None, chunk: int, batc
     return partial(_episodes, policy, plan.env_id, plan.kwargs, pooled), chunk
 
 
-def _run(policy: Any, plan: Plan, *, name: str, progress: bool, executor: Executor | None, chunk: int,
-         batched: bool | None) -> EvalReport:
+def run_plan(policy: Any, plan: Plan, *, name: str = "submission", progress: bool = False,
+             executor: Executor | None = None, chunk: int = 10, batched: bool | None = None) -> EvalReport:
+    """The entry of ``policy`` played on a :func:`plan_evaluation` plan (what :func:`evaluate` returns)."""
     start = time.perf_counter()
     run, size = _runner(policy, plan, executor, chunk, batched)
     pieces = [plan.episodes[k:k + size] for k in range(0, len(plan.episodes), size)]
     results = (map if executor is None else executor.map)(run, pieces)
-    rows, hashes = [], {}
+    rows, hashes, traces = [], {}, []
     if plan.spec.evaluation.protocol == "seeds":
         hashes["family"] = _family_hash(plan)
     label = f"evaluate {plan.env_id}" + (f" {plan.extra['evaluation_pool']}" if plan.extra else "")
     with tqdm(total=len(plan.episodes), disable=not progress, desc=label, unit="episode") as bar:
         for episodes in results:
-            for row, key, sha in episodes:
+            for row, key, sha, trace in episodes:
                 rows.append(row)
+                traces.append(trace)
                 hashes.setdefault(key, sha)
             bar.update(len(episodes))
     rule = score_rule(plan.spec)
@@ -335,6 +373,8 @@ def _run(policy: Any, plan: Plan, *, name: str, progress: bool, executor: Execut
     extra = dict(plan.extra)
     if isinstance(policy, tuple):  # what `ffsr-gym leaderboard verify` re-runs
         extra["policy"] = {"fixed": [float(x) for x in policy]}
+    else:  # what `ffsr-gym leaderboard verify` replays without running the policy
+        extra["trace"] = trace_record(traces, (12 if plan.spec.is_residual(plan.env_id) else 2,))
     return EvalReport(plan.env_id, plan.kwargs if plan.recorded_kwargs is None else plan.recorded_kwargs,
                       rule.aggregate(rows), rows, prov, name=name, extra=extra,
                       score_rule=plan.spec.score.text)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections import Counter
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +27,7 @@ from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.model.spec import BenchmarkSpec, all_specs, ranked_spec, spec_for_env_id
 from ffsr_gym.provenance import splice_generated, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
+from ffsr_gym.user_files import load_json
 
 
 def groups(spec: BenchmarkSpec) -> list[str]:
@@ -63,19 +65,33 @@ def load_entries(root: str | Path, spec: BenchmarkSpec) -> dict[str, list[dict[s
         folder = folder_of(spec, root, group)
         if "{task}" not in spec.leaderboard.folder and not folder.is_dir():
             continue  # an env id's table is shown once its folder exists
-        out[group] = [_load(path, spec, group) for path in sorted(folder.glob("*.json"))]
+        out[group] = _refuse_duplicates([_load(path, spec, group) for path in sorted(folder.glob("*.json"))], group)
     return out
 
 
 def _load(path: Path, spec: BenchmarkSpec, group: str) -> dict[str, Any]:
-    """One entry file, verified; never raises for its content."""
+    """One entry file, verified; never raises for its content (nor hangs on a FIFO, nor reads a device)."""
     try:
-        entry = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        entry = load_json(path)
+    except FFSRError as exc:
         return {"_file": path.name, "_folder": str(path.parent), "_problems": [f"not a readable JSON file ({exc})"]}
     if not isinstance(entry, dict):
         entry = {"_not_an_object": True}
-    return entry | {"_file": path.name, "_folder": str(path.parent), "_problems": entry_problems(entry, spec, group)}
+    problems = entry_problems(entry, spec, group)
+    if isinstance(entry.get("name"), str) and entry["name"] != path.stem:
+        problems.append(f"name {entry['name']!r} is not its file's name {path.stem!r}; allowed: <name>.json")
+    return entry | {"_file": path.name, "_folder": str(path.parent), "_problems": problems}
+
+
+def _refuse_duplicates(items: list[dict[str, Any]], group: str) -> list[dict[str, Any]]:
+    """Refuse, by name, entries of one table whose method names are the same (``ppo_easy`` and ``ppo`` in easy are
+    both ``ppo`` in the summary): one method, one row."""
+    names = Counter(tables.method_name(e, group) for e in items if not e["_problems"])
+    for e in items:
+        if not e["_problems"] and names[tables.method_name(e, group)] > 1:
+            e["_problems"] = [f"method name {tables.method_name(e, group)!r} is taken by another entry of this table; "
+                              "allowed: one entry per method (rename one)"]
+    return items
 
 
 def refused(entries: dict[str, list[dict[str, Any]]]) -> list[tuple[str, str, list[str]]]:

@@ -10,6 +10,9 @@ from typing import Any
 
 from ffsr_gym.exceptions import InvalidInputError, MissingDependencyError
 
+#: Policies of this package that an entry may name and ``verify`` runs without being asked: they are the
+#: verifier's own code, not the entry's.
+BUILTIN_POLICIES = ("ffsr_gym.bench.policies:uniform_random_residual",)
 #: stable-baselines3 classes by algorithm name.
 SB3_CLASSES = {"ppo": "PPO", "sac": "SAC", "td3": "TD3", "a2c": "A2C", "ddpg": "DDPG"}
 
@@ -46,8 +49,8 @@ def load_policy(spec: str, algo: str | None, *, trust: bool = False):
     or ``module:callable`` / ``path/to/file.py:callable`` (called with an observation, returns an action).
 
     A stable-baselines3 ``.zip`` is unpickled when it loads, so loading one runs code of its maker's
-    choosing: only a model inside the working folder loads, unless ``trust`` (``--trust-model``) says
-    that one from elsewhere is trusted.
+    choosing: it loads only when ``trust`` (``--trust-model``) says its source is trusted, wherever it
+    lies (a pull request can ship a model into the working folder as easily as anywhere).
 
     Raises:
         InvalidInputError: none of these forms, an untrusted or unreadable model, a policy file that
@@ -77,9 +80,9 @@ def _load_zip(spec: str, algo: str | None, trust: bool) -> Any:
     path = Path(spec).resolve()
     if not path.is_file():
         raise InvalidInputError(f"--policy {spec!r}: no such file")
-    if not trust and not path.is_relative_to(Path.cwd().resolve()):
-        raise InvalidInputError(f"--policy {spec!r} lies outside the working folder; loading an SB3 model unpickles "
-                                "it, which can run any code: pass --trust-model if you trust its source")
+    if not trust:
+        raise InvalidInputError(f"--policy {spec!r}: loading an SB3 model unpickles it, which can run any code its "
+                                "maker chose; pass --trust-model if you trust its source")
     try:
         return load_model(algo, path)
     except (OSError, ValueError, KeyError, EOFError, RuntimeError, zipfile.BadZipFile) as exc:

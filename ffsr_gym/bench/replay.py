@@ -1,57 +1,229 @@
-"""``ffsr-gym leaderboard verify ENTRY``: re-run what an entry names and compare its rows, exactly.
+"""``ffsr-gym leaderboard verify ENTRY``: replay what an entry records and compare its rows, exactly.
 
-What can be re-run: a planner variant (``extra.planner``), fixed (m, T_c) parameters, a
-``module:callable`` or ``file.py:callable`` policy, or a stable-baselines3 model (``extra.policy``,
-recorded by :func:`ffsr_gym.evaluate` and ``ffsr-gym evaluate``). Models are loaded as
-:func:`ffsr_gym.bench.policies.load_policy` loads them (``trust`` for one outside the working folder).
+An entry is data, often from a pull request, so nothing it names runs as code unless the person
+verifying names that code too (``run_code``, ``--run-code``). Without consent ``verify`` replays
+what needs no code of the entry's:
+
+* the **trace** of applied actions (``extra.trace``, :mod:`ffsr_gym.bench.trace`), which
+  :func:`ffsr_gym.evaluate` stores for every policy that is code: the default check of an RL or
+  optimiser entry;
+* a planner variant (``extra.planner``) or fixed parameters (``extra.policy.fixed``);
+* a policy of this package (:data:`ffsr_gym.bench.policies.BUILTIN_POLICIES`).
+
+A callable or a stable-baselines3 model the entry names runs only when ``run_code`` is exactly
+the text the entry names; otherwise the verdict is ``skipped``, naming what was not run.
 """
 
 from __future__ import annotations
 
-import json
+from collections import Counter
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ffsr_gym.bench.evaluation import evaluate
+import numpy as np
+
+from ffsr_gym.bench.evaluation import NEUTRAL_KWARGS, plan_evaluation, run_plan
 from ffsr_gym.bench.leaderboard import spec_of_entry
 from ffsr_gym.bench.planner_scores import evaluate_planner
-from ffsr_gym.bench.policies import load_policy
-from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.bench.policies import BUILTIN_POLICIES, load_policy
+from ffsr_gym.bench.trace import decode, trace_episodes
+from ffsr_gym.exceptions import FFSRError, InvalidInputError
+from ffsr_gym.model.spec import BenchmarkSpec
+from ffsr_gym.user_files import load_json
+
+#: The most training seeds an entry's rows may repeat each task for (a bound on what ``verify`` plays).
+MAX_TRAINING_SEEDS = 20
+
+EXIT_CODES = {"reproduced": 0, "differs": 1, "skipped": 3}
 
 
-def replay_entry(path: str | Path, *, trust: bool = False) -> tuple[bool, str]:
-    """(reproduced, what happened) for the entry file ``path``.
+@dataclass(frozen=True)
+class Verdict:
+    """What ``verify`` found: ``reproduced``, ``differs`` or ``skipped`` (nothing it may run), and why."""
+
+    status: str
+    text: str
+
+    @property
+    def exit_code(self) -> int:
+        """0 reproduced, 1 differs, 3 skipped (2 is a named error of the command)."""
+        return EXIT_CODES[self.status]
+
+
+def replay_entry(path: str | Path, *, run_code: str | None = None) -> Verdict:
+    """Replay the entry file ``path`` and compare its rows.
+
+    Args:
+        path: the entry's JSON file.
+        run_code: consent to run the code the entry names: exactly its ``extra.policy`` callable
+            (``module:callable`` / ``file.py:callable``) or SB3 ``.zip`` path. Loading a model
+            unpickles it and importing a file runs it.
 
     Raises:
-        InvalidInputError: an unreadable entry file (named).
+        InvalidInputError: an unreadable or malformed entry (named), or ``run_code`` that is not what
+            the entry names.
     """
     path = Path(path)
-    try:
-        entry = json.loads(path.read_text(encoding="utf-8"))
-        spec = spec_of_entry(entry)
-    except (OSError, UnicodeDecodeError, ValueError, AttributeError) as exc:
-        raise InvalidInputError(f"{path}: not a readable leaderboard entry ({exc})") from None
-    extra, kwargs = entry.get("extra", {}), dict(entry.get("env_kwargs", {}))
+    entry, spec = _read_entry(path)
+    extra, rows = entry["extra"], entry["episodes"]
+    named = _named_code(extra.get("policy"), path)
+    if run_code is not None and run_code != named:
+        raise InvalidInputError(f"--run-code {run_code!r}: the entry names {named!r} as its code; consent is given "
+                                "to exactly that text" if named else f"--run-code {run_code!r}: the entry names no code")
     if "planner" in extra:
-        planner = extra["planner"]
-        report = evaluate_planner(planner["method"], task=kwargs["task"], split=kwargs["split"], m=planner["m"],
-                                  T_c=planner["T_c_s"], gain_per_s=planner["gain_per_s"], version=spec.version)
-    elif isinstance(extra.get("policy"), dict) and len(extra.get("training_seeds") or []) <= 1:
-        policy = _policy(extra["policy"], trust)
-        if "custom_task" in extra:
-            report = evaluate(policy, entry["env_id"], task=_custom_scenario(extra["custom_task"], path),
-                              seeds=entry["protocol"]["seeds"],
-                              env_kwargs={k: v for k, v in kwargs.items() if k != spec.tasks.keyword})
-        elif spec.evaluation.protocol == "pool":
-            task, split = kwargs.pop(spec.tasks.keyword), kwargs.pop("split")
-            report = evaluate(policy, entry["env_id"], task=task, split=split, env_kwargs=kwargs,
-                              indices=[row["task_index"] for row in entry["episodes"]])
-        else:
-            report = evaluate(policy, entry["env_id"], seeds=entry["protocol"]["seeds"], env_kwargs=kwargs)
-    else:
-        return False, ("nothing to re-run: the entry names no planner, fixed parameters, callable or model "
-                       "(an RL study's entry is re-run by its training command)")
-    return _compare(entry["episodes"], report.to_json()["episodes"])
+        planner = _planner(extra["planner"], path)
+        kwargs = entry["env_kwargs"]
+        report = evaluate_planner(planner["method"], task=kwargs.get(spec.tasks.keyword), split=kwargs.get("split"),
+                                  m=planner["m"], T_c=planner["T_c_s"], gain_per_s=planner["gain_per_s"],
+                                  version=spec.version)
+        return _compare(rows, report.to_json()["episodes"], "the planner variant")
+    if "trace" in extra:
+        verdict = _replay_trace(entry, spec, path)
+        if verdict.status != "reproduced" or named is None or run_code is None:
+            return verdict
+    policy_record = extra.get("policy")
+    if policy_record is None:
+        return Verdict("skipped", "nothing to replay: the entry records no trace, planner, fixed parameters or "
+                                  "policy (an RL study's entry without a trace is re-run by its training command)")
+    if named is not None and named not in BUILTIN_POLICIES and run_code is None:
+        return Verdict("skipped", f"not run: the entry names code ({named!r}) and records no trace; running it needs "
+                                  f"consent: verify again with --run-code {named!r} if you trust it")
+    policy = _policy(policy_record, path)
+    return _compare(rows, _play(policy, entry, spec, path).to_json()["episodes"],
+                    "the fixed parameters" if named is None else f"{named!r}")
+
+
+def _read_entry(path: Path) -> tuple[dict[str, Any], BenchmarkSpec]:
+    """The entry and its version, checked for what a replay reads."""
+    try:
+        entry = load_json(path)
+    except FFSRError as exc:
+        raise InvalidInputError(f"{path}: not a readable leaderboard entry ({exc})") from None
+    if not isinstance(entry, dict):
+        raise InvalidInputError(f"{path}: not a leaderboard entry (a JSON object), got {type(entry).__name__}")
+    for key, kind in (("extra", dict), ("env_kwargs", dict), ("episodes", list), ("protocol", dict)):
+        if not isinstance(entry.get(key, {} if key in ("extra", "protocol") else None), kind):
+            raise InvalidInputError(f"{path}: {key} = {str(entry.get(key))[:80]!r}; allowed: a JSON {kind.__name__}")
+    entry.setdefault("extra", {})
+    entry.setdefault("protocol", {})
+    rows = entry["episodes"]
+    if not rows or not all(isinstance(row, dict) for row in rows):
+        raise InvalidInputError(f"{path}: episodes: allowed: a non-empty list of rows (objects)")
+    spec = spec_of_entry(entry)
+    _check_kwargs(entry["env_kwargs"], spec, path)
+    _check_rows(entry, spec, path)
+    return entry, spec
+
+
+def _check_kwargs(kwargs: dict[str, Any], spec: BenchmarkSpec, path: Path) -> None:
+    allowed = spec.env_options() | set(NEUTRAL_KWARGS)
+    unknown = sorted(set(kwargs) - allowed)
+    if unknown:
+        raise InvalidInputError(f"{path}: env_kwargs {unknown}; allowed: {sorted(allowed)}")
+    if spec.tasks.keyword not in kwargs:
+        raise InvalidInputError(f"{path}: env_kwargs has no {spec.tasks.keyword!r}; allowed: the task the entry played")
+    kwargs.pop("render_mode", None)  # drawing changes no score; a replay never draws
+
+
+def _check_rows(entry: dict[str, Any], spec: BenchmarkSpec, path: Path) -> None:
+    """Rows a replay may play: integer seeds (and pool indices), each task at most once per training seed."""
+    rows, extra = entry["episodes"], entry["extra"]
+    seeds = extra.get("training_seeds")
+    if seeds is not None and (not isinstance(seeds, list) or not 1 <= len(seeds) <= MAX_TRAINING_SEEDS):
+        raise InvalidInputError(f"{path}: extra.training_seeds; allowed: a list of 1 to {MAX_TRAINING_SEEDS} seeds")
+    copies = len(seeds or [None])
+    keys = ("seed", "task_index") if spec.evaluation.protocol == "pool" and "custom_task" not in extra else ("seed",)
+    for k, row in enumerate(rows):
+        for key in keys:
+            value = row.get(key)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise InvalidInputError(f"{path}: episodes[{k}].{key} = {value!r}; allowed: an integer >= 0")
+    repeated = [key for key, count in Counter(tuple(row[key] for key in keys) for row in rows).items() if count > copies]
+    if repeated:
+        raise InvalidInputError(f"{path}: episodes repeat {keys} {repeated[0]} more than once per training seed "
+                                f"({copies}); allowed: each episode once per training seed")
+
+
+def _named_code(record: Any, path: Path) -> str | None:
+    """The code an entry's ``extra.policy`` names (a callable or a model path), or None (fixed, absent)."""
+    if record is None:
+        return None
+    if not isinstance(record, dict) or len(set(record) & {"fixed", "callable", "sb3"}) != 1:
+        raise InvalidInputError(f"{path}: extra.policy = {str(record)[:80]!r}; allowed: an object with one of "
+                                "'fixed' (numbers), 'callable' (text), 'sb3' (text, with 'algo')")
+    for key in ("callable", "sb3"):
+        if key in record:
+            if not isinstance(record[key], str):
+                raise InvalidInputError(f"{path}: extra.policy.{key} = {record[key]!r}; allowed: a text")
+            return record[key]
+    return None
+
+
+def _policy(record: dict[str, Any], path: Path) -> Any:
+    """The policy of ``extra.policy``, loaded (the caller has consent for code)."""
+    if "fixed" in record:
+        fixed = record["fixed"]
+        if not isinstance(fixed, list) or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in fixed):
+            raise InvalidInputError(f"{path}: extra.policy.fixed = {str(fixed)[:80]!r}; allowed: a list of numbers")
+        return tuple(fixed)
+    if "callable" in record:
+        return load_policy(record["callable"], None)
+    return load_policy(record["sb3"], record.get("algo"), trust=True)
+
+
+def _planner(record: Any, path: Path) -> dict[str, Any]:
+    keys = ("method", "m", "T_c_s", "gain_per_s")
+    if not isinstance(record, dict) or not set(keys) <= set(record):
+        raise InvalidInputError(f"{path}: extra.planner = {str(record)[:80]!r}; allowed: an object with {list(keys)}")
+    return record
+
+
+def _play(policy: Any, entry: dict[str, Any], spec: BenchmarkSpec, path: Path) -> Any:
+    """The report of ``policy`` on the entry's own episodes (its tasks, seeds and env arguments)."""
+    return run_plan(policy, _plan(policy, entry, spec, path))
+
+
+def _plan(policy: Any, entry: dict[str, Any], spec: BenchmarkSpec, path: Path) -> Any:
+    extra, kwargs, rows = entry["extra"], dict(entry["env_kwargs"]), entry["episodes"]
+    if "custom_task" in extra:
+        return plan_evaluation(policy, entry["env_id"], task=_custom_scenario(extra["custom_task"], path),
+                               seeds=[row["seed"] for row in rows],
+                               env_kwargs={k: v for k, v in kwargs.items() if k != spec.tasks.keyword})
+    if spec.evaluation.protocol == "pool":
+        task, split = kwargs.pop(spec.tasks.keyword), kwargs.pop("split", None)
+        return plan_evaluation(policy, entry["env_id"], task=task, split=split, env_kwargs=kwargs,
+                               indices=[row["task_index"] for row in rows])
+    return plan_evaluation(policy, entry["env_id"], seeds=[row["seed"] for row in rows], env_kwargs=kwargs)
+
+
+class _TracePlayer:
+    """A policy that plays an entry's stored actions, episode after episode (no code of the entry's runs)."""
+
+    def __init__(self, episodes: list[np.ndarray]):
+        self.episodes, self.episode, self.decision = episodes, 0, 0
+
+    def __call__(self, _observation: Any) -> np.ndarray:
+        while self.decision >= len(self.episodes[self.episode]):  # this episode's actions are spent: the next one's
+            self.episode, self.decision = self.episode + 1, 0
+            if self.episode >= len(self.episodes):
+                raise InvalidInputError("the trace ends before the episodes do (its episodes are too short)")
+        self.decision += 1
+        return self.episodes[self.episode][self.decision - 1]
+
+
+def _replay_trace(entry: dict[str, Any], spec: BenchmarkSpec, path: Path) -> Verdict:
+    """Play the stored actions and compare the rows and the actions the env applied, exactly."""
+    rows = entry["episodes"]
+    width, texts = trace_episodes(entry["extra"]["trace"], len(rows), where=f"{path}: extra.trace")
+    episodes = [decode(text, width, where=f"{path}: extra.trace.episodes[{k}]") for k, text in enumerate(texts)]
+    report = _play(_TracePlayer(episodes), entry, spec, path).to_json()
+    for k, played in enumerate(report["extra"]["trace"]["episodes"]):
+        applied = decode(played, width, where="the replay")
+        if applied.tobytes() != episodes[k].tobytes():
+            return Verdict("differs", f"episode {k}: its trace does not fit the episode (the env applied {len(applied)} "
+                                      f"actions, {len(episodes[k])} stored, or other values)")
+    return _compare(rows, report["episodes"], "the stored trace of applied actions")
 
 
 def _custom_scenario(record: Any, path: Path) -> Any:
@@ -74,21 +246,14 @@ def _custom_scenario(record: Any, path: Path) -> Any:
     return scenario
 
 
-def _policy(record: dict[str, Any], trust: bool) -> Any:
-    if "fixed" in record:
-        return tuple(record["fixed"])
-    if "callable" in record:
-        return load_policy(record["callable"], None)
-    if "sb3" in record:
-        return load_policy(record["sb3"], record.get("algo"), trust=trust)
-    raise InvalidInputError(f"extra.policy = {record!r}; allowed keys: fixed, callable, sb3 (with algo)")
-
-
-def _compare(stored: list[dict], rerun: list[dict]) -> tuple[bool, str]:
+def _compare(stored: list[dict], rerun: list[dict], what: str) -> Verdict:
+    """Rows compared exactly (an RL study's rows also name their training seed, which a replay keeps)."""
     if len(stored) != len(rerun):
-        return False, f"{len(rerun)} rows re-run, {len(stored)} stored"
+        return Verdict("differs", f"{len(rerun)} rows replayed, {len(stored)} stored")
+    rerun = [b | {"train_seed": a["train_seed"]} if "train_seed" in a else b for a, b in zip(stored, rerun)]
     for k, (a, b) in enumerate(zip(stored, rerun)):
         if a != b:
             keys = sorted(key for key in set(a) | set(b) if a.get(key) != b.get(key))
-            return False, f"row {k} differs in {keys}: stored {[a.get(x) for x in keys]}, re-run {[b.get(x) for x in keys]}"
-    return True, f"all {len(stored)} rows reproduce exactly"
+            return Verdict("differs", f"row {k} differs in {keys}: stored {[a.get(x) for x in keys]}, "
+                                      f"replayed {[b.get(x) for x in keys]}")
+    return Verdict("reproduced", f"all {len(stored)} rows reproduce exactly ({what})")

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ffsr_gym.bench.tables import method_name
+from ffsr_gym.bench.tables import method_name, safe
 from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.model.spec import BenchmarkSpec
 
@@ -41,7 +41,7 @@ def _cell(spec: BenchmarkSpec, e: dict[str, Any] | None, tier: str) -> str:
         return "-"
     m = e["metrics"]
     lo, hi = m[spec.leaderboard.ci]
-    return f"`{method_name(e, tier)}` {m[spec.leaderboard.iqm]:.3f} [{lo:.3f}, {hi:.3f}], {m[spec.leaderboard.rate]:.0%}"
+    return f"`{safe(method_name(e, tier))}` {m[spec.leaderboard.iqm]:.3f} [{lo:.3f}, {hi:.3f}], {m[spec.leaderboard.rate]:.0%}"
 
 
 def _best(spec: BenchmarkSpec, items: list[dict[str, Any]]) -> dict[str, Any] | None:
@@ -73,7 +73,7 @@ def table(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> str:
             f"| {tier} | {_cell(spec, best, tier)} | {_cell(spec, pair[best['name']], tier)} | "
             f"{_cell(spec, planner, tier)} | {'-' if planner is None else verdict(spec, best, planner)} | "
             f"{_cell(spec, untrained, tier)} | {'-' if untrained is None else verdict(spec, best, untrained)} | "
-            f"{'-' if drop is None else f'`{dropped}` {drop:+.3f}'} | {len(selected)} of {PAIRS_PER_TIER} |")
+            f"{'-' if drop is None else f'`{safe(dropped)}` {drop:+.3f}'} | {len(selected)} of {PAIRS_PER_TIER} |")
     if len(lines) == 2:
         return "No RL entries yet.\n"
     return "\n".join(lines) + "\n"

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import unicodedata
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -23,9 +24,15 @@ from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.tasks import best_known
 
 
-def safe(text: str) -> str:
-    """``text`` as one table-safe line: no line breaks, pipes or backticks (a file name, a reason)."""
-    return " ".join(str(text).split()).replace("|", "/").replace("`", "'")
+def safe(text: Any) -> str:
+    """``text`` as one Markdown table cell: every string an entry brings into a table passes here.
+
+    Control and format characters become spaces, runs of white space (line breaks included) one
+    space; ``|`` (a cell border) becomes ``/``, a backtick (a code span) ``'``, ``<`` and ``>`` (HTML,
+    the generated-text markers) entities.
+    """
+    text = "".join(" " if unicodedata.category(char)[0] in "CZ" else char for char in str(text))
+    return " ".join(text.split()).replace("|", "/").replace("`", "'").replace("<", "&lt;").replace(">", "&gt;")
 
 
 def header(spec: BenchmarkSpec, group: str) -> list[str]:
@@ -42,7 +49,7 @@ def header(spec: BenchmarkSpec, group: str) -> list[str]:
 def commit(entry: dict[str, Any]) -> str:
     """The short commit an entry was made at (``+dirty`` with uncommitted changes)."""
     prov = entry["provenance"]
-    return (prov.get("git_commit") or "none")[:8] + ("+dirty" if prov.get("git_dirty") else "")
+    return safe(str(prov.get("git_commit") or "none")[:8] + ("+dirty" if prov.get("git_dirty") else ""))
 
 
 def _g4(x: float | None) -> str:
@@ -79,17 +86,17 @@ def row(spec: BenchmarkSpec, label: str, e: dict[str, Any]) -> str:
     m, names = e["metrics"], spec.leaderboard
     lo, hi = m[names.ci]
     if names.ranking == "feasible_then_iqm":
-        method = e.get("extra", {}).get("method", "")
+        method = safe(e.get("extra", {}).get("method", ""))
         runs = " (single run)" if m["episodes"] == 1 else ""
-        return (f"| {label} | `{e['name']}` | {method} | {m[names.rate]:.2f} | {_g4(m[names.iqm])} [{_g4(lo)}, {_g4(hi)}] | "
+        return (f"| {label} | `{safe(e['name'])}` | {method} | {m[names.rate]:.2f} | {_g4(m[names.iqm])} [{_g4(lo)}, {_g4(hi)}] | "
                 f"{_g4(m['score_mean'])} | {m['episodes']}{runs} | {commit(e)} |")
     rows, extra = e["episodes"], e.get("extra", {})
-    return (f"| {label} | `{e['name']}` | {m[names.iqm]:.3f} [{lo:.3f}, {hi:.3f}] | {m[names.rate]:.2f} | "
+    return (f"| {label} | `{safe(e['name'])}` | {m[names.iqm]:.3f} [{lo:.3f}, {hi:.3f}] | {m[names.rate]:.2f} | "
             f"{_fmt(normalised_mean(e, spec.rules.version), '.3f')} | {_fmt(_median(rows, 'paper_B'))} | {_fmt(_median(rows, 'peak_rate_deg_s', 0), '.0f')} / "
             f"{_fmt(_median(rows, 'peak_rate_deg_s', 1), '.0f')} | "
             f"{_fmt(_median(rows, 'final_ee_position_error_m', successes=True), '.1e')} | "
             f"{_fmt(_median(rows, 'convergence_time_s', successes=True), '.1f')} | {compute_text(extra.get('compute', {}))} | "
-            f"{extra.get('training_pool') or '-'} | {commit(e)} |")
+            f"{safe(extra.get('training_pool') or '-')} | {commit(e)} |")
 
 
 def method_name(entry: dict[str, Any], tier: str) -> str:
@@ -119,7 +126,8 @@ def summary(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]],
     order = sorted(cells, key=lambda method: (rank_sum[method] / len(cells[method]), method))
     lines = ["| method | " + " | ".join(f"{tier}: IQM [95% CI] #rank" for tier in tiers) + " |",
              "|---|" + "---|" * len(tiers)]
-    lines += [f"| `{method}` | " + " | ".join(cells[method].get(tier, "-") for tier in tiers) + " |" for method in order]
+    lines += [f"| `{safe(method)}` | " + " | ".join(cells[method].get(tier, "-") for tier in tiers) + " |"
+              for method in order]
     lines += ["", headroom(spec, entries)]
     rl = [e for items in entries.values() for e in items if e.get("extra", {}).get("compute", {}).get("env_steps")
           and e["extra"].get("checkpoint") != "best_on_validation"]  # a checkpoint of a training counted once
@@ -140,7 +148,7 @@ def headroom(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> s
             beats = (f"entries beat the best known score on {len(beaten)} test task{'s' * (len(beaten) != 1)}, by up to "
                      f"{top - 1.0:.1%}" if beaten
                      else "no entry beats the best known score on any test task")
-            cells.append(f"{tier} {1.0 - best:.3f} (best: `{name}`, {best:.3f}; {beats})")
+            cells.append(f"{tier} {1.0 - best:.3f} (best: `{safe(name)}`, {best:.3f}; {beats})")
         elif items:
             cells.append(f"{tier} - (no best known scores)")
     text = ("Headroom (1 − the best entry's normalised score, the mean over test tasks of score / the task's best "
@@ -191,7 +199,7 @@ def rl_compute_table(entries: dict[str, list[dict[str, Any]]]) -> list[str]:
     tiers = [t for t in entries if any(t in c for c in cells.values())]
     return ["| RL entry | " + " | ".join(f"{t}: seeds x env steps, training time, cores" for t in tiers) + " |",
             "|---|" + "---|" * len(tiers),
-            *[f"| `{m}` | " + " | ".join(cells[m].get(t, "-") for t in tiers) + " |" for m in sorted(cells)]]
+            *[f"| `{safe(m)}` | " + " | ".join(cells[m].get(t, "-") for t in tiers) + " |" for m in sorted(cells)]]
 
 
 def _rl_compute(rl: list[dict[str, Any]]) -> str:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import hashlib
 import math
 import re
+import unicodedata
 from collections import Counter
 from functools import lru_cache
 from typing import Any
@@ -31,13 +32,14 @@ from ffsr_gym.tasks.splits import pool, pool_path
 #: The checkpoints a trained method is entered with, and the suffix each adds to the entry name.
 CHECKPOINTS = {"last": "", "best_on_validation": "_valbest"}
 ENTRY_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,127}")
+GIT_COMMIT = re.compile(r"[0-9a-f]{7,40}")
 
 
 def entry_problems(entry: Any, spec: BenchmarkSpec, group: str) -> list[str]:
     """Every reason to refuse ``entry`` in the table ``group`` (a tier or an env id) of ``spec``; empty if none."""
     if not isinstance(entry, dict):
         return [f"not a JSON object ({type(entry).__name__})"]
-    problems = _name_problems(entry) + _id_problems(entry, spec, group)
+    problems = _name_problems(entry) + _text_problems(entry) + _id_problems(entry, spec, group)
     rows = entry.get("episodes")
     if not isinstance(rows, list) or not rows or not all(isinstance(row, dict) for row in rows):
         return [*problems, "episodes: not a non-empty list of rows"]
@@ -54,6 +56,26 @@ def _name_problems(entry: dict) -> list[str]:
     if not isinstance(name, str) or not ENTRY_NAME.fullmatch(name):
         return [f"name {name!r}: allowed 1-128 letters, digits, '.', '_', '-'"]
     return []
+
+
+def _text_problems(entry: dict) -> list[str]:
+    """Free text on one line: no control or format character, no line break, in any field (a forged row starts with
+    one); a commit is hexadecimal."""
+    problems, stack = [], [("", entry)]
+    while stack and len(problems) < 5:
+        where, value = stack.pop()
+        if isinstance(value, dict):
+            stack += [(f"{where}.{key}" if where else str(key), item) for key, item in value.items()
+                      if not (where == "extra" and key == "trace")]  # the trace is checked as a trace
+            stack += [(f"{where} key", key) for key in value]
+        elif isinstance(value, list):
+            stack += [(f"{where}[{k}]", item) for k, item in enumerate(value)]
+        elif isinstance(value, str) and any(unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp") for c in value):
+            problems.append(f"{where}: a control character or line break in {value[:40]!r}; allowed: one line of text")
+    commit = entry.get("provenance", {}).get("git_commit") if isinstance(entry.get("provenance"), dict) else None
+    if commit is not None and not (isinstance(commit, str) and GIT_COMMIT.fullmatch(commit)):
+        problems.append(f"provenance.git_commit {str(commit)[:40]!r}; allowed: null or 7-40 hexadecimal digits")
+    return problems
 
 
 def _id_problems(entry: dict, spec: BenchmarkSpec, group: str) -> list[str]:

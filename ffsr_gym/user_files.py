@@ -1,0 +1,114 @@
+"""Reading files a user or a pull request brings (entries, scenarios, robot files): bounded, regular, named errors.
+
+Every reader here refuses, by name and before parsing, a path that is not a regular file (a FIFO
+would hang the reader, a link to ``/dev/zero`` would fill memory), a file larger than its bound,
+and a document nested deeper than :data:`MAX_DEPTH` (Python's parsers recurse: 100,000 nested
+arrays end in a ``RecursionError``, or worse).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+from pathlib import Path
+from typing import Any
+
+from ffsr_gym.exceptions import UserFileError
+
+#: The largest entry, scenario or robot file read [bytes]: a 100-task residual entry with its trace is about 2 MB,
+#: the best-known files about 5 MB.
+MAX_FILE_BYTES = 64 * 2**20
+#: The deepest nesting of a JSON or TOML document (the project's own files nest at most 6 deep).
+MAX_DEPTH = 32
+
+
+def check_regular(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> Path:
+    """``path`` if it is a regular file (after links) of at most ``max_bytes``.
+
+    Raises:
+        UserFileError: missing, not a regular file, unreadable or larger than ``max_bytes`` (named).
+    """
+    path = Path(path)
+    try:
+        info = os.stat(path)
+    except OSError as exc:
+        raise UserFileError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise UserFileError(f"{path}: not a regular file (a FIFO, device, socket or folder); allowed: a regular file")
+    if info.st_size > max_bytes:
+        raise UserFileError(f"{path}: {info.st_size:,} bytes; allowed: at most {max_bytes:,}")
+    return path
+
+
+def read_text(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> str:
+    """The UTF-8 text of a regular file of at most ``max_bytes``.
+
+    Raises:
+        UserFileError: as :func:`check_regular`, or not UTF-8 text.
+    """
+    path = check_regular(path, max_bytes=max_bytes)
+    try:
+        with open(path, "rb") as handle:
+            data = handle.read(max_bytes + 1)
+    except OSError as exc:
+        raise UserFileError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    if len(data) > max_bytes:  # grew since the check
+        raise UserFileError(f"{path}: more than {max_bytes:,} bytes; allowed: at most {max_bytes:,}")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise UserFileError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+
+
+def nesting_depth(text: str, opening: str = "[{", closing: str = "]}") -> int:
+    """An upper bound of how deep ``text`` nests brackets (strings included: a bound, never an underestimate)."""
+    depth = deepest = 0
+    for char in text:
+        if char in opening:
+            depth += 1
+            deepest = max(deepest, depth)
+        elif char in closing:
+            depth = max(0, depth - 1)
+    return deepest
+
+
+def check_depth(text: str, where: str, *, max_depth: int = MAX_DEPTH) -> None:
+    """Refuse a document whose brackets nest deeper than ``max_depth`` before a recursive parser sees it.
+
+    Raises:
+        UserFileError: naming ``where`` and the bound.
+    """
+    if nesting_depth(text) > max_depth and _parsed_depth(text) > max_depth:
+        raise UserFileError(f"{where}: nested deeper than {max_depth} levels; allowed: at most {max_depth}")
+
+
+def _parsed_depth(text: str) -> int:
+    """The brackets' nesting outside quoted strings (the exact bound, when the cheap one is exceeded)."""
+    depth = deepest = 0
+    quote, escaped = "", False
+    for char in text:
+        if quote:
+            escaped, quote = (not escaped and char == "\\"), ("" if char == quote and not escaped else quote)
+        elif char in "\"'":
+            quote = char
+        elif char in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif char in "]}":
+            depth = max(0, depth - 1)
+    return deepest
+
+
+def load_json(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> Any:
+    """A JSON document from a regular file, bounded in size and depth.
+
+    Raises:
+        UserFileError: as :func:`read_text` and :func:`check_depth`, or not JSON (named with the position).
+    """
+    text = read_text(path, max_bytes=max_bytes)
+    check_depth(text, str(path))
+    try:
+        return json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise UserFileError(f"{path}: not JSON ({exc})") from None
