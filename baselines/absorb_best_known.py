@@ -79,7 +79,7 @@ def main() -> None:
                     continue
                 kept = build.absorb(policy, env_id, tier, split, args.work, origin, progress=False, key=key)
                 print(f"{tier}/{split}: {origin}: {kept} tasks improved")
-    for path in build.assemble(args.work, command=shlex.join(["python", *sys.argv]), splits=args.splits):
+    for path in build.assemble(args.work, command=shlex.join(["python", *sys.argv]), splits=args.splits, shipped=True):
         print("wrote", path)
 
 

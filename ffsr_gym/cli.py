@@ -366,7 +366,8 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
         if not stored:
             raise InvalidInputError(f"--doubled: no stored best known score in {args.tiers} x {args.splits} yet")
         sample = [stored[k] for k in sorted(rng.choice(len(stored), min(args.doubled, len(stored)), replace=False))]
-        summary = build.convergence(work, sample, version=args.version, progress=not args.no_progress)
+        summary = build.convergence(work, sample, version=args.version, progress=not args.no_progress,
+                                    out=build.target_file(work, args.version, "test", shipped=args.write_shipped))
         print(f"doubled budget on {len(sample)} tasks: mean gap {summary['mean_gap']:.4f}, median relative gap "
               f"{summary['median_relative_gap']:.4f}, max {summary['max_relative_gap']:.4f}")
         return
@@ -374,8 +375,10 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
         for split in args.splits:
             build.run(tier, split, work, version=args.version, shard=args.shard, progress=not args.no_progress)
     command = shlex.join(["ffsr-gym", "tasks", "best-known", "--tiers", *args.tiers, "--splits", *args.splits]
-                         + ([] if args.shard is None else ["--shard", "/".join(map(str, args.shard))]))
-    for path in build.assemble(work, version=args.version, command=command, splits=args.splits):
+                         + ([] if args.shard is None else ["--shard", "/".join(map(str, args.shard))])
+                         + (["--write-shipped"] if args.write_shipped else []))
+    for path in build.assemble(work, version=args.version, command=command, splits=args.splits,
+                               shipped=args.write_shipped):
         print("wrote", path)
 
 
@@ -484,6 +487,9 @@ def _add_study_commands(sub: Any) -> None:
     bk.add_argument("--doubled", type=positive_int, default=None, metavar="N",
                     help="instead: re-run N random stored tasks of these pools with twice the generations and store "
                          "the gap in the file")
+    bk.add_argument("--write-shipped", action="store_true",
+                    help="write the package's own best-known files (a build of each whole file, from a source "
+                         "checkout); default: their copies inside --work")
     bk.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     bk.set_defaults(func=_tasks_best_known)
     tt = tasks_sub.add_parser("tables", help="the tier tables of a version's pool files (docs/envs.md shows them)")

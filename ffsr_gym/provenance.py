@@ -55,6 +55,11 @@ def _git_tree() -> tuple[Path | None, str]:
     return None, f"not a git checkout: ffsr-gym {_version()} installed from a wheel or sdist, run outside any git tree"
 
 
+def is_source_checkout() -> bool:
+    """Whether this package runs from its own git checkout (not from an installed wheel or sdist)."""
+    return (_SOURCE / ".git").exists()
+
+
 def _version() -> str:
     try:
         return metadata.version("ffsr-gym")

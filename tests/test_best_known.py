@@ -250,7 +250,7 @@ def test_training_records_are_assembled_into_a_file_of_their_own(small, tmp_path
     files = {"train": tmp_path / "bk_train.json", "test": tmp_path / "bk.json", "validation": tmp_path / "bk.json"}
     for module in (build, best_known):  # the shipped files stay untouched
         monkeypatch.setattr(module, "best_known_path", lambda version=None, split=None: files.get(split, files["test"]))
-    written = build.assemble(mine, generations=1)
+    written = build.assemble(mine, generations=1, shipped=True)
     assert written == sorted({files["train"], files["test"]})
     for split, indices in (("train", [0, 1]), ("test", [3])):
         data = json.loads(files[split].read_text())
@@ -263,7 +263,7 @@ def test_training_records_are_assembled_into_a_file_of_their_own(small, tmp_path
     assert best_known.records("easy", "validation", "v2") == []
     test_file = files["test"].read_text()
     build.run("easy", "train", mine, generations=1, indices=[2], progress=False)
-    assert build.assemble(mine, generations=1, splits=["train"]) == [files["train"]]  # the test file stays as it was
+    assert build.assemble(mine, generations=1, splits=["train"], shipped=True) == [files["train"]]  # the test file stays as it was
     assert files["test"].read_text() == test_file
     assert [r["index"] for r in best_known.records("easy", "train", "v2")] == [0, 1, 2]
 
@@ -308,3 +308,39 @@ def test_a_pool_a_policy_finished_is_recorded_and_an_interrupted_one_is_not(smal
     assert build.is_absorbed(mine, "easy", "train", "zero k2")
     assert not build.is_absorbed(mine, "easy", "train", "zero k3")  # another content hash
     assert not build.is_absorbed(mine, "easy", "test", "zero k2")  # another pool
+
+
+def test_a_work_folder_never_writes_the_shipped_files(small, tmp_path):
+    import shutil
+
+    work, _ = small
+    mine = tmp_path / "work"
+    shutil.copytree(work, mine)
+    shipped = best_known.best_known_path("v2", "train")
+    before = shipped.read_bytes()
+    [written] = build.assemble(mine, generations=1)  # by default into the work folder
+    assert written == mine / shipped.name and json.loads(written.read_text())["counts"] == {"easy": {"train": 2}}
+    from ffsr_gym.exceptions import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match=r"stores 200 \w+/train tasks, the work folder holds"):
+        build.assemble(mine, generations=1, splits=["train"], shipped=True)
+    assert shipped.read_bytes() == before
+
+
+def test_a_resumed_search_keeps_every_record_after_torn_and_foreign_lines(small, tmp_path):
+    import shutil
+
+    work, _ = small
+    mine = tmp_path / "work"
+    shutil.copytree(work, mine)
+    path = mine / "easy_train.jsonl"
+    with path.open("a", encoding="utf-8") as handle:
+        handle.write('42\n"hello"\n{"tier": "easy"}\n{"tier": "easy", "split": "train", "ind')  # torn by a kill
+    with pytest.warns(UserWarning, match=r"easy_train.jsonl:3: not a JSON object"):
+        build.run("easy", "train", mine, generations=1, indices=[0, 1, 2], progress=False)
+    with pytest.warns(UserWarning):
+        assert [r["index"] for r in build.read_lines(path)] == [0, 1, 2]  # the new record is on a line of its own
+    with pytest.warns(UserWarning):  # another budget's record is not this budget's: task 0 is searched again
+        build.run("easy", "train", mine, generations=2, indices=[0], progress=False)
+    with pytest.warns(UserWarning):
+        assert [(r["index"], r["generations"]) for r in build.read_lines(path)][-1] == (0, 2)

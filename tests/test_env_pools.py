@@ -242,7 +242,7 @@ def test_a_constant_residual_action_is_a_fixed_policy_the_leaderboard_can_replay
                                                                                           abs=1e-12)
     assert report.extra["policy"] == {"fixed": list(action)}
     path = report.save(tmp_path)
-    assert replay_entry(path) == (True, "all 3 rows reproduce exactly")
+    assert replay_entry(path).text == "all 3 rows reproduce exactly (the fixed parameters)"
 
 
 @pytest.mark.parametrize("env_id", IDS)

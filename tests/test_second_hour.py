@@ -254,7 +254,7 @@ def test_a_custom_entry_replays_from_what_it_stores(tmp_path):
     mine.write_text(scenario_path("free_space").read_text().replace('name = "free_space"', 'name = "mine"'))
     path = ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task=str(mine), seeds=[0, 1], name="mine").save(tmp_path / "custom")
     mine.unlink()  # the entry alone is enough
-    assert replay_entry(path) == (True, "all 2 rows reproduce exactly")
+    assert replay_entry(path).text == "all 2 rows reproduce exactly (the fixed parameters)"
     entry = json.loads(path.read_text())
     entry["extra"]["custom_task"]["scenario"]["target"]["position_m"][0] += 0.01
     path.write_text(json.dumps(entry))

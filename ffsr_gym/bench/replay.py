@@ -197,6 +197,10 @@ def _plan(policy: Any, entry: dict[str, Any], spec: BenchmarkSpec, path: Path) -
     return plan_evaluation(policy, entry["env_id"], seeds=[row["seed"] for row in rows], env_kwargs=kwargs)
 
 
+class _TraceSpent(Exception):
+    """The stored actions ran out before the episodes did."""
+
+
 class _TracePlayer:
     """A policy that plays an entry's stored actions, episode after episode (no code of the entry's runs)."""
 
@@ -207,7 +211,7 @@ class _TracePlayer:
         while self.decision >= len(self.episodes[self.episode]):  # this episode's actions are spent: the next one's
             self.episode, self.decision = self.episode + 1, 0
             if self.episode >= len(self.episodes):
-                raise InvalidInputError("the trace ends before the episodes do (its episodes are too short)")
+                raise _TraceSpent
         self.decision += 1
         return self.episodes[self.episode][self.decision - 1]
 
@@ -217,7 +221,10 @@ def _replay_trace(entry: dict[str, Any], spec: BenchmarkSpec, path: Path) -> Ver
     rows = entry["episodes"]
     width, texts = trace_episodes(entry["extra"]["trace"], len(rows), where=f"{path}: extra.trace")
     episodes = [decode(text, width, where=f"{path}: extra.trace.episodes[{k}]") for k, text in enumerate(texts)]
-    report = _play(_TracePlayer(episodes), entry, spec, path).to_json()
+    try:
+        report = _play(_TracePlayer(episodes), entry, spec, path).to_json()
+    except _TraceSpent:
+        return Verdict("differs", "the trace ends before the last episode does (an episode's trace is too short)")
     for k, played in enumerate(report["extra"]["trace"]["episodes"]):
         applied = decode(played, width, where="the replay")
         if applied.tobytes() != episodes[k].tobytes():

@@ -16,12 +16,14 @@ import hashlib
 import json
 import os
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from tqdm.auto import tqdm
 
+from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.optim import best_known as search
 from ffsr_gym.provenance import provenance, write_text_atomic
@@ -29,6 +31,7 @@ from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.best_known import best_known_path, load_best_known
 from ffsr_gym.tasks.schedule import ENV_IDS, FAMILIES, Schedule, replay_schedule
 from ffsr_gym.tasks.splits import pool, pool_path
+from ffsr_gym.user_files import nesting_depth, read_text
 
 
 def popsize(family: str) -> int:
@@ -36,23 +39,50 @@ def popsize(family: str) -> int:
     return 4 + int(3 * np.log(search.KNOTS * FAMILIES[family]))
 
 
-def read_lines(path: Path) -> list[dict[str, Any]]:
-    """The whole records of a jsonl file (a torn last line is skipped)."""
-    if not path.is_file():
-        return []
+#: What every search record holds (a line without them is torn or foreign: named, skipped, its task searched again).
+RECORD_KEYS = {"tier": str, "split": str, "index": int, "generations": int, "best": dict, "families": dict,
+               "wall_time_s": (int, float)}
+#: What every absorbed line holds.
+ABSORBED_KEYS = {"index": int, "family": str, "score": (int, float), "result": dict}
+
+
+def read_lines(path: Path, keys: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+    """The whole records of a jsonl file. A line that is not a JSON object with ``keys`` (default
+    :data:`RECORD_KEYS`) of their types, a torn last line among them, is named in a warning and skipped."""
+    try:
+        text = read_text(path) if path.is_file() else ""
+    except FFSRError as exc:
+        raise InvalidInputError(f"work file {exc}") from None
     out = []
-    for line in path.read_text(encoding="utf-8").splitlines():
+    keys = RECORD_KEYS if keys is None else keys
+    for number, line in enumerate(text.splitlines(), start=1):
+        problem = None
         try:
-            out.append(json.loads(line))
-        except ValueError:
-            continue
+            record = json.loads(line) if nesting_depth(line) <= 16 else None
+        except (ValueError, RecursionError):
+            record = None
+        if not isinstance(record, dict):
+            problem = "not a JSON object (a torn or foreign line)"
+        else:
+            problem = next((f"{key!r} missing or not {kind}" for key, kind in keys.items()
+                            if isinstance(record.get(key), bool) or not isinstance(record.get(key), kind)), None)
+        if problem is None:
+            out.append(record)
+        elif line.strip():
+            warnings.warn(f"{path}:{number}: {problem}; skipped (its task is searched again)", stacklevel=2)
     return out
 
 
 def _append(path: Path, record: dict[str, Any]) -> None:
+    """Append one record as a line of its own (after a torn last line, on a fresh line) and flush it to disk."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("a", encoding="utf-8") as handle:
-        handle.write(json.dumps(record, allow_nan=False) + "\n")
+    with path.open("a+b") as handle:
+        handle.seek(0, os.SEEK_END)
+        fresh = handle.tell() == 0
+        if not fresh:
+            handle.seek(-1, os.SEEK_END)
+            fresh = handle.read(1) == b"\n"
+        handle.write((b"" if fresh else b"\n") + (json.dumps(record, allow_nan=False) + "\n").encode("utf-8"))
         handle.flush()
         os.fsync(handle.fileno())
 
@@ -80,7 +110,7 @@ def run(tier: str, split: str, work: str | Path, *, version: str = "v2", generat
     wanted = list(range(len(tasks))) if indices is None else list(indices)
     if shard is not None:
         wanted = [i for i in wanted if i % shard[1] == shard[0]]
-    done = {r["index"] for f in pool_files(work, tier, split) for r in read_lines(f)}
+    done = {r["index"] for f in pool_files(work, tier, split) for r in read_lines(f) if r["generations"] == generations}
     todo = [i for i in wanted if i not in done]
     if not todo:
         return path
@@ -102,14 +132,31 @@ def budget() -> dict[str, Any]:
             "tried_in_ensemble": search.TRIED, "env_ids": ENV_IDS}
 
 
+def target_file(work: str | Path, version: str, split: str, *, shipped: bool = False) -> Path:
+    """Where :func:`assemble` writes ``split``'s records: the work folder's copy of the best-known file that holds
+    them, or (``shipped``) the shipped file itself (:func:`~ffsr_gym.tasks.best_known.best_known_path`)."""
+    path = best_known_path(version, split)
+    return path if shipped else Path(work) / path.name
+
+
 def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = None, command: str | None = None,
-             generations: int = search.GENERATIONS, splits: list[str] | None = None) -> list[Path]:
-    """Write every finished record of ``generations`` in ``work`` into the best-known files: the test and
-    validation records into ``<version>_best_known.json`` (keeping its ``convergence``), the training records
-    into ``<version>_best_known_train.json`` (:func:`~ffsr_gym.tasks.best_known.best_known_path`), or all of
-    them into ``out``. With ``splits``, only the files those splits live in are written, so a run on the
-    training pools leaves the test file and its provenance alone. Returns the files written."""
-    wanted = None if splits is None or out is not None else {best_known_path(version, s) for s in splits}
+             generations: int = search.GENERATIONS, splits: list[str] | None = None, shipped: bool = False) -> list[Path]:
+    """Write every finished record of ``generations`` in ``work`` into best-known files: the test and validation
+    records into ``<version>_best_known.json`` (keeping its ``convergence``), the training records into
+    ``<version>_best_known_train.json``, inside ``work`` (:func:`target_file`), or all of them into ``out``.
+    With ``splits``, only the files those splits live in are written. Returns the files written.
+
+    ``shipped`` writes the package's own files instead: an explicit build of each whole file, refused unless the
+    package is a source checkout and the work folder holds at least every task the shipped file holds.
+
+    Raises:
+        InvalidInputError: ``shipped`` with ``out``, outside a checkout, or from a work folder that would lose
+            stored tasks (each named).
+    """
+    if shipped and out is not None:
+        raise InvalidInputError("out= with shipped=True; allowed: one target (the shipped files, or out)")
+    wanted = None if splits is None or out is not None else {target_file(work, version, s, shipped=shipped)
+                                                             for s in splits}
     files: dict[Path, dict[str, dict[str, list]]] = {}
     cost: dict[Path, list[float]] = {}  # per file: the search's objective evaluations and wall time [s]
     for path in sorted(Path(work).glob("*.jsonl")):
@@ -118,7 +165,7 @@ def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = 
         for record in read_lines(path):
             if record.get("generations") != generations:
                 continue
-            target = Path(out) if out is not None else best_known_path(version, record["split"])
+            target = Path(out) if out is not None else target_file(work, version, record["split"], shipped=shipped)
             if wanted is not None and target not in wanted:
                 continue
             slot = files.setdefault(target, {}).setdefault(record["tier"], {}).setdefault(record["split"], [])
@@ -130,13 +177,15 @@ def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = 
                 spent = cost.setdefault(target, [0, 0.0])
                 spent[0] += sum(f["evaluations"] for f in record["families"].values())
                 spent[1] += record["wall_time_s"]
+    if shipped:
+        _check_whole(files, version)
     provenance_now = provenance(command=command)
     for target, tasks in files.items():
         absorbed = 0
         for tier, splits in tasks.items():
             for split, slot in splits.items():
                 slot.sort(key=lambda r: r["index"])
-                lines = read_lines(_absorbed_path(work, tier, split))
+                lines = read_lines(_absorbed_path(work, tier, split), ABSORBED_KEYS)
                 absorbed += sum(_merge_absorbed(record, [a for a in lines if a["index"] == record["index"]])
                                 for record in slot)
         tiers = sorted(tasks)
@@ -149,6 +198,24 @@ def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = 
                 "provenance": provenance_now, "convergence": old.get("convergence"), "tasks": tasks}
         _write(target, data)
     return sorted(files)
+
+
+def _check_whole(files: dict[Path, dict[str, dict[str, list]]], version: str) -> None:
+    """Refuse to write a shipped file from a work folder that holds fewer tasks of any pool than it stores, or into
+    an installed package (a wheel's files are not the build's to change)."""
+    from ffsr_gym.provenance import is_source_checkout
+
+    if not is_source_checkout():
+        raise InvalidInputError("the shipped best-known files belong to an installed package here; allowed: a build "
+                                "from the ffsr-gym source checkout (without --write-shipped the files go to --work)")
+    for target, tasks in files.items():
+        stored = load_best_known(version, target) or {"tasks": {}}
+        for tier, splits in stored["tasks"].items():
+            for split, records in splits.items():
+                have = len(tasks.get(tier, {}).get(split, []))
+                if have < len(records):
+                    raise InvalidInputError(f"{target.name} stores {len(records)} {tier}/{split} tasks, the work folder "
+                                            f"holds {have}; allowed: a build of the whole file (every stored task)")
 
 
 #: The work files of :func:`absorb`: ``absorbed_<tier>_<split>.jsonl``.
@@ -266,9 +333,10 @@ def _write(path: Path, data: dict[str, Any]) -> None:
 def convergence(work: str | Path, sample: list[tuple[str, str, int]], *, version: str = "v2",
                 out: str | Path | None = None, progress: bool = True) -> dict[str, Any]:
     """Re-run the search with twice the generations on ``sample`` ((tier, split, index) of stored tasks) and
-    record, per task, the stored and the doubled-budget best known score (in the file's ``convergence``)."""
-    out = Path(out) if out is not None else best_known_path(version)
-    data = load_best_known(version, out)
+    record, per task, the stored and the doubled-budget best known score (in the ``convergence`` of ``out``: by
+    default the work folder's copy of the best-known file, made from the shipped one when it has none)."""
+    out = Path(out) if out is not None else target_file(work, version, "test")
+    data = load_best_known(version, out) or load_best_known(version)
     doubled = 2 * search.GENERATIONS
     start = time.perf_counter()
     rows = []

@@ -1,0 +1,151 @@
+"""An entry is data from a pull request: it runs no code, forges no table row and takes no other method's place.
+
+One test per defect of the third hostile pass on entries (code execution, unpickled models,
+Markdown injection, names not tied to files); each failed before its guard.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import ffsr_gym
+from ffsr_gym.bench.replay import replay_entry
+from ffsr_gym.exceptions import InvalidInputError
+
+ROOT = Path(__file__).resolve().parents[1]
+INDICES = [0, 1]
+
+
+def wobble(obs):
+    """A policy that is code: its actions depend on what it sees (float64: the env applies them as float32)."""
+    return 0.4 * np.sin(obs[:12].astype(np.float64) * 1.7)
+
+
+@pytest.fixture(scope="module")
+def code_entry(tmp_path_factory) -> dict:
+    """A two-task residual entry of a callable policy, as ``evaluate`` records it."""
+    report = ffsr_gym.evaluate(wobble, "FFSR-Residual-v2", task="easy", indices=INDICES, name="mine")
+    return report.to_json()
+
+
+def _write(folder: Path, entry: dict, name: str = "mine") -> Path:
+    path = folder / f"{name}.json"
+    path.write_text(json.dumps(entry))
+    return path
+
+
+def test_verify_replays_the_trace_and_never_imports_the_code_an_entry_names(tmp_path, code_entry, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    marker = tmp_path / "ran"
+    (tmp_path / "evil.py").write_text(f"open({str(marker)!r}, 'w').write('x')\ndef act(obs):\n    return obs\n")
+    for named in (str(tmp_path / "evil.py") + ":act", "evil.py:act", "os:getcwd"):
+        entry = json.loads(json.dumps(code_entry))
+        entry["extra"]["policy"] = {"callable": named}
+        verdict = replay_entry(_write(tmp_path, entry))
+        assert verdict.status == "reproduced" and "trace" in verdict.text
+        del entry["extra"]["trace"]  # no trace: the code is named, and skipped
+        verdict = replay_entry(_write(tmp_path, entry))
+        assert verdict.status == "skipped" and f"--run-code {named!r}" in verdict.text and verdict.exit_code == 3
+    assert not marker.exists()
+    with pytest.raises(InvalidInputError, match="consent is given to exactly that text"):
+        replay_entry(_write(tmp_path, entry), run_code="evil.py:act")
+
+
+def test_a_model_an_entry_ships_is_never_unpickled_without_consent(tmp_path, code_entry, monkeypatch):
+    import ffsr_gym.bench.policies as policies
+
+    def refuse(*_args, **_kwargs):
+        raise AssertionError("a model was loaded")
+
+    monkeypatch.setattr(policies, "load_model", refuse)
+    monkeypatch.chdir(tmp_path)
+    folder = tmp_path / "leaderboards" / "v2" / "easy"
+    folder.mkdir(parents=True)
+    (folder / "model.zip").write_bytes(b"PK\x05\x06" + bytes(18))
+    entry = json.loads(json.dumps(code_entry))
+    entry["extra"]["policy"] = {"sb3": "leaderboards/v2/easy/model.zip", "algo": "ppo"}
+    del entry["extra"]["trace"]
+    assert replay_entry(_write(folder, entry)).status == "skipped"
+    with pytest.raises(InvalidInputError, match="--trust-model"):  # inside the working folder too
+        policies.load_policy("leaderboards/v2/easy/model.zip", "ppo")
+
+
+def test_a_tampered_trace_is_caught(tmp_path, code_entry):
+    from ffsr_gym.bench.trace import decode, encode
+
+    entry = json.loads(json.dumps(code_entry))
+    actions = decode(entry["extra"]["trace"]["episodes"][1], 12, where="test")
+    assert actions.shape == (200, 12) and actions.dtype == np.float32
+    nudged = actions.copy()
+    nudged[50, 3] = np.nextafter(nudged[50, 3], np.float32(2.0))
+    entry["extra"]["trace"]["episodes"][1] = encode(nudged)
+    assert replay_entry(_write(tmp_path, entry)).status == "differs"
+    entry["extra"]["trace"]["episodes"][1] = encode(actions[:150])  # a short trace
+    assert replay_entry(_write(tmp_path, entry)).status == "differs"
+    entry["extra"]["trace"]["episodes"][1] = encode(np.full((200, 12), 2.0, np.float32))
+    with pytest.raises(InvalidInputError, match="outside"):
+        replay_entry(_write(tmp_path, entry))
+
+
+def _board(tmp_path: Path) -> Path:
+    root = tmp_path / "lb"
+    shutil.copytree(ROOT / "leaderboards", root)
+    return root
+
+
+def _summary_cell(root: Path, method: str) -> str:
+    from ffsr_gym.bench import leaderboard
+
+    text = leaderboard.splice_summary((ROOT / "README.md").read_text(), root)
+    return next(line for line in text.splitlines() if line.startswith(f"| `{method}` |"))
+
+
+def test_free_text_cannot_forge_a_ranked_row(tmp_path):
+    from ffsr_gym.bench import leaderboard
+    from ffsr_gym.bench.tables import safe
+    from ffsr_gym.model.spec import spec_for_version
+
+    root = _board(tmp_path)
+    easy = root / "v2" / "easy"
+    forged = "\n| 1 | `forged_winner` | 0.999 [0.999, 0.999] | 1.00 |"
+    for field in ("training_pool", "commit"):
+        entry = json.loads((easy / "cmaes_v2.json").read_text())
+        if field == "commit":
+            entry["provenance"]["git_commit"] = "abc" + forged
+        else:
+            entry["extra"]["training_pool"] = "easy/train" + forged
+        entry["name"] = f"forge_{field}"
+        _write(easy, entry, entry["name"])
+    leaderboard.write_readme(root)
+    text = (root / "README.md").read_text()
+    assert not any(line.startswith("| 1 | `forged_winner`") for line in text.splitlines())
+    reasons = {name: " ".join(why) for _, name, why in leaderboard.refused(leaderboard.load_entries(
+        root, spec_for_version("v2")))}
+    assert "line break" in reasons["forge_training_pool.json"] and "git_commit" in reasons["forge_commit.json"]
+    assert leaderboard.check(root)  # not publishable
+    assert safe("a|b\nc`d<!-- x -->\u2028e") == "a/b c'd&lt;!-- x --&gt; e"
+
+
+def test_an_entry_is_named_after_its_file_and_one_method_has_one_row(tmp_path):
+    from ffsr_gym.bench import leaderboard
+    from ffsr_gym.model.spec import spec_for_version
+
+    root = _board(tmp_path)
+    easy = root / "v2" / "easy"
+    before = _summary_cell(root, "cmaes_residual")
+    impostor = json.loads((easy / "random_residual.json").read_text())
+    impostor["name"] = "cmaes_residual"
+    _write(easy, impostor, "zzz")
+    honest = json.loads((easy / "ppo_residual_easy.json").read_text())
+    honest["name"] = "ppo_residual"  # an honest name that is also ppo_residual_easy's method name
+    _write(easy, honest, "ppo_residual")
+    reasons = {name: " ".join(why) for _, name, why in leaderboard.refused(leaderboard.load_entries(
+        root, spec_for_version("v2")))}
+    assert "not its file's name" in reasons["zzz.json"]
+    assert "taken by another entry" in reasons["ppo_residual.json"] and "ppo_residual_easy.json" in reasons
+    assert _summary_cell(root, "cmaes_residual") == before
