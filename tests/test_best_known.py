@@ -344,3 +344,34 @@ def test_a_resumed_search_keeps_every_record_after_torn_and_foreign_lines(small,
         build.run("easy", "train", mine, generations=2, indices=[0], progress=False)
     with pytest.warns(UserWarning):
         assert [(r["index"], r["generations"]) for r in build.read_lines(path)][-1] == (0, 2)
+
+
+def test_a_dataset_killed_or_failing_mid_write_leaves_nothing_minari_loads(small, tmp_path, monkeypatch):
+    minari = pytest.importorskip("minari")
+    pytest.importorskip("h5py")
+    import ffsr_gym.bench.dataset as dataset
+    from ffsr_gym.exceptions import InvalidInputError
+
+    _, path = small
+    real = minari.create_dataset_from_buffers
+
+    def full_disk(*args, **kwargs):
+        real(*args, **kwargs)  # half the files are there when the disk fills up
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(minari, "create_dataset_from_buffers", full_disk)
+    with pytest.raises(InvalidInputError, match="No space left on device"):
+        dataset.write_dataset("easy", "FFSR-Residual-v2", root=tmp_path, best_known_file=path)
+    monkeypatch.setattr(minari, "create_dataset_from_buffers", real)
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
+    name = dataset.dataset_id("easy", "FFSR-Residual-v2")
+    assert name not in minari.list_local_datasets() and not list(tmp_path.glob(".ffsr-dataset-*"))
+    assert dataset.write_dataset("easy", "FFSR-Residual-v2", root=tmp_path, best_known_file=path).total_episodes == 2
+
+    played = []
+    monkeypatch.setattr(dataset, "record_episode", lambda *a: played.append(a))
+    (tmp_path / "a_file").write_text("x")
+    for root in (tmp_path / "a_file", tmp_path / "a_file" / "below"):
+        with pytest.raises(InvalidInputError, match="not a writable folder"):
+            dataset.write_dataset("easy", "FFSR-Residual-v2", root=root, best_known_file=path)
+    assert played == []  # refused before any episode

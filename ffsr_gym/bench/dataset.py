@@ -12,13 +12,17 @@ the writing (the file and the environment disagree). The env spec (id and ``task
 kwargs) is stored, so ``dataset.recover_environment()`` builds the env again.
 
 Minari and h5py are optional: ``pip install "ffsr-gym[dataset]"``. Datasets go to
-``MINARI_DATASETS_PATH`` (or Minari's default folder), or to ``root`` when given.
+``MINARI_DATASETS_PATH`` (or Minari's default folder), or to ``root`` when given. A dataset is
+written whole into a hidden folder beside it and moved into place by one rename, so a killed or
+failed run (a full disk) never leaves a dataset that Minari would load as valid.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import shutil
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -119,18 +123,71 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
     with _datasets_root(root):
         from minari.storage.datasets_root_dir import get_dataset_path
 
-        if get_dataset_path(name).exists():  # before the episodes are played: Minari never overwrites one
-            raise InvalidInputError(f"dataset {name} already exists at {get_dataset_path(name)}; delete it or pass "
-                                    "another root")
-    env = gym.make(env_id, task=tier, split=split)
-    buffers = [record_episode(env, r, Schedule.from_dict(r["families"][family]["schedule"]), k)
-               for k, r in enumerate(stored)]
+        try:
+            final = get_dataset_path(name)  # makes the datasets' folder
+        except OSError as exc:
+            raise InvalidInputError(f"root {str(root)!r}: not a writable folder ({exc.strerror or exc}); allowed: a "
+                                    "folder you can write, or a path where one can be made") from None
+    staging = _staging_folder(final, name)  # before the episodes are played: every option is checked first
+    try:
+        env = gym.make(env_id, task=tier, split=split)
+        buffers = [record_episode(env, r, Schedule.from_dict(r["families"][family]["schedule"]), k)
+                   for k, r in enumerate(stored)]
+        with _datasets_root(staging):
+            minari.create_dataset_from_buffers(
+                name, buffers, env=env, eval_env=env.spec,
+                algorithm_name="best known schedules: per-task CMA-ES, or a baseline's absorbed episode (ffsr_gym.optim)",
+                code_permalink="ffsr_gym/bench/dataset.py", author="ffsr-gym", author_email="-",
+                description=(f"The best {family} schedule found for each task of the {tier} tier's {split} pool of "
+                             f"benchmark {version}, played in {env_id}: "
+                             f"{_coverage(len(stored), len(searched), size, family)}. infos: task_index, task_seed per "
+                             "step."),
+                data_format="hdf5")
+        _move_into_place(staging, final, name)
+    except OSError as exc:
+        raise InvalidInputError(f"dataset {name}: could not be written under {final.parent} "
+                                f"({exc.strerror or exc}); nothing was left there") from None
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
     with _datasets_root(root):
-        return minari.create_dataset_from_buffers(
-            name, buffers, env=env, eval_env=env.spec,
-            algorithm_name="best known schedules: per-task CMA-ES, or a baseline's absorbed episode (ffsr_gym.optim)",
-            code_permalink="ffsr_gym/bench/dataset.py", author="ffsr-gym", author_email="-",
-            description=(f"The best {family} schedule found for each task of the {tier} tier's {split} pool of benchmark "
-                         f"{version}, played in {env_id}: {_coverage(len(stored), len(searched), size, family)}. "
-                         "infos: task_index, task_seed per step."),
-            data_format="hdf5")
+        return minari.load_dataset(name)
+
+
+def _staging_folder(final: Path, name: str) -> Path:
+    """A fresh folder beside the datasets, where the dataset is written whole before it is moved into place.
+
+    Raises:
+        InvalidInputError: the dataset exists already, or the datasets' folder is not a writable folder.
+    """
+    if final.exists():  # Minari never overwrites one
+        raise InvalidInputError(f"dataset {name} already exists at {final}; delete it or pass another root")
+    base = final.parents[len(Path(name).parts) - 1]
+    try:
+        base.mkdir(parents=True, exist_ok=True)
+        return Path(tempfile.mkdtemp(prefix=".ffsr-dataset-", dir=base))
+    except OSError as exc:
+        raise InvalidInputError(f"root {str(base)!r}: not a writable folder ({exc.strerror or exc}); allowed: a "
+                                "folder you can write, or a path where one can be made") from None
+
+
+def _move_into_place(staging: Path, final: Path, name: str) -> None:
+    """Move the whole dataset from ``staging`` to ``final`` in one rename (with its namespace's metadata).
+
+    Raises:
+        InvalidInputError: another writer put the same dataset there meanwhile.
+    """
+    built = staging / name
+    for depth in range(1, len(Path(name).parts)):  # namespace folders and their metadata, where missing
+        namespace = Path(*Path(name).parts[:depth])
+        target = final.parents[len(Path(name).parts) - 1] / namespace
+        target.mkdir(exist_ok=True)
+        for meta in (staging / namespace).glob("*.json"):
+            if not (target / meta.name).exists():
+                shutil.copyfile(meta, target / meta.name)
+    try:
+        os.rename(built, final)
+    except OSError:
+        if final.exists():
+            raise InvalidInputError(f"dataset {name} was written at {final} by another process meanwhile; this run's "
+                                    "copy is discarded") from None
+        raise
