@@ -213,10 +213,11 @@ def _add_policy_arguments(parser: argparse.ArgumentParser, *, env_id: str | None
                              "parameters, e.g. 0.3,4), an SB3 .zip (with --algo), module:callable or "
                              "path/to/file.py:callable" + (f" (default: {policy})" if policy else ""))
     parser.add_argument("--algo", default=None, choices=algorithm_names(), help="the algorithm of an SB3 .zip")
-    parser.add_argument("--task", default=task, choices=all_task_names(),
+    parser.add_argument("--task", default=None, choices=all_task_names(),
                         help=f"task or tier of the versions with tiers (default: {task})")
-    parser.add_argument("--split", default=split, choices=all_splits(),
+    parser.add_argument("--split", default=None, choices=all_splits(),
                         help=f"versions with tiers: {split_help} (default: {split})")
+    parser.set_defaults(default_task=task, default_split=split)
     parser.add_argument("--scenario", default=None,
                         help="scenario name or TOML path; v0: the scenario (default: paper); versions with tiers: a "
                              "custom task played instead of --task (unranked; default: none)")
@@ -225,14 +226,24 @@ def _add_policy_arguments(parser: argparse.ArgumentParser, *, env_id: str | None
 
 
 def _env_kwargs(args: argparse.Namespace) -> dict:
-    """``gymnasium.make`` arguments of ``--env-id``: its version's task keyword (and split)."""
+    """``gymnasium.make`` arguments of ``--env-id``: its version's task keyword (and split).
+
+    Raises:
+        InvalidInputError: ``--task`` or ``--split`` given with ``--scenario`` (they would be ignored).
+    """
     from ffsr_gym.bench.evaluation import spec_of
+    from ffsr_gym.exceptions import InvalidInputError
 
     spec = spec_of(args.env_id)
     if spec.tasks.splits:
         if args.scenario is not None:  # a custom task: no tier, no split
+            given = [f"--{name} {value}" for name, value in (("task", args.task), ("split", args.split))
+                     if value is not None]
+            if given:
+                raise InvalidInputError(f"{' and '.join(given)} with --scenario: a custom task has no tier or pool; "
+                                        "allowed: --scenario alone, or --task/--split alone")
             return {spec.tasks.keyword: args.scenario}
-        return {spec.tasks.keyword: args.task, "split": args.split}
+        return {spec.tasks.keyword: args.task or args.default_task, "split": args.split or args.default_split}
     return {spec.tasks.keyword: args.scenario or "paper"}
 
 
@@ -269,7 +280,8 @@ def _evaluate(args: argparse.Namespace) -> None:
         raise InvalidInputError("--seeds: a tier's pool is scored one episode per task; --seeds applies to a custom "
                                 "--scenario or to a version scored on seeds")
     folder = Path(args.leaderboard or ".") / (spec.version + "/custom" if custom
-                                              else spec.folder(args.env_id, args.task if pooled else ""))
+                                              else spec.folder(args.env_id, (args.task or args.default_task) if pooled
+                                                               else ""))
     if args.leaderboard:
         free_entry(folder, args.name, force=args.force)  # before any work: a late error would lose the run
     compute = _compute(args.compute)

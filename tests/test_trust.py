@@ -5,6 +5,8 @@ Each test fails with its guard removed (checked once per guard when it was writt
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -135,11 +137,11 @@ def test_policies_from_files_and_untrusted_models(tmp_path, monkeypatch):
         load_policy("broken.py:policy", None)
     (tmp_path / "corrupt.zip").write_bytes(b"not a zip")
     with pytest.raises(InvalidInputError, match="not a stable-baselines3"):
-        load_policy("corrupt.zip", "ppo")
-    outside = tmp_path.parent / f"{tmp_path.name}_elsewhere.zip"
-    outside.write_bytes(b"whatever")
-    with pytest.raises(InvalidInputError, match="--trust-model"):
-        load_policy(str(outside), "ppo")
+        load_policy("corrupt.zip", "ppo", trust=True)
+    for untrusted in ("corrupt.zip", str(tmp_path.parent / f"{tmp_path.name}_elsewhere.zip")):
+        Path(untrusted).write_bytes(b"whatever")
+        with pytest.raises(InvalidInputError, match="--trust-model"):  # inside the working folder or not
+            load_policy(untrusted, "ppo")
 
 
 def test_bad_arguments_of_the_environments_are_named():

@@ -113,6 +113,11 @@ class FFSREnv(gym.Env):
         self.steps_per_decision = self.engine.steps_per_decision
         self._started = False
 
+    @property
+    def decisions(self) -> int:
+        """The decisions of one whole episode of this env's tasks: duration / decision interval."""
+        return self.engine.n_steps // self.engine.steps_per_decision
+
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
         info = self.engine.reset_copy(0, self.np_random, options)

@@ -3,20 +3,35 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import gymnasium
+from gymnasium.wrappers import TimeLimit
 
 from ffsr_gym.model.spec import BenchmarkSpec, add_spec, all_specs, read_spec, remove_spec
 
-SINGLE = "ffsr_gym.environments.env:FFSREnv"
+SINGLE = "ffsr_gym.environments.registration:make_single"
 BATCHED = "ffsr_gym.environments.vector_env:FFSRVectorEnv"
+
+
+def make_single(**kwargs: Any) -> gymnasium.Env:
+    """The single env of an id inside a ``TimeLimit`` of its task's own number of decisions.
+
+    One rule for an episode's length: the task's duration over its decision interval (whole
+    numbers, checked when the scenario loads). A 40 s custom task plays 400 decisions through
+    ``gymnasium.make`` as through every other path, and ``env.spec.max_episode_steps`` says so;
+    the ids are registered without a limit of their own, which could only be the shipped tasks'.
+    """
+    from ffsr_gym.environments.env import FFSREnv
+
+    env = FFSREnv(**kwargs)
+    return TimeLimit(env, env.decisions)
 
 
 def register_version(spec: BenchmarkSpec) -> None:
     """Register both ids of ``spec`` (single and batched entry points, the version and mode as kwargs)."""
     for residual, env_id in ((False, spec.ids.parameters), (True, spec.ids.residual)):
         gymnasium.register(id=env_id, entry_point=SINGLE, vector_entry_point=BATCHED,
-                           max_episode_steps=spec.ids.max_episode_steps or None,
                            kwargs={"version": spec.version, "residual": residual})
 
 

@@ -477,6 +477,23 @@ def _robot_reference(robot: str, source: str) -> str:
     return str(path.resolve())
 
 
+def whole(span: float, step: float) -> bool:
+    """Whether ``span`` is a whole number (>= 1) of ``step``, to 1e-9 relative (``0.3 / 0.1`` is 3)."""
+    count = span / step
+    return round(count) >= 1 and abs(count - round(count)) <= 1e-9 * max(1.0, count)
+
+
+def _check_whole_steps(s: Scenario, where: str) -> None:
+    """One rule for an episode's length: the duration is a whole number of decisions, a decision a whole number of
+    physics steps (else the episode would be cut or stretched silently, differently on each path)."""
+    sim, interval = s.simulation, s.env.decision_interval_s
+    for key, span, step, unit in (("env.decision_interval_s", interval, sim.dt_s, "simulation.dt_s"),
+                                  ("simulation.duration_s", sim.duration_s, interval, "env.decision_interval_s")):
+        if not whole(span, step):
+            raise ScenarioError(f"{where}key '{key}' = {span} is not a whole number of {unit} = {step} s; allowed: "
+                                f"a whole multiple of it (e.g. {max(1, round(span / step)) * step:.6g} s)")
+
+
 def _check_cross_fields(s: Scenario, where: str) -> None:
     path = s.desired_path
     if path.accel_time_s > path.motion_time_s / 2:
@@ -489,6 +506,7 @@ def _check_cross_fields(s: Scenario, where: str) -> None:
             f"{where}key 'simulation.dt_s' = {s.simulation.dt_s} is out of range; "
             f"allowed: (0, duration_s] = (0, {s.simulation.duration_s}]"
         )
+    _check_whole_steps(s, where)
     for key, quat in (
         ("initial.base_quaternion_wxyz", s.initial.base_quaternion_wxyz),
         ("target.quaternion_wxyz", s.target.quaternion_wxyz),
