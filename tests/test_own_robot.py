@@ -142,6 +142,20 @@ BROKEN = {
     "a capsule on no link": ("collision", 'link = "mission_link4"', 'link = "mission_link9"', "capsule 3"),
     "a capsule on the wrong arm": ("collision", 'link = "mission_link4"', 'link = "balance_link4_x"', "capsule 3"),
     "a zero-length capsule": ("collision", 'end_m = [0.0, 0.0, 0.5]', 'end_m = [0.0, 0.0, 0.0]', "capsule 3"),
+    # checked on the URDF's own links and joints, before Pinocchio merges fixed links into their parents
+    "a zero joint axis": ("urdf", '<axis xyz="0 0 1"/>', '<axis xyz="0 0 0"/>', "axis '0 0 0'"),
+    "a negative mass on a fixed link": ("urdf", '<link name="mission_ee"/>', (
+        '<link name="mission_ee"><inertial><mass value="-5"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" '
+        'izz="1"/></inertial></link>'), "link 'mission_ee' has mass '-5'"),
+    "a non-positive-definite inertia on a fixed link": ("urdf", '<link name="balance_ee"/>', (
+        '<link name="balance_ee"><inertial><mass value="1"/><inertia ixx="-1" ixy="0" ixz="0" iyy="1" iyz="0" '
+        'izz="1"/></inertial></link>'), "link 'balance_ee'"),
+    "a DTD with entities": ("urdf", '<robot', '<!DOCTYPE r [<!ENTITY a "aaaa">]>\n<robot', "DTD"),
+    # collision files typed strictly: no boolean or text where a number belongs, pairs of part names
+    "a boolean radius": ("collision", "capsule_radius_m = 0.02", "capsule_radius_m = true", "capsule_radius_m"),
+    "a radius as text": ("collision", "capsule_radius_m = 0.02", 'capsule_radius_m = "0.02"', "capsule_radius_m"),
+    "ignored pairs as text": ("collision", 'ignored_pairs = [["base", "mission_link1"], ["base", "balance_link1"]]',
+                              'ignored_pairs = "ab"', "ignored_pairs"),
 }
 
 
@@ -194,3 +208,47 @@ def test_the_page_says_why_a_shorter_arm_misses(own):
     root, _, _ = own
     row = ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task=str(root / "mine.toml")).episodes[0]
     assert row["failure"] == "final_error" and round(1000 * row["final_ee_position_error_m"]) == 27
+
+
+def test_a_continuous_joint_is_a_revolute_joint_without_limits(tmp_path):
+    """docs/robots.md allows continuous joints: the same robot with one gives the same model and the same episode."""
+    scores = []
+    for kind in ("revolute", "continuous"):
+        folder = make_robot(tmp_path / kind / "robot", base_mass=200.0, upper_link_m=0.5)  # the shipped geometry
+        path = folder / "my_robot.urdf"
+        old = '<joint name="mission_joint3" type="revolute">'
+        assert old in path.read_text()
+        path.write_text(path.read_text().replace(old, f'<joint name="mission_joint3" type="{kind}">', 1))
+        robot = load_robot(str(path))
+        assert robot.model.nq == 19 and robot.model.joints[int(robot.joint_ids[0, 2])].nq == 1
+        task = str(scenario_with_robot(tmp_path / kind, "./robot"))
+        scores.append(ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task=task, seeds=[0]).episodes[0])
+    assert scores[0] == scores[1] and scores[0]["success"]
+
+
+def test_an_empty_capsule_list_is_refused_by_name(tmp_path):
+    """``capsule = []`` loaded, then failed inside the compiled kernel (a numba TypingError)."""
+    folder = make_robot(tmp_path / "bare")
+    path = folder / "collision.toml"
+    head = path.read_text().split("[[capsule]]")[0]
+    path.write_text(head.replace("capsule_radius_m = 0.02", "capsule_radius_m = 0.02\ncapsule = []"))
+    with pytest.raises(RobotFileError, match="no capsule on the mission arm"):
+        load_scenario(scenario_with_robot(tmp_path, "bare"))
+
+
+@pytest.mark.parametrize("shape, count", [("chain", 4500), ("star", 100_000)])
+def test_a_huge_urdf_is_refused_by_name_before_pinocchio_parses_it(tmp_path, shape, count):
+    """A chain of thousands of fixed joints overflowed the URDF parser's recursion (a segfault); a star of 10^5
+    links took minutes."""
+    import time
+
+    folder = make_robot(tmp_path / "huge")
+    path = folder / "my_robot.urdf"
+    links = "".join(f'<link name="x{k}"/><joint name="f{k}" type="fixed"><parent link="'
+                    f'{("x" + str(k - 1)) if shape == "chain" and k else "base"}"/><child link="x{k}"/></joint>'
+                    for k in range(count))
+    path.write_text(path.read_text().replace("</robot>", links + "</robot>"))
+    start = time.perf_counter()
+    with pytest.raises(RobotFileError, match="a chain of more than|links; allowed: at most|bytes; allowed"):
+        load_robot(str(path))
+    assert time.perf_counter() - start < 5.0

@@ -9,10 +9,12 @@ names and the witness points.
 
 from __future__ import annotations
 
+import math
 import sys
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import coal
 import numpy as np
@@ -22,6 +24,7 @@ from ffsr_gym.exceptions import RobotFileError
 from ffsr_gym.model import portable
 from ffsr_gym.model.robot import Robot
 from ffsr_gym.types import Array
+from ffsr_gym.user_files import check_depth, read_text
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -95,11 +98,13 @@ class CollisionModel:
         if not path.is_file():
             raise RobotFileError(f"collision file {str(path)!r} does not exist")
         try:
-            spec = tomllib.loads(path.read_text(encoding="utf-8"))
+            text = read_text(path)
+            check_depth(text, str(path))
+            spec = tomllib.loads(text)
             self._parts = self._read_parts(robot, spec)
-            self._ignored = {frozenset(p) for p in spec["base"].get("ignored_pairs", [])}
+            self._ignored = _ignored_pairs(spec["base"].get("ignored_pairs", []), [p.name for p in self._parts])
         except (KeyError, TypeError, ValueError, tomllib.TOMLDecodeError) as exc:
-            raise RobotFileError(f"collision file {path} is malformed: {exc!r}") from exc
+            raise RobotFileError(f"collision file {path} is malformed: {exc}") from None
         self.robot = robot
         self.spec_path = path
         self._request = coal.DistanceRequest()
@@ -113,16 +118,23 @@ class CollisionModel:
     def _read_parts(robot: Robot, spec: dict) -> list[_Part]:
         """The base box and the capsules, each checked: named after a link of its arm, sizes finite and positive."""
         model = robot.model
-        radius = float(spec["capsule_radius_m"])
+        radius = _length(spec.get("capsule_radius_m"), "capsule_radius_m")
         base = spec["base"]
+        if not isinstance(base, dict) or not isinstance(base.get("link"), str):
+            raise ValueError("[base]: allowed: a table with link (text) and size_m (three lengths [m])")
         if not model.existFrame(base["link"]) or model.frames[model.getFrameId(base["link"])].parentJoint != 1:
             raise ValueError(f"base.link {base['link']!r} is not the URDF's root link")
-        size = np.array(base["size_m"], dtype=float)
-        if size.shape != (3,) or not np.all(np.isfinite(size)) or np.any(size <= 0.0):
+        size = _vector(base.get("size_m"), "base.size_m")
+        if np.any(size <= 0.0):
             raise ValueError(f"base.size_m = {base['size_m']!r}; allowed: three finite edge lengths > 0 [m]")
         parts = [_Part("base", "base", coal.Box(*size), model.getFrameId(base["link"]), pin.SE3.Identity())]
-        for number, item in enumerate(spec["capsule"], start=1):
-            link = item["link"]
+        capsules = spec.get("capsule")
+        if not isinstance(capsules, list) or not all(isinstance(item, dict) for item in capsules):
+            raise ValueError(f"capsule = {capsules!r}; allowed: [[capsule]] tables, at least one per arm")
+        for number, item in enumerate(capsules, start=1):
+            link = item.get("link")
+            if not isinstance(link, str):
+                raise ValueError(f"capsule {number}: link = {link!r}; allowed: the name of a link (text)")
             where = f"capsule {number} (link {link!r})"
             arm = link.split("_")[0]
             if arm not in ("mission", "balance"):
@@ -132,15 +144,16 @@ class CollisionModel:
             joint = int(model.frames[model.getFrameId(link)].parentJoint)
             if not model.names[joint].startswith(f"{arm}_joint"):
                 raise ValueError(f"{where}: the link moves with {model.names[joint]!r}, not with a joint of the {arm} arm")
-            start, end = np.array(item["start_m"], float), np.array(item["end_m"], float)
-            r = float(item.get("radius_m", radius))
-            if start.shape != (3,) or end.shape != (3,) or not np.all(np.isfinite([*start, *end, r])) or r <= 0.0:
-                raise ValueError(f"{where}: start_m and end_m are [x, y, z] [m], the radius a number > 0")
+            start, end = _vector(item.get("start_m"), f"{where}: start_m"), _vector(item.get("end_m"), f"{where}: end_m")
+            r = _length(item.get("radius_m", radius), f"{where}: radius_m")
             length = portable.norm(end - start)
             if length <= 0.0:
                 raise ValueError(f"{where}: start_m equals end_m; allowed: two different points (a segment)")
             shape = coal.Capsule(r, length)
             parts.append(_Part(link, arm, shape, model.getFrameId(link), _segment_frame(start, end)))
+        for arm in ("mission", "balance"):
+            if not any(part.arm == arm for part in parts):
+                raise ValueError(f"no capsule on the {arm} arm; allowed: at least one [[capsule]] per arm")
         return parts
 
     @property
@@ -204,6 +217,29 @@ class CollisionModel:
         """The smallest of obstacle, arm-arm and arm-base proximities, signed [m]."""
         self.place(q)
         return _closer(self.obstacle_proximity(q, obstacles, place=False), self.self_proximity(q, place=False))
+
+
+def _length(value: Any, where: str) -> float:
+    """A finite length > 0 [m] from a TOML number (not a boolean, not a text)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise ValueError(f"{where} = {value!r}; allowed: a number > 0 [m]")
+    return float(value)
+
+
+def _vector(value: Any, where: str) -> Array:
+    """[x, y, z] [m]: three finite TOML numbers."""
+    if (not isinstance(value, list) or len(value) != 3
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in value)):
+        raise ValueError(f"{where} = {value!r}; allowed: [x, y, z], three finite numbers [m]")
+    return np.array(value, dtype=float)
+
+
+def _ignored_pairs(value: Any, names: list[str]) -> set[frozenset[str]]:
+    """``base.ignored_pairs``: a list of two-name lists, each naming two collision parts."""
+    if not isinstance(value, list) or not all(isinstance(pair, list) and len(pair) == 2 and all(
+            isinstance(name, str) and name in names for name in pair) for pair in value):
+        raise ValueError(f"base.ignored_pairs = {value!r}; allowed: a list of [part, part] pairs, parts among {names}")
+    return {frozenset(pair) for pair in value}
 
 
 def _closer(a: Proximity, b: Proximity) -> Proximity:

@@ -25,6 +25,7 @@ from ffsr_gym.exceptions import InvalidInputError, RobotFileError
 from ffsr_gym.model import portable
 from ffsr_gym.model.quaternion import skew, wxyz_from_xyzw, xyzw_from_wxyz
 from ffsr_gym.model.resources import robot_files
+from ffsr_gym.model.urdf_check import read_urdf
 from ffsr_gym.types import Array
 
 ARMS = ("mission", "balance")
@@ -58,8 +59,9 @@ class Robot:
         path = Path(urdf_path)
         if not path.is_file():
             raise RobotFileError(f"robot file {str(path)!r} does not exist")
+        text = read_urdf(path)  # checked as the file says, before Pinocchio merges its fixed links
         try:
-            self.model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
+            self.model = pin.buildModelFromXML(text, pin.JointModelFreeFlyer())
         except (RuntimeError, ValueError) as exc:
             raise RobotFileError(f"robot file {str(path)!r} could not be parsed: {exc}") from exc
         self.urdf_path = path
