@@ -33,6 +33,7 @@ from ffsr_gym.kernel import servo
 from ffsr_gym.model import portable
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning import ptsf
+from ffsr_gym.sim.budget import check_run
 from ffsr_gym.sim.compiled import LOG_FIELDS, KernelRollout, new_log
 from ffsr_gym.sim.rollout import BACKENDS, STATUS, Rollout
 from ffsr_gym.sim.simulate import kernel_available, make_rollout
@@ -68,6 +69,8 @@ class EpisodeEngine:
             raise InvalidInputError(f"backend {backend!r}; allowed: {list(BACKENDS)}")
         self.compiled = backend == "kernel" or (backend == "auto" and kernel_available())
         N = self.n
+        check_run(steps=self.n_steps, copies=N, steps_per_decision=self.steps_per_decision,
+                  substeps=max(1, family.physics_substeps), what=f"{N} environment cop{'ies' if N != 1 else 'y'} of {family.name}")
         self.single = N == 1 and not batched  # stepped by step_one (else by step_copies)
         self.scenarios: list[Scenario | None] = [None] * N
         self.rollouts: list[Rollout | None] = [None] * N

@@ -197,8 +197,15 @@ def training_env(env_id: str, n_envs: int, seed: int, env_kwargs: dict[str, Any]
     if isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1:
         raise InvalidInputError(f"n_envs = {n_envs!r}; allowed: an integer >= 1")
     if vec_env == "single":
+        import gymnasium as gym
         from stable_baselines3.common.env_util import make_vec_env
 
+        from ffsr_gym.sim.budget import check_run
+
+        with gym.make(env_id, **env_kwargs) as probe:  # n_envs environments of one copy each: their buffers together
+            engine = probe.unwrapped.engine
+            check_run(steps=engine.n_steps, copies=n_envs, steps_per_decision=engine.steps_per_decision,
+                      what=f"{n_envs} training environments")
         return make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs)
     from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
 

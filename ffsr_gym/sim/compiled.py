@@ -16,6 +16,7 @@ from ffsr_gym.model.robot import check_state
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning import ptsf
 from ffsr_gym.planning.planner import planner_parameters
+from ffsr_gym.sim.budget import check_run
 from ffsr_gym.sim.rollout import STATUS
 from ffsr_gym.sim.setup import ScenarioSetup, prepare
 from ffsr_gym.sim.trajectory import Trajectory
@@ -90,6 +91,9 @@ class KernelRollout:
         self.fp, self.ip = settings_vectors(setup, method=method, m=m, T_c=T_c)
         self.dt, self.n_steps = scenario.simulation.dt_s, scenario.n_steps
         self.k, self.rows, self.finished = 0, 0, False
+        if log is None:
+            check_run(steps=self.n_steps, copies=1, steps_per_decision=1, substeps=max(1, scenario.physics_substeps),
+                      what=f"a run of {scenario.name}")
         self._log = new_log(self.n_steps + 1) if log is None else log
 
     def _state(self, q: Array) -> Array:

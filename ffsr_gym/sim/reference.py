@@ -11,6 +11,7 @@ from ffsr_gym.model.collision import Proximity
 from ffsr_gym.model.robot import check_state
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning.planner import Planner, PlanStep
+from ffsr_gym.sim.budget import check_run
 from ffsr_gym.sim.rollout import STATUS
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.sim.trajectory import Trajectory
@@ -42,6 +43,8 @@ class ReferenceRollout:
     def __init__(self, scenario: Scenario, *, method: str = "predefined_time", m: float | None = None,
                  T_c: float | None = None, q0: Array | None = None) -> None:
         self.scenario = scenario
+        check_run(steps=scenario.n_steps, copies=1, steps_per_decision=1, substeps=max(1, scenario.physics_substeps),
+                  what=f"a run of {scenario.name}")
         self.setup = setup = prepare(scenario)
         self.robot, self.collision, self.obstacles = setup.robot, setup.assets.collision, setup.obstacles
         self.plant = setup.plant  # the physics' robot (the planner keeps self.robot)

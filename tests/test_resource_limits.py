@@ -1,0 +1,56 @@
+"""Settings allowed alone but too large together are refused by name before any work (no raw MemoryError, no
+hour-long compiled step that Ctrl-C cannot stop)."""
+
+from __future__ import annotations
+
+import time
+
+import gymnasium as gym
+import pytest
+
+import ffsr_gym
+from ffsr_gym.model.resources import scenario_path
+from ffsr_gym.sim.budget import MEMORY_VARIABLE, ResourceLimitError
+
+
+def _custom(tmp_path, replacements: dict[str, str]) -> str:
+    text = scenario_path("free_space").read_text()
+    for old, new in replacements.items():
+        assert old in text
+        text = text.replace(old, new)
+    path = tmp_path / "big.toml"
+    path.write_text(text)
+    return str(path)
+
+
+def _refused_fast(call, match: str) -> None:
+    start = time.perf_counter()
+    with pytest.raises(ResourceLimitError, match=match):
+        call()
+    assert time.perf_counter() - start < 10.0
+
+
+def test_buffers_beyond_the_memory_limit_are_refused_before_the_run(tmp_path):
+    _refused_fast(lambda: ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task="easy", env_kwargs={"dt_s": 1e-5}),
+                  r"100 copies x 2,000,001 trajectory rows need about 108.8 GiB; allowed: at most 8 GiB")
+    hour = _custom(tmp_path, {"duration_s = 20.0": "duration_s = 3600.0", "dt_s = 0.01": "dt_s = 0.00001"})
+    _refused_fast(lambda: gym.make("FFSR-v2", task=hour), "GiB; allowed: at most 8 GiB")
+    from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
+
+    _refused_fast(lambda: BatchedVecEnv("FFSR-v2", 1_000_000, task="easy"), "1,000,000 copies")
+
+
+def test_the_limit_can_be_set_and_is_checked(monkeypatch):
+    monkeypatch.setenv(MEMORY_VARIABLE, "0.0001")
+    _refused_fast(lambda: gym.make("FFSR-v2", task="easy"), f"set {MEMORY_VARIABLE} to change it")
+    monkeypatch.setenv(MEMORY_VARIABLE, "lots")
+    with pytest.raises(ffsr_gym.exceptions.InvalidInputError, match=f"{MEMORY_VARIABLE} = 'lots'"):
+        gym.make("FFSR-v2", task="easy")
+
+
+def test_a_decision_of_too_many_physics_steps_is_refused(tmp_path):
+    servo = _custom(tmp_path, {"decision_interval_s = 0.1": "decision_interval_s = 10.0",
+                               "[simulation]": '[simulation]\nplant = "servo"'})
+    with open(servo, "a", encoding="utf-8") as handle:
+        handle.write("\n[servo]\nphysics_step_s = 0.000001\n")
+    _refused_fast(lambda: gym.make("FFSR-v2", task=servo), r"10,000,000 physics steps in one decision")
