@@ -112,3 +112,30 @@ def load_json(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> Any:
         return json.loads(text)
     except (ValueError, RecursionError) as exc:
         raise UserFileError(f"{path}: not JSON ({exc})") from None
+
+
+#: The most a robot folder's files may hold together [bytes] (the scenario hash reads every one).
+MAX_FOLDER_BYTES = 256 * 2**20
+
+
+def hash_files(digest: Any, paths: list[Path], *, names: bool = True, max_bytes: int = MAX_FOLDER_BYTES) -> None:
+    """Feed each path's name (unless not ``names``) and bytes into ``digest``, streamed, refusing non-regular files
+    and more than ``max_bytes`` in all.
+
+    Raises:
+        UserFileError: a file that is not regular or unreadable, or too many bytes in all (named).
+    """
+    total = 0
+    for path in paths:
+        total += check_regular(path, max_bytes=max_bytes).stat().st_size
+        if total > max_bytes:
+            raise UserFileError(f"{path.parent}: its files hold more than {max_bytes:,} bytes; allowed: at most "
+                                f"{max_bytes:,} (every file of a robot folder enters the scenario hash)")
+        if names:
+            digest.update(path.name.encode())
+        try:
+            with open(path, "rb") as handle:
+                for block in iter(lambda: handle.read(2**20), b""):
+                    digest.update(block)
+        except OSError as exc:
+            raise UserFileError(f"{path}: cannot be read ({exc.strerror or exc})") from None

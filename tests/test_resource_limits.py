@@ -54,3 +54,26 @@ def test_a_decision_of_too_many_physics_steps_is_refused(tmp_path):
     with open(servo, "a", encoding="utf-8") as handle:
         handle.write("\n[servo]\nphysics_step_s = 0.000001\n")
     _refused_fast(lambda: gym.make("FFSR-v2", task=servo), r"10,000,000 physics steps in one decision")
+
+
+def test_a_robot_folder_too_large_to_hash_or_a_zip_bomb_is_refused(tmp_path):
+    import zipfile
+
+    from ffsr_gym.bench.policies import load_policy
+    from ffsr_gym.exceptions import InvalidInputError, RobotFileError
+    from ffsr_gym.model.scenario import load_scenario
+    from tests.test_own_robot import make_robot, scenario_with_robot
+
+    folder = make_robot(tmp_path / "robot")
+    with open(folder / "huge.bin", "wb") as handle:  # sparse: 300 MB that take no disk
+        handle.truncate(300 * 2**20)
+    with pytest.raises(RobotFileError, match="allowed: at most 268,435,456"):
+        load_scenario(scenario_with_robot(tmp_path, "./robot")).sha256()
+    bomb = tmp_path / "model.zip"
+    with zipfile.ZipFile(bomb, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        with archive.open("data", "w", force_zip64=True) as member:
+            for _ in range(2100):
+                member.write(bytes(2**20))
+    assert bomb.stat().st_size < 5 * 2**20
+    with pytest.raises(InvalidInputError, match="unpacks to 2,202,009,600 bytes"):
+        load_policy(str(bomb), "ppo", trust=True)

@@ -13,6 +13,8 @@ from ffsr_gym.exceptions import InvalidInputError, MissingDependencyError
 #: Policies of this package that an entry may name and ``verify`` runs without being asked: they are the
 #: verifier's own code, not the entry's.
 BUILTIN_POLICIES = ("ffsr_gym.bench.policies:uniform_random_residual",)
+#: The most an SB3 model's zip may unpack to [bytes].
+MAX_MODEL_BYTES = 2 * 2**30
 #: stable-baselines3 classes by algorithm name.
 SB3_CLASSES = {"ppo": "PPO", "sac": "SAC", "td3": "TD3", "a2c": "A2C", "ddpg": "DDPG"}
 
@@ -84,8 +86,15 @@ def _load_zip(spec: str, algo: str | None, trust: bool) -> Any:
         raise InvalidInputError(f"--policy {spec!r}: loading an SB3 model unpickles it, which can run any code its "
                                 "maker chose; pass --trust-model if you trust its source")
     try:
+        with zipfile.ZipFile(path) as archive:
+            unpacked = sum(info.file_size for info in archive.infolist())
+        if unpacked > MAX_MODEL_BYTES:
+            raise InvalidInputError(f"--policy {spec!r}: unpacks to {unpacked:,} bytes; allowed: at most "
+                                    f"{MAX_MODEL_BYTES:,} (an SB3 model of this benchmark is a few MB)")
         return load_model(algo, path)
     except (OSError, ValueError, KeyError, EOFError, RuntimeError, zipfile.BadZipFile) as exc:
+        if isinstance(exc, InvalidInputError):
+            raise
         raise InvalidInputError(f"--policy {spec!r}: not a stable-baselines3 {algo} model "
                                 f"({type(exc).__name__}: {exc})") from None
 

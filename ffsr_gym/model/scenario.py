@@ -20,12 +20,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ffsr_gym.exceptions import InvalidInputError, RobotFileError, ScenarioError
+from ffsr_gym.exceptions import FFSRError, InvalidInputError, RobotFileError, ScenarioError
 from ffsr_gym.model import portable
 from ffsr_gym.model.drives import drives_path
 from ffsr_gym.model.resources import is_shipped_robot, robot_dir, scenario_path
 from ffsr_gym.model.schema import (
-    file_key,
     BOOL,
     TEXT,
     TEXTS,
@@ -34,6 +33,7 @@ from ffsr_gym.model.schema import (
     check_action_bounds,
     check_number,
     choice,
+    file_key,
     integer,
     natural,
     number,
@@ -41,6 +41,7 @@ from ffsr_gym.model.schema import (
     section,
     vector,
 )
+from ffsr_gym.user_files import hash_files
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -339,12 +340,12 @@ class Scenario:
             if not is_shipped_robot(self.robot):  # a robot folder: its name and files, wherever it lies
                 data["robot"] = folder.name
             digest = hashlib.sha256(json.dumps(data, sort_keys=True).encode())
-            for path in sorted(folder.iterdir()):
-                if path.is_file():
-                    digest.update(path.name.encode())
-                    digest.update(path.read_bytes())
-            if self.simulation.plant == "servo":  # the drives, kept apart so that kinematic scenarios' hashes do not see them
-                digest.update(drives_path(folder).read_bytes())
+            try:
+                hash_files(digest, [path for path in sorted(folder.iterdir()) if path.is_file()])
+                if self.simulation.plant == "servo":  # the drives, apart: kinematic scenarios' hashes do not see them
+                    hash_files(digest, [drives_path(folder)], names=False)
+            except FFSRError as exc:
+                raise RobotFileError(f"robot folder {exc}") from None
             cached = digest.hexdigest()
             object.__setattr__(self, "_sha256", cached)
         return cached
