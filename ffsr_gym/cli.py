@@ -321,10 +321,11 @@ def _render(args: argparse.Namespace) -> None:
     import gymnasium
 
     from ffsr_gym.bench.entry import stepper
-    from ffsr_gym.report.episode_gif import check_gif_path, record_episode, write_gif
+    from ffsr_gym.report.episode_gif import check_gif_path, frame_interval_ms, record_episode, write_gif
 
     out = check_gif_path(args.out)  # before the episode runs
     env = gymnasium.make(args.env_id, render_mode="rgb_array", **_env_kwargs(args))
+    interval_ms = frame_interval_ms(args.every, env.unwrapped.family.env.decision_interval_s, args.speed)
     policy = _load_policy(args.policy, args.algo, args.trust_model, env)
     options = None if args.task_index is None else {"task_index": args.task_index}
     frames, decisions, info = record_episode(env, stepper(policy, env), seed=args.seed, every=args.every,
@@ -333,7 +334,7 @@ def _render(args: argparse.Namespace) -> None:
 
     end, played = episode_end(env.unwrapped.rollout), env.unwrapped.scenario.name
     env.close()
-    write_gif(frames, out, 1000.0 * args.every * env.unwrapped.family.env.decision_interval_s / args.speed)
+    write_gif(frames, out, interval_ms)
     outcome = {k: info.get(k) for k in ("score", "success", "failure") if k in info}
     print(f"wrote {out}: task {played}, {len(frames)} frames, {decisions} decisions, {outcome}")
     print(f"last frame: {end.text}")

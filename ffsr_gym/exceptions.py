@@ -27,6 +27,10 @@ class UserFileError(InvalidInputError):
     """A file that cannot be read safely: not a regular file, too large, nested too deep, unreadable or not UTF-8."""
 
 
+class WriteError(FFSRError, OSError):
+    """A result file that could not be written (a full disk, no permission); the previous file is unchanged."""
+
+
 class MissingDependencyError(FFSRError, ImportError):
     """An optional dependency is needed for the requested feature but is not installed."""
 

@@ -14,7 +14,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from ffsr_gym.exceptions import FFSRError
+from ffsr_gym.exceptions import FFSRError, WriteError
 
 #: numba compiles the kernel; mujoco runs the speed benchmark's reference (Pusher-v5), when installed.
 _PACKAGES = ("ffsr-gym", "numpy", "numba", "pin", "coal", "gymnasium", "matplotlib", "stable-baselines3", "torch",
@@ -116,8 +116,19 @@ def write_text_atomic(path: str | Path, text: str) -> None:
     previous file intact and its temporary, which the next write of ``path`` removes once that
     process is gone; a live writer's temporary is never touched, so concurrent writers of one file
     each land whole (the last rename wins).
+
+    Raises:
+        WriteError: the file cannot be written (a full disk, no permission), naming it.
     """
     path = Path(path)
+    try:
+        _write_atomic(path, text)
+    except OSError as exc:
+        raise WriteError(f"{path}: could not be written ({exc.strerror or exc}); the file there before, if any, is "
+                         "unchanged") from None
+
+
+def _write_atomic(path: Path, text: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     for stale in path.parent.glob(f".{glob.escape(path.name)}.*.tmp"):  # left by a writer killed mid-write
         if not _writer_alive(stale, path.name):

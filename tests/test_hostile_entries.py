@@ -149,3 +149,47 @@ def test_an_entry_is_named_after_its_file_and_one_method_has_one_row(tmp_path):
     assert "not its file's name" in reasons["zzz.json"]
     assert "taken by another entry" in reasons["ppo_residual.json"] and "ppo_residual_easy.json" in reasons
     assert _summary_cell(root, "cmaes_residual") == before
+
+
+@pytest.mark.parametrize("mutation, named", [
+    (lambda e: e.__setitem__("extra", 5), "extra = '5'"),
+    (lambda e: e["extra"].__setitem__("policy", {"fixed": 5}), "extra.policy.fixed"),
+    (lambda e: e["env_kwargs"].pop("task"), "env_kwargs has no 'task'"),
+    (lambda e: e["extra"].__setitem__("planner", {}), "extra.planner"),
+    (lambda e: e.__setitem__("episodes", {"a": 1}), "episodes = "),
+    (lambda e: e["env_kwargs"].__setitem__("max_episode_steps", 5), "env_kwargs \\['max_episode_steps'\\]"),
+    (lambda e: e.__setitem__("episodes", e["episodes"] * 10_000), "repeat"),
+    (lambda e: e.__setitem__("deep", None), "nested deeper than"),  # null becomes 100,000 nested arrays
+])
+def test_verify_names_what_is_wrong_with_a_malformed_entry(tmp_path, code_entry, mutation, named):
+    entry = json.loads(json.dumps(code_entry))
+    mutation(entry)
+    path = tmp_path / "mine.json"
+    path.write_text(json.dumps(entry).replace('"deep": null', '"deep": ' + "[" * 100_000 + "]" * 100_000))
+    with pytest.raises(InvalidInputError, match=named):
+        replay_entry(path)
+
+
+def test_verify_never_draws_and_files_that_are_not_regular_are_refused(tmp_path, code_entry, monkeypatch):
+    import os
+
+    from ffsr_gym.bench import leaderboard
+    from ffsr_gym.environments.env import FFSREnv
+
+    entry = json.loads(json.dumps(code_entry))
+    entry["env_kwargs"]["render_mode"] = "human"
+    monkeypatch.setattr(FFSREnv, "render", lambda self: pytest.fail("verify drew a frame"))
+    assert replay_entry(_write(tmp_path, entry)).status == "reproduced"
+    root = tmp_path / "lb"
+    easy = root / "v2" / "easy"
+    easy.mkdir(parents=True)
+    os.mkfifo(easy / "fifo.json")
+    (easy / "zero.json").symlink_to("/dev/zero")
+    for name in ("fifo.json", "zero.json"):
+        with pytest.raises(InvalidInputError, match="not a regular file"):
+            replay_entry(easy / name)
+    from ffsr_gym.model.spec import spec_for_version
+
+    reasons = {name: " ".join(why) for _, name, why in leaderboard.refused(leaderboard.load_entries(
+        root, spec_for_version("v2")))}
+    assert set(reasons) == {"fifo.json", "zero.json"} and all("not a regular file" in r for r in reasons.values())

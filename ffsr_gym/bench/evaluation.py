@@ -353,6 +353,8 @@ def run_plan(policy: Any, plan: Plan, *, name: str = "submission", progress: boo
              executor: Executor | None = None, chunk: int = 10, batched: bool | None = None) -> EvalReport:
     """The entry of ``policy`` played on a :func:`plan_evaluation` plan (what :func:`evaluate` returns)."""
     start = time.perf_counter()
+    if executor is not None:
+        _check_pickles(policy)
     run, size = _runner(policy, plan, executor, chunk, batched)
     pieces = [plan.episodes[k:k + size] for k in range(0, len(plan.episodes), size)]
     results = (map if executor is None else executor.map)(run, pieces)
@@ -378,6 +380,22 @@ def run_plan(policy: Any, plan: Plan, *, name: str = "submission", progress: boo
     return EvalReport(plan.env_id, plan.kwargs if plan.recorded_kwargs is None else plan.recorded_kwargs,
                       rule.aggregate(rows), rows, prov, name=name, extra=extra,
                       score_rule=plan.spec.score.text)
+
+
+def _check_pickles(policy: Any) -> None:
+    """An executor's workers get the policy by pickle: refuse, by name, one that does not pickle before any work.
+
+    Raises:
+        InvalidInputError: naming the policy and what pickles.
+    """
+    import pickle
+
+    try:
+        pickle.dumps(policy)
+    except Exception as exc:  # noqa: BLE001 - pickle raises many kinds for what it cannot do
+        raise InvalidInputError(f"policy {policy!r} does not pickle ({type(exc).__name__}: {exc}), so executor workers "
+                                "cannot receive it; allowed with an executor (--workers > 1): fixed parameters, an SB3 "
+                                "model, or a function of an importable module (module:callable)") from None
 
 
 def _family_hash(plan: Plan) -> str:

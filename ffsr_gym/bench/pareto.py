@@ -30,6 +30,7 @@ from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.scoring.score import EpisodeScore
 from ffsr_gym.tasks.certificate import planner_episode, planner_task
 from ffsr_gym.tasks.splits import pool, task_scenario
+from ffsr_gym.user_files import load_json
 
 #: The task of the study: index 0 of this tier's test pool.
 PARETO_TIER = "easy"
@@ -79,7 +80,7 @@ def task_pareto(root: str | Path, out: str | Path, models: str | Path | None = N
     fixed: dict[str, dict[str, Any]] = {}  # a planner setting that several tiers' entries share: one point
     for path in tqdm(sorted((root / ranked_spec().version).glob("*/*.json")), desc=f"baselines on {label}",
                      disable=not progress):
-        entry, tier = json.loads(path.read_text()), path.parent.name
+        entry, tier = load_json(path), path.parent.name
         planner = entry.get("extra", {}).get("planner")
         if planner is not None:
             key = entry["name"] + json.dumps(planner, sort_keys=True)

@@ -91,12 +91,21 @@ def _load_zip(spec: str, algo: str | None, trust: bool) -> Any:
         if unpacked > MAX_MODEL_BYTES:
             raise InvalidInputError(f"--policy {spec!r}: unpacks to {unpacked:,} bytes; allowed: at most "
                                     f"{MAX_MODEL_BYTES:,} (an SB3 model of this benchmark is a few MB)")
-        return load_model(algo, path)
-    except (OSError, ValueError, KeyError, EOFError, RuntimeError, zipfile.BadZipFile) as exc:
-        if isinstance(exc, InvalidInputError):
-            raise
+        model = load_model(algo, path)
+    except InvalidInputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a file that is not a model of ``algo`` fails in many ways
         raise InvalidInputError(f"--policy {spec!r}: not a stable-baselines3 {algo} model "
                                 f"({type(exc).__name__}: {exc})") from None
+    try:  # a model of another algorithm loads, then fails at its first prediction: fail here, by name
+        import numpy as np
+
+        model.predict(np.zeros(model.observation_space.shape, dtype=model.observation_space.dtype), deterministic=True)
+    except Exception as exc:  # noqa: BLE001 - whatever the mismatch raises deep inside torch or SB3
+        raise InvalidInputError(f"--policy {spec!r} loaded as {SB3_CLASSES[algo]} but cannot predict "
+                                f"({type(exc).__name__}: {exc}); is --algo {algo} the algorithm it was trained with?"
+                                ) from None
+    return model
 
 
 def _import(target: str, spec: str) -> Any:

@@ -146,7 +146,8 @@ def _check_rows(entry: dict[str, Any], spec: BenchmarkSpec, path: Path) -> None:
 
 
 def _named_code(record: Any, path: Path) -> str | None:
-    """The code an entry's ``extra.policy`` names (a callable or a model path), or None (fixed, absent)."""
+    """The code an entry's ``extra.policy`` names (a callable or a model path), or None (fixed, absent); the record
+    checked."""
     if record is None:
         return None
     if not isinstance(record, dict) or len(set(record) & {"fixed", "callable", "sb3"}) != 1:
@@ -157,16 +158,16 @@ def _named_code(record: Any, path: Path) -> str | None:
             if not isinstance(record[key], str):
                 raise InvalidInputError(f"{path}: extra.policy.{key} = {record[key]!r}; allowed: a text")
             return record[key]
+    fixed = record["fixed"]
+    if not isinstance(fixed, list) or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in fixed):
+        raise InvalidInputError(f"{path}: extra.policy.fixed = {str(fixed)[:80]!r}; allowed: a list of numbers")
     return None
 
 
 def _policy(record: dict[str, Any], path: Path) -> Any:
     """The policy of ``extra.policy``, loaded (the caller has consent for code)."""
-    if "fixed" in record:
-        fixed = record["fixed"]
-        if not isinstance(fixed, list) or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in fixed):
-            raise InvalidInputError(f"{path}: extra.policy.fixed = {str(fixed)[:80]!r}; allowed: a list of numbers")
-        return tuple(fixed)
+    if "fixed" in record:  # checked by _named_code
+        return tuple(record["fixed"])
     if "callable" in record:
         return load_policy(record["callable"], None)
     return load_policy(record["sb3"], record.get("algo"), trust=True)

@@ -72,10 +72,14 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
             raise InvalidInputError("terminate_on_violation: the batched environments stop a copy at its first "
                                     "violation; use True, or the single environment for False")
         if threads is not None:
-            if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
-                raise InvalidInputError(f"threads = {threads}; allowed: 1 to {numba.config.NUMBA_NUM_THREADS}")
+            if (isinstance(threads, bool) or not isinstance(threads, (int, np.integer))
+                    or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS):
+                raise InvalidInputError(f"threads = {threads!r}; allowed: an integer from 1 to "
+                                        f"{numba.config.NUMBA_NUM_THREADS}")
             numba.set_num_threads(threads)
         self.metadata = {**self.metadata, "autoreset_mode": mode}
+        if not isinstance(residual, (bool, np.bool_)):
+            raise InvalidInputError(f"residual = {residual!r}; allowed: True or False (each id sets it)")
         self.render_mode, self._renderer, self.residual = render_mode, None, bool(residual)
         self.benchmark_spec, self.num_envs = spec, int(num_envs)
         self.source = TaskSource(spec, score_rule(spec), options.get(spec.tasks.keyword), options.get("split"),

@@ -41,7 +41,7 @@ from ffsr_gym.model.schema import (
     section,
     vector,
 )
-from ffsr_gym.user_files import hash_files
+from ffsr_gym.user_files import check_depth, hash_files, read_text
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -424,12 +424,13 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     if key in _LOADED:
         return _LOADED[key]
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        text = read_text(path)
+        check_depth(text, str(path))
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{path}: not valid TOML ({exc})") from exc
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(f"{path}: not a UTF-8 text file ({exc.reason} at byte {exc.start}); "
-                            "a scenario is a TOML file") from None
+    except FFSRError as exc:
+        raise ScenarioError(f"{exc}; a scenario is a TOML text file") from None
     except OSError as exc:
         raise ScenarioError(f"{path}: cannot be read ({exc.strerror})") from None
     scenario = _from_dict(data, source=str(path))

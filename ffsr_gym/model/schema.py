@@ -15,7 +15,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ffsr_gym.exceptions import ScenarioError
+from ffsr_gym.exceptions import FFSRError, ScenarioError
+from ffsr_gym.user_files import check_depth, read_text
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -105,8 +106,10 @@ def load_table(cls: type, path: str | Path) -> Any:
     """
     path = Path(path)
     try:
-        data: dict[str, Any] = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        text = read_text(path)
+        check_depth(text, str(path))
+        data: dict[str, Any] = tomllib.loads(text)
+    except (FFSRError, tomllib.TOMLDecodeError) as exc:
         raise ScenarioError(f"{path}: not a readable TOML file ({exc})") from None
     try:
         return build_table(cls, data)

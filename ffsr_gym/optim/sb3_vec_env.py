@@ -60,8 +60,22 @@ class BatchedVecEnv(VecEnv):
         self._returns[:], self._lengths[:] = 0.0, 0
         return obs
 
+    def seed(self, seed: int | None = None) -> Sequence[None | int]:
+        """Seed copy i with ``seed + i`` at the next reset (SB3's rule), after checking ``seed``.
+
+        Raises:
+            InvalidInputError: a seed that is not None or an integer >= 0.
+        """
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
+            raise InvalidInputError(f"seed = {seed!r}; allowed: None or an integer >= 0")
+        return super().seed(None if seed is None else int(seed))
+
     def step_async(self, actions: np.ndarray) -> None:
-        self._actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, -1)
+        """Take one action per copy (checked for shape and values at ``step_wait``, as the batched env checks them)."""
+        if actions is None:
+            raise InvalidInputError(f"actions = None; allowed: an array of shape ({self.num_envs}, "
+                                    f"{self.action_space.shape[0]}), one action per copy")
+        self._actions = actions
 
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
         obs, rewards, terminated, truncated, info = self.venv.step(self._actions)

@@ -25,9 +25,30 @@ def check_gif_path(out: str | Path) -> Path:
     existing = out.parent
     while not existing.exists():
         existing = existing.parent
+    if not existing.is_dir():
+        raise InvalidInputError(f"--out {str(out)!r}: {str(existing)!r} is a file, not a folder")
     if not os.access(existing, os.W_OK | os.X_OK):
         raise InvalidInputError(f"--out {str(out)!r}: {str(existing)!r} is not writable")
     return out
+
+
+#: A GIF frame's delay is stored in hundredths of a second, in 16 bits.
+GIF_DELAY_MS = (10.0, 655_350.0)
+
+
+def frame_interval_ms(every: int, decision_s: float, speed: float) -> float:
+    """The delay between frames [ms] of one frame every ``every`` decisions of ``decision_s`` [s] played ``speed``
+    times faster than real time, checked before the episode runs.
+
+    Raises:
+        InvalidInputError: a delay a GIF cannot store (naming the options and the range).
+    """
+    interval = 1000.0 * every * decision_s / speed
+    low, high = GIF_DELAY_MS
+    if not low <= interval <= high:
+        raise InvalidInputError(f"--every {every} and --speed {speed:g} give frames {interval:.3g} ms apart; allowed: "
+                                f"{low:g} to {high:g} ms (a GIF's frame delay)")
+    return interval
 
 
 def record_episode(env: Any, step: Callable[[Any], tuple], *, seed: int, every: int,

@@ -25,7 +25,12 @@ PARETO_FILE = "pareto.json"
 
 
 def _entries(root: Path) -> dict[str, list[dict]]:
-    return {tier: [json.loads(p.read_text()) for p in sorted((root / ranked_spec().version / tier).glob("*.json"))] for tier in TIER_ORDER}
+    """Each tier's entry files, read as the renderer reads them (no FIFO, device or oversized file is read; a
+    refused entry fails ``render --check`` before any figure is published)."""
+    from ffsr_gym.user_files import load_json
+
+    return {tier: [load_json(p) for p in sorted((root / ranked_spec().version / tier).glob("*.json"))]
+            for tier in TIER_ORDER}
 
 
 def _footer(entries: dict[str, list[dict]]) -> str:
