@@ -45,6 +45,21 @@ def test_same_seed_same_evaluation(tmp_path):
     assert a.metrics == b.metrics
 
 
+def test_a_study_entry_replays_from_its_seeds_traces_without_its_models(tmp_path):
+    """An RL entry of several training seeds carries each seed's applied actions: ``verify`` replays it with the
+    models gone and nothing of the entry's run as code."""
+    import shutil
+
+    from ffsr_gym.bench.replay import replay_entry
+
+    report = _smoke("ppo", "FFSR-Residual-v0", tmp_path / "runs", seeds=(0, 1))
+    assert len(report.extra["trace"]["episodes"]) == len(report.episodes) == 4
+    shutil.rmtree(tmp_path / "runs")
+    path = report.save(tmp_path / "entry")
+    verdict = replay_entry(path)
+    assert verdict.status == "reproduced" and "trace" in verdict.text
+
+
 def test_hyperparameter_files_cover_every_id():
     for algo in ("ppo", "sac"):
         for env_id in ("FFSR-v0", "FFSR-Residual-v0", "FFSR-v2", "FFSR-Residual-v2"):

@@ -341,6 +341,7 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
     pooled = spec.evaluation.protocol == "pool"
     checkpoints = list(CHECKPOINTS) if pooled else ["last"]
     start, rows, runs, recorded = time.perf_counter(), {c: [] for c in checkpoints}, [], {}
+    traces: dict[str, list] = {c: [] for c in checkpoints}  # each row's applied actions, while every seed has them
     for seed in seeds:
         folder = seed_folder(out, algo, env_id, task, seed)
         record, evaluations = _scored_seed(folder, checkpoints)
@@ -357,6 +358,11 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
                                             "best_on_validation") if key in record}
         for checkpoint in checkpoints:
             rows[checkpoint] += [row | {"train_seed": seed} for row in evaluations[checkpoint]["episodes"]]
+            trace = evaluations[checkpoint]["extra"].get("trace")
+            if traces[checkpoint] is not None and trace is not None:
+                traces[checkpoint].append(trace)
+            else:
+                traces[checkpoint] = None  # a seed scored before traces were recorded: the entry has none
             run.setdefault("metrics", {})[checkpoint] = evaluations[checkpoint]["metrics"]
             scored = {key: evaluations[checkpoint]["extra"].get(key) for key in ("pool_file_sha256", "dt_s")}
             if recorded.setdefault(checkpoint, scored) != scored:
@@ -385,6 +391,9 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
             env_kwargs, scenarios = {spec.tasks.keyword: task}, {"family": load_scenario(task).sha256()}
         prov = provenance(**({"scenarios": scenarios} if scenarios else {}), seeds=seeds,
                           wall_time_s=time.perf_counter() - start)
+        if traces[checkpoint]:  # ``verify`` replays every seed's episodes from their applied actions
+            first = traces[checkpoint][0]
+            extra["trace"] = first | {"episodes": [text for trace in traces[checkpoint] for text in trace["episodes"]]}
         name = entry_name(algo, spec, env_id, task) + CHECKPOINTS[checkpoint]
         reports[checkpoint] = EvalReport(env_id, env_kwargs, score_rule(spec).aggregate(rows[checkpoint]),
                                          rows[checkpoint], prov, name=name, extra=extra, score_rule=spec.score.text)
