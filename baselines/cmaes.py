@@ -40,4 +40,4 @@ if __name__ == "__main__":
     report.extra = {"method": "CMA-ES (cma) over (m, T_c)", "seed": args.seed, "evaluations": int(es.result.evaluations),
                     "parameters": {"m": float(m), "T_c_s": float(T_c)}}
     if args.leaderboard:
-        print("wrote", report.save(f"{args.leaderboard}/FFSR-v0"))
+        print("wrote", report.save(f"{args.leaderboard}/FFSR-v0", overwrite=True))

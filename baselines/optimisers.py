@@ -41,7 +41,7 @@ def run_cmaes(tier, tasks, pool, evaluations, version):
     es = cma.CMAEvolutionStrategy([0.45, 0.33], 0.2, {"bounds": [0, 1], "seed": 1, "maxfevals": evaluations, "verbose": -9})
     while not es.stop():
         candidates = es.ask()
-        params = [tuple(low + np.clip(z, 0, 1) * (high - low)) for z in candidates]
+        params = [tuple(np.clip(low + np.clip(z, 0, 1) * (high - low), low, high)) for z in candidates]  # in the box
         es.tell(candidates, list(pool.map(ga.call_fitness, [loss] * len(params), params)))
     m, T_c = low + np.clip(es.result.xbest, 0, 1) * (high - low)
     return (float(m), float(T_c)), {"objective_evaluations": int(es.result.evaluations) * tasks}, float(es.result.fbest)

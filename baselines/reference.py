@@ -19,4 +19,4 @@ if __name__ == "__main__":
     for name, (params, method) in entries.items():
         report = ffsr_gym.evaluate(params, "FFSR-v0", name=name)
         report.extra = {"method": method, "parameters": {"m": params[0], "T_c_s": params[1]}}
-        print(name, report.metrics, "->", report.save(f"{args.leaderboard}/FFSR-v0"))
+        print(name, report.metrics, "->", report.save(f"{args.leaderboard}/FFSR-v0", overwrite=True))

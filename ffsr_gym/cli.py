@@ -111,7 +111,7 @@ def _train(args: argparse.Namespace) -> None:
     for report in reports.values():
         print(f"{report.name}: {report.metrics}")
         if args.leaderboard:
-            print("wrote", report.save(folder))
+            print("wrote", report.save(folder, overwrite=args.force))
 
 
 def _leaderboard(args: argparse.Namespace) -> int:
@@ -306,7 +306,7 @@ def _evaluate(args: argparse.Namespace) -> None:
             else {"callable": args.policy}
     print(f"{report.name}: {report.metrics}")
     if args.leaderboard:
-        print("wrote", report.save(folder))
+        print("wrote", report.save(folder, overwrite=args.force))
 
 
 def _verify(args: argparse.Namespace) -> int:
@@ -532,8 +532,8 @@ def _add_study_commands(sub: Any) -> None:
     ds.add_argument("--tier", default="easy", choices=all_task_tiers(), help="tier (default: easy)")
     ds.add_argument("--env-id", default="FFSR-Residual-v2", choices=["FFSR-Residual-v2", "FFSR-v2"],
                     help="the env whose actions are recorded (default: FFSR-Residual-v2)")
-    ds.add_argument("--split", default="train", choices=["train", "validation", "test"],
-                    help="pool (default: train; the others are for model selection and scoring)")
+    ds.add_argument("--split", default="train", choices=["train", "validation"],
+                    help="pool (default: train; validation is for model selection; the test pool is never a dataset)")
     ds.add_argument("--root", default=None, help="datasets folder (default: MINARI_DATASETS_PATH or Minari's default)")
     ds.set_defaults(func=_dataset)
     rd = sub.add_parser("render", help="an episode of a policy as an animated GIF")

@@ -193,3 +193,32 @@ def test_verify_never_draws_and_files_that_are_not_regular_are_refused(tmp_path,
     reasons = {name: " ".join(why) for _, name, why in leaderboard.refused(leaderboard.load_entries(
         root, spec_for_version("v2")))}
     assert set(reasons) == {"fifo.json", "zero.json"} and all("not a regular file" in r for r in reasons.values())
+
+
+def test_the_protocol_refuses_a_test_pool_to_train_on_an_overwrite_and_a_test_dataset(tmp_path):
+    from ffsr_gym.bench.dataset import write_dataset
+
+    for pool in ("easy/test", "hard/test (all of it)", "nowhere/train", "easy/train\n"):
+        with pytest.raises(InvalidInputError, match="training_pool"):
+            ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task="easy", indices=[0], training_pool=pool)
+    report = ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task="easy", indices=[0], training_pool="medium/validation",
+                               name="mine")
+    path = report.save(tmp_path)
+    with pytest.raises(InvalidInputError, match="exists: a previous result would be replaced"):
+        report.save(tmp_path)
+    assert report.save(tmp_path, overwrite=True) == path
+    with pytest.raises(InvalidInputError, match="split 'test'"):
+        write_dataset("easy", split="test", root=tmp_path)
+
+
+def test_the_black_box_losses_refuse_what_evaluate_refuses():
+    from ffsr_gym.bench.planner_scores import residual_training_loss, training_loss
+
+    for m, T_c in ((0.33, 17.3), (0.0, 4.0), (0.3, float("nan"))):  # an unbounded CMA-ES found the first
+        with pytest.raises(InvalidInputError, match="action box"):
+            training_loss(m, T_c, tier="easy", tasks=1)
+        with pytest.raises(InvalidInputError, match="action box"):
+            ffsr_gym.evaluate((m, T_c), "FFSR-v2", task="easy", indices=[0])
+    with pytest.raises(InvalidInputError, match="action box"):
+        residual_training_loss([1.5] + [0.0] * 11, tier="easy", tasks=1)
+    assert 0.0 <= training_loss(0.3, 4.0, tier="easy", tasks=1) <= 1.0

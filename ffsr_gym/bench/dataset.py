@@ -107,8 +107,11 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
     """Write the Minari dataset of ``tier``'s ``split`` pool for ``env_id`` and return it (a ``MinariDataset``).
 
     Raises:
-        InvalidInputError: an env id without schedules, or no stored best-known record for the pool.
+        InvalidInputError: the test split, an env id without schedules, or no stored best-known record for the pool.
     """
+    if split not in ("train", "validation"):
+        raise InvalidInputError(f"split {split!r}; allowed: 'train' or 'validation' (the test pool's best trajectories "
+                                "are the answers the leaderboard scores against: never a dataset)")
     minari = require("minari", "dataset", "minari, h5py", "datasets need")
     if env_id not in FAMILY_OF:
         raise InvalidInputError(f"env_id {env_id!r}; allowed: {sorted(FAMILY_OF)}")

@@ -95,8 +95,11 @@ class EvalReport:
             "metrics": self.metrics, "episodes": self.episodes, "extra": self.extra, "provenance": self.provenance,
         })
 
-    def save(self, directory: str | Path) -> Path:
+    def save(self, directory: str | Path, *, overwrite: bool = False) -> Path:
         """Write the entry atomically to ``directory/<name>.json`` and return its path.
+
+        An entry already there is replaced only with ``overwrite=True`` (a submitted result is never
+        lost to a second run of the same name).
 
         A folder that is a leaderboard table by its path (``<version>/<tier>`` of a version with
         tiers, or a ``<env id>`` folder of one scored on seeds) only takes an entry that the
@@ -104,8 +107,8 @@ class EvalReport:
         (:func:`ffsr_gym.bench.verify.entry_problems`). Any other folder takes any entry.
 
         Raises:
-            InvalidInputError: a name that is not a plain file name, or an entry that the table
-                folder would refuse (every reason named).
+            InvalidInputError: a name that is not a plain file name, an entry of that name already there
+                (without ``overwrite``), or an entry that the table folder would refuse (every reason named).
         """
         if not isinstance(self.name, str) or not ENTRY_NAME.fullmatch(self.name):
             raise InvalidInputError(f"entry name {self.name!r}; allowed: 1-128 characters of letters, digits, '.', '_', "
@@ -121,6 +124,9 @@ class EvalReport:
                                         f"this entry: {'; '.join(problems)} (save elsewhere, e.g. "
                                         f"leaderboards/{spec.version}/custom/ for a custom task)")
         path = Path(directory) / f"{self.name}.json"
+        if path.exists() and not overwrite:
+            raise InvalidInputError(f"{path} exists: a previous result would be replaced; choose another name, or pass "
+                                    "overwrite=True to replace it")
         write_json_atomic(path, self.to_json())
         return path
 

@@ -24,8 +24,9 @@ from tqdm.auto import tqdm
 
 from ffsr_gym.bench.entry import EvalReport, Policy, PredictsActions, check_compute
 from ffsr_gym.bench.episodes import play_batched, play_chunk
-from ffsr_gym.bench.planner_scores import objective_for_params
+from ffsr_gym.bench.planner_scores import check_in_box, objective_for_params
 from ffsr_gym.bench.trace import trace_record
+from ffsr_gym.bench.verify import training_pool_problem
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import BenchmarkSpec, spec_for_env_id
 from ffsr_gym.provenance import provenance
@@ -110,11 +111,7 @@ def _check_parameters(policy: tuple, plan: Plan) -> None:
 
         env = load_scenario(plan.kwargs.get(plan.spec.tasks.keyword, plan.spec.tasks.default)).env
         m_box, t_box = env.m_bounds, env.T_c_bounds_s
-    numbers = len(policy) == 2 and all(isinstance(x, (int, float, np.floating)) and not isinstance(x, bool)
-                                       and np.isfinite(x) for x in policy)
-    if not numbers or not (m_box[0] <= policy[0] <= m_box[1] and t_box[0] <= policy[1] <= t_box[1]):
-        raise InvalidInputError(f"fixed parameters (m, T_c) = {policy!r}; allowed: two numbers with m in "
-                                f"[{m_box[0]}, {m_box[1]}] and T_c in [{t_box[0]}, {t_box[1]}] s (the action box)")
+    check_in_box(policy, m_box, t_box)
 
 
 def _seed_plan(spec: BenchmarkSpec, env_id: str, seeds: Sequence[int] | None, env_kwargs: dict | None,
@@ -171,8 +168,9 @@ def _pool_plan(spec: BenchmarkSpec, env_id: str, *, task: Any, split: str | None
                env_kwargs: dict | None, training_pool: str | None, seeds: Sequence[int] | None = None) -> Plan:
     env_kwargs, task, split = _task_arguments(spec, env_kwargs, task, split)
     task = spec.evaluation.default_task if task is None else task
-    if training_pool is not None and not isinstance(training_pool, str):
-        raise InvalidInputError(f"training_pool = {training_pool!r}; allowed: None or a text such as 'easy/train'")
+    refused = training_pool_problem(training_pool, spec)
+    if refused:
+        raise InvalidInputError(refused)
     from ffsr_gym.environments.task_source import is_custom
 
     if is_custom(spec, task):

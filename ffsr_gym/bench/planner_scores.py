@@ -95,14 +95,30 @@ def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | 
                       score_rule=spec.score.text)
 
 
+def check_in_box(parameters: Any, m_box: tuple[float, float], t_box: tuple[float, float]) -> None:
+    """The one check of a fixed (m, T_c [s]) against an action box, for ``evaluate`` and the black-box losses alike.
+
+    Raises:
+        InvalidInputError: not two finite real numbers inside the box (the value and the box named).
+    """
+    numbers = isinstance(parameters, (tuple, list)) and len(parameters) == 2 and all(
+        isinstance(x, (int, float, np.floating)) and not isinstance(x, bool) and np.isfinite(x) for x in parameters)
+    if not numbers or not (m_box[0] <= parameters[0] <= m_box[1] and t_box[0] <= parameters[1] <= t_box[1]):
+        raise InvalidInputError(f"fixed parameters (m, T_c) = {tuple(parameters) if numbers else parameters!r}; allowed: "
+                                f"two numbers with m in [{m_box[0]}, {m_box[1]}] and T_c in [{t_box[0]}, {t_box[1]}] s "
+                                "(the action box)")
+
+
 def training_loss(m: float, T_c: float, *, tier: str, tasks: int = 20, version: str = "v2") -> float:
     """1 − the mean score of the predefined-time planner at constant (m, T_c [s]) on the first
     ``tasks`` tasks of ``tier``'s **training** pool: the black-box loss optimisers minimise (in [0, 1]).
+    A point outside the action box is refused, as :func:`ffsr_gym.evaluate` refuses it (:func:`check_in_box`).
 
     A module-level function: ``functools.partial(training_loss, tier=..., tasks=...)`` pickles
     for process pools and Dask.
     """
     benchmark = score_rule(spec_for_version(version)).benchmark
+    check_in_box((m, T_c), benchmark.action.m_bounds, benchmark.action.T_c_bounds_s)  # what evaluate would refuse
     episodes = [planner_episode(task_scenario(tier, t.seed, benchmark), benchmark, method="predefined_time", m=m,
                                 T_c=T_c) for t in pool(tier, "train", version=benchmark.version)[:tasks]]
     return 1.0 - float(np.mean([e.score for e in episodes]))
@@ -115,9 +131,9 @@ def residual_training_loss(action: Any, *, tier: str, tasks: int = 20, version: 
     with ``functools.partial``).
     """
     values = np.asarray(action, dtype=np.float64)
-    if values.shape != (12,) or not np.all(np.isfinite(values)):
-        raise InvalidInputError(f"residual action {action!r}; allowed: 12 finite numbers")
-    exact = tuple(float(x) for x in np.clip(values, -1.0, 1.0).astype(np.float32))
+    if values.shape != (12,) or not np.all(np.abs(values) <= 1.0):  # the box evaluate refuses a constant outside of
+        raise InvalidInputError(f"residual action {action!r}; allowed: 12 numbers in [-1, 1] (the action box)")
+    exact = tuple(float(x) for x in values.astype(np.float32))
     benchmark = score_rule(spec_for_version(version)).benchmark
     certificate = Certificate("residual", benchmark.planner.m, benchmark.planner.T_c_s, exact)
     episodes = [replay(task_scenario(tier, t.seed, benchmark), certificate, benchmark)

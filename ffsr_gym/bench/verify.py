@@ -33,6 +33,7 @@ from ffsr_gym.tasks.splits import pool, pool_path
 CHECKPOINTS = {"last": "", "best_on_validation": "_valbest"}
 ENTRY_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,127}")
 GIT_COMMIT = re.compile(r"[0-9a-f]{7,40}")
+TRAINING_POOL = re.compile(r"[a-z0-9_]+/[a-z]+( \([^()]{1,80}\))?")
 
 
 def entry_problems(entry: Any, spec: BenchmarkSpec, group: str) -> list[str]:
@@ -56,6 +57,19 @@ def _name_problems(entry: dict) -> list[str]:
     if not isinstance(name, str) or not ENTRY_NAME.fullmatch(name):
         return [f"name {name!r}: allowed 1-128 letters, digits, '.', '_', '-'"]
     return []
+
+
+def training_pool_problem(value: Any, spec: BenchmarkSpec) -> str | None:
+    """Why ``extra.training_pool`` is refused, or None: it is None, or ``<tier>/train`` or ``<tier>/validation``
+    of the version's tiers, optionally followed by a note in brackets (``easy/train (first 20 tasks)``). A test
+    pool is never one to train or tune on."""
+    if value is None:
+        return None
+    allowed = [f"{tier}/{split}" for tier in spec.tasks.tiers for split in spec.tasks.splits if split != "test"]
+    if isinstance(value, str) and TRAINING_POOL.fullmatch(value) and value.split(" ")[0] in allowed:
+        return None
+    return (f"training_pool {str(value)[:60]!r}; allowed: None, or <tier>/train or <tier>/validation (optionally "
+            "followed by ' (a note)'), never a test pool")
 
 
 def _text_problems(entry: dict) -> list[str]:
@@ -130,7 +144,7 @@ def _coverage_problems(entry: dict, rows: list[dict], spec: BenchmarkSpec, group
             return ["rows: each seed once per training seed, as the entry's protocol names them"]
         return []
     split, extra = spec.evaluation.split, entry.get("extra", {})
-    problems = []
+    problems = [reason for reason in [training_pool_problem(extra.get("training_pool"), spec)] if reason]
     if extra.get("evaluation_pool") != f"{group}/{split}":
         problems.append(f"evaluation_pool {extra.get('evaluation_pool')!r}: this table ranks {group}/{split}")
     sha = extra.get("pool_file_sha256")

@@ -88,7 +88,7 @@ def _report(folder: Path, state: ga.GAState, mode: str, leaderboard: str | Path 
         report = evaluate((m, T_c), "FFSR-v0", name=f"ga_{mode}")
         report.extra = {"method": f"paper GA, {mode} mode", "ga_config": state.config.__dict__, "ga_wall_time_s": state.wall_time_s,
                         "ga_evaluations": len(state.cache), "parameters": {"m": m, "T_c_s": T_c}}
-        report.save(Path(leaderboard) / "FFSR-v0")
+        report.save(Path(leaderboard) / "FFSR-v0", overwrite=True)
     return summary
 
 
