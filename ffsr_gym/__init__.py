@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ffsr_gym.bench.evaluation import EvalReport, evaluate, objective_for_params
+from ffsr_gym.environments.info import failure_name
 from ffsr_gym.environments.registration import register_all, register_spec
 from ffsr_gym.exceptions import FFSRError, InvalidInputError, RobotFileError, ScenarioError
 from ffsr_gym.model.robot import Robot, load_robot
@@ -24,6 +25,7 @@ __all__ = [
     "ScenarioError",
     "Trajectory",
     "evaluate",
+    "failure_name",
     "load_robot",
     "load_scenario",
     "register_spec",

@@ -403,9 +403,14 @@ def _tasks_tables(args: argparse.Namespace) -> None:
         for name, table in docs_tables(args.version).items():
             print(f"{name}:\n{table}")
         return
+    from ffsr_gym.environments.info import docs_section
+    from ffsr_gym.provenance import splice_generated
+
     path = Path(args.docs)
-    write_text_atomic(path, splice_docs_tables(path.read_text(encoding="utf-8"), args.version, where=str(path)))
-    print("wrote the tier tables into", path)
+    text = splice_docs_tables(path.read_text(encoding="utf-8"), args.version, where=str(path))
+    text = splice_generated(text, "<!-- info-keys:begin -->", "<!-- info-keys:end -->", docs_section(), where=str(path))
+    write_text_atomic(path, text)
+    print("wrote the tier tables and the info keys into", path)
 
 
 def _add_model_commands(sub: Any) -> None:

@@ -10,6 +10,8 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
+
+from ffsr_gym import failure_name
 from gymnasium.utils.env_checker import check_env
 
 import ffsr_gym
@@ -93,7 +95,7 @@ def test_a_failure_loses_the_remaining_value(terminate):
     env = gym.make("FFSR-v2", task="easy", terminate_on_violation=terminate)
     lo = np.array([-1.0, -1.0], dtype=np.float32)  # m = 0.05, T_c = 1 s: 227 deg/s on easy training task 4
     rewards, infos, _ = run(env, lambda obs: lo, index=4)
-    assert infos[-1]["failure"] == "rate_limit" and infos[-1]["score"] == 0.0
+    assert failure_name(infos[-1]["failure"]) == "rate_limit" and infos[-1]["score"] == 0.0
     assert rewards.sum() == pytest.approx(-1.0, abs=1e-12)
     cost = sum(i["smoothness_increment"] for i in infos)
     assert infos[-1]["penalty"] == pytest.approx(1.0 / (1.0 + cost), rel=1e-12)
@@ -107,8 +109,8 @@ def test_fading_residual_leaves_no_steady_state_error():
     outcomes = []
     for size in (0.002 / 20, 0.01, 0.1, 0.5, 1.0):
         _, infos, traj = run(env, lambda obs, size=size: np.full(12, size, dtype=np.float32))
-        outcomes.append(infos[-1]["failure"])
-        if infos[-1]["failure"] is None:
+        outcomes.append(failure_name(infos[-1]["failure"]))
+        if infos[-1]["failure"] == 0:
             assert traj.ee_position_error_m[-1] < 1e-6
     assert "final_error" not in outcomes and outcomes[0] is None
 
@@ -126,7 +128,7 @@ def test_uniform_random_residual_succeeds_unless_it_breaks_a_limit():
     """Random residuals: every episode that neither exceeds the rate limit nor collides reaches the tolerance."""
     env = gym.make("FFSR-Residual-v2", task="easy")
     env.action_space.seed(0)
-    failures = [run(env, lambda obs: env.action_space.sample(), seed=s)[1][-1]["failure"] for s in range(6)]
+    failures = [failure_name(run(env, lambda obs: env.action_space.sample(), seed=s)[1][-1]["failure"]) for s in range(6)]
     assert "final_error" not in failures
     assert failures.count(None) >= 4
 
@@ -137,7 +139,7 @@ def test_violations_graded_when_not_terminating():
     rewards, infos, traj = run(env, lambda obs: lo, index=4)
     assert len(infos) == 200 and not any(i.get("success") for i in infos)
     costs = np.array([i["cost"] for i in infos])
-    assert costs.max() > 0.1 and infos[-1]["failure"] == "rate_limit"
+    assert costs.max() > 0.1 and failure_name(infos[-1]["failure"]) == "rate_limit"
     rates = np.degrees(np.abs(traj.dq_joints[:-1])).reshape(200, -1).max(axis=1)
     keep_out = BENCH.score.keep_out_m
     clear = np.minimum(traj.clearance_m[:-1] - keep_out, traj.self_clearance_m[:-1]).reshape(200, -1).min(axis=1)
@@ -208,10 +210,10 @@ def test_steps_and_episode_ends_leave_no_cyclic_garbage():
 def test_evaluate_scores_the_test_pool_from_trajectories_and_records_the_pools():
     from ffsr_gym.tasks.splits import pool
 
-    report = ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task="easy", training_pool="none (fixed default)")
+    report = ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task="easy", training_pool="easy/train (not trained: the fixed default)")
     entry = report.to_json()
     tasks = pool("easy", "test")
-    assert entry["extra"]["evaluation_pool"] == "easy/test" and entry["extra"]["training_pool"] == "none (fixed default)"
+    assert entry["extra"]["evaluation_pool"] == "easy/test" and entry["extra"]["training_pool"] == "easy/train (not trained: the fixed default)"
     assert entry["extra"]["dt_s"] == 0.01  # the benchmark's own step, recorded
     assert [row["task_seed"] for row in entry["episodes"]] == [t.seed for t in tasks]
     # The default planner is the certificate of every easy task: the stored build scores, replayed.

@@ -12,6 +12,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from ffsr_gym import failure_name
+
 import ffsr_gym  # noqa: F401  (registers the environments)
 from ffsr_gym.exceptions import InvalidInputError, ScenarioError
 from ffsr_gym.model.benchmark import load_benchmark
@@ -215,7 +217,7 @@ def random_residual_on_easy_test_pool(indices) -> tuple[int, int]:
             _, _, terminated, truncated, info = env.step(env.action_space.sample())
             if terminated or truncated:
                 break
-        if info["failure"] not in ("rate_limit", "collision"):
+        if failure_name(info["failure"]) not in ("rate_limit", "collision"):
             eligible += 1
             successes += bool(info["success"])
     return successes, eligible

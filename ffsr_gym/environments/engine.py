@@ -24,12 +24,12 @@ from typing import Any
 import numpy as np
 
 from ffsr_gym.environments import actions as act
+from ffsr_gym.environments import info as info_contract
 from ffsr_gym.environments.task_source import TaskSource
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.kernel import batch as kernel_batch
-from ffsr_gym.kernel import decision
+from ffsr_gym.kernel import decision, servo
 from ffsr_gym.kernel import planner as kp
-from ffsr_gym.kernel import servo
 from ffsr_gym.model import portable
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning import ptsf
@@ -38,7 +38,6 @@ from ffsr_gym.sim.compiled import LOG_FIELDS, KernelRollout, new_log
 from ffsr_gym.sim.rollout import BACKENDS, STATUS, Rollout
 from ffsr_gym.sim.simulate import kernel_available, make_rollout
 from ffsr_gym.sim.trajectory import Trajectory
-
 
 _FLOAT32 = np.dtype(np.float32)
 
@@ -92,12 +91,16 @@ class EpisodeEngine:
         self.logs = new_log(self.n_steps + 1, N) if self.compiled else None
         self.out = np.zeros((N, 7))
         self.mdl, self.episode, self.workspaces = None, None, None
+        self.task_index, self.task_seed = np.full(N, -1, dtype=np.int64), np.full(N, -1, dtype=np.int64)
+        self._blank = info_contract.scalars(info_contract.blank(self.rule, 1), 0)  # the single env's info, before
 
     # ------------------------------------------------------------------------------ resets
     def reset_copy(self, i: int, rng: np.random.Generator, options: dict | None = None) -> dict[str, int]:
         """Copy ``i``'s next episode, drawn from ``rng``; returns the task source's info."""
         scenario, info = self.source.draw(rng, options)
         self.scenarios[i], self.results[i] = scenario, None
+        for key, values in (("task_index", self.task_index), ("task_seed", self.task_seed)):
+            values[i] = -1 if info.get(key) is None else info[key]
         if self.compiled:
             self._load_copy(i, scenario)
             rollout = self.rollouts[i]
@@ -110,6 +113,14 @@ class EpisodeEngine:
         self.out[i, 5], self.out[i, 6] = self.clearance[i], self.ee_error[i]
         self.potential[i] = self._potential(self.ee_error[i])
         return info
+
+    def reset_info(self) -> dict[str, np.ndarray]:
+        """Every copy's info as it stands after a reset (the contract's keys, :mod:`~ffsr_gym.environments.info`)."""
+        arrays = info_contract.blank(self.rule, self.n)
+        arrays["task_index"][:], arrays["task_seed"][:] = self.task_index, self.task_seed
+        arrays["clearance_m"][:], arrays["ee_position_error_m"][:] = self.clearance, self.ee_error
+        arrays["clipped_actions"][:] = self.clipped
+        return arrays
 
     def _load_copy(self, i: int, scenario: Scenario) -> None:
         """Put copy ``i``'s new episode into the stacked kernel arrays."""
@@ -219,16 +230,19 @@ class EpisodeEngine:
         """Episode end (the rule's result of the whole trajectory), reward, shaping and info."""
         terminated = bool(status != 0)
         truncated = bool(not terminated and self.K[0] >= self.n_steps)
-        info: dict[str, Any] = {self.rule.increment_key: increment, "cost": cost, "clipped_actions": int(self.clipped[0])}
+        info: dict[str, Any] = dict(self._blank)
+        info.update({"task_index": int(self.task_index[0]), "task_seed": int(self.task_seed[0]),
+                     self.rule.increment_key: float(increment), "cost": float(cost),
+                     "clipped_actions": int(self.clipped[0])})
         result = None
         if terminated or truncated:
             result = self.end_copy(0)
-            info.update({key: getattr(result, key) for key in self.rule.end_keys})
+            info.update(info_contract.end_values(self.rule, result), episode_end=True)
         before = float(self.cost_so_far[0])
         reward, penalty = self.rule.reward(before, increment, result, terminated=terminated, truncated=truncated,
                                            scenario=self.scenarios[0])
         self.cost_so_far[0] = before + increment
-        info["penalty"] = penalty
+        info["penalty"] = float(penalty)
         if self.rule.shaping:
             shaping = 0.0
             if self.shaping:
@@ -289,28 +303,27 @@ class EpisodeEngine:
         """Rewards, shaping and info of a batched decision; ends score their whole trajectory."""
         N, ended = self.n, terminated | truncated
         results = {int(i): self.end_copy(int(i)) for i in np.flatnonzero(ended)}
-        info: dict[str, Any] = {}
-        for key, dtype in self.rule.end_keys.items():
-            values = np.zeros(N, dtype=dtype)
-            for i, result in results.items():
-                values[i] = getattr(result, key)
-            info[key], info[f"_{key}"] = values, ended.copy()
+        info = info_contract.blank(self.rule, N)
+        info["task_index"][:], info["task_seed"][:], info["episode_end"][:] = self.task_index, self.task_seed, ended
+        for i, result in results.items():
+            for key, value in info_contract.end_values(self.rule, result).items():
+                info[key][i] = value
         before = self.cost_so_far
         rewards, penalties = np.where(active, self.rule.running_rewards(before, increments), 0.0), np.zeros(N)
         for i, result in results.items():
             rewards[i], penalties[i] = self.rule.reward(before[i], increments[i], result, terminated=bool(terminated[i]),
                                                         truncated=bool(truncated[i]), scenario=self.scenarios[i])
         self.cost_so_far = np.where(active, before + increments, before)
-        info.update({self.rule.increment_key: increments, "penalty": penalties})
+        info[self.rule.increment_key][:], info["penalty"][:] = increments, penalties
         if self.rule.shaping:
             potential = self._potential(self.ee_error)
             shaping = np.where(active, potential - self.potential, 0.0) if self.shaping else np.zeros(N)
             self.potential = np.where(active, potential, self.potential)
-            info["shaping"] = shaping
+            info["shaping"][:] = shaping
             rewards = np.where(active, rewards + shaping, 0.0)
-        info.update({"cost": costs, "clearance_m": self.clearance.copy(), "ee_position_error_m": self.ee_error.copy(),
-                     "clipped_actions": self.clipped.copy()})
-        return rewards, terminated, truncated, info
+        info["cost"][:], info["clearance_m"][:], info["ee_position_error_m"][:] = costs, self.clearance, self.ee_error
+        info["clipped_actions"][:] = self.clipped
+        return rewards, terminated, truncated, info_contract.with_masks(info, active)
 
     # ------------------------------------------------------------------------ per copy
     def _set_parameters(self, i: int, parameters: tuple[float, float]) -> None:

@@ -7,6 +7,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ffsr_gym.environments import info as info_contract
 from ffsr_gym.environments.actions import action_to_parameters, observation_bounds, physical_parameters
 from ffsr_gym.environments.engine import EpisodeEngine
 from ffsr_gym.environments.task_source import TaskSource
@@ -123,10 +124,9 @@ class FFSREnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
-        info = self.engine.reset_copy(0, self.np_random, options)
+        self.engine.reset_copy(0, self.np_random, options)
         self.scenario, self._started = self.engine.scenarios[0], True
-        info = {**info, "clearance_m": float(self.engine.clearance[0]), "ee_position_error_m": float(self.engine.ee_error[0])}
-        return self.engine.obs[0].copy(), info
+        return self.engine.obs[0].copy(), info_contract.scalars(self.engine.reset_info(), 0)
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
         if not self._started or self.engine.rollouts[0].finished:

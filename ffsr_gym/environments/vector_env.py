@@ -18,6 +18,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
+from ffsr_gym.environments import info as info_contract
 from ffsr_gym.environments.actions import check_action, observation_bounds, physical_parameters
 from ffsr_gym.environments.engine import EpisodeEngine
 from ffsr_gym.environments.env import task_options
@@ -122,7 +123,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
                 self._rngs[i] = seeding.np_random(s)[0]
             self._reset_copy(i, None if forced is None else forced[i])
         self._needs_reset[:], self._started = False, True
-        return self.engine.obs.copy(), {"task_index": self._task_index.copy(), "task_seed": self._task_seed.copy()}
+        return self.engine.obs.copy(), info_contract.with_masks(self.engine.reset_info(), np.ones(self.num_envs, bool))
 
     def _task_indices(self, options: dict | None) -> list[Any] | None:
         indices = (options or {}).get("task_index")
@@ -191,6 +192,8 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         for i in np.flatnonzero(restarted):
             self._reset_copy(int(i))
         rewards, terminated, truncated, info = self.engine.step_copies(a, active, parameters)
+        if restarted.any():  # a copy reset by this step gives its reset info, as a Gymnasium vector env does
+            self._put_reset_info(info, restarted)
         self._needs_reset = (self._needs_reset & ~restarted) | terminated | truncated
         obs = self.engine.obs.copy()
         if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP and self._needs_reset.any():
@@ -206,7 +209,14 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
             self._reset_copy(int(i))
             obs[i] = self.engine.obs[i]
         self._needs_reset[:] = False
+        self._put_reset_info(info, ended)
         return {**info, "final_obs": final_obs, "_final_obs": ended, "final_info": final_info, "_final_info": ended.copy()}
+
+    def _put_reset_info(self, info: dict[str, Any], copies: np.ndarray) -> None:
+        """The reset info of ``copies`` in place of their step info (every key present: masks True)."""
+        fresh = self.engine.reset_info()
+        for key, values in fresh.items():
+            info[key][copies], info[f"_{key}"][copies] = values[copies], True
 
     # ----------------------------------------------------------------------------- extras
     def trajectory(self, i: int) -> Trajectory:
