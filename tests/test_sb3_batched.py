@@ -82,7 +82,7 @@ def test_same_step_autoreset_reports_the_final_observation():
             break
     assert done.any()
     for i in np.flatnonzero(done):
-        assert np.array_equal(info["final_obs"][i], ref_obs[i]) and info["final_info"][i]["score"] == ref_info["score"][i]
+        assert np.array_equal(info["final_obs"][i], ref_obs[i]) and info["final_info"]["score"][i] == ref_info["score"][i]
     ref_obs, *_ = reference.step(action)  # next-step mode resets now: its reset observation is the same-step one
     assert np.array_equal(obs[done], ref_obs[done])
 

@@ -193,8 +193,9 @@ def test_v2_vector_env_without_autoreset_holds_ended_copies():
         assert step[4]["score"] == held[i][2] and single.unwrapped.rollout.k == held[i][1]
     with pytest.raises(InvalidInputError, match="autoreset_mode"):
         FFSRVectorEnv(2, "v2", task="hard", autoreset_mode="EveryStep")
-    with pytest.raises(InvalidInputError, match="reset_mask"):
-        venv.reset(options={"reset_mask": np.array([True, False])})
+    for mask in ([True, False], np.array([False, False]), np.array([1, 0])):
+        with pytest.raises(InvalidInputError, match="reset_mask"):
+            venv.reset(options={"reset_mask": mask})
 
 
 def test_v2_play_out_gives_the_trajectories_of_decision_after_decision():

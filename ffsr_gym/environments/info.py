@@ -99,10 +99,11 @@ def scalars(arrays: dict[str, np.ndarray], i: int) -> dict[str, Any]:
 
 
 def with_masks(arrays: dict[str, np.ndarray], mask: np.ndarray) -> dict[str, Any]:
-    """A batched info as Gymnasium's vector envs give it: each key's array and its ``_key`` mask."""
+    """A batched info as Gymnasium's vector envs give it: each key's array (0 where ``mask`` is False: a copy that
+    gave no info) and its ``_key`` mask."""
     out: dict[str, Any] = {}
     for key, values in arrays.items():
-        out[key], out[f"_{key}"] = values, mask.copy()
+        out[key], out[f"_{key}"] = np.where(mask, values, np.zeros_like(values)), mask.copy()
     return out
 
 

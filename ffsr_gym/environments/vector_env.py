@@ -43,13 +43,15 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
     Arguments as the single environment plus ``threads`` (numba's thread count, default all
     cores); ``terminate_on_violation`` must stay True (the batched kernel stops a copy at its first
     violation). Autoreset is Gymnasium's next-step mode; with ``AutoresetMode.SAME_STEP`` a copy
-    whose episode ended is reset in the same step (its last observation and info in
-    ``info["final_obs"]`` and ``info["final_info"]``, masked by ``_final_obs``, ``_final_info``;
+    whose episode ended is reset in the same step (its last observation in ``info["final_obs"]``, an
+    object array, and its last info in ``info["final_info"]``, a dict of masked arrays, as Gymnasium's
+    ``SyncVectorEnv`` gives them;
     what stable-baselines3 expects, :mod:`ffsr_gym.optim.sb3_vec_env`); with
     ``AutoresetMode.DISABLED`` none: a copy whose episode ended holds (not stepped, reward 0, its
-    end reported once) until the next ``reset()``, which resets every copy (no ``reset_mask``). ``reset(seed=s)`` seeds copy i with s + i; ``options={"task_index": [...]}``
-    picks each copy's pool task of this reset. ``reset``'s info has ``task_index`` and
-    ``task_seed`` per copy (-1 outside a pool); episode-end keys come with their ``_key`` masks.
+    end reported once) until a ``reset()``, of every copy or of those of ``options={"reset_mask": ...}``
+    (a bool array, as Gymnasium's vector envs take it). ``reset(seed=s)`` seeds copy i with s + i; ``options={"task_index": [...]}``
+    picks each copy's pool task of this reset. Every info has every key of the info contract
+    (:mod:`ffsr_gym.environments.info`) as an array with its ``_key`` mask, as ``SyncVectorEnv`` gives them.
     Memory: one full-episode trajectory buffer per copy (~1 MB at dt = 0.01 s, 20 s).
     """
 
@@ -113,17 +115,37 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         """Reset every copy (see the class docstring for ``seed`` and ``options``)."""
         if options is not None and not isinstance(options, dict):
             raise InvalidInputError(f"options must be a dict or None, got {type(options).__name__}")
-        if isinstance(options, dict) and "reset_mask" in options:
-            raise InvalidInputError("options['reset_mask']: partial resets are not supported; reset() resets every copy")
+        mask = self._reset_mask(options)
         forced = self._task_indices(options)
         seeds = self._copy_seeds(seed)
         super().reset(seed=seeds[0] if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) else None)
         for i, s in enumerate(seeds):
+            if not mask[i]:
+                continue
             if s is not None or self._rngs[i] is None:
                 self._rngs[i] = seeding.np_random(s)[0]
             self._reset_copy(i, None if forced is None else forced[i])
-        self._needs_reset[:], self._started = False, True
-        return self.engine.obs.copy(), info_contract.with_masks(self.engine.reset_info(), np.ones(self.num_envs, bool))
+        self._needs_reset[mask], self._started = False, True
+        return self.engine.obs.copy(), info_contract.with_masks(self.engine.reset_info(), mask)
+
+    @property
+    def autoreset_mode(self) -> AutoresetMode:
+        """How ended copies are reset (Gymnasium's ``AutoresetMode``; also ``metadata["autoreset_mode"]``)."""
+        return self.metadata["autoreset_mode"]
+
+    def _reset_mask(self, options: dict | None) -> np.ndarray:
+        """The copies a reset resets: ``options["reset_mask"]`` (a bool array, one per copy, at least one True; after
+        the first reset), else all. Only the masked copies' infos are given (their ``_key`` masks)."""
+        mask = (options or {}).get("reset_mask")
+        if mask is None:
+            return np.ones(self.num_envs, dtype=bool)
+        if (not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (self.num_envs,)
+                or not mask.any()):
+            raise InvalidInputError(f"options['reset_mask'] = {mask!r}; allowed: a numpy bool array of shape "
+                                    f"({self.num_envs},) with at least one True")
+        if not self._started and not mask.all():
+            raise InvalidInputError("options['reset_mask']: the first reset resets every copy")
+        return mask.copy()
 
     def _task_indices(self, options: dict | None) -> list[Any] | None:
         indices = (options or {}).get("task_index")
@@ -203,9 +225,13 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
     def _reset_ended(self, obs: np.ndarray, info: dict[str, Any]) -> dict[str, Any]:
         """Same-step autoreset: every ended copy's last observation and info into ``info``, then a reset (in ``obs``)."""
         ended = self._needs_reset.copy()
-        final_obs, final_info = np.full(self.num_envs, None, dtype=object), np.full(self.num_envs, None, dtype=object)
+        final_obs = np.full(self.num_envs, None, dtype=object)
+        final_info: dict[str, Any] = {}  # as SyncVectorEnv gathers it: every key's array, masked to the ended copies
+        for key in [k for k in info if not k.startswith("_")]:
+            final_info[key] = np.where(ended, info[key], np.zeros_like(info[key]))
+            final_info[f"_{key}"] = ended.copy()
         for i in np.flatnonzero(ended):
-            final_obs[i], final_info[i] = obs[i].copy(), copy_info(info, int(i))
+            final_obs[i] = obs[i].copy()
             self._reset_copy(int(i))
             obs[i] = self.engine.obs[i]
         self._needs_reset[:] = False

@@ -85,7 +85,7 @@ class BatchedVecEnv(VecEnv):
         infos = []
         for i in range(self.num_envs):
             if dones[i]:
-                item = dict(info["final_info"][i])
+                item = copy_info(info["final_info"], i)
                 item["terminal_observation"] = info["final_obs"][i]
                 item["episode"] = {"r": float(self._returns[i]), "l": int(self._lengths[i]),
                                    "t": round(time.time() - self._start, 6)}
