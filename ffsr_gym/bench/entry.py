@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -131,13 +132,31 @@ class EvalReport:
         return path
 
 
+class _Recurrent:
+    """One episode of a policy with stable-baselines3's stateful ``predict(obs, state, episode_start, deterministic)``
+    (sb3-contrib's RecurrentPPO): its state carried from step to step, the episode's start flagged once."""
+
+    def __init__(self, policy: PredictsActions) -> None:
+        self.policy, self.state, self.start = policy, None, True
+
+    def __call__(self, observation: np.ndarray) -> Any:
+        action, self.state = self.policy.predict(observation, state=self.state,
+                                                 episode_start=np.array([self.start]), deterministic=True)
+        self.start = False
+        return action
+
+
 def actor(policy: Policy) -> Callable[[np.ndarray], Any]:
-    """The env action ``policy`` takes given an observation: a tuple is a constant action (float32), an object with
-    ``predict`` its deterministic prediction, a callable its value."""
+    """The env action ``policy`` takes given an observation, for **one episode** (make one per episode): a tuple is
+    a constant action (float32), an object with ``predict`` its deterministic prediction (given its state and the
+    episode's start when its ``predict`` takes them, as every stable-baselines3 model's does), a callable its value."""
     if isinstance(policy, tuple):
         action = np.array(policy, dtype=np.float32)
         return lambda _obs: action
     if isinstance(policy, PredictsActions):
+        parameters = inspect.signature(policy.predict).parameters
+        if "state" in parameters and "episode_start" in parameters:
+            return _Recurrent(policy)
         return lambda obs: policy.predict(obs, deterministic=True)[0]
     if callable(policy):
         return policy

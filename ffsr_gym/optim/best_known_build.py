@@ -277,8 +277,9 @@ def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, or
     tasks = pool(tier, split, version=version)
     path = _absorbed_path(work, tier, split)
     env = gym.make(env_id, task=tier, split=split)
-    act, improved = actor(policy), 0
+    improved = 0
     for index in tqdm(sorted(stored), desc=f"absorb {origin} {tier}/{split}", unit="task", disable=not progress):
+        act = actor(policy)  # one per episode (a recurrent policy's state starts afresh)
         obs, _ = env.reset(seed=0, options={"task_index": index})
         played, done = [], False
         while not done:
