@@ -301,9 +301,10 @@ def _evaluate(args: argparse.Namespace) -> None:
     finally:
         if executor is not None:
             executor.shutdown()
-    if not isinstance(policy, tuple):  # what `ffsr-gym leaderboard verify` re-runs
-        report.extra["policy"] = {"sb3": args.policy, "algo": args.algo} if args.policy.endswith(".zip") \
-            else {"callable": args.policy}
+    if not isinstance(policy, tuple):  # what `ffsr-gym leaderboard verify --run-code` runs (with the file's hash)
+        from ffsr_gym.bench.policies import policy_record
+
+        report.extra["policy"] = policy_record(args.policy, args.algo)
     print(f"{report.name}: {report.metrics}")
     if args.leaderboard:
         print("wrote", report.save(folder, overwrite=args.force))

@@ -222,3 +222,26 @@ def test_the_black_box_losses_refuse_what_evaluate_refuses():
     with pytest.raises(InvalidInputError, match="action box"):
         residual_training_loss([1.5] + [0.0] * 11, tier="easy", tasks=1)
     assert 0.0 <= training_loss(0.3, 4.0, tier="easy", tasks=1) <= 1.0
+
+
+def test_a_file_policy_is_recorded_by_its_hash_and_verified_from_anywhere(tmp_path, monkeypatch, capsys):
+    from ffsr_gym.cli import main
+
+    maker = tmp_path / "maker"
+    maker.mkdir()
+    monkeypatch.chdir(maker)
+    (maker / "mine.py").write_text("import numpy as np\n\ndef act(obs):\n    return 0.3 * np.sin(obs[:12])\n")
+    assert main(["evaluate", "--env-id", "FFSR-Residual-v2", "--task", "easy", "--policy", "mine.py:act",
+                 "--name", "mine", "--no-progress", "--leaderboard", "lb", "--training-pool", "easy/train"]) == 0
+    entry = maker / "lb" / "v2" / "easy" / "mine.json"
+    record = json.loads(entry.read_text())
+    assert record["extra"]["policy"]["callable"] == "mine.py:act" and len(record["extra"]["policy"]["sha256"]) == 64
+    assert record["provenance"]["policy"]["module"] == "mine"
+    elsewhere = tmp_path / "reviewer"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    assert main(["leaderboard", "verify", str(entry)]) == 0  # the trace: no code run
+    assert main(["leaderboard", "verify", str(entry), "--run-code", f"{maker / 'mine.py'}:act"]) == 0
+    (maker / "mine.py").write_text("import numpy as np\n\ndef act(obs):\n    return 0.2 * np.sin(obs[:12])\n")
+    assert main(["leaderboard", "verify", str(entry), "--run-code", f"{maker / 'mine.py'}:act"]) == 2
+    assert "consent is given to exactly that text, or to a path of the same file" in capsys.readouterr().err

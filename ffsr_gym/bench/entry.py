@@ -146,6 +146,32 @@ class _Recurrent:
         return action
 
 
+def policy_origin(policy: Any, library: str | None = None) -> dict[str, Any]:
+    """What made a policy, for the entry's provenance: its type, and the installed distribution of the package it
+    comes from with its version (found from the object's module: ``stable_baselines3``, ``sb3_contrib``, ``sbx``,
+    ``tianshou``, ...), or ``library`` when given (e.g. ``"tianshou 2.0.1"`` for a plain function wrapping it).
+
+    Raises:
+        InvalidInputError: ``library`` that is not one line of text.
+    """
+    from importlib import metadata
+
+    if library is not None and (not isinstance(library, str) or not library.strip() or "\n" in library):
+        raise InvalidInputError(f"policy_library = {library!r}; allowed: one line of text, e.g. 'tianshou 2.0.1'")
+    kind = type(policy)
+    module = getattr(policy, "__module__", None) if callable(policy) and not isinstance(policy, PredictsActions) \
+        else kind.__module__
+    origin: dict[str, Any] = {"type": f"{kind.__module__}.{kind.__qualname__}", "module": module}
+    top = (module or "").split(".")[0]
+    packages = metadata.packages_distributions().get(top, [])
+    if packages:
+        origin["package"] = packages[0]
+        origin["version"] = metadata.version(packages[0])
+    if library is not None:
+        origin["library"] = library.strip()
+    return origin
+
+
 def actor(policy: Policy) -> Callable[[np.ndarray], Any]:
     """The env action ``policy`` takes given an observation, for **one episode** (make one per episode): a tuple is
     a constant action (float32), an object with ``predict`` its deterministic prediction (given its state and the

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from tqdm.auto import tqdm
 
-from ffsr_gym.bench.entry import EvalReport, Policy, PredictsActions, check_compute
+from ffsr_gym.bench.entry import EvalReport, Policy, PredictsActions, check_compute, policy_origin
 from ffsr_gym.bench.episodes import play_batched, play_chunk
 from ffsr_gym.bench.planner_scores import check_in_box, objective_for_params
 from ffsr_gym.bench.trace import trace_record
@@ -46,6 +46,7 @@ class Plan:
     episodes: list[tuple[int, int | None]]
     extra: dict[str, Any] = field(default_factory=dict)
     recorded_kwargs: dict[str, Any] | None = None  # what the entry records, when ``kwargs`` holds a Scenario
+    policy_library: str | None = None  # what made the policy, when the caller says (else found from its module)
 
 
 def spec_of(env_id: Any) -> BenchmarkSpec:
@@ -200,7 +201,8 @@ def _pool_plan(spec: BenchmarkSpec, env_id: str, *, task: Any, split: str | None
 def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None, env_kwargs: dict | None = None,
              name: str = "submission", progress: bool = False, task: str | None = None, split: str | None = None,
              training_pool: str | None = None, executor: Executor | None = None, indices: Sequence[int] | None = None,
-             chunk: int = 10, batched: bool | None = None, compute: dict[str, Any] | None = None) -> EvalReport:
+             chunk: int = 10, batched: bool | None = None, compute: dict[str, Any] | None = None,
+             policy_library: str | None = None) -> EvalReport:
     """Score ``policy`` on ``env_id`` by its version's protocol and score rule.
 
     Args:
@@ -223,6 +225,8 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
             ``{"env_steps": int, "wall_time_s": float}`` (or ``objective_evaluations`` for an
             optimiser's episodes), optionally ``"hardware": str`` (:func:`check_compute`).
             Recorded as the entry's ``extra.compute``.
+        policy_library: the library that made the policy (e.g. ``"tianshou 2.0.1"``), recorded in the
+            entry's ``provenance.policy`` beside the package found from the policy object's module.
 
     A task that is not a tier (a :class:`Scenario`, a scenario TOML path or a shipped scenario
     name, as ``task=`` or ``env_kwargs={"task": ...}``) is a custom task: one episode per seed of
@@ -238,6 +242,8 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
         raise InvalidInputError(f"chunk = {chunk!r}; allowed: an integer >= 1")
     if compute is not None:
         plan.extra["compute"] = check_compute(compute)
+    policy_origin(policy, policy_library)  # checked before any episode
+    plan.policy_library = policy_library
     return run_plan(policy, plan, name=name, progress=progress, executor=executor, chunk=chunk, batched=batched)
 
 
@@ -307,8 +313,9 @@ def run_plan(policy: Any, plan: Plan, *, name: str = "submission", progress: boo
     extra = dict(plan.extra)
     if isinstance(policy, tuple):  # what `ffsr-gym leaderboard verify` re-runs
         extra["policy"] = {"fixed": [float(x) for x in policy]}
-    else:  # what `ffsr-gym leaderboard verify` replays without running the policy
+    else:  # what `ffsr-gym leaderboard verify` replays without running the policy, and what made the policy
         extra["trace"] = trace_record(traces, (12 if plan.spec.is_residual(plan.env_id) else 2,))
+        prov["policy"] = policy_origin(policy, plan.policy_library)
     return EvalReport(plan.env_id, plan.kwargs if plan.recorded_kwargs is None else plan.recorded_kwargs,
                       rule.aggregate(rows), rows, prov, name=name, extra=extra,
                       score_rule=plan.spec.score.text)

@@ -132,6 +132,42 @@ def _import(target: str, spec: str) -> Any:
         raise InvalidInputError(f"--policy {spec!r}: {target!r} failed to import ({type(exc).__name__}: {exc})") from None
 
 
+def policy_record(spec: str, algo: str | None) -> dict[str, Any]:
+    """An entry's ``extra.policy`` for a ``--policy`` that is code: the text, and the sha256 of the file it names (a
+    ``.zip`` model or a ``file.py``), so that a run with ``--run-code`` elsewhere checks it has the same file."""
+    import hashlib
+
+    path = Path(spec if spec.endswith(".zip") else spec.rpartition(":")[0])
+    record: dict[str, Any] = {"sb3": spec, "algo": algo} if spec.endswith(".zip") else {"callable": spec}
+    if path.suffix in (".zip", ".py") and path.is_file():
+        record["sha256"] = hashlib.sha256(path.read_bytes()).hexdigest()
+    return record
+
+
+def resolve_recorded(spec: str, sha256: str | None, folder: Path) -> str:
+    """The ``--policy`` text of an entry's code as it can be loaded here: a file path that does not exist from the
+    working folder is looked up in the entry's ``folder``; a recorded hash must match the file found.
+
+    Raises:
+        InvalidInputError: the file is in neither place, or its hash differs (named).
+    """
+    import hashlib
+
+    zip_model = spec.endswith(".zip")
+    target, _, name = (spec, "", "") if zip_model else spec.rpartition(":")
+    if not target.endswith((".zip", ".py")):
+        return spec  # a module: imported by name
+    path = Path(target)
+    if not path.is_file() and not path.is_absolute() and (folder / path).is_file():
+        path = folder / path
+    if not path.is_file():
+        raise InvalidInputError(f"{target!r}: no such file here or beside the entry ({folder})")
+    if sha256 is not None and hashlib.sha256(path.read_bytes()).hexdigest() != sha256:
+        raise InvalidInputError(f"{path}: its sha256 differs from the one the entry recorded: not the file it was "
+                                "scored with")
+    return str(path) if zip_model else f"{path}:{name}"
+
+
 def uniform_random_residual(observation: Any) -> Any:
     """The lower reference of the residual tables: an action drawn uniformly from [-1, 1]^12 at every decision.
 

@@ -26,7 +26,7 @@ import numpy as np
 from ffsr_gym.bench.evaluation import NEUTRAL_KWARGS, plan_evaluation, run_plan
 from ffsr_gym.bench.leaderboard import spec_of_entry
 from ffsr_gym.bench.planner_scores import evaluate_planner
-from ffsr_gym.bench.policies import BUILTIN_POLICIES, load_policy
+from ffsr_gym.bench.policies import BUILTIN_POLICIES, load_policy, resolve_recorded
 from ffsr_gym.bench.trace import decode, trace_episodes
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.model.spec import BenchmarkSpec
@@ -57,8 +57,10 @@ def replay_entry(path: str | Path, *, run_code: str | None = None) -> Verdict:
     Args:
         path: the entry's JSON file.
         run_code: consent to run the code the entry names: exactly its ``extra.policy`` callable
-            (``module:callable`` / ``file.py:callable``) or SB3 ``.zip`` path. Loading a model
-            unpickles it and importing a file runs it.
+            (``module:callable`` / ``file.py:callable``) or SB3 ``.zip`` path, or another path to the
+            same file (the sha256 the entry records) and callable. A relative file path is looked up
+            from the working folder, then beside the entry. Loading a model unpickles it and
+            importing a file runs it.
 
     Raises:
         InvalidInputError: an unreadable or malformed entry (named), or ``run_code`` that is not what
@@ -69,8 +71,14 @@ def replay_entry(path: str | Path, *, run_code: str | None = None) -> Verdict:
     extra, rows = entry["extra"], entry["episodes"]
     named = _named_code(extra.get("policy"), path)
     if run_code is not None and run_code != named:
-        raise InvalidInputError(f"--run-code {run_code!r}: the entry names {named!r} as its code; consent is given "
-                                "to exactly that text" if named else f"--run-code {run_code!r}: the entry names no code")
+        if named is None:
+            raise InvalidInputError(f"--run-code {run_code!r}: the entry names no code")
+        if not _same_code(run_code, named, extra["policy"].get("sha256")):
+            raise InvalidInputError(f"--run-code {run_code!r}: the entry names {named!r} as its code; consent is given "
+                                    "to exactly that text, or to a path of the same file (the sha256 the entry "
+                                    "records) and callable")
+        extra["policy"] = {**extra["policy"], ("callable" if "callable" in extra["policy"] else "sb3"): run_code}
+        named = run_code
     if "planner" in extra:
         planner = _planner(extra["planner"], path)
         kwargs = entry["env_kwargs"]
@@ -164,13 +172,26 @@ def _named_code(record: Any, path: Path) -> str | None:
     return None
 
 
+def _same_code(given: str, named: str, sha256: str | None) -> bool:
+    """Whether ``given`` names the file the entry recorded (same sha256) and the same callable."""
+    import hashlib
+
+    if sha256 is None:
+        return False
+    target, _, name = (given, "", "") if given.endswith(".zip") else given.rpartition(":")
+    if name != ("" if named.endswith(".zip") else named.rpartition(":")[2]) or not Path(target).is_file():
+        return False
+    return hashlib.sha256(Path(target).read_bytes()).hexdigest() == sha256
+
+
 def _policy(record: dict[str, Any], path: Path) -> Any:
     """The policy of ``extra.policy``, loaded (the caller has consent for code)."""
     if "fixed" in record:  # checked by _named_code
         return tuple(record["fixed"])
+    folder = path.resolve().parent
     if "callable" in record:
-        return load_policy(record["callable"], None)
-    return load_policy(record["sb3"], record.get("algo"), trust=True)
+        return load_policy(resolve_recorded(record["callable"], record.get("sha256"), folder), None)
+    return load_policy(resolve_recorded(record["sb3"], record.get("sha256"), folder), record.get("algo"), trust=True)
 
 
 def _planner(record: Any, path: Path) -> dict[str, Any]:
