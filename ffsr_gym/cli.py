@@ -132,10 +132,13 @@ def _leaderboard(args: argparse.Namespace) -> int:
 
 
 def _check_leaderboard(root: str, readme: Path | None) -> int:
-    """``leaderboard render --check``: 1 when an entry is refused or a table is out of date."""
+    """``leaderboard render --check``: 1 when an entry is refused, or a table, the aggregates or a figure is out of
+    date."""
     from ffsr_gym.bench.leaderboard import check
+    from ffsr_gym.report.leaderboard_plots import stale_figures
 
     problems = check(root, readme)
+    problems += [f"out of date: {line}; run ffsr-gym leaderboard update" for line in stale_figures(root)]
     for line in problems:
         print(line, file=sys.stderr)
     if not problems:
@@ -144,17 +147,28 @@ def _check_leaderboard(root: str, readme: Path | None) -> int:
 
 
 def _leaderboard_plot(args: argparse.Namespace) -> None:
-    from ffsr_gym.report.leaderboard_plots import plot_iqm, plot_learning_curves, plot_pareto, plot_profiles
+    from ffsr_gym.report.leaderboard_plots import draw_all
 
-    for what, path in (("entries of the ranked version", plot_iqm(args.root)),
-                       ("entries of the ranked version", plot_profiles(args.root)),
-                       ("learning curves (RL entries)", plot_learning_curves(args.root))):
-        print(f"wrote {path}" if path else f"no {what} under {args.root}: that figure is not drawn")
-    pareto = plot_pareto(args.root)
-    if pareto is None:
-        print("no pareto.json yet: run ffsr-gym leaderboard pareto")
-    else:
-        print("wrote", pareto)
+    for what, path in draw_all(args.root).items():
+        print(f"wrote {path}" if path else f"no data for the {what} figure under {args.root}: not drawn")
+
+
+def _leaderboard_update(args: argparse.Namespace) -> int:
+    """Everything a submission changes, in order: tables (and the README summary), aggregates, figures."""
+    from ffsr_gym.exceptions import require
+
+    require("rliable", "analysis", "rliable, pandas", "the aggregates across tiers need")  # before anything is written
+    _leaderboard(argparse.Namespace(root=args.root, readme=args.readme, check=False))
+    _leaderboard_aggregates(args)
+    _leaderboard(argparse.Namespace(root=args.root, readme=args.readme, check=False))  # the summary shows aggregates
+    _leaderboard_plot(args)
+    from ffsr_gym.bench.leaderboard import check
+
+    problems = check(args.root, Path(args.readme) if args.readme else None)  # the figures were just drawn
+    for line in problems:
+        print(line, file=sys.stderr)
+    print("updated; every entry verifies" if not problems else "updated, but the leaderboard cannot be published")
+    return 1 if problems else 0
 
 
 def _dataset(args: argparse.Namespace) -> None:
@@ -584,10 +598,18 @@ def _add_board_commands(sub: Any) -> None:
     verify.set_defaults(func=_verify)
     render = board_sub.add_parser("render", help="regenerate the tables in <root>/README.md from the JSON entries")
     render.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
-    render.add_argument("--check", action="store_true", help="exit 1 if the tables are out of date, write nothing")
+    render.add_argument("--check", action="store_true",
+                        help="exit 1 if an entry is refused or a table, the aggregates or a figure is out of date; "
+                             "write nothing")
     render.add_argument("--readme", default=None,
                         help="also regenerate the leaderboard summary between its markers in this file (e.g. README.md)")
     render.set_defaults(func=_leaderboard)
+    update = board_sub.add_parser("update", help="regenerate everything a submission changes (tables, the README "
+                                                 "summary, aggregates, figures), then check it all (needs the "
+                                                 "'analysis' extra)")
+    update.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
+    update.add_argument("--readme", default=None, help="also the summary between its markers in this file")
+    update.set_defaults(func=_leaderboard_update)
 
 
 class _DefaultsShown(argparse.HelpFormatter):

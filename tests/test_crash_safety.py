@@ -72,10 +72,10 @@ def test_kill_during_entry_save_keeps_the_previous_entry(tmp_path):
     kill_mid_write(f"""
         from ffsr_gym.bench.entry import EvalReport
         rows = [{{"seed": 2, "score": float(k)}} for k in range(20_000)]
-        EvalReport("FFSR-v0", {{}}, {{"version": 2}}, rows, {{}}, name="entry").save({str(tmp_path)!r})
+        EvalReport("FFSR-v0", {{}}, {{"version": 2}}, rows, {{}}, name="entry").save({str(tmp_path)!r}, overwrite=True)
     """, tmp_path, "entry.json")
     assert entry.read_bytes() == previous  # whole, and the previous version
-    report(3).save(tmp_path)
+    report(3).save(tmp_path, overwrite=True)
     assert json.loads(entry.read_text())["metrics"] == {"version": 3}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["entry.json"]  # the killed writer's temporary is gone
 

@@ -74,7 +74,7 @@ def test_an_entry_that_cannot_be_saved_is_named_and_the_old_one_stays(tmp_path, 
     monkeypatch.setattr(os, "replace", full_disk)
     report.extra["note"] = "changed"
     with pytest.raises(WriteError, match="No space left on device.*unchanged"):
-        report.save(tmp_path)
+        report.save(tmp_path, overwrite=True)
     assert path.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == ["mine.json"]
 
 

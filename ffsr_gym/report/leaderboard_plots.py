@@ -216,3 +216,28 @@ def plot_aggregates(path: str | Path) -> Path:
     footer = (f"ffsr-gym leaderboard aggregates | {data['bootstrap']['package']} | commit "
               f"{(data['provenance'].get('git_commit') or 'none')[:8]}")
     return _save(fig, Path(path).with_suffix(".png"), footer)
+
+
+def draw_all(root: str | Path) -> dict[str, Path | None]:
+    """Every leaderboard figure of the ranked version under ``root`` (a figure without its data: None)."""
+    aggregated = Path(root) / ranked_spec().version / "aggregates.json"
+    return {"iqm": plot_iqm(root), "profiles": plot_profiles(root), "learning curves": plot_learning_curves(root),
+            "pareto": plot_pareto(root), "aggregates": plot_aggregates(aggregated) if aggregated.is_file() else None}
+
+
+def stale_figures(root: str | Path) -> list[str]:
+    """The committed figures under ``root`` that differ from the ones its JSON draws now (byte for byte, drawn in a
+    temporary copy), or that are missing or left over; empty when every figure is up to date."""
+    import shutil
+    import tempfile
+
+    version = ranked_spec().version
+    source = Path(root) / version
+    if not source.is_dir():
+        return []
+    with tempfile.TemporaryDirectory(prefix="ffsr-figures-") as folder:
+        shutil.copytree(source, Path(folder) / version, ignore=shutil.ignore_patterns("*.png"))
+        drawn = {path.name: path.read_bytes() for path in draw_all(folder).values() if path is not None}
+    committed = {path.name: path.read_bytes() for path in source.glob("*.png")}
+    return [f"{source / name}: {'missing' if name not in committed else 'left over' if name not in drawn else 'out of date'}"
+            for name in sorted(set(drawn) | set(committed)) if drawn.get(name) != committed.get(name)]

@@ -1,0 +1,43 @@
+"""The Submit section of leaderboards/README.md, followed word for word on a copy of the leaderboards: its commands
+run as written, and the check it names passes; a figure or the aggregates left stale fail it."""
+
+from __future__ import annotations
+
+import re
+import shlex
+import shutil
+from pathlib import Path
+
+import pytest
+
+from ffsr_gym.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+pytest.importorskip("rliable")
+
+
+def _section_commands() -> list[list[str]]:
+    text = (ROOT / "leaderboards" / "README.md").read_text(encoding="utf-8")
+    section = text.split("## Submit a result")[1].split("\n## ")[0]
+    blocks = re.findall(r"```bash\n(.*?)```", section, flags=re.S)
+    commands = [shlex.split(line.strip()) for block in blocks for line in block.splitlines() if line.strip()]
+    check = re.search(r"\*\*Check\*\*[^`]*`(ffsr-gym [^`]+)`", section).group(1)
+    return commands + [shlex.split(check)]
+
+
+def test_the_submit_section_passes_as_written(tmp_path, monkeypatch):
+    shutil.copytree(ROOT / "leaderboards", tmp_path / "leaderboards")
+    shutil.copy(ROOT / "README.md", tmp_path / "README.md")
+    (tmp_path / "my_policy.py").write_text("import numpy as np\n\ndef act(obs):\n    return np.array([0.1, -0.2], "
+                                           "'float32')\n")
+    monkeypatch.chdir(tmp_path)
+    commands = _section_commands()
+    assert [c[:3] for c in commands] == [["ffsr-gym", "evaluate", "--env-id"],
+                                         ["ffsr-gym", "leaderboard", "update"], ["ffsr-gym", "leaderboard", "render"]]
+    for command in commands:
+        assert main([*command[1:], *(["--no-progress"] if command[1] == "evaluate" else [])]) == 0, command
+    entry = tmp_path / "leaderboards" / "v2" / "easy" / "my_method_easy.json"
+    assert entry.is_file() and "my_method" in (tmp_path / "README.md").read_text()
+    (tmp_path / "leaderboards" / "v2" / "iqm.png").write_bytes(b"stale")  # a figure left out of date
+    assert main(commands[-1][1:]) == 1
