@@ -44,6 +44,15 @@ def board():
     shutil.copytree(REPO / "leaderboards", "lb")
     return pathlib.Path("lb")
 
+def forged(field_path, source="v2/easy/cmaes_v2.json", folder="v2/easy"):
+    """Whether an entry whose text field (a path of keys) holds a newline and a table row forges a ranked row."""
+    root = board(); e = json.loads((root / source).read_text()); target = e
+    for key in field_path[:-1]:
+        target = target.setdefault(key, {})
+    target[field_path[-1]] = "x\n| 1 | `forged_winner` | 0.999 [0.999, 0.999] | 1.00 |"; e["name"] = "forge"
+    write(root / folder / "forge.json", e)
+    return any(l.startswith("| 1 | `forged_winner`") for l in readme_rows(root).splitlines())
+
 def readme_rows(root):
     from ffsr_gym.bench import leaderboard
     leaderboard.write_readme(root)
@@ -138,23 +147,12 @@ from ffsr_gym.cli import main
 main(["evaluate", "--env-id", "FFSR-v2", "--policy", "model.zip", "--algo", "ppo", "--no-progress"])
 result("code" if MARK.exists() else "handled")'''),
     ("md-training-pool", 3, "a newline and | in extra.training_pool", r'''
-root = board(); e = json.loads((root / "v2/easy/cmaes_v2.json").read_text())
-e["extra"]["training_pool"] = "easy/train\n| 1 | `forged_winner` | 0.999 [0.999, 0.999] | 1.00 |"; e["name"] = "forge"
-write(root / "v2/easy/forge.json", e)
-text = readme_rows(root)
-result("wrong" if any(l.startswith("| 1 | `forged_winner`") for l in text.splitlines()) else "handled")'''),
+result("wrong" if forged(["extra", "training_pool"]) else "handled")'''),
     ("md-commit", 3, "a newline and | in provenance.git_commit", r'''
-root = board(); e = json.loads((root / "v2/easy/cmaes_v2.json").read_text())
-e["provenance"]["git_commit"] = "abc\n| 1 | `forged_winner` | 0.999 [0.999, 0.999] | 1.00 |"; e["name"] = "forge"
-write(root / "v2/easy/forge.json", e)
-text = readme_rows(root)
-result("wrong" if any(l.startswith("| 1 | `forged_winner`") for l in text.splitlines()) else "handled")'''),
+result("wrong" if forged(["provenance", "git_commit"]) else "handled")'''),
     ("md-v0-method", 3, "a newline and | in a v0 entry's extra.method", r'''
-root = board(); folder = root / "FFSR-v0"; src = sorted(folder.glob("*.json"))[0]
-e = json.loads(src.read_text()); e.setdefault("extra", {})["method"] = "x\n| 1 | `forged_winner` | y | 1.00 |"
-e["name"] = "forge"; write(folder / "forge.json", e)
-text = readme_rows(root)
-result("wrong" if any(l.startswith("| 1 | `forged_winner`") for l in text.splitlines()) else "handled")'''),
+source = sorted((REPO / "leaderboards/FFSR-v0").glob("*.json"))[0].name
+result("wrong" if forged(["extra", "method"], f"FFSR-v0/{source}", "FFSR-v0") else "handled")'''),
     ("name-not-file", 4, "zzz.json named cmaes_residual", r'''
 root = board(); before = summary(root)
 e = json.loads((root / "v2/easy/random_residual.json").read_text()); e["name"] = "cmaes_residual"

@@ -102,6 +102,10 @@ def main() -> None:
         tqdm.write(f"{name}: {outcomes[name]['class']} ({outcomes[name]['note'][:120]})")
     from ffsr_gym.provenance import provenance, write_json_atomic
 
+    if args.only and args.label in stored:  # a re-run of some cases: merged into the label's others
+        if stored[args.label]["repo_commit"] != _commit(repo):
+            raise SystemExit(f"--only: label {args.label!r} was run on another commit; run every case")
+        outcomes = stored[args.label]["cases"] | outcomes
     stored[args.label] = {"repo_commit": _commit(repo), "counts": dict(Counter(o["class"] for o in outcomes.values())),
                           "cases": outcomes, "provenance": provenance(command=" ".join(["python", *sys.argv]))}
     write_json_atomic(OUT, stored)

@@ -27,6 +27,16 @@ def _custom(tmp_path, old: str, new: str) -> str:
     return str(path)
 
 
+def _sb3_stepper(venv):
+    """Copy 0's (done, score) of an SB3 VecEnv, one constant action at a time (reset first)."""
+    venv.reset()
+
+    def step():
+        _, _, dones, infos = venv.step(ACTION[None])
+        return bool(dones[0]), infos[0].get("score")
+    return step
+
+
 def _played(venv_step) -> tuple[int, float]:
     """(decisions, score) of copy 0 of a vector env, stepped until its first episode ends."""
     decisions = 0
@@ -50,29 +60,16 @@ def test_a_40_s_custom_task_plays_400_decisions_and_one_score_on_every_path(tmp_
     scores = {"gymnasium.make": info["score"]}
     scores["evaluate"] = ffsr_gym.evaluate(lambda _obs: ACTION, "FFSR-v2", task=task, seeds=[0]).episodes[0]["score"]
 
+    from stable_baselines3.common.env_util import make_vec_env
+
     from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
 
     batched = BatchedVecEnv("FFSR-v2", 1, task=task)
     batched.seed(0)
-    batched.reset()
-
-    def batched_step():
-        _, _, dones, infos = batched.step(ACTION[None])
-        return bool(dones[0]), infos[0].get("score")
-
-    steps, scores["BatchedVecEnv"] = _played(batched_step)
-    assert steps == 400
-    from stable_baselines3.common.env_util import make_vec_env
-
-    sb3 = make_vec_env("FFSR-v2", n_envs=1, seed=0, env_kwargs={"task": task})
-    sb3.reset()
-
-    def sb3_step():
-        _, _, dones, infos = sb3.step(ACTION[None])
-        return bool(dones[0]), infos[0].get("score")
-
-    steps, scores["make_vec_env"] = _played(sb3_step)
-    assert steps == 400
+    for name, venv in (("BatchedVecEnv", batched), ("make_vec_env", make_vec_env("FFSR-v2", n_envs=1, seed=0,
+                                                                                  env_kwargs={"task": task}))):
+        steps, scores[name] = _played(_sb3_stepper(venv))
+        assert steps == 400, name
     vector = gym.make_vec("FFSR-v2", num_envs=1, vectorization_mode="vector_entry_point", task=task)
     vector.reset(seed=0)
 
