@@ -138,7 +138,7 @@ def _check_leaderboard(root: str, readme: Path | None) -> int:
     from ffsr_gym.report.leaderboard_plots import stale_figures
 
     problems = check(root, readme)
-    problems += [f"out of date: {line}; run ffsr-gym leaderboard update" for line in stale_figures(root)]
+    problems += [f"out of date: {line}; run ffsr-gym leaderboard update" for line in stale_figures(root, _verified(root))]
     for line in problems:
         print(line, file=sys.stderr)
     if not problems:
@@ -146,10 +146,18 @@ def _check_leaderboard(root: str, readme: Path | None) -> int:
     return 1 if problems else 0
 
 
+def _verified(root: str) -> dict:
+    """The ranked version's entries that verify, by tier (what the figures draw)."""
+    from ffsr_gym.bench.leaderboard import load_entries
+    from ffsr_gym.model.spec import ranked_spec
+
+    return {tier: [e for e in items if not e["_problems"]] for tier, items in load_entries(root, ranked_spec()).items()}
+
+
 def _leaderboard_plot(args: argparse.Namespace) -> None:
     from ffsr_gym.report.leaderboard_plots import draw_all
 
-    for what, path in draw_all(args.root).items():
+    for what, path in draw_all(args.root, _verified(args.root)).items():
         print(f"wrote {path}" if path else f"no data for the {what} figure under {args.root}: not drawn")
 
 
@@ -158,9 +166,8 @@ def _leaderboard_update(args: argparse.Namespace) -> int:
     from ffsr_gym.exceptions import require
 
     require("rliable", "analysis", "rliable, pandas", "the aggregates across tiers need")  # before anything is written
+    _leaderboard_aggregates(args)  # from the verified entries; the README summary shows them
     _leaderboard(argparse.Namespace(root=args.root, readme=args.readme, check=False))
-    _leaderboard_aggregates(args)
-    _leaderboard(argparse.Namespace(root=args.root, readme=args.readme, check=False))  # the summary shows aggregates
     _leaderboard_plot(args)
     from ffsr_gym.bench.leaderboard import check
 

@@ -1,5 +1,6 @@
 """The Submit section of leaderboards/README.md, followed word for word on a copy of the leaderboards: its commands
-run as written, and the check it names passes; a figure or the aggregates left stale fail it."""
+run as written, and the check it names passes; a figure left stale fails it. Slow (about 2 minutes); the fast
+suite checks the section's commands parse (``test_second_hour``) and the figure check on its own (below)."""
 
 from __future__ import annotations
 
@@ -39,5 +40,23 @@ def test_the_submit_section_passes_as_written(tmp_path, monkeypatch):
         assert main([*command[1:], *(["--no-progress"] if command[1] == "evaluate" else [])]) == 0, command
     entry = tmp_path / "leaderboards" / "v2" / "easy" / "my_method_easy.json"
     assert entry.is_file() and "my_method" in (tmp_path / "README.md").read_text()
+    from ffsr_gym.report.leaderboard_plots import stale_figures
+
     (tmp_path / "leaderboards" / "v2" / "iqm.png").write_bytes(b"stale")  # a figure left out of date
-    assert main(commands[-1][1:]) == 1
+    assert stale_figures(tmp_path / "leaderboards")[0].endswith("iqm.png: not the one drawn")
+
+
+def test_a_stale_figure_or_changed_inputs_fail_the_figure_check(tmp_path):
+    from ffsr_gym.report.leaderboard_plots import stale_figures
+
+    board = tmp_path / "leaderboards"
+    shutil.copytree(ROOT / "leaderboards" / "v2", board / "v2")
+    assert stale_figures(board) == []
+    (board / "v2" / "profiles.png").write_bytes(b"edited by hand")
+    assert stale_figures(board) == [f"{board / 'v2' / 'profiles.png'}: not the one drawn"]
+    shutil.copy(ROOT / "leaderboards" / "v2" / "profiles.png", board / "v2" / "profiles.png")
+    entry = board / "v2" / "easy" / "cmaes_v2.json"
+    entry.write_text(entry.read_text().replace('"score_mean": ', '"score_mean":  ', 1))  # same numbers: same inputs
+    assert stale_figures(board) == []
+    (board / "v2" / "easy" / "cmaes_v2.json").unlink()
+    assert "inputs (entries, pareto, aggregates) changed" in stale_figures(board)[0]

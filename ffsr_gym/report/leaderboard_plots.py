@@ -55,10 +55,11 @@ def _panels(root: Path, height: float | None = None, entries: dict[str, list[dic
     return entries, tiers, fig, list(axes.flat[:len(tiers)])
 
 
-def plot_iqm(root: str | Path) -> Path | None:
-    """IQM of the episode score with its bootstrap 95 % CI, one panel per tier."""
+def plot_iqm(root: str | Path, entries: dict[str, list[dict]] | None = None) -> Path | None:
+    """IQM of the episode score with its bootstrap 95 % CI, one panel per tier (``entries``: the verified ones
+    by tier, else every entry file under ``root``)."""
     root = Path(root)
-    panels = _panels(root)
+    panels = _panels(root, entries=entries)
     if panels is None:
         return None
     entries, tiers, fig, axes = panels
@@ -76,10 +77,10 @@ def plot_iqm(root: str | Path) -> Path | None:
     return _save(fig, root / ranked_spec().version / "iqm.png", _footer(entries))
 
 
-def plot_profiles(root: str | Path) -> Path | None:
+def plot_profiles(root: str | Path, entries: dict[str, list[dict]] | None = None) -> Path | None:
     """Performance profiles: fraction of episodes with a score above τ, for τ in [0, 1]."""
     root = Path(root)
-    panels = _panels(root, 4.0, sharey=True)
+    panels = _panels(root, 4.0, entries, sharey=True)
     if panels is None:
         return None
     entries, tiers, fig, axes = panels
@@ -95,14 +96,14 @@ def plot_profiles(root: str | Path) -> Path | None:
     return _save(fig, root / ranked_spec().version / "profiles.png", _footer(entries))
 
 
-def plot_learning_curves(root: str | Path) -> Path | None:
+def plot_learning_curves(root: str | Path, entries: dict[str, list[dict]] | None = None) -> Path | None:
     """RL learning curves: mean score on the curve's validation tasks against environment steps, IQM over
     training seeds with a 95 % bootstrap band over seeds (one curve per training: the last and the
     best-on-validation entries share it)."""
     root = Path(root)
     entries = {tier: [e for e in items if any("curve" in run for run in e.get("extra", {}).get("runs", []))
                       and e["extra"].get("checkpoint") != "best_on_validation"]  # the same training as its last entry
-               for tier, items in _entries(root).items()}
+               for tier, items in (_entries(root) if entries is None else entries).items()}
     panels = _panels(root, 4.0, entries, sharey=True)
     if panels is None:
         return None
@@ -218,26 +219,60 @@ def plot_aggregates(path: str | Path) -> Path:
     return _save(fig, Path(path).with_suffix(".png"), footer)
 
 
-def draw_all(root: str | Path) -> dict[str, Path | None]:
-    """Every leaderboard figure of the ranked version under ``root`` (a figure without its data: None)."""
+#: What the figures were drawn from, beside them: a digest of their inputs and each PNG's sha256.
+FIGURES_FILE = "figures.json"
+
+
+def figure_inputs(root: str | Path, entries: dict[str, list[dict]] | None = None) -> str:
+    """SHA-256 of everything the figures draw: the entries by tier (without the loader's ``_`` keys), the Pareto
+    points and the aggregates."""
+    import hashlib
+
+    entries = _entries(Path(root)) if entries is None else entries
+    digest = hashlib.sha256()
+    for tier in TIER_ORDER:
+        for e in entries.get(tier, []):
+            digest.update(json.dumps({k: v for k, v in e.items() if not k.startswith("_")}, sort_keys=True).encode())
+    for name in (PARETO_FILE, "aggregates.json"):
+        path = Path(root) / ranked_spec().version / name
+        digest.update(path.read_bytes() if path.is_file() else b"-")
+    return digest.hexdigest()
+
+
+def draw_all(root: str | Path, entries: dict[str, list[dict]] | None = None) -> dict[str, Path | None]:
+    """Every leaderboard figure of the ranked version under ``root`` (a figure without its data: None), from
+    ``entries`` by tier (the verified ones: ``ffsr-gym leaderboard plot`` passes them), else every entry file; and
+    :data:`FIGURES_FILE` saying what they were drawn from."""
+    import hashlib
+
+    from ffsr_gym.provenance import write_json_atomic
+
     aggregated = Path(root) / ranked_spec().version / "aggregates.json"
-    return {"iqm": plot_iqm(root), "profiles": plot_profiles(root), "learning curves": plot_learning_curves(root),
-            "pareto": plot_pareto(root), "aggregates": plot_aggregates(aggregated) if aggregated.is_file() else None}
+    drawn = {"iqm": plot_iqm(root, entries), "profiles": plot_profiles(root, entries),
+             "learning curves": plot_learning_curves(root, entries), "pareto": plot_pareto(root),
+             "aggregates": plot_aggregates(aggregated) if aggregated.is_file() else None}
+    record = {"inputs_sha256": figure_inputs(root, entries),
+              "png_sha256": {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in drawn.values() if p}}
+    write_json_atomic(Path(root) / ranked_spec().version / FIGURES_FILE, record)
+    return drawn
 
 
-def stale_figures(root: str | Path) -> list[str]:
-    """The committed figures under ``root`` that differ from the ones its JSON draws now (byte for byte, drawn in a
-    temporary copy), or that are missing or left over; empty when every figure is up to date."""
-    import shutil
-    import tempfile
+def stale_figures(root: str | Path, entries: dict[str, list[dict]] | None = None) -> list[str]:
+    """Why the figures under ``root`` are not the ones ``entries`` (as for :func:`draw_all`) draw now: their inputs
+    changed since :data:`FIGURES_FILE` was written, or a PNG is missing, left over or not the one drawn then (its
+    sha256). Empty when they are up to date. (That drawing the same inputs gives the same bytes is a test's.)"""
+    import hashlib
 
-    version = ranked_spec().version
-    source = Path(root) / version
+    source = Path(root) / ranked_spec().version
     if not source.is_dir():
         return []
-    with tempfile.TemporaryDirectory(prefix="ffsr-figures-") as folder:
-        shutil.copytree(source, Path(folder) / version, ignore=shutil.ignore_patterns("*.png"))
-        drawn = {path.name: path.read_bytes() for path in draw_all(folder).values() if path is not None}
-    committed = {path.name: path.read_bytes() for path in source.glob("*.png")}
-    return [f"{source / name}: {'missing' if name not in committed else 'left over' if name not in drawn else 'out of date'}"
-            for name in sorted(set(drawn) | set(committed)) if drawn.get(name) != committed.get(name)]
+    record = source / FIGURES_FILE
+    if not record.is_file():
+        return [f"{record}: missing"]
+    stored = json.loads(record.read_text(encoding="utf-8"))
+    problems = [] if stored.get("inputs_sha256") == figure_inputs(root, entries) else \
+        [f"{source}: the figures' inputs (entries, pareto, aggregates) changed since they were drawn"]
+    committed = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in source.glob("*.png")}
+    expected = stored.get("png_sha256", {})
+    return problems + [f"{source / name}: {'missing' if name not in committed else 'left over' if name not in expected else 'not the one drawn'}"
+                       for name in sorted(set(expected) | set(committed)) if expected.get(name) != committed.get(name)]
