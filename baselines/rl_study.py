@@ -56,7 +56,8 @@ def write_entries(algo: str, env_id: str, tier: str, seeds: list[int], scale: fl
     steps, every = budget(algo, env_id, scale, points)
     reports = train_and_evaluate(algo, env_id, task=tier, seeds=seeds, out=work, timesteps=steps, curve_every=every,
                                  progress=False)  # every seed is loaded from its folder
-    return "\n".join(f"{r.name}: IQM {r.metrics['score_iqm']:.3f} -> {r.save(root, overwrite=True)}" for r in reports.values())
+    return "\n".join(f"{r.name}: IQM {r.metrics['score_iqm']:.3f} -> {r.save(root, overwrite=True)}"
+                     for r in reports.values())
 
 
 def main() -> None:

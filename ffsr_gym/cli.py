@@ -138,7 +138,8 @@ def _check_leaderboard(root: str, readme: Path | None) -> int:
     from ffsr_gym.report.leaderboard_plots import stale_figures
 
     problems = check(root, readme)
-    problems += [f"out of date: {line}; run ffsr-gym leaderboard update" for line in stale_figures(root, _verified(root))]
+    problems += [f"out of date: {line}; run ffsr-gym leaderboard update"
+                 for line in stale_figures(root, _verified(root))]
     for line in problems:
         print(line, file=sys.stderr)
     if not problems:
@@ -243,7 +244,8 @@ def _add_policy_arguments(parser: argparse.ArgumentParser, *, env_id: str | None
                         help="scenario name or TOML path; v0: the scenario (default: paper); versions with tiers: a "
                              "custom task played instead of --task (unranked; default: none)")
     parser.add_argument("--trust-model", action="store_true",
-                        help="load the SB3 .zip of --policy (loading unpickles it: it can run any code its maker chose)")
+                        help="load the SB3 .zip of --policy (loading unpickles it: it can run any code its maker "
+                             "chose)")
 
 
 def _env_kwargs(args: argparse.Namespace) -> dict:
@@ -596,8 +598,8 @@ def _add_board_commands(sub: Any) -> None:
                              "without it RL entries are listed as not run (default: none)")
     pareto.add_argument("--no-progress", action="store_true", help="hide the progress bars")
     pareto.set_defaults(func=_leaderboard_pareto)
-    verify = board_sub.add_parser("verify", help="replay an entry's trace (or planner, fixed parameters) and compare its "
-                                                 "rows exactly (exit 0: reproduced, 1: differ, 3: skipped code)")
+    verify = board_sub.add_parser("verify", help="replay an entry's trace (or planner, fixed parameters) and compare "
+                                                 "its rows exactly (exit 0: reproduced, 1: differ, 3: skipped code)")
     verify.add_argument("entry", help="the entry's JSON file")
     verify.add_argument("--run-code", default=None, metavar="TEXT",
                         help="consent to run the code the entry names: exactly its extra.policy callable or SB3 .zip "

@@ -139,7 +139,8 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
         with _datasets_root(staging):
             minari.create_dataset_from_buffers(
                 name, buffers, env=env, eval_env=env.spec,
-                algorithm_name="best known schedules: per-task CMA-ES, or a baseline's absorbed episode (ffsr_gym.optim)",
+                algorithm_name=("best known schedules: per-task CMA-ES, or a baseline's absorbed episode "
+                                "(ffsr_gym.optim)"),
                 code_permalink="ffsr_gym/bench/dataset.py", author="ffsr-gym", author_email="-",
                 description=(f"The best {family} schedule found for each task of the {tier} tier's {split} pool of "
                              f"benchmark {version}, played in {env_id}: "

@@ -73,7 +73,8 @@ def play_batched(parameters: tuple[float, float], version: str, kwargs: dict[str
     for i, (seed, _) in enumerate(jobs):
         task_seed = int(info["task_seed"][i])
         traj = engine.trajectory(i) if engine.rule.row_needs_trajectory else None
-        row = _row(seed, {"task_seed": None if task_seed < 0 else task_seed}, engine.rule.row(engine.results[i], traj), True)
+        rule_row = engine.rule.row(engine.results[i], traj)
+        row = _row(seed, {"task_seed": None if task_seed < 0 else task_seed}, rule_row, True)
         results.append((row, engine.scenarios[i].name, engine.scenarios[i].sha256(), None))
     venv.close()
     return results

@@ -104,7 +104,8 @@ def check_in_box(parameters: Any, m_box: tuple[float, float], t_box: tuple[float
     numbers = isinstance(parameters, (tuple, list)) and len(parameters) == 2 and all(
         isinstance(x, (int, float, np.floating)) and not isinstance(x, bool) and np.isfinite(x) for x in parameters)
     if not numbers or not (m_box[0] <= parameters[0] <= m_box[1] and t_box[0] <= parameters[1] <= t_box[1]):
-        raise InvalidInputError(f"fixed parameters (m, T_c) = {tuple(parameters) if numbers else parameters!r}; allowed: "
+        shown = tuple(parameters) if numbers else parameters
+        raise InvalidInputError(f"fixed parameters (m, T_c) = {shown!r}; allowed: "
                                 f"two numbers with m in [{m_box[0]}, {m_box[1]}] and T_c in [{t_box[0]}, {t_box[1]}] s "
                                 "(the action box)")
 

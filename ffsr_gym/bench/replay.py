@@ -147,7 +147,8 @@ def _check_rows(entry: dict[str, Any], spec: BenchmarkSpec, path: Path) -> None:
             value = row.get(key)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
                 raise InvalidInputError(f"{path}: episodes[{k}].{key} = {value!r}; allowed: an integer >= 0")
-    repeated = [key for key, count in Counter(tuple(row[key] for key in keys) for row in rows).items() if count > copies]
+    counts = Counter(tuple(row[key] for key in keys) for row in rows)
+    repeated = [key for key, count in counts.items() if count > copies]
     if repeated:
         raise InvalidInputError(f"{path}: episodes repeat {keys} {repeated[0]} more than once per training seed "
                                 f"({copies}); allowed: each episode once per training seed")
@@ -250,8 +251,8 @@ def _replay_trace(entry: dict[str, Any], spec: BenchmarkSpec, path: Path) -> Ver
     for k, played in enumerate(report["extra"]["trace"]["episodes"]):
         applied = decode(played, width, where="the replay")
         if applied.tobytes() != episodes[k].tobytes():
-            return Verdict("differs", f"episode {k}: its trace does not fit the episode (the env applied {len(applied)} "
-                                      f"actions, {len(episodes[k])} stored, or other values)")
+            return Verdict("differs", f"episode {k}: its trace does not fit the episode (the env applied "
+                                      f"{len(applied)} actions, {len(episodes[k])} stored, or other values)")
     return _compare(rows, report["episodes"], "the stored trace of applied actions")
 
 

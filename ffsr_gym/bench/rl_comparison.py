@@ -41,7 +41,8 @@ def _cell(spec: BenchmarkSpec, e: dict[str, Any] | None, tier: str) -> str:
         return "-"
     m = e["metrics"]
     lo, hi = m[spec.leaderboard.ci]
-    return f"`{safe(method_name(e, tier))}` {m[spec.leaderboard.iqm]:.3f} [{lo:.3f}, {hi:.3f}], {m[spec.leaderboard.rate]:.0%}"
+    return (f"`{safe(method_name(e, tier))}` {m[spec.leaderboard.iqm]:.3f} [{lo:.3f}, {hi:.3f}], "
+            f"{m[spec.leaderboard.rate]:.0%}")
 
 
 def _best(spec: BenchmarkSpec, items: list[dict[str, Any]]) -> dict[str, Any] | None:

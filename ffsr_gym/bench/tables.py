@@ -88,7 +88,8 @@ def row(spec: BenchmarkSpec, label: str, e: dict[str, Any]) -> str:
     if names.ranking == "feasible_then_iqm":
         method = safe(e.get("extra", {}).get("method", ""))
         runs = " (single run)" if m["episodes"] == 1 else ""
-        return (f"| {label} | `{safe(e['name'])}` | {method} | {m[names.rate]:.2f} | {_g4(m[names.iqm])} [{_g4(lo)}, {_g4(hi)}] | "
+        return (f"| {label} | `{safe(e['name'])}` | {method} | {m[names.rate]:.2f} | "
+                f"{_g4(m[names.iqm])} [{_g4(lo)}, {_g4(hi)}] | "
                 f"{_g4(m['score_mean'])} | {m['episodes']}{runs} | {commit(e)} |")
     rows, extra = e["episodes"], e.get("extra", {})
     return (f"| {label} | `{safe(e['name'])}` | {m[names.iqm]:.3f} [{lo:.3f}, {hi:.3f}] | {m[names.rate]:.2f} | "

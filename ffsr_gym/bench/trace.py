@@ -1,4 +1,4 @@
-"""An entry's action trace: the actions each episode applied, stored so ``verify`` replays any policy without running it.
+"""An entry's action trace: the actions each episode applied, so that ``verify`` replays a policy without running it.
 
 A score is a function of the task and of the actions the env applied (clipped to [-1, 1], as
 float32), nothing else. :func:`ffsr_gym.evaluate` records those actions for every policy that is

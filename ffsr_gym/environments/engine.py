@@ -68,8 +68,9 @@ class EpisodeEngine:
             raise InvalidInputError(f"backend {backend!r}; allowed: {list(BACKENDS)}")
         self.compiled = backend == "kernel" or (backend == "auto" and kernel_available())
         N = self.n
+        copies = f"{N} environment cop{'ies' if N != 1 else 'y'} of {family.name}"
         check_run(steps=self.n_steps, copies=N, steps_per_decision=self.steps_per_decision,
-                  substeps=max(1, family.physics_substeps), what=f"{N} environment cop{'ies' if N != 1 else 'y'} of {family.name}")
+                  substeps=max(1, family.physics_substeps), what=copies)
         self.single = N == 1 and not batched  # stepped by step_one (else by step_copies)
         self.scenarios: list[Scenario | None] = [None] * N
         self.rollouts: list[Rollout | None] = [None] * N

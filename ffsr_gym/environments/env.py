@@ -101,8 +101,8 @@ class FFSREnv(gym.Env):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise InvalidInputError(f"render_mode {render_mode!r}; allowed: {self.metadata['render_modes']} or None")
         if not isinstance(residual, (bool, np.bool_)):
-            raise InvalidInputError(f"residual = {residual!r}; allowed: True or False (each id sets it: FFSR-Residual-v* "
-                                    "is the residual one)")
+            raise InvalidInputError(f"residual = {residual!r}; allowed: True or False (each id sets it: "
+                                    "FFSR-Residual-v* is the residual one)")
         self.render_mode, self.residual, self._renderer = render_mode, bool(residual), None
         rule = score_rule(spec)
         self.source = TaskSource(spec, rule, options.get(spec.tasks.keyword), options.get("split"), options.get("dt_s"))

@@ -49,7 +49,8 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
     what stable-baselines3 expects, :mod:`ffsr_gym.optim.sb3_vec_env`); with
     ``AutoresetMode.DISABLED`` none: a copy whose episode ended holds (not stepped, reward 0, its
     end reported once) until a ``reset()``, of every copy or of those of ``options={"reset_mask": ...}``
-    (a bool array, as Gymnasium's vector envs take it). ``reset(seed=s)`` seeds copy i with s + i; ``options={"task_index": [...]}``
+    (a bool array, as Gymnasium's vector envs take it). ``reset(seed=s)`` seeds copy i with s + i;
+    ``options={"task_index": [...]}``
     picks each copy's pool task of this reset. Every info has every key of the info contract
     (:mod:`ffsr_gym.environments.info`) as an array with its ``_key`` mask, as ``SyncVectorEnv`` gives them.
     Memory: one full-episode trajectory buffer per copy (~1 MB at dt = 0.01 s, 20 s).

@@ -144,7 +144,8 @@ class CollisionModel:
             joint = int(model.frames[model.getFrameId(link)].parentJoint)
             if not model.names[joint].startswith(f"{arm}_joint"):
                 raise ValueError(f"{where}: the link moves with {model.names[joint]!r}, not with a joint of the {arm} arm")
-            start, end = _vector(item.get("start_m"), f"{where}: start_m"), _vector(item.get("end_m"), f"{where}: end_m")
+            start = _vector(item.get("start_m"), f"{where}: start_m")
+            end = _vector(item.get("end_m"), f"{where}: end_m")
             r = _length(item.get("radius_m", radius), f"{where}: radius_m")
             length = portable.norm(end - start)
             if length <= 0.0:

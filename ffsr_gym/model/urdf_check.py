@@ -87,8 +87,8 @@ def _check_tree(path: Path, links: list[ET.Element], joints: list[ET.Element]) -
             chain.append(node)
             node = parent[node]
             if len(chain) > MAX_CHAIN:
-                raise RobotFileError(f"{path}: a chain of more than {MAX_CHAIN} joints above link {link!r} (or a loop); "
-                                     f"allowed: at most {MAX_CHAIN}")
+                raise RobotFileError(f"{path}: a chain of more than {MAX_CHAIN} joints above link {link!r} (or a "
+                                     f"loop); allowed: at most {MAX_CHAIN}")
         base = depth.get(node, 0)
         for k, name in enumerate(reversed(chain), start=1):
             depth[name] = base + k
@@ -146,5 +146,5 @@ def _check_link(path: Path, link: ET.Element) -> None:
     a, b, c = np.sort(moments)
     if a <= 0.0 or a + b < c * (1.0 - 1e-9):
         raise RobotFileError(f"{path}: link {name!r} has a rotational inertia with principal moments "
-                             f"{np.round(moments, 9).tolist()} kg m²; allowed: positive definite, obeying the triangle "
-                             "inequality")
+                             f"{np.round(moments, 9).tolist()} kg m²; allowed: positive definite, obeying the "
+                             "triangle inequality")

@@ -140,7 +140,8 @@ def target_file(work: str | Path, version: str, split: str, *, shipped: bool = F
 
 
 def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = None, command: str | None = None,
-             generations: int = search.GENERATIONS, splits: list[str] | None = None, shipped: bool = False) -> list[Path]:
+             generations: int = search.GENERATIONS, splits: list[str] | None = None,
+             shipped: bool = False) -> list[Path]:
     """Write every finished record of ``generations`` in ``work`` into best-known files: the test and validation
     records into ``<version>_best_known.json`` (keeping its ``convergence``), the training records into
     ``<version>_best_known_train.json``, inside ``work`` (:func:`target_file`), or all of them into ``out``.
@@ -214,8 +215,9 @@ def _check_whole(files: dict[Path, dict[str, dict[str, list]]], version: str) ->
             for split, records in splits.items():
                 have = len(tasks.get(tier, {}).get(split, []))
                 if have < len(records):
-                    raise InvalidInputError(f"{target.name} stores {len(records)} {tier}/{split} tasks, the work folder "
-                                            f"holds {have}; allowed: a build of the whole file (every stored task)")
+                    raise InvalidInputError(f"{target.name} stores {len(records)} {tier}/{split} tasks, the work "
+                                            f"folder holds {have}; allowed: a build of the whole file (every stored "
+                                            "task)")
 
 
 #: The work files of :func:`absorb`: ``absorbed_<tier>_<split>.jsonl``.

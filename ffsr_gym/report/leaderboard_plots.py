@@ -274,5 +274,7 @@ def stale_figures(root: str | Path, entries: dict[str, list[dict]] | None = None
         [f"{source}: the figures' inputs (entries, pareto, aggregates) changed since they were drawn"]
     committed = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in source.glob("*.png")}
     expected = stored.get("png_sha256", {})
-    return problems + [f"{source / name}: {'missing' if name not in committed else 'left over' if name not in expected else 'not the one drawn'}"
-                       for name in sorted(set(expected) | set(committed)) if expected.get(name) != committed.get(name)]
+    def why(name: str) -> str:
+        return "missing" if name not in committed else "left over" if name not in expected else "not the one drawn"
+    return problems + [f"{source / name}: {why(name)}" for name in sorted(set(expected) | set(committed))
+                       if expected.get(name) != committed.get(name)]

@@ -63,12 +63,14 @@ def check_run(*, steps: int, copies: int, steps_per_decision: int, substeps: int
     need = float(copies) * (steps + 1) * ROW_FLOATS * 8
     limit = memory_limit_bytes()
     if need > limit:
-        raise ResourceLimitError(f"{what}: {copies:,} cop{'ies' if copies != 1 else 'y'} x {steps + 1:,} trajectory rows "
+        plural = "ies" if copies != 1 else "y"
+        raise ResourceLimitError(f"{what}: {copies:,} cop{plural} x {steps + 1:,} trajectory rows "
                                  f"need about {need / 2**30:,.1f} GiB; allowed: at most {limit / 2**30:g} GiB (set "
-                                 f"{MEMORY_VARIABLE} to change it, or use a longer dt_s, a shorter task or fewer copies)")
+                                 f"{MEMORY_VARIABLE} to change it, or use a longer dt_s, a shorter task or fewer "
+                                 "copies)")
     per_decision = steps_per_decision * substeps
     if per_decision > MAX_PHYSICS_STEPS_PER_DECISION:
-        raise ResourceLimitError(f"{what}: {per_decision:,} physics steps in one decision ({steps_per_decision:,} planner "
-                                 f"steps x {substeps:,} plant sub-steps); allowed: at most "
+        raise ResourceLimitError(f"{what}: {per_decision:,} physics steps in one decision ({steps_per_decision:,} "
+                                 f"planner steps x {substeps:,} plant sub-steps); allowed: at most "
                                  f"{MAX_PHYSICS_STEPS_PER_DECISION:,} (one decision is one compiled call that Ctrl-C "
                                  "cannot stop): use a longer physics_step_s or a shorter decision_interval_s")
