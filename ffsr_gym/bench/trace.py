@@ -7,8 +7,8 @@ row, compressed with zlib and written as base64. Replaying them through the same
 same rows bit for bit, so an RL or optimiser entry is checked without loading a model or importing
 a file (``ffsr-gym leaderboard verify``).
 
-A trace is about 4 bytes a number: a residual entry on a 100-task pool (200 decisions of 12
-numbers) is about 1.3 MB of text.
+A trace costs a few bytes a number: a residual policy's entry on the easy test pool (100 tasks of
+200 decisions of 12 numbers) measured 0.72 MB with its trace.
 """
 
 from __future__ import annotations
