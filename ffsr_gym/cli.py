@@ -134,12 +134,14 @@ def _leaderboard(args: argparse.Namespace) -> int:
 def _check_leaderboard(root: str, readme: Path | None) -> int:
     """``leaderboard render --check``: 1 when an entry is refused, or a table, the aggregates or a figure is out of
     date."""
-    from ffsr_gym.bench.leaderboard import check
+    from ffsr_gym.bench.leaderboard import check, load_entries, verified
+    from ffsr_gym.model.spec import all_specs, ranked_spec
     from ffsr_gym.report.leaderboard_plots import stale_figures
 
-    problems = check(root, readme)
+    loaded = {version: load_entries(root, spec) for version, spec in all_specs().items()}  # read and verified once
+    problems = check(root, readme, loaded)
     problems += [f"out of date: {line}; run ffsr-gym leaderboard update"
-                 for line in stale_figures(root, _verified(root))]
+                 for line in stale_figures(root, verified(loaded[ranked_spec().version]))]
     for line in problems:
         print(line, file=sys.stderr)
     if not problems:
@@ -149,10 +151,10 @@ def _check_leaderboard(root: str, readme: Path | None) -> int:
 
 def _verified(root: str) -> dict:
     """The ranked version's entries that verify, by tier (what the figures draw)."""
-    from ffsr_gym.bench.leaderboard import load_entries
+    from ffsr_gym.bench.leaderboard import load_entries, verified
     from ffsr_gym.model.spec import ranked_spec
 
-    return {tier: [e for e in items if not e["_problems"]] for tier, items in load_entries(root, ranked_spec()).items()}
+    return verified(load_entries(root, ranked_spec()))
 
 
 def _leaderboard_plot(args: argparse.Namespace) -> None:
@@ -190,12 +192,11 @@ def _dataset(args: argparse.Namespace) -> None:
 
 def _leaderboard_aggregates(args: argparse.Namespace) -> None:
     from ffsr_gym.bench import aggregates
-    from ffsr_gym.bench.leaderboard import load_entries
     from ffsr_gym.model.spec import ranked_spec
     from ffsr_gym.report.leaderboard_plots import plot_aggregates
 
     spec = ranked_spec()
-    entries = {group: [e for e in items if not e["_problems"]] for group, items in load_entries(args.root, spec).items()}
+    entries = _verified(args.root)
     path = aggregates.write(args.root, spec, entries)
     if path is None:
         print(f"nothing to aggregate under {args.root}: no tier whose test tasks all have best known scores, or no "
