@@ -46,7 +46,7 @@ class Plan:
     episodes: list[tuple[int, int | None]]
     extra: dict[str, Any] = field(default_factory=dict)
     recorded_kwargs: dict[str, Any] | None = None  # what the entry records, when ``kwargs`` holds a Scenario
-    policy_library: str | None = None  # what made the policy, when the caller says (else found from its module)
+    policy_origin: dict[str, Any] | None = None  # what made the policy (entry.policy_origin), found before the run
 
 
 def spec_of(env_id: Any) -> BenchmarkSpec:
@@ -242,8 +242,7 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
         raise InvalidInputError(f"chunk = {chunk!r}; allowed: an integer >= 1")
     if compute is not None:
         plan.extra["compute"] = check_compute(compute)
-    policy_origin(policy, policy_library)  # checked before any episode
-    plan.policy_library = policy_library
+    plan.policy_origin = policy_origin(policy, policy_library)  # checked before any episode
     return run_plan(policy, plan, name=name, progress=progress, executor=executor, chunk=chunk, batched=batched)
 
 
@@ -315,7 +314,7 @@ def run_plan(policy: Any, plan: Plan, *, name: str = "submission", progress: boo
         extra["policy"] = {"fixed": [float(x) for x in policy]}
     else:  # what `ffsr-gym leaderboard verify` replays without running the policy, and what made the policy
         extra["trace"] = trace_record(traces, (12 if plan.spec.is_residual(plan.env_id) else 2,))
-        prov["policy"] = policy_origin(policy, plan.policy_library)
+        prov["policy"] = plan.policy_origin if plan.policy_origin is not None else policy_origin(policy)
     return EvalReport(plan.env_id, plan.kwargs if plan.recorded_kwargs is None else plan.recorded_kwargs,
                       rule.aggregate(rows), rows, prov, name=name, extra=extra,
                       score_rule=plan.spec.score.text)
