@@ -10,6 +10,7 @@ import json
 import shutil
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -245,3 +246,44 @@ def test_a_file_policy_is_recorded_by_its_hash_and_verified_from_anywhere(tmp_pa
     (maker / "mine.py").write_text("import numpy as np\n\ndef act(obs):\n    return 0.2 * np.sin(obs[:12])\n")
     assert main(["leaderboard", "verify", str(entry), "--run-code", f"{maker / 'mine.py'}:act"]) == 2
     assert "consent is given to exactly that text, or to a path of the same file" in capsys.readouterr().err
+
+
+def overshoot(obs):
+    """A policy whose actions leave the box in the second quarter of the episode (the env clips and counts them);
+    the observation's last entry is the elapsed fraction of the episode."""
+    return (2.5 if 0.25 <= obs[-1] < 0.5 else 0.4) * np.sin(obs[:12].astype(np.float64) * 1.7)
+
+
+def test_clipped_actions_are_counted_in_the_rows_verified_and_shown_in_the_table(tmp_path, code_entry):
+    from ffsr_gym.bench.tables import entry_cell
+    from ffsr_gym.bench.trace import decode
+
+    entry = ffsr_gym.evaluate(overshoot, "FFSR-Residual-v2", task="easy", indices=INDICES, name="mine").to_json()
+    trace = entry["extra"]["trace"]
+    for k, row in enumerate(entry["episodes"]):
+        # independent count: replay the stored actions' policy output by hand (the raw actions the env saw)
+        env = gym.make("FFSR-Residual-v2", task="easy", split="test")
+        obs, _ = env.reset(seed=row["seed"], options={"task_index": row["task_index"]})
+        raw_out, done = 0, False
+        while not done:
+            action = overshoot(obs)
+            raw_out += int(np.any(np.abs(action) > 1.0))
+            obs, _, terminated, truncated, info = env.step(action)
+            done = terminated or truncated
+        assert row["clipped_actions"] == raw_out == info["clipped_actions"] == len(trace["clipped"][k]) > 0
+        actions = decode(trace["episodes"][k], 12, where="test")
+        assert np.all(np.max(np.abs(actions[trace["clipped"][k]]), axis=1) == 1.0)
+    assert replay_entry(_write(tmp_path, entry)).status == "reproduced"
+    total = sum(row["clipped_actions"] for row in entry["episodes"])
+    assert entry_cell(entry) == f"`mine` ({total:,} clipped actions)"
+    assert entry_cell(code_entry) == "`mine`" and all(row["clipped_actions"] == 0 for row in code_entry["episodes"])
+    forged = json.loads(json.dumps(entry))
+    forged["episodes"][0]["clipped_actions"] = 0  # hiding the clipping from the table
+    assert replay_entry(_write(tmp_path, forged)).status == "differs"
+    forged = json.loads(json.dumps(entry))
+    inside = np.flatnonzero(np.max(np.abs(decode(trace["episodes"][0], 12, where="test")), axis=1) < 1.0)
+    forged["extra"]["trace"]["clipped"][0] = [int(i) for i in inside[:3]]  # decisions whose actions lie in the box
+    with pytest.raises(InvalidInputError, match="boundary"):
+        replay_entry(_write(tmp_path, forged))
+    del forged["extra"]["trace"]["clipped"]
+    assert replay_entry(_write(tmp_path, forged)).status == "differs"

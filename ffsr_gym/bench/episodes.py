@@ -23,38 +23,46 @@ def _row(seed: int, info: dict[str, Any], rule_row: dict[str, Any], pooled: bool
 def play_chunk(policy: Any, env_id: str, kwargs: dict[str, Any], pooled: bool,
               jobs: Sequence[tuple[int, int | None]]) -> list[tuple[dict, str, str]]:
     """The scored episodes of ``jobs``: each row, the played scenario's key and hash, and (a policy that is code) the
-    trace of the actions it applied (:mod:`ffsr_gym.bench.trace`). Module level: executors run chunks."""
+    trace of the actions it applied (:mod:`ffsr_gym.bench.trace`) with the decisions whose action was clipped.
+    Module level: executors run chunks."""
     env = gym.make(env_id, **kwargs)
     engine = env.unwrapped.engine
     out = []
     for seed, index in jobs:
         obs, info = env.reset(seed=seed, options=None if index is None else {"task_index": index})
         applied: list[np.ndarray] | None = None if isinstance(policy, tuple) else []
-        step = stepper(policy, env) if applied is None else _recording_stepper(policy, env, applied)
+        clipped: list[int] = []
+        step = stepper(policy, env) if applied is None else _recording_stepper(policy, env, applied, clipped)
         done = False
         while not done:
-            obs, _, terminated, truncated, _ = step(obs)
+            obs, _, terminated, truncated, last = step(obs)
             done = terminated or truncated
         played, traj = env.unwrapped.scenario, env.unwrapped.trajectory
         result = engine.results[0] or engine.rule.result(traj, played)  # scored at the episode's end already
         row = _row(seed, info, engine.rule.row(result, traj), pooled)
+        row["clipped_actions"] = int(last["clipped_actions"])
         key = played.name if played.randomization is None or pooled else f"{played.name}/seed={seed}"
-        trace = None if applied is None else encode(np.reshape(applied, (len(applied), *env.action_space.shape)))
+        trace = None if applied is None else (encode(np.reshape(applied, (len(applied), *env.action_space.shape))),
+                                              clipped)
         out.append((row, key, played.sha256(), trace))
     env.close()
     return out
 
 
-def _recording_stepper(policy: Any, env: gym.Env, applied: list[np.ndarray]):
-    """:func:`stepper` of a policy that is code, appending to ``applied`` each action as the env applies it."""
+def _recording_stepper(policy: Any, env: gym.Env, applied: list[np.ndarray], clipped: list[int]):
+    """:func:`stepper` of a policy that is code, appending to ``applied`` each action as the env applies it, and to
+    ``clipped`` the index of each decision whose action the env clipped."""
     from ffsr_gym.environments.actions import check_action
 
     act, shape = actor(policy), env.action_space.shape
 
     def step(obs: np.ndarray) -> tuple:
-        action, _ = check_action(act(obs), shape)
+        raw = act(obs)
+        action, was_clipped = check_action(raw, shape)  # what the env applies (it clips and counts the same way)
+        if was_clipped:
+            clipped.append(len(applied))
         applied.append(action)
-        return env.step(action)
+        return env.step(raw)
     return step
 
 
@@ -75,6 +83,7 @@ def play_batched(parameters: tuple[float, float], version: str, kwargs: dict[str
         traj = engine.trajectory(i) if engine.rule.row_needs_trajectory else None
         rule_row = engine.rule.row(engine.results[i], traj)
         row = _row(seed, {"task_seed": None if task_seed < 0 else task_seed}, rule_row, True)
+        row["clipped_actions"] = int(engine.clipped[i])
         results.append((row, engine.scenarios[i].name, engine.scenarios[i].sha256(), None))
     venv.close()
     return results

@@ -313,7 +313,8 @@ def run_plan(policy: Any, plan: Plan, *, name: str = "submission", progress: boo
     if isinstance(policy, tuple):  # what `ffsr-gym leaderboard verify` re-runs
         extra["policy"] = {"fixed": [float(x) for x in policy]}
     else:  # what `ffsr-gym leaderboard verify` replays without running the policy, and what made the policy
-        extra["trace"] = trace_record(traces, (12 if plan.spec.is_residual(plan.env_id) else 2,))
+        extra["trace"] = trace_record([text for text, _ in traces], (12 if plan.spec.is_residual(plan.env_id) else 2,),
+                                      [clipped for _, clipped in traces])
         prov["policy"] = plan.policy_origin if plan.policy_origin is not None else policy_origin(policy)
     return EvalReport(plan.env_id, plan.kwargs if plan.recorded_kwargs is None else plan.recorded_kwargs,
                       rule.aggregate(rows), rows, prov, name=name, extra=extra,

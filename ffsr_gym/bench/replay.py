@@ -27,7 +27,7 @@ from ffsr_gym.bench.evaluation import NEUTRAL_KWARGS, plan_evaluation, run_plan
 from ffsr_gym.bench.leaderboard import spec_of_entry
 from ffsr_gym.bench.planner_scores import evaluate_planner
 from ffsr_gym.bench.policies import BUILTIN_POLICIES, load_policy, resolve_recorded
-from ffsr_gym.bench.trace import decode, trace_episodes
+from ffsr_gym.bench.trace import clipped_counts, decode, trace_episodes
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.user_files import load_json
@@ -253,7 +253,13 @@ def _replay_trace(entry: dict[str, Any], spec: BenchmarkSpec, path: Path) -> Ver
         if applied.tobytes() != episodes[k].tobytes():
             return Verdict("differs", f"episode {k}: its trace does not fit the episode (the env applied "
                                       f"{len(applied)} actions, {len(episodes[k])} stored, or other values)")
-    return _compare(rows, report["episodes"], "the stored trace of applied actions")
+    counts = clipped_counts(entry["extra"]["trace"], episodes, where=f"{path}: extra.trace")
+    replayed = report["episodes"]  # the stored actions are in the box: what the env clipped, the trace lists
+    if counts is None and any("clipped_actions" in row for row in rows):
+        return Verdict("differs", "the rows count clipped actions but the trace lists no clipped decisions")
+    if counts is not None:
+        replayed = [row | {"clipped_actions": count} for row, count in zip(replayed, counts)]
+    return _compare(rows, replayed, "the stored trace of applied actions")
 
 
 def _custom_scenario(record: Any, path: Path) -> Any:
@@ -277,10 +283,14 @@ def _custom_scenario(record: Any, path: Path) -> Any:
 
 
 def _compare(stored: list[dict], rerun: list[dict], what: str) -> Verdict:
-    """Rows compared exactly (an RL study's rows also name their training seed, which a replay keeps)."""
+    """Rows compared exactly (an RL study's rows also name their training seed, which a replay keeps; a row written
+    before rows counted clipped actions is compared without that count)."""
     if len(stored) != len(rerun):
         return Verdict("differs", f"{len(rerun)} rows replayed, {len(stored)} stored")
     rerun = [b | {"train_seed": a["train_seed"]} if "train_seed" in a else b for a, b in zip(stored, rerun)]
+    # rows written before the clipped-action count have none to compare
+    rerun = [b if "clipped_actions" in a else {k: v for k, v in b.items() if k != "clipped_actions"}
+             for a, b in zip(stored, rerun)]
     for k, (a, b) in enumerate(zip(stored, rerun)):
         if a != b:
             keys = sorted(key for key in set(a) | set(b) if a.get(key) != b.get(key))

@@ -81,6 +81,12 @@ def compute_text(compute: dict[str, Any]) -> str:
     return ", ".join(parts) or "none (fixed)"
 
 
+def entry_cell(e: dict[str, Any]) -> str:
+    """The entry's name and, when its policy's actions were clipped into the box, how many were."""
+    clipped = sum(int(row.get("clipped_actions") or 0) for row in e["episodes"])
+    return f"`{safe(e['name'])}`" + (f" ({clipped:,} clipped actions)" if clipped else "")
+
+
 def row(spec: BenchmarkSpec, label: str, e: dict[str, Any]) -> str:
     """One entry's table line."""
     m, names = e["metrics"], spec.leaderboard
@@ -88,11 +94,11 @@ def row(spec: BenchmarkSpec, label: str, e: dict[str, Any]) -> str:
     if names.ranking == "feasible_then_iqm":
         method = safe(e.get("extra", {}).get("method", ""))
         runs = " (single run)" if m["episodes"] == 1 else ""
-        return (f"| {label} | `{safe(e['name'])}` | {method} | {m[names.rate]:.2f} | "
+        return (f"| {label} | {entry_cell(e)} | {method} | {m[names.rate]:.2f} | "
                 f"{_g4(m[names.iqm])} [{_g4(lo)}, {_g4(hi)}] | "
                 f"{_g4(m['score_mean'])} | {m['episodes']}{runs} | {commit(e)} |")
     rows, extra = e["episodes"], e.get("extra", {})
-    return (f"| {label} | `{safe(e['name'])}` | {m[names.iqm]:.3f} [{lo:.3f}, {hi:.3f}] | {m[names.rate]:.2f} | "
+    return (f"| {label} | {entry_cell(e)} | {m[names.iqm]:.3f} [{lo:.3f}, {hi:.3f}] | {m[names.rate]:.2f} | "
             f"{_fmt(normalised_mean(e, spec.rules.version), '.3f')} | {_fmt(_median(rows, 'paper_B'))} | {_fmt(_median(rows, 'peak_rate_deg_s', 0), '.0f')} / "
             f"{_fmt(_median(rows, 'peak_rate_deg_s', 1), '.0f')} | "
             f"{_fmt(_median(rows, 'final_ee_position_error_m', successes=True), '.1e')} | "

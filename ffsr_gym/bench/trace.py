@@ -9,6 +9,11 @@ a file (``ffsr-gym leaderboard verify``).
 
 A trace costs a few bytes a number: a residual policy's entry on the easy test pool (100 tasks of
 200 decisions of 12 numbers) measured 0.72 MB with its trace.
+
+The env clips an action outside [-1, 1] and counts it (``info["clipped_actions"]``, the row's
+``clipped_actions``). The trace keeps the applied, clipped action, and beside it, per row, the
+decisions whose action was clipped (``clipped``): ``verify`` checks that each of those actions lies
+on the box's boundary and that the row's count is their number.
 """
 
 from __future__ import annotations
@@ -61,9 +66,35 @@ def decode(text: Any, width: int, *, where: str) -> np.ndarray:
     return actions
 
 
-def trace_record(episodes: list[str], action_shape: tuple[int, ...]) -> dict[str, Any]:
-    """The entry's ``extra.trace``: the format, the action shape and one text per row."""
-    return {"format": TRACE_FORMAT, "action_shape": list(action_shape), "episodes": episodes}
+def trace_record(episodes: list[str], action_shape: tuple[int, ...], clipped: list[list[int]]) -> dict[str, Any]:
+    """The entry's ``extra.trace``: the format, the action shape, one text per row and, per row, the decisions
+    whose action the env clipped."""
+    return {"format": TRACE_FORMAT, "action_shape": list(action_shape), "episodes": episodes, "clipped": clipped}
+
+
+def clipped_counts(record: dict[str, Any], actions: list[np.ndarray], *, where: str) -> list[int] | None:
+    """Each row's number of clipped actions, from the trace's ``clipped`` (None: a trace recorded before it).
+
+    Raises:
+        InvalidInputError: not one sorted list of distinct decision indices per row, or a listed decision whose
+            action does not touch the box's boundary (a clipped action lies on it).
+    """
+    if "clipped" not in record:
+        return None
+    clipped = record["clipped"]
+    if not isinstance(clipped, list) or len(clipped) != len(actions):
+        raise InvalidInputError(f"{where}.clipped: allowed: one list of decision indices per row ({len(actions)})")
+    counts = []
+    for k, (indices, episode) in enumerate(zip(clipped, actions)):
+        if (not isinstance(indices, list) or any(type(i) is not int for i in indices)
+                or indices != sorted(set(indices)) or any(not 0 <= i < len(episode) for i in indices)):
+            raise InvalidInputError(f"{where}.clipped[{k}]: allowed: sorted distinct decision indices in "
+                                    f"[0, {len(episode)})")
+        if indices and not np.all(np.max(np.abs(episode[indices]), axis=1) == 1.0):
+            raise InvalidInputError(f"{where}.clipped[{k}]: a listed decision's action does not touch the box's "
+                                    "boundary, where a clipped action lies")
+        counts.append(len(indices))
+    return counts
 
 
 def trace_episodes(record: Any, rows: int, *, where: str) -> tuple[int, list[Any]]:

@@ -84,7 +84,8 @@ def _text_problems(entry: dict) -> list[str]:
             stack += [(f"{where} key", key) for key in value]
         elif isinstance(value, list):
             stack += [(f"{where}[{k}]", item) for k, item in enumerate(value)]
-        elif isinstance(value, str) and any(unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp") for c in value):
+        elif isinstance(value, str) and not value.isprintable() and any(  # printable text has none of them
+                unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp") for c in value):
             problems.append(f"{where}: a control character or line break in {value[:40]!r}; allowed: one line of text")
     commit = entry.get("provenance", {}).get("git_commit") if isinstance(entry.get("provenance"), dict) else None
     if commit is not None and not (isinstance(commit, str) and GIT_COMMIT.fullmatch(commit)):
@@ -108,6 +109,9 @@ def _row_problems(rows: list[dict], spec: BenchmarkSpec) -> list[str]:
             problems.append("rows: a score outside [0, 1], or a score > 0 without success (or the reverse)")
     elif any(math.isnan(s) or s < 0.0 or (f != math.isfinite(s)) for s, f in zip(scores, flags)):
         problems.append("rows: a negative or NaN B, or a finite B on an infeasible episode (or the reverse)")
+    counts = [row["clipped_actions"] for row in rows if "clipped_actions" in row]
+    if any(isinstance(c, bool) or not isinstance(c, int) or c < 0 for c in counts):
+        problems.append("rows: clipped_actions is not an integer >= 0")
     return problems
 
 

@@ -392,8 +392,7 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
         prov = provenance(**({"scenarios": scenarios} if scenarios else {}), seeds=seeds,
                           wall_time_s=time.perf_counter() - start)
         if traces[checkpoint]:  # ``verify`` replays every seed's episodes from their applied actions
-            first = traces[checkpoint][0]
-            extra["trace"] = first | {"episodes": [text for trace in traces[checkpoint] for text in trace["episodes"]]}
+            extra["trace"] = _merged_traces(traces[checkpoint])
         name = entry_name(algo, spec, env_id, task) + CHECKPOINTS[checkpoint]
         reports[checkpoint] = EvalReport(env_id, env_kwargs, score_rule(spec).aggregate(rows[checkpoint]),
                                          rows[checkpoint], prov, name=name, extra=extra, score_rule=spec.score.text)
@@ -435,3 +434,12 @@ def _evaluation(model: Any, spec: BenchmarkSpec, env_id: str, task: str, folder:
         evaluation = evaluate(model, env_id, seeds=eval_seeds, env_kwargs={spec.tasks.keyword: task}).to_json()
     write_json_atomic(scored, evaluation)
     return evaluation
+
+
+def _merged_traces(traces: list[dict[str, Any]]) -> dict[str, Any]:
+    """One trace record of the seeds' evaluations, row after row (the clipped decisions while every seed has them)."""
+    merged = traces[0] | {"episodes": [text for trace in traces for text in trace["episodes"]]}
+    merged.pop("clipped", None)
+    if all("clipped" in trace for trace in traces):
+        merged["clipped"] = [indices for trace in traces for indices in trace["clipped"]]
+    return merged
