@@ -4,6 +4,7 @@ scripts of ``benchmarks/`` as modules."""
 from __future__ import annotations
 
 import importlib.util
+import os
 from functools import cache
 from pathlib import Path
 from types import ModuleType
@@ -11,9 +12,12 @@ from types import ModuleType
 import numpy as np
 import pytest
 
-from ffsr_gym.model.collision import CollisionModel
-from ffsr_gym.model.robot import Robot, load_robot
-from ffsr_gym.model.scenario import Scenario, load_scenario
+# the kernel's first-use notices (a compilation's progress bar) stay out of tests that read stderr
+os.environ.setdefault("FFSR_GYM_QUIET_COMPILE", "1")
+
+from ffsr_gym.model.collision import CollisionModel  # noqa: E402
+from ffsr_gym.model.robot import Robot, load_robot  # noqa: E402
+from ffsr_gym.model.scenario import Scenario, load_scenario  # noqa: E402
 
 
 @pytest.fixture(scope="session")

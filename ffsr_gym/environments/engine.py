@@ -28,7 +28,7 @@ from ffsr_gym.environments import info as info_contract
 from ffsr_gym.environments.task_source import TaskSource
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.kernel import batch as kernel_batch
-from ffsr_gym.kernel import decision, servo
+from ffsr_gym.kernel import decision, first_use, servo
 from ffsr_gym.kernel import planner as kp
 from ffsr_gym.model import portable
 from ffsr_gym.model.scenario import Scenario
@@ -190,8 +190,9 @@ class EpisodeEngine:
             self._set_parameters(0, parameters)
             action, mode = self._no_action, decision.MODE_SET
         k = self.K[0]
-        rows, status, was_clipped, increment, cost, clearance, ee_error = decision.step_episode(
-            self.episode, action, mode, self.terminate, k, k, self.n_steps, self.steps_per_decision, self._obs0)
+        rows, status, was_clipped, increment, cost, clearance, ee_error = first_use.call(
+            "single env", decision.step_episode, self.episode, action, mode, self.terminate, k, k, self.n_steps,
+            self.steps_per_decision, self._obs0)
         if status == decision.STATUS_BAD_ACTION:
             act.check_action(action, self.action_shape)  # raises, naming the problem
             raise InvalidInputError(f"action must be finite, got {action}; allowed range [-1, 1] per entry")
@@ -274,10 +275,10 @@ class EpisodeEngine:
         out[~active, :5] = 0.0  # no steps, no cost; clearance and EE error of the reset (or held) state stay
         if self.workspaces is None:
             self.workspaces = kernel_batch.workspaces(self.n, len(self.mdl.cap_radius))
-        kernel_batch.decide_batch(self.mdl, self.plants, self.workspaces, self.X, self.K, active, self.n_steps,
-                                  self.n_steps if to_end else self.steps_per_decision, self.FP, self.IP, self.DS, actions, mode,
-                                  tuple(self.logs[key] for key in LOG_FIELDS), self.last_rates, self.scratch,
-                                  self.obs, out, kernel_batch.groups(self.n))
+        first_use.call("batched env", kernel_batch.decide_batch, self.mdl, self.plants, self.workspaces, self.X, self.K,
+                       active, self.n_steps, self.n_steps if to_end else self.steps_per_decision, self.FP, self.IP,
+                       self.DS, actions, mode, tuple(self.logs[key] for key in LOG_FIELDS), self.last_rates,
+                       self.scratch, self.obs, out, kernel_batch.groups(self.n))
         rows, status = out[:, 0].astype(np.int64), out[:, 1].astype(np.int64)
         if np.any(status == decision.STATUS_NONFINITE):
             bad = np.flatnonzero(status == decision.STATUS_NONFINITE).tolist()

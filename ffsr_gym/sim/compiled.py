@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-import sys
 from typing import Any
 
 import numpy as np
 
 from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.kernel import cache as kernel_cache
+from ffsr_gym.kernel import first_use, servo
 from ffsr_gym.kernel import loop as kernel_loop
 from ffsr_gym.kernel import planner as kp
-from ffsr_gym.kernel import servo
 from ffsr_gym.model.robot import check_state
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning import ptsf
@@ -22,9 +21,7 @@ from ffsr_gym.sim.setup import ScenarioSetup, prepare
 from ffsr_gym.sim.trajectory import Trajectory
 from ffsr_gym.types import Array
 
-if kernel_cache.refresh():
-    sys.stderr.write("ffsr-gym: the compiled kernel is not in numba's cache yet; its first use compiles it, once per "
-                     "install and kernel version (about 1-2 min on 2 cores); later runs load it in seconds\n")
+kernel_cache.refresh()  # a cache written by other kernel sources is flushed (its first use then says it compiles)
 
 
 def settings_vectors(setup: ScenarioSetup, *, method: str, m: float, T_c: float) -> tuple[Array, Array]:
@@ -141,8 +138,8 @@ class KernelRollout:
     def _run(self, n: int, residual: Array | None, stop: bool, record_only: bool) -> int:
         res = np.zeros(12) if residual is None else np.asarray(residual, dtype=float)
         outs = [self._log[key][self.rows:] for key in LOG_FIELDS]
-        x, rows, status = kernel_loop.run(self._mdl, self.plant, self.x, self.k, self.n_steps, n, self.fp, self.ip, res,
-                                          stop, record_only, *outs)
+        x, rows, status = first_use.call("closed loop", kernel_loop.run, self._mdl, self.plant, self.x, self.k,
+                                         self.n_steps, n, self.fp, self.ip, res, stop, record_only, *outs)
         if status == 3:
             raise FFSRError(f"planner produced non-finite joint rates at t = {(self.k + rows) * self.dt:.3f} s")
         self.rows += rows

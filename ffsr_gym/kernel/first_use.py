@@ -1,0 +1,71 @@
+"""Compile time you can see: the first call of each compiled entry point says so when it compiles.
+
+numba compiles a kernel entry point on its first call with a new set of argument types, or loads it
+from its on-disk cache in a second or two. A call that is still running after
+:data:`QUIET_S` seconds is compiling: it prints what it compiles, the time it took when measured
+(:data:`ESTIMATES_S`) and a bar of the seconds spent, on standard error, and how long it took when
+done. Later calls in the process, and calls that load from the cache, print nothing.
+
+Plain Python: no compiled function lives here (the cache's source digest leaves it out).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+#: Seconds a first call may take before it is announced (a load from numba's cache takes less).
+QUIET_S = 3.0
+#: What each first use compiled, in seconds, measured from an empty numba cache on 2 cores (x86_64), in the order
+#: a user meets them (each after the one before it was cached); ``benchmarks/setup_time.py`` measures them again.
+#: The servo plant runs in the same compiled functions (a flag of the settings): its first use compiles nothing.
+ESTIMATES_S = {"closed loop": 125.0, "single env": 112.0, "batched env": 140.0}
+#: Set to 1 to say nothing (tests that time calls, quiet scripts).
+QUIET_ENV = "FFSR_GYM_QUIET_COMPILE"
+
+_done: set[str] = set()
+
+
+def call(what: str, function: Callable[..., Any], *args: Any) -> Any:
+    """``function(*args)``, announced when it is the first call of ``what`` (a key of :data:`ESTIMATES_S`) in this
+    process and it compiles."""
+    if what in _done:
+        return function(*args)
+    if what not in ESTIMATES_S:
+        raise KeyError(f"{what!r} is not a compiled entry point; allowed: {sorted(ESTIMATES_S)}")
+    finished = threading.Event()
+    watcher = threading.Thread(target=_watch, args=(what, finished), daemon=True, name=f"ffsr-gym compile: {what}")
+    watcher.start()
+    try:
+        return function(*args)
+    finally:
+        finished.set()
+        watcher.join()
+        _done.add(what)
+
+
+def _watch(what: str, finished: threading.Event) -> None:
+    """Wait :data:`QUIET_S`; if the call still runs, show its compilation's progress until it returns."""
+    start = time.perf_counter()
+    if finished.wait(QUIET_S) or os.environ.get(QUIET_ENV) == "1":
+        return
+    estimate = ESTIMATES_S[what]
+    sys.stderr.write(f"ffsr-gym: compiling the {what} kernel (its first use on this install; about "
+                     f"{_minutes(estimate)} on 2 cores); it is cached for later runs\n")
+    from tqdm.auto import tqdm
+
+    with tqdm(total=round(estimate), unit="s", desc=f"compiling the {what} kernel", file=sys.stderr, leave=False,
+              bar_format=f"{{desc}}: {{bar}} {{n:.0f}} s of about {estimate:.0f} s") as bar:
+        while not finished.wait(1.0):
+            bar.n = time.perf_counter() - start
+            bar.total = max(bar.total, bar.n + 5)  # past the estimate the bar stays nearly full; the seconds go on
+            bar.refresh()
+    sys.stderr.write(f"ffsr-gym: compiled the {what} kernel in {time.perf_counter() - start:.0f} s\n")
+
+
+def _minutes(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 90 else f"{seconds / 60:.0f} min"
