@@ -14,6 +14,8 @@ import stat
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ffsr_gym.exceptions import UserFileError
 
 #: The largest entry, scenario or robot file read [bytes]: a 100-task residual entry with its trace is about 2 MB,
@@ -62,15 +64,19 @@ def read_text(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> str:
 
 
 def nesting_depth(text: str, opening: str = "[{", closing: str = "]}") -> int:
-    """An upper bound of how deep ``text`` nests brackets (strings included: a bound, never an underestimate)."""
-    depth = deepest = 0
-    for char in text:
-        if char in opening:
-            depth += 1
-            deepest = max(deepest, depth)
-        elif char in closing:
-            depth = max(0, depth - 1)
-    return deepest
+    """An upper bound of how deep ``text`` nests brackets (strings included: a bound, never an underestimate).
+
+    The depth after each character, never below 0 (an extra closing bracket is ignored), is the running sum of
+    +1 / -1 minus the lowest the sum has been below 0; computed on the UTF-8 bytes, where ASCII brackets keep
+    their places.
+    """
+    data = np.frombuffer(text.encode("utf-8", "surrogatepass"), dtype=np.uint8)
+    step = np.zeros(len(data), dtype=np.int32)
+    for chars, sign in ((opening, 1), (closing, -1)):
+        for char in chars:
+            step[data == ord(char)] = sign
+    running = np.cumsum(step, dtype=np.int64)
+    return int(np.max(running - np.minimum(np.minimum.accumulate(running), 0), initial=0))
 
 
 def check_depth(text: str, where: str, *, max_depth: int = MAX_DEPTH) -> None:

@@ -1,6 +1,6 @@
 """The Submit section of leaderboards/README.md, followed word for word on a copy of the leaderboards: its commands
-run as written, and the check it names passes; a figure left stale fails it. Slow (about 2 minutes); the fast
-suite checks the section's commands parse (``test_second_hour``) and the figure check on its own (below)."""
+run as written, and the check it names passes; a figure left stale fails it. About a minute, most of it the
+aggregates' bootstrap (rliable's performance profiles); the figure check also has a test of its own (below)."""
 
 from __future__ import annotations
 

@@ -13,9 +13,12 @@ Every aggregate is recomputed from the rows by the spec's score rule (:mod:`ffsr
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from collections import Counter
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +30,7 @@ from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.model.spec import BenchmarkSpec, all_specs, ranked_spec, spec_for_env_id
 from ffsr_gym.provenance import splice_generated, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
-from ffsr_gym.user_files import load_json
+from ffsr_gym.user_files import check_depth, read_text
 
 
 def groups(spec: BenchmarkSpec) -> list[str]:
@@ -69,15 +72,40 @@ def load_entries(root: str | Path, spec: BenchmarkSpec) -> dict[str, list[dict[s
     return out
 
 
+#: Within :func:`checks_once`: each entry's problems by (content digest, version, table).
+_checked: dict[tuple[str, str, str], list[str]] | None = None
+
+
+@contextmanager
+def checks_once() -> Iterator[None]:
+    """Within it, an entry file is checked once per content: one command that loads the entries several times
+    (``leaderboard update``: tables, aggregates, figures, check) verifies each file once."""
+    global _checked
+    outer = _checked
+    _checked = {} if outer is None else outer
+    try:
+        yield
+    finally:
+        _checked = outer
+
+
 def _load(path: Path, spec: BenchmarkSpec, group: str) -> dict[str, Any]:
     """One entry file, verified; never raises for its content (nor hangs on a FIFO, nor reads a device)."""
     try:
-        entry = load_json(path)
-    except FFSRError as exc:
+        text = read_text(path)
+        check_depth(text, str(path))
+        entry = json.loads(text)
+    except (FFSRError, ValueError, RecursionError) as exc:
         return {"_file": path.name, "_folder": str(path.parent), "_problems": [f"not a readable JSON file ({exc})"]}
     if not isinstance(entry, dict):
         entry = {"_not_an_object": True}
-    problems = entry_problems(entry, spec, group)
+    key = (hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest(), spec.version, group)
+    if _checked is not None and key in _checked:
+        problems = list(_checked[key])
+    else:
+        problems = entry_problems(entry, spec, group)
+        if _checked is not None:
+            _checked[key] = list(problems)
     if isinstance(entry.get("name"), str) and entry["name"] != path.stem:
         problems.append(f"name {entry['name']!r} is not its file's name {path.stem!r}; allowed: <name>.json")
     return entry | {"_file": path.name, "_folder": str(path.parent), "_problems": problems}

@@ -14,7 +14,7 @@ import numpy as np
 
 from ffsr_gym.model.spec import ranked_spec
 from ffsr_gym.report.plotting import _pyplot, _save
-from ffsr_gym.scoring.aggregate import iqm
+from ffsr_gym.scoring.aggregate import iqm, iqm_rows
 from ffsr_gym.tasks.tiers import ALL_TIERS
 
 TIER_ORDER = ALL_TIERS
@@ -117,8 +117,9 @@ def plot_learning_curves(root: str | Path, entries: dict[str, list[dict]] | None
             steps = [p["env_steps"] for p in curves[0]]
             per_seed = np.array([[np.mean(p["scores"]) for p in c[:len(steps)]] for c in curves])  # (seeds, points)
             centre = [iqm(per_seed[:, k]) for k in range(len(steps))]
-            boots = np.array([[iqm(per_seed[rng.integers(0, len(per_seed), len(per_seed)), k]) for k in range(len(steps))]
-                              for _ in range(2000)])
+            seeds, points = per_seed.shape
+            draws = rng.integers(0, seeds, (2000, points, seeds))  # the draws of a resample of the seeds per point
+            boots = iqm_rows(per_seed[draws, np.arange(points)[None, :, None]].reshape(-1, seeds)).reshape(2000, points)
             color = f"C{methods.index(method)}"  # one colour per method in every panel
             ax.plot(steps, centre, color=color, label=f"{method} ({len(curves)} seeds)")
             ax.fill_between(steps, np.percentile(boots, 2.5, axis=0), np.percentile(boots, 97.5, axis=0), color=color,
