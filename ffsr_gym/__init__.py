@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ffsr_gym.bench.evaluation import EvalReport, evaluate, objective_for_params
+from ffsr_gym.bench.planner_scores import residual_training_loss, training_loss
 from ffsr_gym.environments.info import failure_name
 from ffsr_gym.environments.registration import register_all, register_spec
 from ffsr_gym.exceptions import FFSRError, InvalidInputError, RobotFileError, ScenarioError
@@ -30,5 +31,7 @@ __all__ = [
     "load_scenario",
     "register_spec",
     "objective_for_params",
+    "residual_training_loss",
     "simulate",
+    "training_loss",
 ]

@@ -319,7 +319,7 @@ def _evaluate(args: argparse.Namespace) -> None:
     executor = ProcessPoolExecutor(args.workers) if args.workers > 1 else None
     try:
         report = evaluate(policy, args.env_id, name=args.name, progress=not args.no_progress, compute=compute,
-                          seeds=args.seeds,
+                          seeds=args.seeds, policy_library=args.policy_library,
                           **(_env_kwargs(args) | {"training_pool": args.training_pool, "executor": executor} if pooled
                              else {"env_kwargs": _env_kwargs(args)}))
     finally:
@@ -549,6 +549,9 @@ def _add_study_commands(sub: Any) -> None:
     ev.add_argument("--compute", default=None, metavar="ENV_STEPS,WALL_TIME_S",
                     help="what training the policy cost, recorded for the compute column (default: none)")
     ev.add_argument("--name", default="submission", help="entry name (default: submission)")
+    ev.add_argument("--policy-library", default=None, metavar="TEXT",
+                    help="the library that made the policy, e.g. 'tianshou 2.0.1', recorded in the entry's provenance "
+                         "(default: the package of the policy object's module)")
     ev.add_argument("--workers", type=positive_int, default=1,
                     help="pool versions: score the pool on this many processes; the same entry as with 1 (default: 1)")
     ev.add_argument("--leaderboard", default=None,
@@ -668,8 +671,11 @@ def main(argv: list[str] | None = None) -> int:
             raise  # --help, --version
         return int(stop.code)
     args.argv = argv
+    from ffsr_gym.bench.leaderboard import checks_once
+
     try:
-        code = args.func(args)
+        with checks_once():  # a command that loads the entries several times verifies each file once
+            code = args.func(args)
     except FFSRError as exc:
         print(f"ffsr-gym: error: {exc}", file=sys.stderr)
         return 2

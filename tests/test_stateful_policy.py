@@ -40,3 +40,18 @@ def test_a_recurrent_policy_is_scored_with_its_state(recurrent):
                                   task="easy", indices=[0, 1, 2]).episodes
     traces_differ = [a["smoothness_cost"] != b["smoothness_cost"] for a, b in zip(rows, stateless)]
     assert any(traces_differ)  # the state matters: scoring it without is another policy
+
+
+def test_the_entry_names_the_library_that_made_the_policy(recurrent):
+    from importlib import metadata
+
+    report = ffsr_gym.evaluate(recurrent, "FFSR-Residual-v2", task="easy", indices=[0])
+    origin = report.provenance["policy"]
+    assert origin["type"] == "sb3_contrib.ppo_recurrent.ppo_recurrent.RecurrentPPO"
+    assert origin["package"].replace("_", "-").lower() == "sb3-contrib"  # the distribution, however it spells it
+    assert origin["version"] == metadata.version("sb3-contrib")
+    wrapped = ffsr_gym.evaluate(lambda obs: recurrent.predict(obs, deterministic=True)[0], "FFSR-Residual-v2",
+                                task="easy", indices=[0], policy_library="tianshou 2.0.1")
+    assert wrapped.provenance["policy"]["library"] == "tianshou 2.0.1"
+    with pytest.raises(ffsr_gym.InvalidInputError, match="policy_library"):
+        ffsr_gym.evaluate(lambda obs: obs[:12], "FFSR-Residual-v2", task="easy", indices=[0], policy_library="a\nb")

@@ -104,7 +104,7 @@ def check_in_box(parameters: Any, m_box: tuple[float, float], t_box: tuple[float
     numbers = isinstance(parameters, (tuple, list)) and len(parameters) == 2 and all(
         isinstance(x, (int, float, np.floating)) and not isinstance(x, bool) and np.isfinite(x) for x in parameters)
     if not numbers or not (m_box[0] <= parameters[0] <= m_box[1] and t_box[0] <= parameters[1] <= t_box[1]):
-        shown = tuple(parameters) if numbers else parameters
+        shown = tuple(float(x) for x in parameters) if numbers else parameters
         raise InvalidInputError(f"fixed parameters (m, T_c) = {shown!r}; allowed: "
                                 f"two numbers with m in [{m_box[0]}, {m_box[1]}] and T_c in [{t_box[0]}, {t_box[1]}] s "
                                 "(the action box)")
@@ -131,7 +131,10 @@ def residual_training_loss(action: Any, *, tier: str, tasks: int = 20, version: 
     ``tasks`` tasks of ``tier``'s **training** pool: the black box of a residual search (in [0, 1]; picklable
     with ``functools.partial``).
     """
-    values = np.asarray(action, dtype=np.float64)
+    try:
+        values = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        values = np.full(0, np.nan)
     if values.shape != (12,) or not np.all(np.abs(values) <= 1.0):  # the box evaluate refuses a constant outside of
         raise InvalidInputError(f"residual action {action!r}; allowed: 12 numbers in [-1, 1] (the action box)")
     exact = tuple(float(x) for x in values.astype(np.float32))
