@@ -3,7 +3,7 @@
     python baselines/ga.py --out runs/ga --leaderboard leaderboards
 """
 
-from ffsr_gym.cli import main
+from ffsr_gym.cli.main import main
 
 if __name__ == "__main__":
     raise SystemExit(main(["ga", *__import__("sys").argv[1:]]))

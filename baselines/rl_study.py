@@ -26,7 +26,8 @@ from tqdm.auto import tqdm
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.optim import study_plan
-from ffsr_gym.optim.rl import load_hyperparams, train_and_evaluate
+from ffsr_gym.optim.rl import load_hyperparams
+from ffsr_gym.optim.rl_study import train_and_evaluate
 from ffsr_gym.tasks.tiers import ALL_TIERS
 
 ALGOS = ("ppo", "sac")

@@ -5,7 +5,7 @@
 
 import sys
 
-from ffsr_gym.cli import main
+from ffsr_gym.cli.main import main
 
 if __name__ == "__main__":
     raise SystemExit(main(["train", *sys.argv[1:]]))

@@ -18,6 +18,16 @@ import numpy as np
 REPO = pathlib.Path(os.environ["HOSTILE_REPO"])
 MARK = pathlib.Path("ran_code.marker").resolve()
 
+def cli_main(argv):
+    """``ffsr-gym`` of the checkout: ``ffsr_gym.cli.main`` (a package since the command line was split), or the
+    older ``ffsr_gym.cli`` module."""
+    import importlib
+    try:
+        module = importlib.import_module("ffsr_gym.cli.main")
+    except ModuleNotFoundError:
+        module = importlib.import_module("ffsr_gym.cli")
+    return module.main(argv)
+
 def result(kind, note=""):
     print("RESULT " + json.dumps({"class": kind, "note": str(note)[:300]}))
     sys.stdout.flush()
@@ -34,8 +44,7 @@ def write(path, data):
     return path
 
 def verify(path, *extra):
-    from ffsr_gym.cli import main
-    return main(["leaderboard", "verify", str(path), *extra])
+    return cli_main(["leaderboard", "verify", str(path), *extra])
 
 def evil_module(name="evil"):
     pathlib.Path(f"{name}.py").write_text(f"open({str(MARK)!r}, 'w').write('x')\ndef act(o):\n    import numpy as np\n    return np.zeros(12, 'f4')\n")
@@ -143,7 +152,7 @@ class Evil:
 data = {"policy_class": {":type:": "<class 'type'>", ":serialized:": base64.b64encode(pickle.dumps(Evil())).decode()}}
 with zipfile.ZipFile("model.zip", "w") as z:
     z.writestr("data", json.dumps(data))
-from ffsr_gym.cli import main
+main = cli_main
 main(["evaluate", "--env-id", "FFSR-v2", "--policy", "model.zip", "--algo", "ppo", "--no-progress"])
 result("code" if MARK.exists() else "handled")'''),
     ("md-training-pool", 3, "a newline and | in extra.training_pool", r'''
@@ -229,7 +238,7 @@ import gymnasium as gym, ffsr_gym
 gym.make("FFSR-v2", task=custom("duration_s = 20.0", "duration_s = 20.005"))
 result("wrong", "accepted")'''),
     ("length-scenario-task", 8, "evaluate --scenario X --task hard --split train", r'''
-from ffsr_gym.cli import main
+main = cli_main
 rc = main(["evaluate", "--env-id", "FFSR-v2", "--policy", "0.3,4", "--scenario", custom("duration_s = 20.0",
            "duration_s = 20.0"), "--task", "hard", "--split", "train", "--no-progress"])
 result("named" if rc == 2 else "wrong", rc)'''),
@@ -327,23 +336,23 @@ from ffsr_gym.model.scenario import load_scenario
 load_scenario(custom("duration_s = 20.0", "duration_s = 20.0", "x = " + "[" * 100000 + "]" * 100000 + "\n"))
 result("wrong")'''),
     ("raw-render-speed", 13, "render --speed 1e-300", r'''
-from ffsr_gym.cli import main
+main = cli_main
 rc = main(["render", "--env-id", "FFSR-v2", "--speed", "1e-300", "--out", "x.gif"])
 result("named" if rc == 2 else "wrong", rc)'''),
     ("raw-render-out", 13, "render --out /bin/ls/x.gif", r'''
-from ffsr_gym.cli import main
+main = cli_main
 rc = main(["render", "--env-id", "FFSR-v2", "--out", "/bin/ls/x.gif"])
 result("named" if rc == 2 else "wrong", rc)'''),
     ("raw-workers-pickle", 13, "evaluate --policy mine.py:act --workers 2", r'''
 pathlib.Path("mine.py").write_text("import numpy as np\ndef act(o):\n    return np.zeros(2, 'f4')\n")
-from ffsr_gym.cli import main
+main = cli_main
 rc = main(["evaluate", "--env-id", "FFSR-v2", "--policy", "mine.py:act", "--workers", "2", "--no-progress"])
 result("named" if rc == 2 else "wrong", rc)'''),
     ("raw-algo-mismatch", 13, "--policy ppo.zip --algo sac", r'''
 import gymnasium as gym, ffsr_gym
 from stable_baselines3 import PPO
 PPO("MlpPolicy", gym.make("FFSR-v2"), n_steps=64, batch_size=64, device="cpu").save("ppo.zip")
-from ffsr_gym.cli import main
+main = cli_main
 rc = main(["evaluate", "--env-id", "FFSR-v2", "--policy", "ppo.zip", "--algo", "sac", "--trust-model", "--no-progress"])
 result("named" if rc == 2 else "wrong", rc)'''),
     ("raw-threads-text", 13, "BatchedVecEnv(threads=\"1\")", r'''

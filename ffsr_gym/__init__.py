@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from importlib import metadata as _metadata
+
 from ffsr_gym.bench.evaluation import EvalReport, evaluate, objective_for_params
 from ffsr_gym.bench.planner_scores import residual_training_loss, training_loss
 from ffsr_gym.environments.info import failure_name
@@ -12,7 +14,7 @@ from ffsr_gym.model.scenario import Scenario, load_scenario
 from ffsr_gym.sim.simulate import simulate
 from ffsr_gym.sim.trajectory import Trajectory
 
-__version__ = "0.1.0"
+__version__ = _metadata.version("ffsr-gym")  # one source: pyproject.toml, through the installed metadata
 
 register_all()
 

@@ -48,21 +48,21 @@ def _entry(name, tier, scores, seeds=None):
 
 
 @pytest.fixture
-def best_known_two(monkeypatch):
-    """Every task's best known score is 2 (so a normalised score is half the score)."""
-    monkeypatch.setattr(normalise.best_known, "scores", lambda tier, split, size, version=None: np.full(size, 2.0))
+def reference_two(monkeypatch):
+    """Every task's reference score is 2 (so a normalised score is half the score)."""
+    monkeypatch.setattr(normalise.reference, "reference_scores", lambda tier, split, version=None: np.full(100, 2.0))
 
 
-def test_normalised_scores_divide_by_each_tasks_best_known(best_known_two, monkeypatch):
+def test_normalised_scores_divide_by_each_tasks_reference_score(reference_two, monkeypatch):
     entry = _entry("x", "easy", [np.linspace(0, 1, 100)])
     assert np.allclose(normalise.normalised_scores(entry, "v2"), np.linspace(0, 1, 100) / 2)
     assert normalise.normalised_mean(entry, "v2") == pytest.approx(0.25)
-    monkeypatch.setattr(normalise.best_known, "scores", lambda *a, **k: None)  # not every task stored: no column
+    monkeypatch.setattr(normalise.reference, "reference_scores", lambda *a, **k: None)  # a pool the reference does not cover: no column
     assert normalise.normalised_mean(entry, "v2") is None
     assert normalise.normalised_mean({"episodes": [], "extra": {"evaluation_pool": "planet/test"}}, "v2") is None
 
 
-def test_aggregates_match_closed_forms(best_known_two):
+def test_aggregates_match_closed_forms(reference_two):
     """Point estimates against closed forms; CIs by rliable's bootstrap over tasks and runs."""
     rng = np.random.default_rng(0)
     reference = {t: rng.uniform(0, 1, 100) for t in ("easy", "hard")}
@@ -92,9 +92,9 @@ def test_aggregates_match_closed_forms(best_known_two):
     assert {k: v for k, v in again.items() if k != "provenance"} == {k: v for k, v in data.items() if k != "provenance"}
 
 
-def test_tiers_without_best_known_scores_are_left_out(monkeypatch):
-    monkeypatch.setattr(normalise.best_known, "scores",
-                        lambda tier, split, size, version=None: np.ones(size) if tier == "easy" else None)
+def test_tiers_without_reference_scores_are_left_out(monkeypatch):
+    monkeypatch.setattr(normalise.reference, "reference_scores",
+                        lambda tier, split, version=None: np.ones(100) if tier == "easy" else None)
     entries = {t: [_entry("reference_v2_default", t, [np.ones(10)]), _entry("b", t, [np.zeros(10)])]
                for t in ("easy", "hard")}
     assert aggregates.compute(entries, SPEC)["tiers"] == ["easy"]

@@ -14,7 +14,8 @@ from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.kernel import planner as kp
 from ffsr_gym.model.collision import SphereObstacle
 from ffsr_gym.model.obstacles import obstacle_field
-from ffsr_gym.model.scenario import MAX_DEBRIS, Debris, load_scenario, to_dict
+from ffsr_gym.model.scenario import Debris, load_scenario, to_dict
+from ffsr_gym.model.scenario_sections import MAX_DEBRIS
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.sim.simulate import simulate
 

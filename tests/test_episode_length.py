@@ -94,7 +94,7 @@ def test_a_duration_or_interval_of_no_whole_steps_is_refused_by_name(tmp_path, o
 
 
 def test_a_custom_scenario_with_a_tier_or_split_is_refused(tmp_path, capsys):
-    from ffsr_gym.cli import main
+    from ffsr_gym.cli.main import main
 
     task = _custom(tmp_path, "duration_s = 20.0", "duration_s = 20.0")
     argv = ["evaluate", "--env-id", "FFSR-v2", "--policy", "0.3,4", "--scenario", task, "--no-progress"]

@@ -226,7 +226,7 @@ def test_the_black_box_losses_refuse_what_evaluate_refuses():
 
 
 def test_a_file_policy_is_recorded_by_its_hash_and_verified_from_anywhere(tmp_path, monkeypatch, capsys):
-    from ffsr_gym.cli import main
+    from ffsr_gym.cli.main import main
 
     maker = tmp_path / "maker"
     maker.mkdir()

@@ -175,7 +175,7 @@ def test_provenance_finds_a_commit_or_says_why_not(tmp_path, monkeypatch):
 
 
 def test_cli_version_list_and_a_new_leaderboard_folder(tmp_path, capsys):
-    from ffsr_gym.cli import main
+    from ffsr_gym.cli.main import main
 
     with pytest.raises(SystemExit):
         main(["--version"])
@@ -191,7 +191,7 @@ def test_cli_version_list_and_a_new_leaderboard_folder(tmp_path, capsys):
 
 
 def test_cli_evaluate_writes_an_entry_and_names_bad_policies(tmp_path, capsys):
-    from ffsr_gym.cli import main
+    from ffsr_gym.cli.main import main
 
     assert main(["evaluate", "--env-id", "FFSR-v2", "--policy", "0.3,4", "--task", "easy", "--name", "default",
                  "--leaderboard", str(tmp_path), "--no-progress"]) == 0
@@ -205,7 +205,7 @@ def test_cli_evaluate_writes_an_entry_and_names_bad_policies(tmp_path, capsys):
 def test_cli_render_writes_a_gif_of_an_episode(tmp_path, capsys):
     from PIL import Image
 
-    from ffsr_gym.cli import main
+    from ffsr_gym.cli.main import main
 
     out = tmp_path / "episode.gif"
     assert main(["render", "--policy", "0.3,4", "--every", "50", "--out", str(out)]) == 0
@@ -220,7 +220,7 @@ def test_cli_render_writes_a_gif_of_an_episode(tmp_path, capsys):
 
 @pytest.mark.parametrize("bad", ["2/2", "-1/2", "1/0", "1", "a/b", "0/2/3"])
 def test_cli_best_known_shard_is_named_with_its_range(tmp_path, capsys, bad):
-    from ffsr_gym.cli import main
+    from ffsr_gym.cli.main import main
 
     assert main(["tasks", "best-known", "--work", str(tmp_path), f"--shard={bad}"]) == 2
     err = capsys.readouterr().err

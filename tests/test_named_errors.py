@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import ffsr_gym
-from ffsr_gym.cli import main
+from ffsr_gym.cli.main import main
 from ffsr_gym.exceptions import InvalidInputError, RobotFileError, ScenarioError, WriteError
 from ffsr_gym.model.resources import scenario_path
 

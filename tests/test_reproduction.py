@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from ffsr_gym.cli import main
+from ffsr_gym.cli.main import main
 
 METRIC_KEYS = {"final_ee_position_error_m", "convergence_time_s", "peak_joint_rate_deg_s", "min_clearance_m",
                "collided", "min_sigma_J_m", "min_sigma_J_c", "convergence_after_release_s"}

@@ -11,7 +11,8 @@ import pytest
 pytest.importorskip("stable_baselines3")
 
 from ffsr_gym.bench import leaderboard  # noqa: E402
-from ffsr_gym.optim.rl import load_hyperparams, train_and_evaluate  # noqa: E402
+from ffsr_gym.optim.rl import load_hyperparams  # noqa: E402
+from ffsr_gym.optim.rl_study import train_and_evaluate  # noqa: E402
 
 SCHEMA = json.loads((Path(__file__).resolve().parent.parent / "leaderboards" / "schema.json").read_text())
 CASES = [(algo, env_id) for algo in ("ppo", "sac") for env_id in ("FFSR-v0", "FFSR-Residual-v0")]

@@ -16,7 +16,7 @@ from ffsr_gym import failure_name
 
 import ffsr_gym
 from ffsr_gym.bench.leaderboard import leaderboard_table
-from ffsr_gym.cli import build_parser, main
+from ffsr_gym.cli.main import build_parser, main
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.resources import scenario_path

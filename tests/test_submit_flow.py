@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from ffsr_gym.cli import main
+from ffsr_gym.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -23,16 +23,16 @@ def test_method_names_drop_the_tier_before_the_checkpoint_suffix():
 
 
 def test_headroom_is_one_minus_the_best_normalised_score(monkeypatch):
-    monkeypatch.setattr(normalise.best_known, "scores",
-                        lambda tier, split, size, version=None: np.full(size, 0.5) if tier == "easy" else None)
+    monkeypatch.setattr(normalise.reference, "reference_scores",
+                        lambda tier, split, version=None: np.full(100, 0.5) if tier == "easy" else None)
     monkeypatch.setattr(tables.best_known, "load_best_known", lambda version=None, path=None: None)
     entries = {"easy": [_entry("a", "easy", [0.25] * 100), _entry("b", "easy", [0.4] * 100)],
                "hard": [_entry("c", "hard", [0.1] * 100)]}
     text = tables.headroom(SPEC, entries)
-    assert "easy 0.200 (best: `b`, 0.800; no entry beats the best known score on any test task)" in text  # 1 - 0.4/0.5
-    assert "hard - (no best known scores)" in text
+    assert "easy 0.200 (best: `b`, 0.800; no entry beats the reference score on any test task)" in text  # 1 - 0.4/0.5
+    assert "hard - (no reference scores)" in text
     entries["easy"].append(_entry("c", "easy", [0.6, 0.55] + [0.0] * 98))  # beats it on tasks 0 and 1
-    assert "entries beat the best known score on 2 test tasks, by up to 20.0%" in tables.headroom(SPEC, entries)
+    assert "entries beat the reference score on 2 test tasks, by up to 20.0%" in tables.headroom(SPEC, entries)
 
 
 def test_best_known_cost_sums_each_file_and_skips_a_missing_one(monkeypatch):
@@ -64,8 +64,8 @@ def test_compute_per_rl_entry_counts_each_training_once():
 
 
 @pytest.mark.parametrize("tier", ["easy", "debris"])
-def test_normalised_column_is_absent_without_best_known_scores(tier, monkeypatch):
-    monkeypatch.setattr(normalise.best_known, "scores", lambda *a, **k: None)
+def test_normalised_column_is_absent_without_reference_scores(tier, monkeypatch):
+    monkeypatch.setattr(normalise.reference, "reference_scores", lambda *a, **k: None)
     assert normalise.normalised_mean(_entry("a", tier, [0.3] * 100), "v2") is None
 
 

@@ -237,12 +237,12 @@ def test_random_residual_succeeds_on_90_percent_of_the_easy_test_pool():
 def test_docs_tier_table_is_generated_from_the_pool_file():
     from pathlib import Path
 
-    from ffsr_gym.tasks.build import tier_table
+    from ffsr_gym.tasks.pool_tables import tier_table
 
     text = (Path(__file__).resolve().parents[1] / "docs" / "envs.md").read_text(encoding="utf-8")
     block = text.split("<!-- tiers:begin -->\n")[1].split("<!-- tiers:end -->")[0]
     assert block == tier_table(POOLS)
-    from ffsr_gym.tasks.build import splice_docs_tables
+    from ffsr_gym.tasks.pool_tables import splice_docs_tables
 
     assert splice_docs_tables(text, "v2") == text, "rerun: ffsr-gym tasks tables --docs docs/envs.md"
 

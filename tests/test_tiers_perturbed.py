@@ -151,7 +151,7 @@ def test_pool_files_record_the_rule_they_were_built_under():
 
 @pytest.mark.parametrize("tier", PERTURBED_TIERS)
 def test_docs_tables_are_generated_from_the_pool_files(tier):
-    from ffsr_gym.tasks.build import tier_table
+    from ffsr_gym.tasks.pool_tables import tier_table
 
     text = (Path(__file__).parents[1] / "docs" / "envs.md").read_text(encoding="utf-8")
     block = text.split(f"<!-- tiers-{tier}:begin -->\n")[1].split(f"<!-- tiers-{tier}:end -->")[0]

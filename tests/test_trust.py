@@ -66,7 +66,7 @@ def _tampered_board(tmp_path):
 
 def test_a_tampered_leaderboard_refuses_every_bad_entry_by_name_and_check_fails(tmp_path):
     from ffsr_gym.bench import leaderboard
-    from ffsr_gym.cli import main
+    from ffsr_gym.cli.main import main
     from ffsr_gym.model.spec import spec_for_version
 
     root = _tampered_board(tmp_path)
@@ -96,7 +96,7 @@ def test_a_tampered_leaderboard_refuses_every_bad_entry_by_name_and_check_fails(
 def test_bad_numbers_are_named_before_any_work(argv, capsys):
     import time
 
-    from ffsr_gym.cli import main
+    from ffsr_gym.cli.main import main
 
     start = time.perf_counter()
     assert main(argv) == 2 and time.perf_counter() - start < 1.0
@@ -105,7 +105,7 @@ def test_bad_numbers_are_named_before_any_work(argv, capsys):
 
 
 def test_outputs_are_checked_before_the_run(tmp_path, capsys, monkeypatch):
-    from ffsr_gym.cli import main
+    from ffsr_gym.cli.main import main
 
     monkeypatch.chdir(tmp_path)
     assert main(["train", "--algo", "ppo", "--seeds", "0", "0"]) == 2 and "more than once" in capsys.readouterr().err
@@ -222,7 +222,7 @@ def test_a_corrupt_hyperparameter_file_is_named(tmp_path):
 def test_verify_re_runs_what_an_entry_names(tmp_path, monkeypatch, capsys):
     import json
 
-    from ffsr_gym.cli import main
+    from ffsr_gym.cli.main import main
 
     monkeypatch.chdir(tmp_path)
     from ffsr_gym.bench.planner_scores import evaluate_planner

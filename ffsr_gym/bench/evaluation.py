@@ -31,6 +31,7 @@ from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import BenchmarkSpec, spec_for_env_id
 from ffsr_gym.provenance import provenance
 from ffsr_gym.scoring.rules import score_rule
+from ffsr_gym.tasks.reference import reference_record
 from ffsr_gym.tasks.splits import pool, pool_path
 
 __all__ = ["EvalReport", "Policy", "PredictsActions", "evaluate", "objective_for_params"]
@@ -193,6 +194,7 @@ def _pool_plan(spec: BenchmarkSpec, env_id: str, *, task: Any, split: str | None
     pools = pool_path(task if is_pool else spec.tasks.tiers[0], version).read_bytes()
     extra = {"training_pool": training_pool, "evaluation_pool": f"{task}/{split}",
              "pool_file_sha256": hashlib.sha256(pools).hexdigest()}
+    extra |= reference_record(task, split, version)
     if spec.tasks.step_option:  # the step the episodes ran at; the leaderboard ranks the benchmark's own only
         extra["dt_s"] = float(kwargs.get("dt_s", spec.rules.dt_s))
     return Plan(spec, env_id, kwargs, [(int(i), int(i) if is_pool else None) for i in chosen], extra)
@@ -214,9 +216,12 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
         env_kwargs: other ``gymnasium.make`` arguments (v0: ``{"scenario": ...}``; never the score).
         name: entry name (file name of :meth:`EvalReport.save`).
         progress: show a progress bar.
-        task, split, indices, training_pool: protocol ``pool`` (v2): the tier (default ``"easy"``),
-            the pool scored (default: its **test** pool, one episode per task), the pool indices
-            (default: all), and what the policy was trained or tuned on (recorded in the entry).
+        task: protocol ``pool`` (v2): the tier (default ``"easy"``), or a custom task (below).
+        split: protocol ``pool``: the pool scored (default: the tier's **test** pool, one episode per task).
+        indices: protocol ``pool``: the pool indices scored (default: all).
+        training_pool: protocol ``pool``: what the policy was trained or tuned on, recorded in the entry:
+            ``"<tier>/train"`` or ``"<tier>/validation"`` (optionally followed by ``" (a note)"``), never a test
+            pool.
         executor: protocol ``pool``: score chunks of ``chunk`` tasks on any
             ``concurrent.futures.Executor`` (processes, Dask); the policy must pickle. Same entry.
         batched: a fixed (m, T_c) on a pool runs all tasks in one batched env in this process

@@ -1,9 +1,11 @@
-"""Scores relative to each task's best known score: the leaderboard's normalised column and headroom.
+"""Scores relative to each task's reference score: the leaderboard's normalised column and headroom.
 
-An entry's normalised score is the mean over its episodes of score / best known score of the
-episode's task (:mod:`ffsr_gym.tasks.best_known`): 1 means every task as good as the best found,
-0 every task failed. It can exceed 1 on a task where an entry beats the search. It exists for a
-pool entry when every task of its evaluation pool has a stored best known score.
+An entry's normalised score is the mean over its episodes of score / the reference score of the
+episode's task: the version's **frozen reference** (:mod:`ffsr_gym.tasks.reference`), the best
+known scores as of the version's release, so a published normalised score never moves when the
+search later improves a task. 1 means every task as good as the reference, 0 every task failed; it
+can exceed 1 where an entry beats the reference. It exists for a pool entry when its evaluation
+pool is in the reference.
 """
 
 from __future__ import annotations
@@ -12,14 +14,14 @@ from typing import Any
 
 import numpy as np
 
-from ffsr_gym.tasks import best_known
-from ffsr_gym.tasks.splits import pool, version_splits
+from ffsr_gym.tasks import reference
+from ffsr_gym.tasks.splits import version_splits
 from ffsr_gym.tasks.tiers import ALL_TIERS
 
 
 def reference_scores(entry: dict[str, Any], version: str) -> np.ndarray | None:
-    """The best known score of every task of the entry's evaluation pool of ``version``, or None (not a tier
-    pool, or not every task stored)."""
+    """The frozen reference score of every task of the entry's evaluation pool of ``version``, or None (not a
+    tier pool, or a pool the reference does not cover)."""
     extra = entry.get("extra") or {}
     where = extra.get("evaluation_pool")
     if not isinstance(where, str) or extra.get("custom_task") is not None:
@@ -27,7 +29,7 @@ def reference_scores(entry: dict[str, Any], version: str) -> np.ndarray | None:
     tier, _, split = where.partition("/")
     if tier not in ALL_TIERS or split not in version_splits(version):
         return None
-    return best_known.scores(tier, split, len(pool(tier, split, version=version)), version)
+    return reference.reference_scores(tier, split, version)
 
 
 def normalised_scores(entry: dict[str, Any], version: str) -> np.ndarray | None:

@@ -23,6 +23,7 @@ from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.sim.simulate import simulate
 from ffsr_gym.tasks.certificate import Certificate, planner_episode, planner_task, replay
 from ffsr_gym.tasks.random_family import sample_scenario
+from ffsr_gym.tasks.reference import reference_record
 from ffsr_gym.tasks.splits import pool, pool_path, task_scenario
 
 
@@ -87,7 +88,8 @@ def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | 
         rows.append({"seed": index, "task_index": index, "task_seed": entry.seed, **result.as_dict()})
     extra = {"training_pool": training_pool, "evaluation_pool": f"{task}/{split}",
              "pool_file_sha256": hashlib.sha256(pool_path(task, benchmark.version).read_bytes()).hexdigest(),
-             "planner": {"method": method, "m": m, "T_c_s": T_c, "gain_per_s": gain_per_s}, "compute": compute}
+             "planner": {"method": method, "m": m, "T_c_s": T_c, "gain_per_s": gain_per_s}, "compute": compute,
+             **reference_record(task, split, benchmark.version)}
     if spec.tasks.step_option:
         extra["dt_s"] = benchmark.dt_s
     prov = provenance(scenarios=hashes, seeds=list(range(len(rows))), wall_time_s=time.perf_counter() - start)

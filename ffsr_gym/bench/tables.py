@@ -21,7 +21,7 @@ import numpy as np
 from ffsr_gym.bench.normalise import normalised_mean, normalised_scores
 from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.model.spec import BenchmarkSpec
-from ffsr_gym.tasks import best_known
+from ffsr_gym.tasks import best_known, reference
 
 
 def safe(text: Any) -> str:
@@ -40,8 +40,10 @@ def header(spec: BenchmarkSpec, group: str) -> list[str]:
     if spec.leaderboard.ranking == "feasible_then_iqm":
         return [f"### {group}", "", "| rank | entry | method | feasible rate | score IQM [95% CI] | score mean | episodes "
                 "| commit |", "|---|---|---|---|---|---|---|---|"]
+    sha = reference.reference_sha256(spec.rules.version)
     return [f"### {group} ({spec.evaluation.split} pool)", "",
-            ("| rank | entry | score IQM [95% CI] | success | normalised | paper B (median) | peak rate mission / "
+            (f"| rank | entry | score IQM [95% CI] | success | normalised{f' (ref. {sha[:8]})' if sha else ''} | "
+             "paper B (median) | peak rate mission / "
              "balance [deg/s] | final error [m], successes | convergence [s], successes | compute | trained on | "
              "commit |"), "|---|---|---|---|---|---|---|---|---|---|---|---|"]
 
@@ -152,14 +154,16 @@ def headroom(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> s
             best, name = max((float(r.mean()), e["name"]) for e, r in pairs)  # normalised_mean, from the same scores
             beaten = {row["task_index"] for e, r in pairs for row, x in zip(e["episodes"], r) if x > 1.0}
             top = max(float(r.max()) for _, r in pairs)
-            beats = (f"entries beat the best known score on {len(beaten)} test task{'s' * (len(beaten) != 1)}, by up to "
-                     f"{top - 1.0:.1%}" if beaten
-                     else "no entry beats the best known score on any test task")
+            beats = (f"entries beat the reference score on {len(beaten)} test task{'s' * (len(beaten) != 1)}, by up "
+                     f"to {top - 1.0:.1%}" if beaten
+                     else "no entry beats the reference score on any test task")
             cells.append(f"{tier} {1.0 - best:.3f} (best: `{safe(name)}`, {best:.3f}; {beats})")
         elif items:
-            cells.append(f"{tier} - (no best known scores)")
-    text = ("Headroom (1 − the best entry's normalised score, the mean over test tasks of score / the task's best "
-            "known score): " + "; ".join(cells) + ".")
+            cells.append(f"{tier} - (no reference scores)")
+    sha = reference.reference_sha256(spec.rules.version)
+    text = ("Headroom (1 − the best entry's normalised score, the mean over test tasks of score / the task's score in "
+            f"the frozen reference{f' {sha[:8]}' if sha else ''}, the best known scores when {spec.rules.version} was "
+            "released): " + "; ".join(cells) + ". " + records_text(spec.rules.version))
     stored = best_known.load_best_known(spec.rules.version)
     gap = (stored or {}).get("convergence")
     if gap:
@@ -168,6 +172,17 @@ def headroom(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> s
                  f"{gap['median_relative_gap']:.1%} in the median and {gap['max_relative_gap']:.1%} at most.")
     cost = best_known_cost(spec.rules.version)
     return text + (" " + cost if cost else "")
+
+
+def records_text(version: str) -> str:
+    """The best known scores found since the reference was frozen: records, shown apart, never the reference."""
+    found = reference.records_since(version)
+    if not found:
+        return "Records since the reference was frozen: none (no test task's best known score has improved)."
+    tiers = sorted({r["tier"] for r in found})
+    return (f"Records since the reference was frozen (the best-known search improved them; the normalised column "
+            f"keeps the reference): {len(found)} test task{'s' * (len(found) != 1)} in {', '.join(tiers)}, by up to "
+            f"{max(r['gain'] for r in found):.1%}.")
 
 
 def best_known_cost(version: str) -> str:

@@ -26,6 +26,7 @@ from typing import Any
 
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.scoring.rules import score_rule
+from ffsr_gym.tasks.reference import reference_path, reference_sha256
 from ffsr_gym.tasks.splits import pool, pool_path
 
 #: An entry's name: it becomes a file name, and a table cell (no newline, no ``|``).
@@ -155,6 +156,10 @@ def _coverage_problems(entry: dict, rows: list[dict], spec: BenchmarkSpec, group
     version = spec.rules.version
     if sha is not None and sha != _pool_sha(group, version):
         problems.append(f"pool_file_sha256 {str(sha)[:12]}...: the {group} pool file has changed since (stale)")
+    recorded, frozen = extra.get("reference_sha256"), reference_sha256(version)
+    if recorded is not None and recorded != frozen:
+        problems.append(f"reference_sha256 {str(recorded)[:12]}...: scored against another reference than this "
+                        f"version's frozen one; allowed: {str(frozen)[:12]}... ({reference_path(version).name})")
     if spec.tasks.step_option and extra.get("dt_s") != spec.rules.dt_s:
         problems.append(f"dt_s {extra.get('dt_s')!r}: this table ranks episodes at the benchmark's own step, "
                         f"dt_s = {spec.rules.dt_s} s")

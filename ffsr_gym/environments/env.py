@@ -82,6 +82,7 @@ class FFSREnv(gym.Env):
     ``backend``: ``"auto"`` (compiled kernel), ``"kernel"`` or ``"pinocchio"`` (the reference).
 
     ## Version History
+
     * v2: verdicts of the closed loop, not of the time step: the distance blend law, a 1 cm
       keep-out distance, tiers certified over an ensemble (dt/2, dt/4, starts 1e-6 deg off,
       Pinocchio) with margins, train / validation / test pools, ``dt_s=`` for sensitivity studies.

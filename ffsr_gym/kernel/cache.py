@@ -13,10 +13,23 @@ from pathlib import Path
 
 from numba.core.registry import CPUDispatcher
 
-from ffsr_gym.kernel import batch, borrow, collision, decision, dynamics, linalg, loop, physics, planner, score_terms, servo
+from ffsr_gym.kernel import (
+    batch,
+    borrow,
+    collision,
+    decision,
+    dynamics,
+    inverse,
+    linalg,
+    loop,
+    physics,
+    planner,
+    score_terms,
+    servo,
+)
 
 #: Modules with compiled functions (their caches are flushed together).
-MODULES = (linalg, physics, dynamics, servo, collision, planner, loop, score_terms, decision, batch)
+MODULES = (linalg, physics, dynamics, servo, collision, inverse, planner, loop, score_terms, decision, batch)
 #: Everything compiled into those functions: the modules and the intrinsics they use.
 SOURCES = (borrow, *MODULES)
 

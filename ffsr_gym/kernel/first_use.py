@@ -20,10 +20,11 @@ from typing import Any
 
 #: Seconds a first call may take before it is announced (a load from numba's cache takes less).
 QUIET_S = 3.0
-#: What each first use compiled, in seconds, measured from an empty numba cache on 2 cores (x86_64), in the order
-#: a user meets them (each after the one before it was cached); ``benchmarks/setup_time.py`` measures them again.
+#: What each first use compiled, in seconds, from an empty numba cache on 2 cores (x86_64), in the order a user
+#: meets them, each after the one before it was cached (``benchmarks/setup_time.json``: the main job's first run
+#: less its second, then each env's first use).
 #: The servo plant runs in the same compiled functions (a flag of the settings): its first use compiles nothing.
-ESTIMATES_S = {"closed loop": 125.0, "single env": 112.0, "batched env": 140.0}
+ESTIMATES_S = {"closed loop": 120.0, "single env": 160.0, "batched env": 185.0}
 #: Set to 1 to say nothing (tests that time calls, quiet scripts).
 QUIET_ENV = "FFSR_GYM_QUIET_COMPILE"
 

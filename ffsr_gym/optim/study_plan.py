@@ -26,7 +26,8 @@ from typing import Any
 from ffsr_gym.bench.evaluation import spec_of
 from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.optim.rl import entry_name, scored_seed_files, seed_folder
+from ffsr_gym.optim.rl import entry_name
+from ffsr_gym.optim.rl_study import scored_seed_files, seed_folder
 
 
 @dataclass(frozen=True)

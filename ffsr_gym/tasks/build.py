@@ -30,7 +30,6 @@ from concurrent.futures import Executor
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from tqdm.auto import tqdm
 
 from ffsr_gym.exceptions import FFSRError
@@ -38,10 +37,15 @@ from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.drives import drives_path
 from ffsr_gym.model.resources import envs_dir, robot_dir
 from ffsr_gym.model.scenario import load_scenario
-from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic
-from ffsr_gym.tasks.perturbation import (PERTURBED_TIERS, confirmation_member, load_perturbed_rule,
-                                         perturbed_rule_sha256, servo_rule_path)
+from ffsr_gym.provenance import provenance, write_json_atomic
 from ffsr_gym.tasks.certificate import Certificate, Margins, replay
+from ffsr_gym.tasks.perturbation import (
+    PERTURBED_TIERS,
+    confirmation_member,
+    load_perturbed_rule,
+    perturbed_rule_sha256,
+    servo_rule_path,
+)
 from ffsr_gym.tasks.splits import LABEL_CODES, SEED_RANGES, expected_count, load_pools, pool_path, task_scenario
 from ffsr_gym.tasks.tiers import PERTURBED_REJECTIONS, REJECTIONS, TIERS, Verdict, classify, classify_perturbed
 
@@ -329,85 +333,3 @@ def build(work: str | Path, *, version: str, target: str | None = None, out: str
     return data
 
 
-def tier_table(data: dict[str, Any]) -> str:
-    """Markdown table of a pool file's counts: candidates, tiers, rejection shares (a perturbed tier:
-    the version's tier tasks perturbed, the share certified and the default planner's success in the pool)."""
-    tiers = tuple(data.get("tiers", TIERS))
-    if tiers != TIERS:
-        return _perturbed_table(data, tiers[0])
-    causes = [cause for cause in REJECTIONS if cause in data["splits"]["train"]["rejection_counts"]]
-    lines = ["| split | candidates | " + " | ".join(tiers) + " | rejected | rejected, a constant setting solves | "
-             + " | ".join(f"`{cause}`" for cause in causes) + " |",
-             "|---" * (4 + len(tiers) + len(causes)) + "|"]
-    for split in data["splits"]:
-        s = data["splits"][split]
-        rejected = s["candidates"] - sum(s["tier_counts"].values())
-        shares = " | ".join(f"{100 * s['rejection_shares'][cause]:.1f} %" for cause in causes)
-        lines.append(f"| {split} | {s['candidates']} | " + " | ".join(str(s["tier_counts"][t]) for t in tiers)
-                     + f" | {rejected} | {s['rejected_but_constant_solvable']} | {shares} |")
-    return "\n".join(lines) + "\n"
-
-
-def _perturbed_table(data: dict[str, Any], tier: str) -> str:
-    unsolved = [cause for cause in PERTURBED_REJECTIONS
-                if cause != "base_rejected" and cause in data["splits"]["train"]["rejection_counts"]]
-    version = data["version"]
-    default = load_benchmark(version).planner
-    played = "on the servo plant" if tier == "servo" else "perturbed"
-    lines = [f"| split | seeds examined | {version} tier tasks {played} | certified (in the pool) | certified share | "
-             + " | ".join(f"`{cause}`" for cause in unsolved)
-             + f" | reference ({default.m:g}, {default.T_c_s:g} s) succeeds, pool |",
-             "|---" * (6 + len(unsolved)) + "|"]
-    for split in data["splits"]:
-        s = data["splits"][split]
-        counts = s["rejection_counts"]
-        perturbed = s["candidates"] - counts["base_rejected"]
-        certified = s["tier_counts"][tier]
-        lines.append(f"| {split} | {s['candidates']} | {perturbed} | {certified} | "
-                     f"{100 * certified / perturbed:.1f} % | "
-                     + " | ".join(str(counts[cause]) for cause in unsolved)
-                     + f" | {100 * s['default_success_in_pool'][tier]:.1f} % |")
-    return "\n".join(lines) + "\n"
-
-
-def physics_table(files: list[dict[str, Any]], split: str = "test") -> str:
-    """Markdown table of what the pool tasks of ``split`` are like, per tier of the pool ``files``: how the default
-    planner fails, the nominal motion's self clearance (base tiers), and the certificates' worst ensemble margins."""
-    lines = ["| tier | tasks | default planner: succeeds / rate limit / collision / final error | min self clearance "
-             "of the nominal motion: median [mm], share below 10 mm | certificates: constant / residual | median worst "
-             "obstacle clearance [mm] | worst obstacle clearance [mm] | largest peak rate [deg/s] |",
-             "|---|---|---|---|---|---|---|---|"]
-    for s in (data["splits"][split] for data in files):
-        lines += _physics_rows(s)
-    return "\n".join(lines) + "\n"
-
-
-def _physics_rows(s: dict[str, Any]) -> list[str]:
-    lines = []
-    for tier, entries in s["pools"].items():
-        fails = s["default_failures_in_pool"][tier]
-        causes = " / ".join(str(fails.get(c, 0)) for c in ("none", "rate_limit", "collision", "final_error"))
-        self_c = np.array([e["nominal"]["min_self_clearance_m"] for e in entries if "nominal" in e])
-        nominal = f"{1000 * np.median(self_c):.0f}, {np.mean(self_c < 0.01):.0%}" if len(self_c) else "- (its base task's)"
-        kinds = [e["certificate"]["kind"] for e in entries]
-        margins = s["pool_margins"][tier]
-        lines.append(f"| {tier} | {len(entries)} | {causes} | {nominal} | {kinds.count('constant')} / "
-                     f"{kinds.count('residual')} | {1000 * margins['median_min_clearance_m']:.0f} | "
-                     f"{1000 * margins['min_clearance_m']:.1f} | {margins['peak_rate_deg_s']:.1f} |")
-    return lines
-
-
-def docs_tables(version: str) -> dict[str, str]:
-    """The tables docs/envs.md shows of ``version``'s pool files, by marker name (``<!-- <name>:begin -->``)."""
-    base = load_pools(version=version)
-    perturbed = {tier: load_pools(None, (tier,), version) for tier in PERTURBED_TIERS}
-    tables = {"tiers": tier_table(base), "tiers-physics": physics_table([base, *perturbed.values()])}
-    tables.update({f"tiers-{tier}": tier_table(data) for tier, data in perturbed.items()})
-    return tables
-
-
-def splice_docs_tables(text: str, version: str, where: str = "the docs") -> str:
-    """``text`` with every table of :func:`docs_tables` between its markers."""
-    for name, table in docs_tables(version).items():
-        text = splice_generated(text, f"<!-- {name}:begin -->", f"<!-- {name}:end -->", table, where=where)
-    return text

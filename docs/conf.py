@@ -1,0 +1,23 @@
+"""Sphinx configuration of the ffsr-gym documentation (MyST Markdown pages, the furo theme, autodoc + napoleon).
+
+Build: ``pip install -e ".[docs]"`` then ``python -m sphinx -W -b html docs docs/_build/html``.
+"""
+
+from __future__ import annotations
+
+from importlib.metadata import version as _version
+
+project = "ffsr-gym"
+author = "the ffsr-gym authors"
+release = _version("ffsr-gym")
+extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.napoleon", "sphinx.ext.mathjax"]
+source_suffix = {".md": "markdown"}
+exclude_patterns = ["_build"]
+myst_enable_extensions = ["dollarmath", "colon_fence"]
+myst_heading_anchors = 3
+html_theme = "furo"
+html_title = f"ffsr-gym {release}"
+autodoc_member_order = "bysource"
+autodoc_typehints = "description"
+napoleon_google_docstring = True
+napoleon_numpy_docstring = False

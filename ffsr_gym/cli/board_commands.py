@@ -1,0 +1,154 @@
+"""Sub-command ``leaderboard``: render, check, update, plot, aggregates, pareto, verify."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+
+def _leaderboard(args: argparse.Namespace) -> int:
+    from ffsr_gym.bench.leaderboard import splice_summary, write_readme
+    from ffsr_gym.exceptions import InvalidInputError
+    from ffsr_gym.provenance import write_text_atomic
+
+    readme = Path(args.readme) if args.readme else None
+    if readme is not None and not readme.is_file():
+        raise InvalidInputError(f"--readme {args.readme!r} is not a file")
+    if args.check:
+        return _check_leaderboard(args.root, readme)
+    print("updated" if write_readme(args.root) else "already up to date", f"{args.root}/README.md")
+    if readme is not None:
+        write_text_atomic(readme, splice_summary(readme.read_text(encoding="utf-8"), args.root))
+        print("updated the leaderboard summary in", readme)
+    return 0
+
+
+def _check_leaderboard(root: str, readme: Path | None) -> int:
+    """``leaderboard render --check``: 1 when an entry is refused, or a table, the aggregates or a figure is out of
+    date."""
+    from ffsr_gym.bench.leaderboard import check, load_entries, verified
+    from ffsr_gym.model.spec import all_specs, ranked_spec
+    from ffsr_gym.report.leaderboard_plots import stale_figures
+
+    loaded = {version: load_entries(root, spec) for version, spec in all_specs().items()}  # read and verified once
+    problems = check(root, readme, loaded)
+    problems += [f"out of date: {line}; run ffsr-gym leaderboard update"
+                 for line in stale_figures(root, verified(loaded[ranked_spec().version]))]
+    for line in problems:
+        print(line, file=sys.stderr)
+    if not problems:
+        print("leaderboard tables are up to date, and every entry verifies")
+    return 1 if problems else 0
+
+
+def _verified(root: str) -> dict:
+    """The ranked version's entries that verify, by tier (what the figures draw)."""
+    from ffsr_gym.bench.leaderboard import load_entries, verified
+    from ffsr_gym.model.spec import ranked_spec
+
+    return verified(load_entries(root, ranked_spec()))
+
+
+def _leaderboard_plot(args: argparse.Namespace) -> None:
+    from ffsr_gym.report.leaderboard_plots import draw_all
+
+    for what, path in draw_all(args.root, _verified(args.root)).items():
+        print(f"wrote {path}" if path else f"no data for the {what} figure under {args.root}: not drawn")
+
+
+def _leaderboard_update(args: argparse.Namespace) -> int:
+    """Everything a submission changes, in order: tables (and the README summary), aggregates, figures."""
+    from ffsr_gym.exceptions import require
+
+    require("rliable", "analysis", "rliable, pandas", "the aggregates across tiers need")  # before anything is written
+    _leaderboard_aggregates(args)  # from the verified entries; the README summary shows them
+    _leaderboard(argparse.Namespace(root=args.root, readme=args.readme, check=False))
+    _leaderboard_plot(args)
+    from ffsr_gym.bench.leaderboard import check
+
+    problems = check(args.root, Path(args.readme) if args.readme else None)  # the figures were just drawn
+    for line in problems:
+        print(line, file=sys.stderr)
+    print("updated; every entry verifies" if not problems else "updated, but the leaderboard cannot be published")
+    return 1 if problems else 0
+
+
+def _leaderboard_aggregates(args: argparse.Namespace) -> None:
+    from ffsr_gym.bench import aggregates
+    from ffsr_gym.model.spec import ranked_spec
+    from ffsr_gym.report.leaderboard_plots import plot_aggregates
+
+    spec = ranked_spec()
+    entries = _verified(args.root)
+    path = aggregates.write(args.root, spec, entries)
+    if path is None:
+        print(f"nothing to aggregate under {args.root}: no tier whose test tasks all have best known scores, or no "
+              f"{aggregates.REFERENCE.format(version=spec.rules.version)} entry")
+        return
+    print("wrote", path, "and", plot_aggregates(path))
+
+
+def _leaderboard_pareto(args: argparse.Namespace) -> None:
+    from ffsr_gym.bench.pareto import task_pareto
+    from ffsr_gym.bench.policies import load_model
+    from ffsr_gym.model.spec import ranked_spec
+    from ffsr_gym.report.leaderboard_plots import PARETO_FILE
+
+    out = Path(args.root) / ranked_spec().version / PARETO_FILE
+    print("wrote", task_pareto(args.root, out, args.models, load_model=load_model, progress=not args.no_progress,
+                               command=" ".join(["ffsr-gym", *args.argv])))
+
+
+def _verify(args: argparse.Namespace) -> int:
+    from ffsr_gym.bench.replay import replay_entry
+
+    verdict = replay_entry(args.entry, run_code=args.run_code)
+    print(f"{args.entry}: {verdict.status}: {verdict.text}", file=sys.stdout if verdict.exit_code == 0 else sys.stderr)
+    return verdict.exit_code
+
+
+def add_board_commands(sub: Any) -> None:
+    """Sub-command leaderboard (render, plot, pareto)."""
+    board = sub.add_parser("leaderboard", help="leaderboard tables and figures")
+    board_sub = board.add_subparsers(dest="action", required=True)
+    plot = board_sub.add_parser("plot", help="the ranked version's figures (IQM with CIs, performance profiles, learning "
+                                             "curves, the Pareto plot) under <root>/<version>/, from the JSON only")
+    plot.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
+    plot.set_defaults(func=_leaderboard_plot)
+    agg = board_sub.add_parser("aggregates", help="rliable aggregates across tiers (IQM of score / best known score with "
+                                                  "bootstrap CIs over tasks and runs, probability of improvement over the "
+                                                  "reference planner, performance profiles): "
+                                                  "<root>/<version>/aggregates.json and .png")
+    agg.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
+    agg.set_defaults(func=_leaderboard_aggregates)
+    pareto = board_sub.add_parser("pareto", help="run the planner grid and every baseline on the first easy test task; "
+                                                 "writes <root>/<version>/pareto.json")
+    pareto.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
+    pareto.add_argument("--models", default=None,
+                        help="folder of the RL study's models (<algo>_<env id>_<tier>_seed<s>/model.zip); "
+                             "without it RL entries are listed as not run (default: none)")
+    pareto.add_argument("--no-progress", action="store_true", help="hide the progress bars")
+    pareto.set_defaults(func=_leaderboard_pareto)
+    verify = board_sub.add_parser("verify", help="replay an entry's trace (or planner, fixed parameters) and compare "
+                                                 "its rows exactly (exit 0: reproduced, 1: differ, 3: skipped code)")
+    verify.add_argument("entry", help="the entry's JSON file")
+    verify.add_argument("--run-code", default=None, metavar="TEXT",
+                        help="consent to run the code the entry names: exactly its extra.policy callable or SB3 .zip "
+                             "(importing a file or unpickling a model runs code of its maker's choosing)")
+    verify.set_defaults(func=_verify)
+    render = board_sub.add_parser("render", help="regenerate the tables in <root>/README.md from the JSON entries")
+    render.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
+    render.add_argument("--check", action="store_true",
+                        help="exit 1 if an entry is refused or a table, the aggregates or a figure is out of date; "
+                             "write nothing")
+    render.add_argument("--readme", default=None,
+                        help="also regenerate the leaderboard summary between its markers in this file (e.g. README.md)")
+    render.set_defaults(func=_leaderboard)
+    update = board_sub.add_parser("update", help="regenerate everything a submission changes (tables, the README "
+                                                 "summary, aggregates, figures), then check it all (needs the "
+                                                 "'analysis' extra)")
+    update.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
+    update.add_argument("--readme", default=None, help="also the summary between its markers in this file")
+    update.set_defaults(func=_leaderboard_update)

@@ -1,0 +1,31 @@
+"""The choices the command line offers, read from the package (tiers, versions, algorithms, build targets)."""
+
+from __future__ import annotations
+
+
+def build_targets() -> list[str]:
+    """What ``tasks build --tier`` builds: ``base`` (easy, medium and hard together) or one perturbed tier."""
+    from ffsr_gym.tasks.perturbation import PERTURBED_TIERS
+
+    return ["base", *PERTURBED_TIERS]
+
+
+def all_task_tiers() -> list[str]:
+    """Every tier of a pool version: easy, medium, hard and the perturbed ones."""
+    from ffsr_gym.tasks.tiers import ALL_TIERS
+
+    return list(ALL_TIERS)
+
+
+def tier_versions() -> list[str]:
+    """The benchmark versions with task tiers (a rule file), newest last."""
+    from ffsr_gym.model.benchmark import VERSIONS
+
+    return list(VERSIONS)
+
+
+def algorithm_names() -> list[str]:
+    """The algorithms with a shipped hyperparameter file."""
+    from ffsr_gym.optim.rl import algorithms
+
+    return sorted(algorithms())

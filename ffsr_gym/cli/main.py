@@ -1,0 +1,83 @@
+"""The ``ffsr-gym`` parser and entry point (:data:`DESCRIPTION` is what ``ffsr-gym --help`` says); the sub-commands
+live in one module per group: the model and the paper, the policies, the long studies, the leaderboards."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from typing import Any
+
+from ffsr_gym.cli.board_commands import add_board_commands
+from ffsr_gym.cli.model_commands import add_model_commands
+from ffsr_gym.cli.policy_commands import add_policy_commands
+from ffsr_gym.cli.study_commands import add_study_commands
+from ffsr_gym.exceptions import FFSRError
+from ffsr_gym.model.spec import registered_ids
+
+DESCRIPTION = ("Dual-arm free-floating space robot: reproduce the paper's predefined-time planner, play and score "
+               "the Gymnasium benchmark ({ids}), train baselines, build task pools and render leaderboards.")
+
+
+class _DefaultsShown(argparse.HelpFormatter):
+    """Every option's help ends with its default, unless the help text already names it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if ("default" in text or not action.option_strings or action.required or action.default is argparse.SUPPRESS
+                or isinstance(action, (argparse._StoreTrueAction, argparse._VersionAction, argparse._HelpAction))):
+            return text
+        value = action.default
+        shown = "none" if value is None else " ".join(map(str, value)) if isinstance(value, (list, tuple)) else value
+        return f"{text} (default: {shown})"
+
+
+class _Parser(argparse.ArgumentParser):
+    """The command line's parsers: each shows its options' defaults (sub-command parsers are of this class too)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", _DefaultsShown)
+        super().__init__(*args, **kwargs)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``ffsr-gym`` argument parser, every sub-command on it."""
+    from importlib.metadata import version
+
+    parser = _Parser(prog="ffsr-gym", description=DESCRIPTION.format(ids=", ".join(registered_ids())),
+                     epilog="Each command has its own --help. Documentation: README.md, docs/envs.md, docs/model.md, "
+                            "docs/robots.md, leaderboards/README.md.")
+    parser.add_argument("--version", action="version", version=f"ffsr-gym {version('ffsr-gym')}")
+    sub = parser.add_subparsers(dest="command", required=True)
+    for add in (add_model_commands, add_policy_commands, add_study_commands, add_board_commands):
+        add(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``ffsr-gym`` console script."""
+    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else argv
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # argparse's named errors (a bad option, a number out of range) return 2
+        if not stop.code:
+            raise  # --help, --version
+        return int(stop.code)
+    args.argv = argv
+    from ffsr_gym.bench.leaderboard import checks_once
+
+    try:
+        with checks_once():  # a command that loads the entries several times verifies each file once
+            code = args.func(args)
+    except FFSRError as exc:
+        print(f"ffsr-gym: error: {exc}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # the reader went away (``ffsr-gym info | head``): stop quietly, as other tools do
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
+    return int(code or 0)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

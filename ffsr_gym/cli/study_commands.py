@@ -1,0 +1,213 @@
+"""Sub-commands of the long studies: ``train``, ``tasks`` (build, best-known, tables), ``dataset``."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from ffsr_gym.bench.options import natural, positive_int, shard
+from ffsr_gym.cli.choices import algorithm_names, all_task_tiers, build_targets, tier_versions
+from ffsr_gym.model.spec import all_task_names, registered_ids
+
+
+def add_study_commands(sub: Any) -> None:
+    """Sub-commands train, tasks and dataset."""
+    tr = sub.add_parser("train", help="train stable-baselines3 agents and score them with ffsr_gym.evaluate")
+    tr.add_argument("--algo", required=True, choices=algorithm_names(),
+                    help="a stable-baselines3 algorithm with a shipped hyperparameter file")
+    tr.add_argument("--env-id", default="FFSR-v0", choices=registered_ids(), help="environment id (default: FFSR-v0)")
+    tr.add_argument("--scenario", default="paper",
+                    help="versions scored on seeds: scenario name or TOML path (default: paper)")
+    tr.add_argument("--task", default="easy", choices=all_task_names(),
+                    help="versions with tiers: the tier; trains on its training pool, scores its test pool (default: easy)")
+    tr.add_argument("--curve-every", type=positive_int, default=5000,
+                    help="versions with tiers: env steps between scorings on the validation pool (the learning curve "
+                         "and the checkpoint selection; default: 5000)")
+    tr.add_argument("--seeds", type=natural, nargs="+", default=[0, 1, 2, 3, 4], help="training seeds (default: 0 1 2 3 4)")
+    tr.add_argument("--timesteps", type=positive_int, default=None,
+                    help="env steps per seed (default: n_timesteps of the hyperparameter file)")
+    tr.add_argument("--n-envs", type=positive_int, default=None,
+                    help="environment copies stepped together (default: n_envs of the hyperparameter file)")
+    tr.add_argument("--vec-env", default="batched", choices=["batched", "single"],
+                    help="batched: all copies in one batched-kernel env (SB3 VecEnv adapter); single: SB3's make_vec_env "
+                         "over single envs; the same episodes either way (default: batched)")
+    tr.add_argument("--hyperparams", default=None, help="folder with <algo>.yml (default: the shipped ffsr_gym/hyperparams)")
+    tr.add_argument("--out", default="runs/rl", help="folder of the models and records (default: runs/rl)")
+    tr.add_argument("--leaderboard", default=None, help="write the entry under this folder")
+    tr.add_argument("--force", action="store_true", help="replace an entry of the same name (default: refuse)")
+    tr.add_argument("--no-progress", action="store_true")
+    tr.set_defaults(func=_train)
+    tasks = sub.add_parser("tasks", help="a benchmark version's task tiers")
+    tasks_sub = tasks.add_subparsers(dest="action", required=True)
+    tb = tasks_sub.add_parser("build", help="apply the tier rule to candidate seeds and write the pool file "
+                                            "(resumable: finished chunks in --work are kept)")
+    _add_version(tb, "benchmark version whose rule files apply")
+    tb.add_argument("--tier", default="base", choices=build_targets(),
+                    help="base: the easy, medium and hard pools; debris, robust or servo: that tier, on top of the "
+                         "version's pool file's tier tasks (default: base)")
+    tb.add_argument("--work", default=None, help="folder of the finished chunks (default: runs/tasks-<version>; "
+                                                 "a perturbed tier uses <work>/<tier>)")
+    tb.add_argument("--out", default=None, help="pool file to write (default: the shipped "
+                                                "envs/benchmark/<version>_tasks.json, or <version>_<tier>_tasks.json)")
+    tb.add_argument("--chunk", type=positive_int, default=100, help="candidates per chunk (default: 100)")
+    tb.add_argument("--workers", type=positive_int, default=2, help="worker processes (default: 2)")
+    tb.add_argument("--max-candidates", type=positive_int, default=50_000, help="give up after this many per split (default: 50000)")
+    tb.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    tb.set_defaults(func=_tasks)
+    bk = tasks_sub.add_parser("best-known", help="the best known score of every pool task (a per-task CMA-ES over "
+                                                 "action schedules; resumable) into envs/benchmark/<version>_best_known.json "
+                                                 "(training pools: <version>_best_known_train.json)")
+    _add_version(bk)
+    bk.add_argument("--tiers", nargs="+", default=list(all_task_tiers()), choices=all_task_tiers(),
+                    help="tiers (default: all)")
+    bk.add_argument("--splits", nargs="+", default=["test", "validation"], choices=["train", "validation", "test"],
+                    help="pools searched (default: test validation)")
+    bk.add_argument("--work", default="studies/best-known",
+                    help="finished tasks, one jsonl per pool (default: studies/best-known, kept in git)")
+    bk.add_argument("--shard", type=shard, default=None, metavar="K/N",
+                    help="only the tasks whose index is K modulo N, into a work file of the shard's own: run N "
+                         "processes with 0/N ... N-1/N to share the pools (default: every task)")
+    bk.add_argument("--doubled", type=positive_int, default=None, metavar="N",
+                    help="instead: re-run N random stored tasks of these pools with twice the generations and store "
+                         "the gap in the file")
+    bk.add_argument("--write-shipped", action="store_true",
+                    help="write the package's own best-known files (a build of each whole file, from a source "
+                         "checkout); default: their copies inside --work")
+    bk.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    bk.set_defaults(func=_tasks_best_known)
+    tt = tasks_sub.add_parser("tables", help="the tier tables of a version's pool files (docs/envs.md shows them)")
+    _add_version(tt)
+    tt.add_argument("--docs", default=None, help="write them between their markers in this file (default: print)")
+    tt.set_defaults(func=_tasks_tables)
+    fr = tasks_sub.add_parser("freeze-reference", help="write a version's frozen reference (the normalised column's "
+                                                       "divisor) from its best-known file, once")
+    _add_version(fr)
+    fr.add_argument("--out", default=None, help="file to write (default: the shipped envs/benchmark/<version>_reference.json)")
+    fr.set_defaults(func=_tasks_freeze_reference)
+    ds = sub.add_parser("dataset", help="the best known trajectories of a tier's pool as a Minari dataset (offline RL, "
+                                        "imitation); needs pip install \"ffsr-gym[dataset]\"")
+    ds.add_argument("--tier", default="easy", choices=all_task_tiers(), help="tier (default: easy)")
+    ds.add_argument("--env-id", default="FFSR-Residual-v2", choices=["FFSR-Residual-v2", "FFSR-v2"],
+                    help="the env whose actions are recorded (default: FFSR-Residual-v2)")
+    ds.add_argument("--split", default="train", choices=["train", "validation"],
+                    help="pool (default: train; validation is for model selection; the test pool is never a dataset)")
+    ds.add_argument("--root", default=None, help="datasets folder (default: MINARI_DATASETS_PATH or Minari's default)")
+    ds.set_defaults(func=_dataset)
+
+def _train(args: argparse.Namespace) -> None:
+    from ffsr_gym.bench.evaluation import spec_of
+    from ffsr_gym.bench.options import free_entry, unique_seeds
+    from ffsr_gym.bench.verify import CHECKPOINTS
+    from ffsr_gym.optim.rl import entry_name
+    from ffsr_gym.optim.rl_study import train_and_evaluate
+
+    spec = spec_of(args.env_id)
+    task = args.task if spec.evaluation.protocol == "pool" else args.scenario
+    folder = Path(args.leaderboard or ".") / spec.folder(args.env_id, task)
+    unique_seeds(args.seeds)
+    checkpoints = list(CHECKPOINTS) if spec.evaluation.protocol == "pool" else ["last"]
+    if args.leaderboard:  # before any training: a committed entry is never replaced by accident
+        for checkpoint in checkpoints:
+            free_entry(folder, entry_name(args.algo, spec, args.env_id, task) + CHECKPOINTS[checkpoint], force=args.force)
+    reports = train_and_evaluate(args.algo, args.env_id, task=task, seeds=args.seeds, out=args.out,
+                                 timesteps=args.timesteps, hyperparams=args.hyperparams, curve_every=args.curve_every,
+                                 progress=not args.no_progress, n_envs=args.n_envs, vec_env=args.vec_env)
+    for report in reports.values():
+        print(f"{report.name}: {report.metrics}")
+        if args.leaderboard:
+            print("wrote", report.save(folder, overwrite=args.force))
+
+
+def _tasks(args: argparse.Namespace) -> None:
+    from concurrent.futures import ProcessPoolExecutor
+
+    from ffsr_gym.tasks.build import build, die_with_parent
+
+    workers = args.workers
+    executor = ProcessPoolExecutor(workers, initializer=die_with_parent) if workers > 1 else None
+    try:
+        version = args.version
+        work = args.work or f"runs/tasks-{version}"
+        data = build(work, version=version, target=version if args.tier == "base" else args.tier, out=args.out,
+                     chunk=args.chunk, max_candidates=args.max_candidates, executor=executor, workers=workers,
+                     progress=not args.no_progress)
+    finally:
+        if executor is not None:
+            executor.shutdown()
+    for split, summary in data["splits"].items():
+        print(f"{split}: {summary['candidates']} candidates, tiers {summary['tier_counts']}, "
+              f"rejected {summary['rejection_counts']}")
+
+
+def _tasks_best_known(args: argparse.Namespace) -> None:
+    import shlex
+
+    import numpy as np
+
+    from ffsr_gym.exceptions import InvalidInputError
+    from ffsr_gym.optim import best_known_build as build
+    from ffsr_gym.tasks.best_known import records
+
+    work = Path(args.work)
+    if args.doubled and args.shard is not None:
+        raise InvalidInputError("--shard with --doubled; allowed: --shard only for the search (without --doubled)")
+    if args.doubled:
+        rng = np.random.default_rng(0)
+        stored = [(t, s, r["index"]) for t in args.tiers for s in args.splits for r in records(t, s, args.version)]
+        if not stored:
+            raise InvalidInputError(f"--doubled: no stored best known score in {args.tiers} x {args.splits} yet")
+        sample = [stored[k] for k in sorted(rng.choice(len(stored), min(args.doubled, len(stored)), replace=False))]
+        summary = build.convergence(work, sample, version=args.version, progress=not args.no_progress,
+                                    out=build.target_file(work, args.version, "test", shipped=args.write_shipped))
+        print(f"doubled budget on {len(sample)} tasks: mean gap {summary['mean_gap']:.4f}, median relative gap "
+              f"{summary['median_relative_gap']:.4f}, max {summary['max_relative_gap']:.4f}")
+        return
+    for tier in args.tiers:
+        for split in args.splits:
+            build.run(tier, split, work, version=args.version, shard=args.shard, progress=not args.no_progress)
+    command = shlex.join(["ffsr-gym", "tasks", "best-known", "--tiers", *args.tiers, "--splits", *args.splits]
+                         + ([] if args.shard is None else ["--shard", "/".join(map(str, args.shard))])
+                         + (["--write-shipped"] if args.write_shipped else []))
+    for path in build.assemble(work, version=args.version, command=command, splits=args.splits,
+                               shipped=args.write_shipped):
+        print("wrote", path)
+
+
+def _tasks_tables(args: argparse.Namespace) -> None:
+    from ffsr_gym.provenance import write_text_atomic
+    from ffsr_gym.tasks.pool_tables import docs_tables, splice_docs_tables
+
+    if args.docs is None:
+        for name, table in docs_tables(args.version).items():
+            print(f"{name}:\n{table}")
+        return
+    from ffsr_gym.environments.info import docs_section
+    from ffsr_gym.provenance import splice_generated
+
+    path = Path(args.docs)
+    text = splice_docs_tables(path.read_text(encoding="utf-8"), args.version, where=str(path))
+    text = splice_generated(text, "<!-- info-keys:begin -->", "<!-- info-keys:end -->", docs_section(), where=str(path))
+    write_text_atomic(path, text)
+    print("wrote the tier tables and the info keys into", path)
+
+
+def _dataset(args: argparse.Namespace) -> None:
+    from ffsr_gym.bench.dataset import write_dataset
+
+    dataset = write_dataset(args.tier, args.env_id, split=args.split, root=args.root)
+    print(f"wrote {dataset.spec.dataset_id}: {dataset.total_episodes} episodes, {dataset.total_steps} steps"
+          + (f" under {args.root}" if args.root else " (MINARI_DATASETS_PATH or Minari's default folder)")
+          + f"\n{dataset.storage.metadata['description']}")  # says how much of the pool it holds
+
+
+def _tasks_freeze_reference(args: argparse.Namespace) -> None:
+    from ffsr_gym.tasks.reference import freeze
+
+    print("wrote", freeze(args.version, out=args.out, command=" ".join(["ffsr-gym", *args.argv])))
+
+
+def _add_version(parser: argparse.ArgumentParser, text: str = "benchmark version") -> None:
+    """The ``--version`` option of the ``tasks`` commands: a version with task tiers, the newest by default."""
+    parser.add_argument("--version", default=tier_versions()[-1], choices=tier_versions(),
+                        help=f"{text} (default: {tier_versions()[-1]})")

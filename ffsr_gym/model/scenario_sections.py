@@ -1,0 +1,220 @@
+"""The sections of a scenario file, one frozen dataclass each (:class:`ffsr_gym.model.scenario.Scenario` holds
+them). Each field's metadata gives its key's type and range, which the loader checks, naming the key, the value
+and what is allowed (:class:`~ffsr_gym.exceptions.ScenarioError`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ffsr_gym.model.schema import (
+    BOOL,
+    Vec,
+    choice,
+    natural,
+    number,
+    rows,
+    vector,
+)
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """Time settings and plant. ``duration_s`` [s] is the episode length, ``dt_s`` [s] the planner step.
+
+    ``plant``: ``"kinematic"`` (the default: the joints move exactly at the planned rates, the base by
+    momentum conservation) or ``"servo"`` (the planned rates command torque-limited joint servos
+    driving the free-floating multibody dynamics; section ``[servo]``, docs/model.md "Dynamics").
+    """
+
+    duration_s: float = field(metadata=number(0.0, 3600.0, lo_open=True))
+    dt_s: float = field(metadata=number(1e-5, 0.1))
+    plant: str = field(default="kinematic", metadata=choice("kinematic", "servo"))
+
+
+@dataclass(frozen=True)
+class ServoSettings:
+    """The servo plant (beyond the paper; docs/model.md "Dynamics"); used with ``simulation.plant = "servo"``.
+
+    The drives are the robot's ``drives/servo.toml``. ``physics_step_s`` [s]: the longest physics
+    step; the plant takes ``dt_s / n`` with the smallest whole n that is no longer (so a planner
+    step of another length, ``Scenario.at_step``, keeps a whole number of them); ``gain_scale``
+    multiplies every servo gain;
+    ``torque_limited = false`` lifts the torque limits (a study of the kinematic limit).
+    """
+
+    physics_step_s: float = field(default=0.001, metadata=number(1e-6, 0.1))
+    gain_scale: float = field(default=1.0, metadata=number(0.0, 1e6, lo_open=True))
+    torque_limited: bool = field(default=True, metadata=BOOL)
+
+
+@dataclass(frozen=True)
+class InitialState:
+    """Initial base pose [m, wxyz], joint angles [deg] and centroidal momentum.
+
+    ``momentum`` is ``[P; L_G]``: linear momentum [kg m/s] and angular momentum about the
+    system centre of mass [kg m^2/s], both in the inertial frame. The paper sets it to zero.
+    """
+
+    base_position_m: Vec = field(metadata=vector(3, -100.0, 100.0))
+    base_quaternion_wxyz: Vec = field(metadata=vector(4, -1.01, 1.01))
+    mission_joints_deg: Vec = field(metadata=vector(6, -360.0, 360.0))
+    balance_joints_deg: Vec = field(metadata=vector(6, -360.0, 360.0))
+    momentum: Vec = field(default=(0.0,) * 6, metadata=vector(6, -1e3, 1e3))
+
+
+@dataclass(frozen=True)
+class Target:
+    """Target end-effector pose: position [m] and scalar-first attitude (normalised on load)."""
+
+    position_m: Vec = field(metadata=vector(3, -100.0, 100.0))
+    quaternion_wxyz: Vec = field(metadata=vector(4, -1.01, 1.01))
+
+
+@dataclass(frozen=True)
+class ReferencePath:
+    """The desired end-effector path (file section ``[trajectory]``): trapezoidal velocity, motion time t_f [s],
+    acceleration time t_a [s] (docs/model.md)."""
+
+    motion_time_s: float = field(metadata=number(0.0, 3600.0, lo_open=True))
+    accel_time_s: float = field(metadata=number(0.0, 1800.0, lo_open=True))
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A point obstacle: position [m], physical radius [m] (0 = a point) and danger radius [m]."""
+
+    position_m: Vec = field(metadata=vector(3, -100.0, 100.0))
+    radius_m: float = field(default=0.0, metadata=number(0.0, 2.0))
+    danger_radius_m: float = field(default=0.2, metadata=number(0.0, 5.0, lo_open=True))
+
+
+#: Most obstacles besides ``[obstacle]`` a scenario may list in ``[debris]`` (the kernel's fixed slots).
+MAX_DEBRIS = 7
+
+
+@dataclass(frozen=True)
+class Debris:
+    """Further obstacles, and straight-line drift of every obstacle (beyond the paper; docs/model.md §14).
+
+    An obstacle at ``p`` drifting at ``v`` is at ``p + v t`` at time t [s]. ``obstacle_velocity_m_s``
+    is the drift of ``[obstacle]``; ``positions_m``, ``radii_m`` and ``velocities_m_s`` list up to
+    :data:`MAX_DEBRIS` further obstacles (one row each, equally long lists). They share
+    ``[obstacle]``'s danger radius. The danger field is the sum over all obstacles (the CDF is
+    cumulative), the μ distance the smallest, and clearance is taken to the nearest one.
+    """
+
+    obstacle_velocity_m_s: Vec = field(default=(0.0,) * 3, metadata=vector(3, -1.0, 1.0))
+    positions_m: tuple[Vec, ...] = field(default=(), metadata=rows(3, -100.0, 100.0, MAX_DEBRIS))
+    radii_m: Vec = field(default=(), metadata=rows(0, 0.0, 2.0, MAX_DEBRIS))
+    velocities_m_s: tuple[Vec, ...] = field(default=(), metadata=rows(3, -1.0, 1.0, MAX_DEBRIS))
+
+
+@dataclass(frozen=True)
+class Plant:
+    """The robot the physics integrates, where it differs from the planner's model (docs/model.md §15).
+
+    Bodies in kernel order: 0 the base, 1-6 the mission links, 7-12 the balance links. Each
+    body's mass and its rotational inertia about its centre of mass are multiplied by the
+    factors; each link's centre of mass moves by ``com_offset_m`` in its joint frame (12 rows, or
+    none: the base's frame is its centre of mass and stays so). The planner keeps the nominal
+    model (the robot's URDF); momentum is conserved for the plant's parameters.
+    """
+
+    mass_scale: Vec = field(default=(1.0,) * 13, metadata=vector(13, 0.5, 2.0))
+    inertia_scale: Vec = field(default=(1.0,) * 13, metadata=vector(13, 0.5, 2.0))
+    com_offset_m: tuple[Vec, ...] = field(default=(), metadata=rows(3, -0.1, 0.1, 12))
+
+
+@dataclass(frozen=True)
+class TargetNoise:
+    """What the planner sees of the target pose (beyond the paper; docs/model.md §16).
+
+    The planner's estimate is held over each ``interval_s`` (row k for t in [k, k + 1) · interval):
+    position p_t + b_p + σ_p n_k, attitude exp(b_θ + σ_θ n'_k) ⊗ σ_t (a rotation vector in the
+    world frame), with n_k, n'_k standard normal 3-vectors drawn once per task from
+    ``numpy.random.default_rng(seed)``. The planner's desired path runs from the start pose to the
+    current estimate; the logged end-effector errors and the success test use the true target.
+    """
+
+    position_bias_m: Vec = field(default=(0.0,) * 3, metadata=vector(3, -0.01, 0.01))
+    attitude_bias_rad: Vec = field(default=(0.0,) * 3, metadata=vector(3, -0.01, 0.01))
+    position_sigma_m: float = field(default=0.0, metadata=number(0.0, 0.01))
+    attitude_sigma_rad: float = field(default=0.0, metadata=number(0.0, 0.01))
+    interval_s: float = field(default=0.1, metadata=number(0.001, 100.0))
+    seed: int = field(default=0, metadata=natural(2**63 - 1))
+
+
+@dataclass(frozen=True)
+class PlannerSettings:
+    """Planner parameters (docs/model.md §3-8). Symbols follow the paper; see docs/model.md."""
+
+    m: float = field(metadata=number(0.0, 1.0, lo_open=True, hi_open=True))
+    T_c_s: float = field(metadata=number(0.0, 1000.0, lo_open=True))
+    phi_form: str = field(default="sanchez_torres", metadata=choice("sanchez_torres", "printed"))
+    phi_split: bool = field(default=False, metadata=BOOL)
+    attitude_error: str = field(default="world", metadata=choice("world", "body"))
+    lambda_max_mission: float = field(default=0.08, metadata=number(0.0, 10.0))
+    lambda_max_balance: float = field(default=0.08, metadata=number(0.0, 10.0))
+    epsilon_mission: float = field(default=0.02, metadata=number(0.0, 10.0))
+    epsilon_balance: float = field(default=0.02, metadata=number(0.0, 10.0))
+    proportional_gain_per_s: float = field(default=1.0, metadata=number(0.0, 1e3, lo_open=True))
+    cdf_xi: float = field(default=0.1, metadata=number(0.0, 1e3))
+    cdf_delta: float = field(default=17.25, metadata=number(0.0, 1e6, lo_open=True))
+    cdf_k1: float = field(default=1.0, metadata=number(0.0, 1e3, lo_open=True))
+    mu_law: str = field(default="cdf", metadata=choice("cdf", "distance"))
+    balance_avoids: bool = field(default=True, metadata=BOOL)
+
+
+@dataclass(frozen=True)
+class ObjectiveSettings:
+    """The benchmark objective B (paper eqs. 21-22; docs/model.md §13) and the feasibility tolerances.
+
+    Rates are compared in deg/s. ``rate_limit_scope``: ``"both_arms"`` (default) or the literal
+    eq. (22) reading ``"balance_arm"``. ``keep_out_m``: a robot–obstacle clearance below it is a
+    collision (0, the default: contact; benchmark v2 sets it). Arm-arm and arm-base contact stays
+    the collision test of the robot's own parts.
+    """
+
+    alpha: float = field(default=0.35, metadata=number(0.0, 1e6))
+    beta: float = field(default=0.65, metadata=number(0.0, 1e6))
+    gamma: float = field(default=1e-4, metadata=number(0.0, 1e6))
+    danger_rate_deg_s: float = field(default=150.0, metadata=number(0.0, 1e5))
+    max_rate_deg_s: float = field(default=200.0, metadata=number(0.0, 1e5, lo_open=True))
+    rate_limit_scope: str = field(default="both_arms", metadata=choice("both_arms", "balance_arm"))
+    ee_position_tolerance_m: float = field(default=1e-6, metadata=number(0.0, 10.0, lo_open=True))
+    ee_attitude_tolerance: float = field(default=1e-6, metadata=number(0.0, 1.0, lo_open=True))
+    keep_out_m: float = field(default=0.0, metadata=number(0.0, 1.0))
+
+
+@dataclass(frozen=True)
+class EnvSettings:
+    """Settings of the Gymnasium environments (bounds of the action mapping, decision interval)."""
+
+    m_bounds: Vec = field(default=(0.05, 0.95), metadata=vector(2, 0.0, 1.0))
+    T_c_bounds_s: Vec = field(default=(0.5, 10.0), metadata=vector(2, 1e-3, 1000.0))
+    decision_interval_s: float = field(default=0.1, metadata=number(0.0, 3600.0, lo_open=True))
+    residual_rate_deg_s: float = field(default=20.0, metadata=number(0.0, 1e4))
+    violation_penalty: float = field(default=1.0, metadata=number(0.0, 1e9))
+    tolerance_penalty: float = field(default=1.0, metadata=number(0.0, 1e9))
+
+
+@dataclass(frozen=True)
+class Randomization:
+    """Ranges of the randomised scenario family (used by ``scenario="random"``).
+
+    The target is the forward kinematics of the initial mission-arm angles plus offsets drawn
+    uniformly in ``±mission_joint_offsets_deg``; it is kept when the end-effector travels at least
+    ``min_travel_m`` and the target configuration has ``σ_min(J_m) >= min_sigma_target``. The
+    obstacle is put on the desired straight path at a fraction drawn in ``path_fraction`` plus a
+    lateral offset up to ``lateral_offset_m``; it is kept when both arms start at least the danger
+    radius away and the target configuration clears it by ``min_final_distance_m``.
+    """
+
+    mission_joint_offsets_deg: Vec = field(metadata=vector(6, 0.0, 180.0))
+    min_travel_m: float = field(default=0.2, metadata=number(0.0, 10.0))
+    min_sigma_target: float = field(default=0.05, metadata=number(0.0, 10.0))
+    path_fraction: Vec = field(default=(0.4, 0.7), metadata=vector(2, 0.0, 1.0))
+    lateral_offset_m: float = field(default=0.02, metadata=number(0.0, 1.0))
+    min_final_distance_m: float = field(default=0.1, metadata=number(0.0, 10.0))
+    min_self_clearance_m: float = field(default=0.02, metadata=number(0.0, 10.0))
+    max_attempts: float = field(default=1000, metadata=number(1, 1e6))
