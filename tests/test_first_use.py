@@ -27,6 +27,24 @@ def test_a_slow_first_call_is_announced_once_and_a_quick_one_never(fresh, capsys
     assert capsys.readouterr().err == ""
 
 
+def test_a_slow_first_call_of_a_function_numba_has_cached_is_work_not_compilation(fresh, capsys, tmp_path):
+    from types import SimpleNamespace
+
+    index = tmp_path / "decision.step_episode-1.py311.nbi"
+    index.write_bytes(b"")
+
+    def slow():
+        time.sleep(0.6)
+
+    slow._cache = SimpleNamespace(_cache_file=SimpleNamespace(_index_path=str(index)))  # as a numba dispatcher's
+    first_use.call("single env", slow)
+    assert capsys.readouterr().err == ""
+    index.unlink()  # no index: the same slow first call is announced
+    first_use._done.clear()
+    first_use.call("single env", slow)
+    assert "compiling the single env kernel" in capsys.readouterr().err
+
+
 def test_an_error_in_the_first_call_reaches_the_caller_and_unknown_names_are_refused(fresh):
     with pytest.raises(ZeroDivisionError):
         first_use.call("closed loop", lambda: 1 / 0)

@@ -60,6 +60,9 @@ def refresh() -> bool:
         pass
     for cache in caches:
         cache.flush()
+        index = getattr(getattr(cache, "_cache_file", None), "_index_path", None)
+        if index is not None:  # no index at all, not an empty one: a first call then says it compiles (first_use)
+            Path(index).unlink(missing_ok=True)
     try:
         stamp.write_text(digest)
     except OSError:

@@ -1,10 +1,11 @@
 """Compile time you can see: the first call of each compiled entry point says so when it compiles.
 
 numba compiles a kernel entry point on its first call with a new set of argument types, or loads it
-from its on-disk cache in a second or two. A call that is still running after
-:data:`QUIET_S` seconds is compiling: it prints what it compiles, the time it took when measured
-(:data:`ESTIMATES_S`) and a bar of the seconds spent, on standard error, and how long it took when
-done. Later calls in the process, and calls that load from the cache, print nothing.
+from its on-disk cache in a second or two. A first call whose function has no index in that cache,
+and that is still running after :data:`QUIET_S` seconds, is compiling: it prints what it compiles,
+the time it took when measured (:data:`ESTIMATES_S`) and a bar of the seconds spent, on standard
+error, and how long it took when done. Later calls in the process, and calls that load from the
+cache, print nothing.
 
 Plain Python: no compiled function lives here (the cache's source digest leaves it out).
 """
@@ -16,6 +17,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 #: Seconds a first call may take before it is announced (a load from numba's cache takes less).
@@ -38,6 +40,9 @@ def call(what: str, function: Callable[..., Any], *args: Any) -> Any:
         return function(*args)
     if what not in ESTIMATES_S:
         raise KeyError(f"{what!r} is not a compiled entry point; allowed: {sorted(ESTIMATES_S)}")
+    if _cached_on_disk(function):  # numba loads it: a long first call is work, not compilation
+        _done.add(what)
+        return function(*args)
     finished = threading.Event()
     watcher = threading.Thread(target=_watch, args=(what, finished), daemon=True, name=f"ffsr-gym compile: {what}")
     watcher.start()
@@ -47,6 +52,16 @@ def call(what: str, function: Callable[..., Any], *args: Any) -> Any:
         finished.set()
         watcher.join()
         _done.add(what)
+
+
+def _cached_on_disk(function: Any) -> bool:
+    """Whether numba's on-disk cache has an index for ``function`` (then its first call loads it; the kernel's
+    caches are flushed when a kernel source changes, :mod:`ffsr_gym.kernel.cache`). False for a plain function
+    or a numba whose cache is laid out otherwise: the first call is then watched."""
+    try:
+        return Path(function._cache._cache_file._index_path).is_file()
+    except (AttributeError, TypeError):
+        return False
 
 
 def _watch(what: str, finished: threading.Event) -> None:
