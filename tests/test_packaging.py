@@ -66,3 +66,13 @@ def test_the_wheel_alone_runs_the_main_job_evaluate_train_and_dataset(tmp_path):
     assert "episodes" in out and (work / "datasets").is_dir()
     listed = run(bin_ / "python", "-m", "pip", "list")
     assert "nvidia" not in listed.lower()
+
+
+def test_the_citation_file_names_the_software_and_the_paper():
+    yaml = pytest.importorskip("yaml")
+    cff = yaml.safe_load((ROOT / "CITATION.cff").read_text(encoding="utf-8"))
+    assert cff["cff-version"] == "1.2.0" and cff["type"] == "software" and cff["authors"]
+    assert "version" not in cff  # one source of the version: pyproject.toml
+    (paper,) = cff["references"]
+    assert paper["title"] == "Optimal Predefined-time Trajectory Planning for a Space Robot"
+    assert [a["family-names"] for a in paper["authors"]] == ["Yan", "Liu"]
