@@ -63,7 +63,7 @@ def read_text(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> str:
         raise UserFileError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
 
 
-def nesting_depth(text: str, opening: str = "[{", closing: str = "]}") -> int:
+def nesting_depth(text: str) -> int:
     """An upper bound of how deep ``text`` nests brackets (strings included: a bound, never an underestimate).
 
     The depth after each character, never below 0 (an extra closing bracket is ignored), is the running sum of
@@ -72,7 +72,7 @@ def nesting_depth(text: str, opening: str = "[{", closing: str = "]}") -> int:
     """
     data = np.frombuffer(text.encode("utf-8", "surrogatepass"), dtype=np.uint8)
     step = np.zeros(len(data), dtype=np.int32)
-    for chars, sign in ((opening, 1), (closing, -1)):
+    for chars, sign in (("[{", 1), ("]}", -1)):  # ASCII: one byte each in UTF-8
         for char in chars:
             step[data == ord(char)] = sign
     running = np.cumsum(step, dtype=np.int64)
@@ -106,18 +106,26 @@ def _parsed_depth(text: str) -> int:
     return deepest
 
 
+def parse_json(text: str, where: str) -> Any:
+    """The JSON document ``text`` (read from ``where``), its depth bounded before the parser sees it.
+
+    Raises:
+        UserFileError: as :func:`check_depth`, or not JSON (named with the position).
+    """
+    check_depth(text, where)
+    try:
+        return json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise UserFileError(f"{where}: not JSON ({exc})") from None
+
+
 def load_json(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> Any:
     """A JSON document from a regular file, bounded in size and depth.
 
     Raises:
-        UserFileError: as :func:`read_text` and :func:`check_depth`, or not JSON (named with the position).
+        UserFileError: as :func:`read_text` and :func:`parse_json`.
     """
-    text = read_text(path, max_bytes=max_bytes)
-    check_depth(text, str(path))
-    try:
-        return json.loads(text)
-    except (ValueError, RecursionError) as exc:
-        raise UserFileError(f"{path}: not JSON ({exc})") from None
+    return parse_json(read_text(path, max_bytes=max_bytes), str(path))
 
 
 #: The most a robot folder's files may hold together [bytes] (the scenario hash reads every one).

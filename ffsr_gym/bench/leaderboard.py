@@ -30,7 +30,7 @@ from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.model.spec import BenchmarkSpec, all_specs, ranked_spec, spec_for_env_id
 from ffsr_gym.provenance import splice_generated, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
-from ffsr_gym.user_files import check_depth, read_text
+from ffsr_gym.user_files import parse_json, read_text
 
 
 def groups(spec: BenchmarkSpec) -> list[str]:
@@ -92,10 +92,9 @@ def checks_once() -> Iterator[None]:
 def _load(path: Path, spec: BenchmarkSpec, group: str) -> dict[str, Any]:
     """One entry file, verified; never raises for its content (nor hangs on a FIFO, nor reads a device)."""
     try:
-        text = read_text(path)
-        check_depth(text, str(path))
-        entry = json.loads(text)
-    except (FFSRError, ValueError, RecursionError) as exc:
+        text = read_text(path)  # the text too: one command checks each content once (checks_once)
+        entry = parse_json(text, str(path))
+    except FFSRError as exc:
         return {"_file": path.name, "_folder": str(path.parent), "_problems": [f"not a readable JSON file ({exc})"]}
     if not isinstance(entry, dict):
         entry = {"_not_an_object": True}

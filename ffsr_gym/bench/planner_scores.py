@@ -135,9 +135,9 @@ def residual_training_loss(action: Any, *, tier: str, tasks: int = 20, version: 
     """
     try:
         values = np.asarray(action, dtype=np.float64)
-    except (TypeError, ValueError):
-        values = np.full(0, np.nan)
-    if values.shape != (12,) or not np.all(np.abs(values) <= 1.0):  # the box evaluate refuses a constant outside of
+    except (TypeError, ValueError):  # not numbers
+        values = None
+    if values is None or values.shape != (12,) or not np.all(np.abs(values) <= 1.0):  # the box evaluate refuses a constant outside of
         raise InvalidInputError(f"residual action {action!r}; allowed: 12 numbers in [-1, 1] (the action box)")
     exact = tuple(float(x) for x in values.astype(np.float32))
     benchmark = score_rule(spec_for_version(version)).benchmark

@@ -42,20 +42,18 @@ def sources_digest() -> str:
     return digest.hexdigest()
 
 
-def refresh() -> bool:
-    """Flush the kernel's numba cache when the sources changed since it was written.
-
-    Returns whether the kernel will be compiled in this process (no cache, or it was flushed).
-    """
+def refresh() -> None:
+    """Flush the kernel's numba cache when the sources changed since it was written (its index files removed, so
+    that :mod:`ffsr_gym.kernel.first_use` sees the next first calls compile)."""
     dispatchers = [obj for module in MODULES for obj in vars(module).values() if isinstance(obj, CPUDispatcher)]
     caches = [d._cache for d in dispatchers if getattr(d, "_cache", None) is not None and hasattr(d._cache, "flush")]
     if not caches:
-        return True
+        return
     stamp = Path(caches[0].cache_path) / "ffsr_gym_kernel.sha256"
     digest = sources_digest()
     try:
         if stamp.read_text() == digest:
-            return not any(Path(caches[0].cache_path).glob("loop.run-*.nbi"))
+            return
     except OSError:
         pass
     for cache in caches:
@@ -67,4 +65,3 @@ def refresh() -> bool:
         stamp.write_text(digest)
     except OSError:
         pass  # read-only install: numba then caches elsewhere or not at all
-    return True
