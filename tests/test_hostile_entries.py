@@ -102,7 +102,7 @@ def _board(tmp_path: Path) -> Path:
 def _summary_cell(root: Path, method: str) -> str:
     from ffsr_gym.bench import leaderboard
 
-    text = leaderboard.splice_summary((ROOT / "README.md").read_text(), root)
+    text = leaderboard.splice_summary((ROOT / "docs" / "baselines.md").read_text(), root)
     return next(line for line in text.splitlines() if line.startswith(f"| `{method}` |"))
 
 

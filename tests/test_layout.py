@@ -144,3 +144,15 @@ def test_physics_stages_import_and_simulate_without_gym_plotting_or_rl():
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stderr[-2000:]
     assert result.stdout.startswith("ok")
+
+
+def test_the_layout_page_lists_every_module_of_every_sub_package():
+    import re
+
+    text = (PACKAGE.parent / "docs" / "layout.md").read_text(encoding="utf-8")
+    listed = {m.group(1): set(re.findall(r"`(\w+)`", m.group(2)))
+              for m in re.finditer(r"^\| `ffsr_gym\.(\w+)` \| ([^|]*) \|", text, flags=re.M)}
+    for package in sorted(p for p in PACKAGE.iterdir() if (p / "__init__.py").is_file()):
+        modules = {path.stem for path in package.glob("*.py") if path.stem != "__init__"}
+        if modules:
+            assert listed.get(package.name) == modules, f"docs/layout.md: ffsr_gym.{package.name}"

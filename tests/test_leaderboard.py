@@ -40,8 +40,9 @@ def test_committed_tables_are_up_to_date():
     from ffsr_gym.bench.leaderboard import splice_summary
 
     assert leaderboard.render_readme(ROOT) == (ROOT / "README.md").read_text(), "run: ffsr-gym leaderboard render"
-    readme = (ROOT.parent / "README.md").read_text(encoding="utf-8")
-    assert splice_summary(readme, ROOT) == readme, "run: ffsr-gym leaderboard render --readme README.md"
+    for page in ("README.md", "docs/baselines.md"):
+        text = (ROOT.parent / page).read_text(encoding="utf-8")
+        assert splice_summary(text, ROOT) == text, "run: ffsr-gym leaderboard render --readme README.md docs/baselines.md"
 
 
 @pytest.fixture()

@@ -38,6 +38,8 @@ def pull_request(tmp_path) -> Path:
     repo = tmp_path / "repo"
     shutil.copytree(ROOT / "leaderboards", repo / "leaderboards")
     shutil.copy(ROOT / "README.md", repo / "README.md")
+    (repo / "docs").mkdir()
+    shutil.copy(ROOT / "docs" / "baselines.md", repo / "docs" / "baselines.md")
     _git(repo, "init", "-q", "-b", "main")
     _git(repo, "add", "-A")
     _git(repo, "commit", "-q", "-m", "base")

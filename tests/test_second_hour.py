@@ -206,7 +206,7 @@ def test_every_help_shows_its_defaults(capsys):
 
 
 def _docs() -> dict[Path, str]:
-    paths = [ROOT / "README.md", ROOT / "leaderboards" / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    paths = [ROOT / "README.md", ROOT / "leaderboards" / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
     return {path: path.read_text(encoding="utf-8") for path in paths}
 
 
@@ -222,7 +222,7 @@ def test_submit_section_commands_parse():
     section = text.split("## Submit a result")[1].split("\n## ")[0]
     commands = {line.strip() for line in section.splitlines() if line.strip().startswith("ffsr-gym ")}
     commands |= set(re.findall(r"`(ffsr-gym [^`]+)`", section))
-    assert "ffsr-gym leaderboard update --root leaderboards --readme README.md" in commands
+    assert "ffsr-gym leaderboard update --root leaderboards --readme README.md docs/baselines.md" in commands
     for command in commands:
         args = build_parser().parse_args([a if "<" not in a else "entry.json" for a in command.split()[1:]])
         assert callable(args.func), command

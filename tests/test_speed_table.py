@@ -1,4 +1,4 @@
-"""The README's speed table is the one ``benchmarks/bench.py`` renders from its committed results."""
+"""The speed page's tables are the one ``benchmarks/bench.py`` renders from its committed results."""
 
 from __future__ import annotations
 
@@ -10,16 +10,16 @@ from conftest import benchmark_script
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_readme_speed_table_is_rendered_from_the_results():
+def test_the_speed_tables_are_rendered_from_the_results():
     bench = benchmark_script("bench")
     results = json.loads((ROOT / "benchmarks" / "results.json").read_text())
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    text = (ROOT / "docs" / "speed.md").read_text(encoding="utf-8")
     block = text.split(bench.README_START + "\n")[1].split(bench.README_END)[0]
-    assert block == bench.speed_table(results), "rerun: python benchmarks/bench.py --runs 3 --readme README.md"
+    assert block == bench.speed_table(results), "rerun: python benchmarks/bench.py --runs 3 --readme docs/speed.md"
     budget = text.split(bench.BUDGET_START + "\n")[1].split(bench.BUDGET_END)[0]
-    assert budget == bench.budget_table(results), "rerun: python benchmarks/bench.py --runs 3 --readme README.md"
+    assert budget == bench.budget_table(results), "rerun: python benchmarks/bench.py --runs 3 --readme docs/speed.md"
     kernel = text.split(bench.KERNEL_START + "\n")[1].split(bench.KERNEL_END)[0]
-    assert kernel == bench.kernel_table(results), "rerun: python benchmarks/bench.py --runs 3 --readme README.md"
+    assert kernel == bench.kernel_table(results), "rerun: python benchmarks/bench.py --runs 3 --readme docs/speed.md"
     assert results["provenance"]["git_commit"] and len(results["runs"]) == 3
 
 

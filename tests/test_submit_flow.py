@@ -30,6 +30,8 @@ def _section_commands() -> list[list[str]]:
 def test_the_submit_section_passes_as_written(tmp_path, monkeypatch):
     shutil.copytree(ROOT / "leaderboards", tmp_path / "leaderboards")
     shutil.copy(ROOT / "README.md", tmp_path / "README.md")
+    (tmp_path / "docs").mkdir()
+    shutil.copy(ROOT / "docs" / "baselines.md", tmp_path / "docs" / "baselines.md")
     (tmp_path / "my_policy.py").write_text("import numpy as np\n\ndef act(obs):\n    return np.array([0.1, -0.2], "
                                            "'float32')\n")
     monkeypatch.chdir(tmp_path)
@@ -39,7 +41,7 @@ def test_the_submit_section_passes_as_written(tmp_path, monkeypatch):
     for command in commands:
         assert main([*command[1:], *(["--no-progress"] if command[1] == "evaluate" else [])]) == 0, command
     entry = tmp_path / "leaderboards" / "v2" / "easy" / "my_method_easy.json"
-    assert entry.is_file() and "my_method" in (tmp_path / "README.md").read_text()
+    assert entry.is_file() and "my_method" in (tmp_path / "docs" / "baselines.md").read_text()
     from ffsr_gym.report.leaderboard_plots import stale_figures
 
     (tmp_path / "leaderboards" / "v2" / "iqm.png").write_bytes(b"stale")  # a figure left out of date

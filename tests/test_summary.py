@@ -1,4 +1,4 @@
-"""The README summary's generated parts: method names across checkpoints, headroom, compute per RL entry."""
+"""The summary's generated parts (docs/baselines.md): method names, headroom, compute per RL entry."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The RL study against the classical entries, per tier: the README's generated ``rl-study`` table.
+"""The RL study against the classical entries, per tier: the generated ``rl-study`` table of docs/baselines.md.
 
 Per tier with RL entries (entries with ``extra.training_seeds``): the best RL entry at its
 best-on-validation checkpoints, the same agents' last checkpoints, the best (m, T_c) planner (an

@@ -145,6 +145,26 @@ def summary(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]],
     return "\n".join(lines) + "\n"
 
 
+def top_three(spec: BenchmarkSpec, ordered_entries: dict[str, list[tuple[str, dict[str, Any]]]]) -> str:
+    """Per tier, the first three entries of its table (IQM [95 % CI] and rank), and how many more share the third
+    one's rank. ``ordered_entries``: each tier's (rank label, entry) in table order."""
+    names = spec.leaderboard
+    lines = ["| tier | first: IQM [95% CI] #rank | second | third |", "|---|---|---|---|"]
+    for tier, pairs in ordered_entries.items():
+        if not pairs:
+            continue
+        cells = []
+        for label, e in pairs[:3]:
+            lo, hi = e["metrics"][names.ci]
+            cells.append(f"`{safe(method_name(e, tier))}` {e['metrics'][names.iqm]:.3f} [{lo:.3f}, {hi:.3f}] #{label}")
+        third = pairs[min(2, len(pairs) - 1)][0]
+        more = sum(label == third for label, _ in pairs[3:])
+        if more:
+            cells[-1] += f", {more} more at #{third.split()[0]}"
+        lines.append(f"| {tier} | " + " | ".join(cells + ["-"] * (3 - len(cells))) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def headroom(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> str:
     """Per tier, the best normalised score of an entry and the headroom 1 − it left to the best known scores."""
     cells = []

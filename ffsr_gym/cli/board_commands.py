@@ -13,19 +13,20 @@ def _leaderboard(args: argparse.Namespace) -> int:
     from ffsr_gym.exceptions import InvalidInputError
     from ffsr_gym.provenance import write_text_atomic
 
-    readme = Path(args.readme) if args.readme else None
-    if readme is not None and not readme.is_file():
-        raise InvalidInputError(f"--readme {args.readme!r} is not a file")
+    pages = [Path(page) for page in args.readme or ()]
+    for page in pages:
+        if not page.is_file():
+            raise InvalidInputError(f"--readme {str(page)!r} is not a file")
     if args.check:
-        return _check_leaderboard(args.root, readme)
+        return _check_leaderboard(args.root, pages)
     print("updated" if write_readme(args.root) else "already up to date", f"{args.root}/README.md")
-    if readme is not None:
-        write_text_atomic(readme, splice_summary(readme.read_text(encoding="utf-8"), args.root))
-        print("updated the leaderboard summary in", readme)
+    for page in pages:
+        write_text_atomic(page, splice_summary(page.read_text(encoding="utf-8"), args.root, where=str(page)))
+        print("updated the generated leaderboard blocks in", page)
     return 0
 
 
-def _check_leaderboard(root: str, readme: Path | None) -> int:
+def _check_leaderboard(root: str, readme: list[Path]) -> int:
     """``leaderboard render --check``: 1 when an entry is refused, or a table, the aggregates or a figure is out of
     date."""
     from ffsr_gym.bench.leaderboard import check, load_entries, verified
@@ -59,16 +60,16 @@ def _leaderboard_plot(args: argparse.Namespace) -> None:
 
 
 def _leaderboard_update(args: argparse.Namespace) -> int:
-    """Everything a submission changes, in order: tables (and the README summary), aggregates, figures."""
+    """Everything a submission changes, in order: aggregates, tables (and the pages' generated blocks), figures."""
     from ffsr_gym.exceptions import require
 
     require("rliable", "analysis", "rliable, pandas", "the aggregates across tiers need")  # before anything is written
-    _leaderboard_aggregates(args)  # from the verified entries; the README summary shows them
+    _leaderboard_aggregates(args)  # from the verified entries; the summary page shows them
     _leaderboard(argparse.Namespace(root=args.root, readme=args.readme, check=False))
     _leaderboard_plot(args)
     from ffsr_gym.bench.leaderboard import check
 
-    problems = check(args.root, Path(args.readme) if args.readme else None)  # the figures were just drawn
+    problems = check(args.root, args.readme)  # the figures were just drawn
     for line in problems:
         print(line, file=sys.stderr)
     print("updated; every entry verifies" if not problems else "updated, but the leaderboard cannot be published")
@@ -143,12 +144,14 @@ def add_board_commands(sub: Any) -> None:
     render.add_argument("--check", action="store_true",
                         help="exit 1 if an entry is refused or a table, the aggregates or a figure is out of date; "
                              "write nothing")
-    render.add_argument("--readme", default=None,
-                        help="also regenerate the leaderboard summary between its markers in this file (e.g. README.md)")
+    render.add_argument("--readme", nargs="+", default=None, metavar="PAGE",
+                        help="also regenerate the generated leaderboard blocks between their markers in these "
+                             "Markdown files (in a checkout: README.md docs/baselines.md)")
     render.set_defaults(func=_leaderboard)
-    update = board_sub.add_parser("update", help="regenerate everything a submission changes (tables, the README "
-                                                 "summary, aggregates, figures), then check it all (needs the "
+    update = board_sub.add_parser("update", help="regenerate everything a submission changes (tables, the pages' "
+                                                 "generated blocks, aggregates, figures), then check it all (needs the "
                                                  "'analysis' extra)")
     update.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
-    update.add_argument("--readme", default=None, help="also the summary between its markers in this file")
+    update.add_argument("--readme", nargs="+", default=None, metavar="PAGE",
+                        help="also the generated leaderboard blocks between their markers in these Markdown files")
     update.set_defaults(func=_leaderboard_update)

@@ -9,6 +9,7 @@ import sys
 from typing import Any
 
 from ffsr_gym.cli.board_commands import add_board_commands
+from ffsr_gym.cli.docs_commands import add_docs_commands
 from ffsr_gym.cli.model_commands import add_model_commands
 from ffsr_gym.cli.policy_commands import add_policy_commands
 from ffsr_gym.cli.study_commands import add_study_commands
@@ -45,11 +46,11 @@ def build_parser() -> argparse.ArgumentParser:
     from importlib.metadata import version
 
     parser = _Parser(prog="ffsr-gym", description=DESCRIPTION.format(ids=", ".join(registered_ids())),
-                     epilog="Each command has its own --help. Documentation: README.md, docs/envs.md, docs/model.md, "
-                            "docs/robots.md, leaderboards/README.md.")
+                     epilog="Each command has its own --help. Documentation: README.md, the docs site (docs/, e.g. "
+                            "docs/envs.md, docs/model.md, docs/tutorials/) and leaderboards/README.md.")
     parser.add_argument("--version", action="version", version=f"ffsr-gym {version('ffsr-gym')}")
     sub = parser.add_subparsers(dest="command", required=True)
-    for add in (add_model_commands, add_policy_commands, add_study_commands, add_board_commands):
+    for add in (add_model_commands, add_policy_commands, add_study_commands, add_board_commands, add_docs_commands):
         add(sub)
     return parser
 

@@ -68,7 +68,7 @@ def add_model_commands(sub: Any) -> None:
     rep.add_argument("--out", required=True, help="output folder, e.g. runs/paper")
     rep.add_argument("--duration", type=positive_float, default=None, help="shorten every run to this many seconds")
     rep.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    rep.add_argument("--readme", default=None, help="also write the claims and gain-sweep tables into this README (between their markers)")
+    rep.add_argument("--readme", default=None, help="also write the claims and gain-sweep tables into this Markdown file, between their markers (in a checkout: docs/reproduction.md)")
     rep.set_defaults(func=_reproduce)
     ga = sub.add_parser("ga", help="the paper's GA over (m, T_c): both modes, figures, table, leaderboard entries")
     ga.add_argument("--out", required=True, help="output folder; checkpoints there make a killed run resume")

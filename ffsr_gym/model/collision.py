@@ -1,7 +1,7 @@
 """Signed distances between the robot's collision geometry and obstacles, and between its parts.
 
 The geometry (a capsule per link, a box for the base) is read from ``collision.toml`` next to the
-robot's URDF and queried with coal, the collision library that ships with Pinocchio (the README
+robot's URDF and queried with coal, the collision library that ships with Pinocchio (docs/install.md
 records why coal rather than python-fcl: exact closed-form primitives and ~2x faster queries).
 Distances are signed: negative on penetration. Every query returns the closest pair of geometry
 names and the witness points.

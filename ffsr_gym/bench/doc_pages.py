@@ -1,0 +1,184 @@
+"""The docs site's generated pages: one per registered id (its spaces, reward, episode end, arguments and info
+keys, from the live environment and its version's spec) and one per tier (its rule, its pools' counts and
+certificates, its top entries and a GIF), and the README's table of ids and tiers; written by
+``ffsr-gym docs pages``, checked by a test to be up to date."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+
+from ffsr_gym.bench import tables
+from ffsr_gym.environments.info import markdown_table
+from ffsr_gym.model.spec import BenchmarkSpec, all_specs, ranked_spec
+from ffsr_gym.scoring.rules import score_rule
+from ffsr_gym.tasks.splits import load_pools
+
+#: What each tier is, in one sentence (the rules are in v2.toml and v2_perturbed.toml; docs/envs.md "Task tiers").
+TIER_MEANING = {
+    "easy": "tasks the default planner (m, T_c) = (0.3, 4 s) solves, certified in every member of the ensemble",
+    "medium": "tasks the default planner fails but another constant (m, T_c) of the tier grid solves",
+    "hard": "tasks no constant (m, T_c) of the grid solves and a fading residual of FFSR-Residual-v2 does",
+    "debris": "tier tasks whose obstacle drifts, with one to three more drifting spheres crossing the end "
+              "effector's way",
+    "robust": "tier tasks on a robot whose masses and inertias differ from the planner's model, starting with "
+              "momentum, with a noisy, biased target estimate",
+    "servo": "tier tasks on a torque-level plant: the planned rates command torque-limited joint velocity servos "
+             "that drive the free-floating multibody dynamics at a 1 ms physics step",
+}
+#: The README's GIF and the tier pages' GIFs: the reference planner on a test task (index), one frame per 8 decisions.
+README_GIF = ("debris", 1)
+GIF_EVERY = 8
+
+
+def id_page(env_id: str) -> str:
+    """The page of one registered id, from the environment itself and its version's spec."""
+    spec = next(s for s in all_specs().values() if env_id in s.env_ids)
+    with warnings.catch_warnings():  # a frozen version's "out of date" notice
+        warnings.simplefilter("ignore", DeprecationWarning)
+        env = gymnasium.make(env_id)
+    try:
+        action, observation = env.action_space, env.observation_space
+        limit = env.spec.max_episode_steps if env.spec else None
+    finally:
+        env.close()
+    frozen = spec.version != ranked_spec().version
+    lines = [f"# `{env_id}`", "", f"Benchmark {spec.version}{' (frozen)' if frozen else ''}: {spec.description}.", "",
+             "| | |", "|---|---|",
+             f"| action space | `{_space(action)}` |",
+             f"| observation space | `{_space(observation)}` |",
+             f"| reward | {_reward_text(spec)} |",
+             f"| episode end | {_episode_end(spec, limit)} |",
+             f"| score | {spec.score.text} |",
+             f"| arguments of `gymnasium.make` | {', '.join(f'`{k}`' for k in sorted(spec.env_options()))} |",
+             f"| tasks | {_tasks_text(spec)} |",
+             f"| batched | `gymnasium.make_vec(\"{env_id}\", num_envs=N, vectorization_mode=\"vector_entry_point\")` |",
+             "", "```python", "import gymnasium as gym, ffsr_gym",
+             f"env = gym.make(\"{env_id}\"{_example_kwargs(spec)})",
+             "obs, info = env.reset(seed=0)",
+             "obs, reward, terminated, truncated, info = env.step(env.action_space.sample())",
+             "```", "", "## Info keys", "", "Every step's `info` has these keys, with these dtypes (the batched env "
+             "gives each as an array with its `_key` mask):", "", markdown_table(score_rule(spec)), "",
+             "The meaning of each observation component, the reward and the evaluation protocol: "
+             "[Environments](../envs.md)."]
+    return "\n".join(lines) + "\n"
+
+
+def _space(space: Any) -> str:
+    """A Box as its shape, dtype and bounds, runs of equal bounds written once ("[-1, 1] x 24, [0, 1] x 1")."""
+    if not isinstance(space, gymnasium.spaces.Box):
+        return str(space)
+    bounds = list(zip(space.low.ravel().tolist(), space.high.ravel().tolist()))
+    runs: list[list[Any]] = []
+    for pair in bounds:
+        if runs and runs[-1][0] == pair:
+            runs[-1][1] += 1
+        else:
+            runs.append([pair, 1])
+    text = ", ".join(f"[{lo:g}, {hi:g}]" + (f" x {n}" if len(runs) > 1 else "") for (lo, hi), n in runs)
+    return f"Box{tuple(space.shape)}, {space.dtype}, {text}"
+
+
+def _episode_end(spec: BenchmarkSpec, limit: int | None) -> str:
+    text = f"truncated after {limit} decisions of 0.1 s" if limit else "-"
+    if "terminate_on_violation" in spec.env_options():
+        text += ("; terminated at the first violation (a rate above the limit, a clearance below the keep-out "
+                 "distance, self contact) unless `terminate_on_violation=False`")
+    elif spec.score.rule == "paper_objective":  # the paper's objective: an infeasible episode ends at once
+        text += "; terminated at a rate-limit violation or a collision"
+    return text
+
+
+def _reward_text(spec: BenchmarkSpec) -> str:
+    if spec.reward.kind == "score_change":
+        return "the change of the episode's value 1 / (1 + C_t); an episode's rewards sum to its score minus 1"
+    return spec.reward.kind.replace("_", " ")
+
+
+def _tasks_text(spec: BenchmarkSpec) -> str:
+    if spec.tasks.kind == "tiers":
+        tiers = ", ".join(f"[`{t}`](../tiers/{t}.md)" for t in spec.tasks.tiers)
+        return f"tiers {tiers}; splits {', '.join(f'`{s}`' for s in spec.tasks.splits)}"
+    return _scenario_text(spec)
+
+
+def _scenario_text(spec: BenchmarkSpec) -> str:
+    return f"a scenario (`{spec.tasks.keyword}=`: a shipped name or a TOML path; default `{spec.tasks.default}`)"
+
+
+def _example_kwargs(spec: BenchmarkSpec) -> str:
+    return f", {spec.tasks.keyword}=\"easy\", split=\"train\"" if spec.tasks.kind == "tiers" else ""
+
+
+def tier_page(tier: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
+    """The page of one tier of the ranked version: its rule, its pools, its first entries and its GIF.
+
+    ``ranked``: the tier's verified entries as (rank label, entry), in table order.
+    """
+    spec = ranked_spec()
+    data = load_pools(None, (tier,), spec.version)
+    index = gif_task(tier)
+    lines = [f"# Tier `{tier}`", "", f"Benchmark {spec.version}: {TIER_MEANING[tier]}.", "",
+             f"![The reference planner on test task {index} of {tier}](../_static/tiers/{tier}.gif)", "",
+             f"The reference planner (0.3, 4 s) on test task {index}: {_outcome(ranked, index)} "
+             f"(`ffsr-gym render --task {tier} --split test --task-index {index} --every {GIF_EVERY}`).", "",
+             "```python", "import gymnasium as gym, ffsr_gym",
+             f"env = gym.make(\"FFSR-Residual-v2\", task=\"{tier}\", split=\"train\")   # or FFSR-v2",
+             f"report = ffsr_gym.evaluate((0.3, 4.0), \"FFSR-v2\", task=\"{tier}\")           # its test pool",
+             "```", "", "## Pools", "",
+             "| split | seeds | tasks | certificates: constant / residual | worst obstacle clearance [mm] | "
+             "largest peak rate [deg/s] |", "|---|---|---|---|---|---|"]
+    for split, s in data["splits"].items():
+        entries = s["pools"][tier]
+        kinds = [e["certificate"]["kind"] for e in entries]
+        margins = s["pool_margins"][tier]
+        first, stop = data["seed_ranges"][split]
+        lines.append(f"| {split} | [{first:,}, {stop:,}) | {len(entries)} | {kinds.count('constant')} / "
+                     f"{kinds.count('residual')} | {1000 * margins['min_clearance_m']:.1f} | "
+                     f"{margins['peak_rate_deg_s']:.1f} |")
+    lines += ["", "Every task stores a certificate: an action that succeeds at dt, dt/2 and dt/4, from perturbed "
+              "starts and on the second backend, with margins (the rule, and the counts of rejected candidates: "
+              "[Environments, Task tiers](../envs.md)).", "", "## Leaderboard (test pool), first five", "",
+              *(line for line in tables.header(spec, tier) if not line.startswith("#")),
+              *(tables.row(spec, label, e) for label, e in ranked[:5]), "",
+              "The whole table, and how to submit: [Leaderboards](../leaderboards.md)."]
+    return "\n".join(lines) + "\n"
+
+
+def gif_task(tier: str) -> int:
+    """The test task the GIF of ``tier`` shows (the README's on its tier, else the first)."""
+    return README_GIF[1] if tier == README_GIF[0] else 0
+
+
+def _outcome(ranked: list[tuple[str, dict[str, Any]]], index: int) -> str:
+    """What the default planner's entry recorded on test task ``index``: its score, or how it failed."""
+    row = next((r for _, e in ranked if e["name"] == "reference_v2_default" for r in e["episodes"]
+                if r["task_index"] == index), None)
+    if row is None:
+        return "not in the leaderboard"
+    return f"succeeds, score {row['score']:.3f}" if row["success"] else f"fails ({row['failure'].replace('_', ' ')})"
+
+
+def ids_table() -> str:
+    """The README's table of registered ids and the tiers of the ranked version."""
+    lines = ["| id | action | tasks | status |", "|---|---|---|---|"]
+    for spec in sorted(all_specs().values(), key=lambda s: s.version, reverse=True):
+        status = "ranked" if spec.version == ranked_spec().version else "frozen"
+        for env_id in spec.env_ids:
+            action = ("12 residual joint rates added to the reference planner" if spec.is_residual(env_id)
+                      else "the planner's (m, T_c)")
+            tasks = (", ".join(f"`{t}`" for t in spec.tasks.tiers) if spec.tasks.kind == "tiers"
+                     else _scenario_text(spec))
+            lines.append(f"| [`{env_id}`](docs/ids/{env_id}.md) | {action} | {tasks} | {status} |")
+    return "\n".join(lines) + "\n"
+
+
+def page_paths(docs: str | Path) -> dict[Path, str]:
+    """Every generated page (path under ``docs``) by what writes it: an id or a tier name."""
+    docs = Path(docs)
+    pages = {docs / "ids" / f"{env_id}.md": env_id for spec in all_specs().values() for env_id in spec.env_ids}
+    pages.update({docs / "tiers" / f"{tier}.md": tier for tier in ranked_spec().tasks.tiers})
+    return pages
