@@ -60,6 +60,11 @@ def is_source_checkout() -> bool:
     return (_SOURCE / ".git").exists()
 
 
+def source_commit() -> str | None:
+    """The commit of the ffsr-gym checkout this package runs from, or None (an installed wheel or sdist)."""
+    return _git("rev-parse", "HEAD", cwd=_SOURCE) if is_source_checkout() else None
+
+
 def _version() -> str:
     try:
         return metadata.version("ffsr-gym")

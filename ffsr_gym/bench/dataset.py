@@ -51,9 +51,36 @@ def _coverage(episodes: int, searched: int, pool_size: int, family: str) -> str:
 
 
 def dataset_id(tier: str, env_id: str, split: str = "train") -> str:
-    """The Minari id of a tier's best-known dataset: ``ffsr/<env>/<tier>-<split>-best-known-v0``."""
-    env = "residual-v2" if env_id == "FFSR-Residual-v2" else "v2"
-    return f"ffsr/{env}/{tier}-{split}-best-known-v0"
+    """The Minari id of a tier's best-known dataset, in Minari's grammar ``namespace/name-vN``: namespace
+    ``ffsr/<tier>``, name ``best-known`` (the residual env's schedules; ``-mtc`` for FFSR-v2's (m, T_c) ones) and
+    the split when it is not the training pool: ``ffsr/easy/best-known-v0``, ``ffsr/hard/best-known-mtc-validation-v0``."""
+    name = "best-known" + ("" if env_id == "FFSR-Residual-v2" else "-mtc") + ("" if split == "train" else f"-{split}")
+    return f"ffsr/{tier}/{name}-v0"
+
+
+def reference_returns(tier: str, split: str, stored: list[dict[str, Any]], version: str) -> tuple[float, float, str]:
+    """Minari's ``ref_min_score`` and ``ref_max_score`` of a dataset of the ``stored`` records' tasks, and what they
+    are, in words. A return is the episode's score minus 1 (the rewards sum to it). ``ref_min_score``: the mean
+    return of the lower reference (the uniform random residual, ``random_residual`` on the leaderboard) played on
+    the same tasks; ``ref_max_score``: the mean of their reference scores minus 1, the frozen reference for a
+    validation pool (the one the leaderboard's normalised column divides by) and the stored best known scores
+    for a training pool (which no frozen reference covers)."""
+    from ffsr_gym.bench.evaluation import evaluate
+    from ffsr_gym.bench.policies import uniform_random_residual
+    from ffsr_gym.tasks import reference
+
+    indices = [int(r["index"]) for r in stored]
+    lower = evaluate(uniform_random_residual, "FFSR-Residual-v2", task=tier, split=split, indices=indices,
+                     name="random_residual")
+    frozen = reference.reference_scores(tier, split, version)
+    if frozen is not None:
+        top, source = frozen[indices], f"the frozen reference {reference.reference_sha256(version)[:8]}"
+    else:
+        top, source = np.array([r["best"]["score"] for r in stored]), "the stored best known scores"
+    low = np.array([row["score"] for row in lower.episodes])
+    text = (f"ref_min_score: the mean return of the uniform random residual on the same {len(indices)} tasks; "
+            f"ref_max_score: the mean of their scores in {source}, minus 1 (a return is the score minus 1)")
+    return float(low.mean() - 1.0), float(top.mean() - 1.0), text
 
 
 @contextlib.contextmanager
@@ -103,8 +130,12 @@ def record_episode(env: gym.Env, record: dict[str, Any], schedule: Schedule, epi
 
 
 def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "train", root: str | Path | None = None,
-                  best_known_file: str | Path | None = None, version: str = "v2") -> Any:
+                  best_known_file: str | Path | None = None, version: str = "v2", author: str | None = None,
+                  author_email: str | None = None) -> Any:
     """Write the Minari dataset of ``tier``'s ``split`` pool for ``env_id`` and return it (a ``MinariDataset``).
+
+    ``author``, ``author_email``: who built it (default: git's ``user.name`` and ``user.email`` where set, else
+    none).
 
     Raises:
         InvalidInputError: the test split, an env id without schedules, or no stored best-known record for the pool.
@@ -113,6 +144,8 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
         raise InvalidInputError(f"split {split!r}; allowed: 'train' or 'validation' (the test pool's best trajectories "
                                 "are the answers the leaderboard scores against: never a dataset)")
     minari = require("minari", "dataset", "minari, h5py", "datasets need")
+    author = author if author is not None else _git_config("user.name")
+    author_email = author_email if author_email is not None else _git_config("user.email")
     if env_id not in FAMILY_OF:
         raise InvalidInputError(f"env_id {env_id!r}; allowed: {sorted(FAMILY_OF)}")
     family = FAMILY_OF[env_id]
@@ -133,19 +166,21 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
                                     "folder you can write, or a path where one can be made") from None
     staging = _staging_folder(final, name)  # before the episodes are played: every option is checked first
     try:
+        ref_min, ref_max, refs = reference_returns(tier, split, stored, version)
         env = gym.make(env_id, task=tier, split=split)
         buffers = [record_episode(env, r, Schedule.from_dict(r["families"][family]["schedule"]), k)
                    for k, r in enumerate(stored)]
         with _datasets_root(staging):
             minari.create_dataset_from_buffers(
-                name, buffers, env=env, eval_env=env.spec,
+                name, buffers, env=env, eval_env=gym.make(env_id, task=tier, split="test").spec,
                 algorithm_name=("best known schedules: per-task CMA-ES, or a baseline's absorbed episode "
                                 "(ffsr_gym.optim)"),
-                code_permalink="ffsr_gym/bench/dataset.py", author="ffsr-gym", author_email="-",
+                code_permalink=code_permalink(), author=author, author_email=author_email,
+                ref_min_score=ref_min, ref_max_score=ref_max,
                 description=(f"The best {family} schedule found for each task of the {tier} tier's {split} pool of "
                              f"benchmark {version}, played in {env_id}: "
                              f"{_coverage(len(stored), len(searched), size, family)}. infos: task_index, task_seed per "
-                             "step."),
+                             f"step. {refs}. eval_env: the tier's test pool, which the leaderboard scores."),
                 data_format="hdf5")
         _move_into_place(staging, final, name)
     except OSError as exc:
@@ -155,6 +190,27 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
         shutil.rmtree(staging, ignore_errors=True)
     with _datasets_root(root):
         return minari.load_dataset(name)
+
+
+def code_permalink() -> str:
+    """Where the code that wrote a dataset is: this module, at the package's version and commit."""
+    from importlib.metadata import version
+
+    from ffsr_gym.provenance import source_commit
+
+    commit = source_commit()
+    return f"ffsr-gym {version('ffsr-gym')}" + (f", commit {commit}" if commit else "") + ": ffsr_gym/bench/dataset.py"
+
+
+def _git_config(key: str) -> str | None:
+    """A value of the user's git configuration, or None (no git, or not set)."""
+    import subprocess
+
+    try:
+        done = subprocess.run(["git", "config", "--get", key], capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return done.stdout.strip() or None
 
 
 def _staging_folder(final: Path, name: str) -> Path:

@@ -93,6 +93,8 @@ def add_study_commands(sub: Any) -> None:
     ds.add_argument("--split", default="train", choices=["train", "validation"],
                     help="pool (default: train; validation is for model selection; the test pool is never a dataset)")
     ds.add_argument("--root", default=None, help="datasets folder (default: MINARI_DATASETS_PATH or Minari's default)")
+    ds.add_argument("--author", default=None, help="who builds it (default: git's user.name, where set)")
+    ds.add_argument("--author-email", default=None, help="their contact (default: git's user.email, where set)")
     ds.set_defaults(func=_dataset)
 
 def _train(args: argparse.Namespace) -> None:
@@ -195,7 +197,8 @@ def _tasks_tables(args: argparse.Namespace) -> None:
 def _dataset(args: argparse.Namespace) -> None:
     from ffsr_gym.bench.dataset import write_dataset
 
-    dataset = write_dataset(args.tier, args.env_id, split=args.split, root=args.root)
+    dataset = write_dataset(args.tier, args.env_id, split=args.split, root=args.root, author=args.author,
+                            author_email=args.author_email)
     print(f"wrote {dataset.spec.dataset_id}: {dataset.total_episodes} episodes, {dataset.total_steps} steps"
           + (f" under {args.root}" if args.root else " (MINARI_DATASETS_PATH or Minari's default folder)")
           + f"\n{dataset.storage.metadata['description']}")  # says how much of the pool it holds
