@@ -23,7 +23,8 @@ def test_ids_follow_minaris_grammar():
     from minari.dataset.minari_dataset import parse_dataset_id
 
     assert dataset_id("easy", "FFSR-Residual-v2") == "ffsr/easy/best-known-v0"
-    assert parse_dataset_id(dataset_id("hard", "FFSR-v2", "validation")) == ("ffsr/hard", "best-known-mtc-validation", 0)
+    parsed = parse_dataset_id(dataset_id("hard", "FFSR-v2", "validation"))
+    assert parsed == ("ffsr/hard", "best-known-mtc-validation", 0)
 
 
 def test_normalised_scores_of_a_dataset_equal_the_leaderboards_on_its_episodes(tmp_path):

@@ -287,3 +287,33 @@ def test_clipped_actions_are_counted_in_the_rows_verified_and_shown_in_the_table
         replay_entry(_write(tmp_path, forged))
     del forged["extra"]["trace"]["clipped"]
     assert replay_entry(_write(tmp_path, forged)).status == "differs"
+
+
+def test_a_stamp_describes_the_rows_it_verified_and_the_table_shows_it(tmp_path):
+    from ffsr_gym.bench import leaderboard
+    from ffsr_gym.cli.main import main
+    from ffsr_gym.model.spec import ranked_spec
+
+    root = tmp_path / "leaderboards"
+    shutil.copytree(ROOT / "leaderboards", root)
+    path = root / "v2" / "hard" / "cmaes_residual.json"
+    assert main(["leaderboard", "verify", str(path), "--stamp"]) == 0
+    stamp = json.loads(path.read_text())["extra"]["verified"]
+    assert stamp["status"] == "reproduced" and stamp["verifier"].startswith("ffsr-gym ")
+    assert stamp["pool_file_sha256"] == json.loads(path.read_text())["extra"]["pool_file_sha256"]
+    assert leaderboard.refused(leaderboard.load_entries(root, ranked_spec())) == []
+    leaderboard.write_readme(root)
+    row = next(line for line in (root / "README.md").read_text().splitlines() if "| `cmaes_residual` |" in line
+               and "hard/train" in line)
+    assert "verified " in row.split("|")[-2]
+    entry = json.loads(path.read_text())
+    entry["episodes"][0]["min_clearance_m"] += 1e-3  # a row edited after verification: the stamp no longer holds
+    path.write_text(json.dumps(entry))
+    reasons = [r for _, name, rs in leaderboard.refused(leaderboard.load_entries(root, ranked_spec())) for r in rs
+               if name == "cmaes_residual.json"]
+    assert "extra.verified: the rows changed after they were verified (rows_sha256 differs)" in reasons
+    entry["extra"]["verified"] = {"status": "reproduced"}  # a typed stamp
+    path.write_text(json.dumps(entry))
+    reasons = [r for _, name, rs in leaderboard.refused(leaderboard.load_entries(root, ranked_spec())) for r in rs
+               if name == "cmaes_residual.json"]
+    assert any(r.startswith("extra.verified: allowed a stamp with exactly the keys") for r in reasons)

@@ -53,7 +53,8 @@ def _coverage(episodes: int, searched: int, pool_size: int, family: str) -> str:
 def dataset_id(tier: str, env_id: str, split: str = "train") -> str:
     """The Minari id of a tier's best-known dataset, in Minari's grammar ``namespace/name-vN``: namespace
     ``ffsr/<tier>``, name ``best-known`` (the residual env's schedules; ``-mtc`` for FFSR-v2's (m, T_c) ones) and
-    the split when it is not the training pool: ``ffsr/easy/best-known-v0``, ``ffsr/hard/best-known-mtc-validation-v0``."""
+    the split when it is not the training pool: ``ffsr/easy/best-known-v0``,
+    ``ffsr/hard/best-known-mtc-validation-v0``."""
     name = "best-known" + ("" if env_id == "FFSR-Residual-v2" else "-mtc") + ("" if split == "train" else f"-{split}")
     return f"ffsr/{tier}/{name}-v0"
 

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from ffsr_gym.bench.normalise import normalised_mean, normalised_scores
+from ffsr_gym.bench.stamp import stamp_text
 from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.tasks import best_known, reference
@@ -49,9 +50,11 @@ def header(spec: BenchmarkSpec, group: str) -> list[str]:
 
 
 def commit(entry: dict[str, Any]) -> str:
-    """The short commit an entry was made at (``+dirty`` with uncommitted changes)."""
+    """The short commit an entry was made at (``+dirty`` with uncommitted changes), and its verification stamp."""
     prov = entry["provenance"]
-    return safe(str(prov.get("git_commit") or "none")[:8] + ("+dirty" if prov.get("git_dirty") else ""))
+    stamp = stamp_text(entry)
+    return safe(str(prov.get("git_commit") or "none")[:8] + ("+dirty" if prov.get("git_dirty") else "")
+                + (f", {stamp}" if stamp else ""))
 
 
 def _g4(x: float | None) -> str:

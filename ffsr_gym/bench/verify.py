@@ -24,6 +24,7 @@ from collections import Counter
 from functools import lru_cache
 from typing import Any
 
+from ffsr_gym.bench.stamp import stamp_problems
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.reference import reference_path, reference_sha256
@@ -48,6 +49,8 @@ def entry_problems(entry: Any, spec: BenchmarkSpec, group: str) -> list[str]:
     try:
         problems += _row_problems(rows, spec) + _metric_problems(entry, rows, spec)
         problems += _coverage_problems(entry, rows, spec, group)
+        if spec.rules is not None:
+            problems += stamp_problems(entry, spec.rules.version)
     except (KeyError, TypeError, ValueError) as exc:
         problems.append(f"malformed rows or metrics ({type(exc).__name__}: {exc})")
     return problems

@@ -107,7 +107,26 @@ def _verify(args: argparse.Namespace) -> int:
 
     verdict = replay_entry(args.entry, run_code=args.run_code)
     print(f"{args.entry}: {verdict.status}: {verdict.text}", file=sys.stdout if verdict.exit_code == 0 else sys.stderr)
+    if args.stamp and verdict.status == "reproduced":
+        _stamp(args.entry)
     return verdict.exit_code
+
+
+def _stamp(path: str) -> None:
+    """Write the verification stamp into the entry just reproduced (atomically; the rest of the file as it was)."""
+    from ffsr_gym.bench.leaderboard import spec_of_entry
+    from ffsr_gym.bench.stamp import make_stamp
+    from ffsr_gym.provenance import write_json_atomic
+    from ffsr_gym.user_files import parse_json, read_text
+
+    entry = parse_json(read_text(path), path)
+    spec = spec_of_entry(entry)
+    if spec.rules is None:
+        print(f"{path}: {spec.version} entries carry no stamp", file=sys.stderr)
+        return
+    entry["extra"]["verified"] = make_stamp(entry, spec.rules.version)
+    write_json_atomic(path, entry)
+    print(f"{path}: stamped ({entry['extra']['verified']['verifier']})")
 
 
 def add_board_commands(sub: Any) -> None:
@@ -138,6 +157,9 @@ def add_board_commands(sub: Any) -> None:
     verify.add_argument("--run-code", default=None, metavar="TEXT",
                         help="consent to run the code the entry names: exactly its extra.policy callable or SB3 .zip "
                              "(importing a file or unpickling a model runs code of its maker's choosing)")
+    verify.add_argument("--stamp", action="store_true",
+                        help="when reproduced, write the verification stamp (verifier, commit, pool, reference and "
+                             "rows hashes) into the entry; the tables show it")
     verify.set_defaults(func=_verify)
     render = board_sub.add_parser("render", help="regenerate the tables in <root>/README.md from the JSON entries")
     render.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")

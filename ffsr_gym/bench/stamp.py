@@ -1,0 +1,82 @@
+"""The verification stamp: what ``ffsr-gym leaderboard verify --stamp`` writes into an entry it reproduced, and the
+check that a stamp still describes the entry it sits in.
+
+A stamp (``extra.verified``) names the verifier (the package version and the commit it ran from), the pool file and
+frozen reference the entry was replayed against, and the sha256 of the rows it reproduced. It proves nothing by
+itself (anyone can type one); what it states is checked: a stamp whose rows, pool or reference differ from the
+entry's and the shipped files' gets the entry refused, and the pull-request workflow replays every added or changed
+entry itself. The tables show a valid stamp beside the entry's commit.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from datetime import datetime, timezone
+from importlib import metadata
+from typing import Any
+
+KEYS = ("status", "verifier", "commit", "pool_file_sha256", "reference_sha256", "rows_sha256", "created_utc")
+_HEX = re.compile(r"[0-9a-f]{40}|[0-9a-f]{64}")
+
+
+def rows_digest(rows: list[dict[str, Any]]) -> str:
+    """sha256 of an entry's episode rows, as JSON with sorted keys."""
+    return hashlib.sha256(json.dumps(rows, sort_keys=True, allow_nan=False).encode()).hexdigest()
+
+
+def _reference_sha(entry: dict[str, Any], version: str) -> str | None:
+    """The frozen reference the entry's pool is normalised by now (None when the reference does not cover it)."""
+    from ffsr_gym.tasks.reference import reference_record
+
+    tier, _, split = str((entry.get("extra") or {}).get("evaluation_pool", "")).partition("/")
+    try:
+        return reference_record(tier, split, version).get("reference_sha256")
+    except (KeyError, ValueError):
+        return None
+
+
+def make_stamp(entry: dict[str, Any], version: str) -> dict[str, Any]:
+    """The stamp of an entry that ``verify`` has just reproduced. Its commit is the ffsr-gym checkout's when the
+    verifier ran from a clean one (generated results aside), else null: an installed package, or uncommitted code."""
+    from ffsr_gym.provenance import is_source_checkout, provenance
+
+    prov = provenance(command="")
+    clean = is_source_checkout() and prov["git_dirty"] is False
+    return {"status": "reproduced", "verifier": f"ffsr-gym {metadata.version('ffsr-gym')}",
+            "commit": prov["git_commit"] if clean else None,
+            "pool_file_sha256": entry["extra"].get("pool_file_sha256"),
+            "reference_sha256": _reference_sha(entry, version),
+            "rows_sha256": rows_digest(entry["episodes"]),
+            "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds")}
+
+
+def stamp_problems(entry: dict[str, Any], version: str) -> list[str]:
+    """Why an entry's stamp does not describe it (empty: no stamp, or a stamp that does)."""
+    stamp = (entry.get("extra") or {}).get("verified")
+    if stamp is None:
+        return []
+    if not isinstance(stamp, dict) or set(stamp) != set(KEYS):
+        return [f"extra.verified: allowed a stamp with exactly the keys {list(KEYS)} (written by ffsr-gym leaderboard "
+                "verify --stamp)"]
+    problems = []
+    if stamp["status"] != "reproduced":
+        problems.append(f"extra.verified.status {str(stamp['status'])[:20]!r}; allowed: 'reproduced'")
+    if stamp["commit"] is not None and not (isinstance(stamp["commit"], str) and _HEX.fullmatch(stamp["commit"])):
+        problems.append("extra.verified.commit: allowed a 40-digit hexadecimal commit or null")
+    if stamp["rows_sha256"] != rows_digest(entry["episodes"]):
+        problems.append("extra.verified: the rows changed after they were verified (rows_sha256 differs)")
+    if stamp["pool_file_sha256"] != entry["extra"].get("pool_file_sha256"):
+        problems.append("extra.verified: stamped against another pool file than the entry's")
+    if stamp["reference_sha256"] != _reference_sha(entry, version):
+        problems.append("extra.verified: stamped against another reference than the frozen one")
+    return problems
+
+
+def stamp_text(entry: dict[str, Any]) -> str:
+    """The table's words for an entry's stamp: ``verified at <commit>`` (or the verifier's version), or empty."""
+    stamp = (entry.get("extra") or {}).get("verified")
+    if not isinstance(stamp, dict):
+        return ""
+    return f"verified at {stamp['commit'][:8]}" if stamp.get("commit") else f"verified by {stamp.get('verifier')}"
