@@ -224,6 +224,7 @@ def evaluate(policy: Policy, env_id: str, *, seeds: Sequence[int] | None = None,
             pool.
         executor: protocol ``pool``: score chunks of ``chunk`` tasks on any
             ``concurrent.futures.Executor`` (processes, Dask); the policy must pickle. Same entry.
+        chunk: with ``executor``, the tasks of one piece of work sent to it (an integer >= 1).
         batched: a fixed (m, T_c) on a pool runs all tasks in one batched env in this process
             (None: whenever possible without an executor; the same entry, tested bit for bit).
         compute: what training or tuning the policy cost, for the leaderboard's compute column:
