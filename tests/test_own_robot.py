@@ -28,7 +28,7 @@ SHIPPED = envs_dir() / "robots" / "ffsr_dual_arm"
 
 
 def make_robot(folder: Path, *, base_mass: float = 150.0, upper_link_m: float = 0.45) -> Path:
-    """A copy of the shipped robot with another base mass and mission upper-link length, as docs/robots.md does it."""
+    """A copy of the shipped robot with another base mass and mission upper-link length, as the robot tutorial does."""
     folder.mkdir(parents=True)
     urdf = (SHIPPED / "ffsr_dual_arm.urdf").read_text()
     scale = base_mass / 200.0
@@ -187,8 +187,8 @@ def test_a_folder_without_its_files_is_refused(tmp_path):
         gym.make("FFSR-v2", task=str(tmp_path / "nothing_here.toml"))
 
 
-def test_the_walkthrough_in_docs_robots_md_runs_as_written(tmp_path, monkeypatch):
-    text = (Path(__file__).resolve().parents[1] / "docs" / "robots.md").read_text(encoding="utf-8")
+def test_the_robot_tutorial_says_what_its_steps_give(tmp_path, monkeypatch):
+    text = (Path(__file__).resolve().parents[1] / "docs" / "tutorials" / "robot.md").read_text(encoding="utf-8")
     blocks = [block.split("```")[0] for block in text.split("```python\n")[1:]]
     monkeypatch.chdir(tmp_path)
     Path("make_robot.py").write_text(textwrap.dedent(blocks[0]))  # step 1 of the page, as written
@@ -204,7 +204,7 @@ def test_the_walkthrough_in_docs_robots_md_runs_as_written(tmp_path, monkeypatch
 
 
 def test_the_page_says_why_a_shorter_arm_misses(own):
-    """docs/robots.md: with a 0.45 m upper link the free_space target is out of reach, 27 mm short."""
+    """docs/tutorials/robot.md: with a 0.45 m upper link the free_space target is out of reach, 27 mm short."""
     root, _, _ = own
     row = ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task=str(root / "mine.toml")).episodes[0]
     assert row["failure"] == "final_error" and round(1000 * row["final_ee_position_error_m"]) == 27
