@@ -1,0 +1,129 @@
+"""Torque-free motion of a rigid target body: a tumbling satellite or piece of debris (docs/model.md §22).
+
+Until it is captured, the target moves independently of the robot: its centre of mass drifts at constant velocity
+and its attitude follows Euler's equations for a body with principal inertia ``I = diag(I_1, I_2, I_3)`` [kg m²]
+and no torque,
+
+.. math:: I_1 \\dot\\omega_1 = (I_2 - I_3) \\omega_2 \\omega_3 \\quad (\\text{and cyclically}),
+          \\qquad \\dot q = \\tfrac12\\, q \\otimes (0, \\omega),
+
+with ``ω`` the body-frame angular velocity [rad/s] and ``q`` the scalar-first unit quaternion body → world. The
+motion is a function of time alone, so an episode computes it once, at every physics step
+(:func:`propagate`), before the robot moves.
+
+Integration: classical RK4 on ``(q, ω)`` with ``substeps`` steps per physics step, the quaternion renormalised after
+each (a projection back onto the unit sphere, of the size of RK4's local error). At the benchmark's step (0.01 s)
+and 4 substeps, a 60 s tumble of a body spinning at up to 1 rad/s keeps its kinetic energy and its angular momentum
+in the world frame to about 1e-12 relative (tests/test_tumbling.py states the tolerances it checks).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ffsr_gym.model.quaternion import multiply, to_rotation
+from ffsr_gym.types import Array
+
+
+@dataclass(frozen=True)
+class TargetMotion:
+    """The target at every physics step of an episode: ``(steps + 1)`` rows from t = 0.
+
+    Attributes:
+        time_s: (N+1,) [s].
+        position_m: (N+1, 3) centre of mass in the world frame [m].
+        quaternion: (N+1, 4) attitude body → world, scalar first.
+        omega_body_rad_s: (N+1, 3) angular velocity in the body frame [rad/s].
+        velocity_m_s: (3,) the constant drift of the centre of mass [m/s].
+    """
+
+    time_s: Array
+    position_m: Array
+    quaternion: Array
+    omega_body_rad_s: Array
+    velocity_m_s: Array
+
+    def omega_world_rad_s(self) -> Array:
+        """(N+1, 3) angular velocity in the world frame, R(q) ω [rad/s]."""
+        return np.einsum("nij,nj->ni", rotations(self.quaternion), self.omega_body_rad_s)
+
+
+def euler_rates(omega_body: Array, inertia: Array) -> Array:
+    """Torque-free Euler equations: dω/dt in the body frame [rad/s²] for principal ``inertia`` (3,) [kg m²]."""
+    i1, i2, i3 = inertia
+    w1, w2, w3 = omega_body
+    return np.array([(i2 - i3) * w2 * w3 / i1, (i3 - i1) * w3 * w1 / i2, (i1 - i2) * w1 * w2 / i3])
+
+
+def quaternion_rate(quaternion: Array, omega_body: Array) -> Array:
+    """dq/dt = ½ q ⊗ (0, ω) for a body-frame angular velocity ``omega_body`` [rad/s]."""
+    return 0.5 * multiply(quaternion, np.array([0.0, *omega_body]))
+
+
+def rk4_step(quaternion: Array, omega_body: Array, inertia: Array, h: float) -> tuple[Array, Array]:
+    """One classical Runge-Kutta step of length ``h`` [s] of (q, ω); the quaternion returned is renormalised."""
+    def rates(q: Array, w: Array) -> tuple[Array, Array]:
+        return quaternion_rate(q, w), euler_rates(w, inertia)
+
+    k1q, k1w = rates(quaternion, omega_body)
+    k2q, k2w = rates(quaternion + 0.5 * h * k1q, omega_body + 0.5 * h * k1w)
+    k3q, k3w = rates(quaternion + 0.5 * h * k2q, omega_body + 0.5 * h * k2w)
+    k4q, k4w = rates(quaternion + h * k3q, omega_body + h * k3w)
+    q = quaternion + h / 6.0 * (k1q + 2.0 * k2q + 2.0 * k3q + k4q)
+    w = omega_body + h / 6.0 * (k1w + 2.0 * k2w + 2.0 * k3w + k4w)
+    return q / np.linalg.norm(q), w
+
+
+def propagate(*, position_m: Array, velocity_m_s: Array, quaternion: Array, omega_body_rad_s: Array,
+              inertia_kg_m2: Array, dt_s: float, steps: int, substeps: int = 4) -> TargetMotion:
+    """The target's motion over ``steps`` physics steps of ``dt_s`` [s] from the given initial state.
+
+    Args:
+        position_m: (3,) initial centre of mass, world frame [m].
+        velocity_m_s: (3,) constant drift of the centre of mass [m/s].
+        quaternion: (4,) initial attitude body → world, scalar first (normalised here).
+        omega_body_rad_s: (3,) initial angular velocity in the body frame [rad/s].
+        inertia_kg_m2: (3,) principal moments of inertia [kg m²], each > 0.
+        dt_s: the physics step [s].
+        steps: number of physics steps.
+        substeps: RK4 steps per physics step.
+    """
+    inertia = np.asarray(inertia_kg_m2, dtype=float)
+    q = np.asarray(quaternion, dtype=float) / np.linalg.norm(quaternion)
+    w = np.asarray(omega_body_rad_s, dtype=float)
+    quats, omegas = np.empty((steps + 1, 4)), np.empty((steps + 1, 3))
+    quats[0], omegas[0] = q, w
+    h = dt_s / substeps
+    for n in range(steps):
+        for _ in range(substeps):
+            q, w = rk4_step(q, w, inertia, h)
+        quats[n + 1], omegas[n + 1] = q, w
+    time = dt_s * np.arange(steps + 1)
+    velocity = np.asarray(velocity_m_s, dtype=float)
+    return TargetMotion(time_s=time, position_m=np.asarray(position_m, dtype=float) + time[:, None] * velocity,
+                        quaternion=quats, omega_body_rad_s=omegas, velocity_m_s=velocity)
+
+
+def rotations(quaternions: Array) -> Array:
+    """(N, 3, 3) rotation matrices of (N, 4) scalar-first unit quaternions."""
+    return np.stack([to_rotation(q) for q in quaternions])
+
+
+def angular_momentum_world(motion: TargetMotion, inertia_kg_m2: Array) -> Array:
+    """(N+1, 3) angular momentum about the centre of mass in the world frame, R I ω [kg m²/s]."""
+    body = np.asarray(inertia_kg_m2)[None, :] * motion.omega_body_rad_s
+    return np.einsum("nij,nj->ni", rotations(motion.quaternion), body)
+
+
+def kinetic_energy(motion: TargetMotion, inertia_kg_m2: Array) -> Array:
+    """(N+1,) rotational kinetic energy ½ ωᵀ I ω [J]."""
+    return 0.5 * np.sum(np.asarray(inertia_kg_m2)[None, :] * motion.omega_body_rad_s ** 2, axis=1)
+
+
+def point_motion(motion: TargetMotion, offset_body_m: Array) -> tuple[Array, Array]:
+    """Position [m] and velocity [m/s] in the world frame, (N+1, 3) each, of a point fixed on the body at
+    ``offset_body_m`` (3,) from the centre of mass in the body frame: p + R r and v + ω_world × R r."""
+    arm = np.einsum("nij,j->ni", rotations(motion.quaternion), np.asarray(offset_body_m, dtype=float))
+    return motion.position_m + arm, motion.velocity_m_s[None, :] + np.cross(motion.omega_world_rad_s(), arm)
