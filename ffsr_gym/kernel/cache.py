@@ -28,7 +28,8 @@ from ffsr_gym.kernel import (
     servo,
 )
 
-#: Modules with compiled functions (their caches are flushed together).
+#: Modules with compiled functions (their caches are flushed together). ``tumbling`` is not among them: it inlines
+#: nothing from another module, so numba's own key (its file's timestamp) keeps its cache right.
 MODULES = (linalg, physics, dynamics, servo, collision, inverse, planner, loop, score_terms, decision, batch)
 #: Everything compiled into those functions: the modules and the intrinsics they use.
 SOURCES = (borrow, *MODULES)
