@@ -1,0 +1,76 @@
+"""The approach onto a moving grasp frame (docs/model.md §22): its twist against finite differences of its pose, a
+still grasp frame giving the paper's path back, and the predefined-time planner following a spinning, drifting
+grasp frame in free space, its error settled within T_c."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ffsr_gym.model import quaternion as quat
+from ffsr_gym.model.scenario import load_scenario
+from ffsr_gym.model.tumbling import point_motion, propagate
+from ffsr_gym.planning.desired_path import DesiredPath
+from ffsr_gym.planning.moving_target import GraspFrameMotion, MovingTargetPath, rotation_vector
+from ffsr_gym.sim.reference import ReferenceRollout
+
+SCENARIO = load_scenario("free_space")
+DT, STEPS = SCENARIO.simulation.dt_s, SCENARIO.n_steps
+HANDLE_BODY_M = np.array([0.0, 0.0, 0.2])  # the grasp frame, 20 cm from the centre on the spin axis
+
+
+def _grasp(spin_deg_s: float, drift_m_s=(0.0, 0.0, 0.0)) -> GraspFrameMotion:
+    """A body spinning about its z axis whose grasp frame starts at the scenario's target pose."""
+    start = np.array(SCENARIO.target.quaternion_wxyz)
+    centre = np.array(SCENARIO.target.position_m) - quat.to_rotation(start) @ HANDLE_BODY_M
+    motion = propagate(position_m=centre, velocity_m_s=np.array(drift_m_s), quaternion=start,
+                       omega_body_rad_s=np.deg2rad(spin_deg_s) * np.array([0.0, 0.0, 1.0]),
+                       inertia_kg_m2=np.array([150.0, 150.0, 150.0]), dt_s=DT, steps=STEPS)
+    position, velocity = point_motion(motion, HANDLE_BODY_M)
+    return GraspFrameMotion(DT, position, motion.quaternion, velocity, motion.omega_world_rad_s())
+
+
+def _path(rollout: ReferenceRollout, grasp: GraspFrameMotion, offset_m=(0.0, 0.0, 0.0), tilt_rad=0.0):
+    paper = rollout.planner.path
+    start = quat.multiply(quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), tilt_rad), paper.start_attitude)
+    return MovingTargetPath.onto(paper.start_position + np.array(offset_m), start, grasp,
+                                 motion_time=paper.motion_time, accel_time=paper.accel_time)
+
+
+def test_the_desired_twist_is_the_derivative_of_the_desired_pose():
+    path = _path(ReferenceRollout(SCENARIO), _grasp(3.0, (0.003, -0.002, 0.001)))
+    for t in (1.0, 3.0, 6.0, 9.5, 15.0):
+        _, _, twist = path.at(t)
+        (p_after, s_after, _), (p_before, s_before, _) = path.at(t + DT), path.at(t - DT)
+        assert np.abs((p_after - p_before) / (2 * DT) - twist[:3]).max() < 1e-7
+        turned = rotation_vector(quat.multiply(s_after, quat.conjugate(s_before))) / (2 * DT)
+        assert np.abs(turned - twist[3:]).max() < 1e-7
+
+
+def test_a_still_grasp_frame_gives_the_papers_path():
+    rollout = ReferenceRollout(SCENARIO)
+    paper = rollout.planner.path
+    moving = _path(rollout, _grasp(0.0))
+    still = DesiredPath.between(paper.start_position, paper.start_attitude, np.array(SCENARIO.target.position_m),
+                                np.array(SCENARIO.target.quaternion_wxyz), motion_time=paper.motion_time,
+                                accel_time=paper.accel_time)
+    for t in (0.0, 2.0, 5.0, 9.0, 12.0):
+        for ours, theirs in zip(moving.at(t), still.at(t)):
+            assert np.abs(ours - theirs).max() < 1e-12 or np.abs(ours + theirs).max() < 1e-12  # q and -q
+
+
+def test_the_planner_follows_a_spinning_drifting_grasp_frame_within_T_c():
+    rollout = ReferenceRollout(SCENARIO)
+    path = _path(rollout, _grasp(3.0, (0.003, -0.002, 0.001)), offset_m=(0.03, -0.02, 0.02), tilt_rad=0.05)
+    rollout.planner.path, rollout.planner.estimates = path, (path,)
+    for _ in range(STEPS):
+        rollout.step()
+    rollout.finish()
+    traj = rollout.trajectory()
+    t, position, attitude = traj.t, np.asarray(traj.ee_position_error_m), np.asarray(traj.ee_attitude_error)
+    assert position[0] == pytest.approx(np.linalg.norm([0.03, -0.02, 0.02]))  # it starts 4 cm off the path
+    settled = t >= rollout.T_c - 1e-9
+    assert position[settled].max() < 2e-5 and attitude[settled].max() < 2e-5  # within T_c, while the target moves
+    captured = t >= path.motion_time + rollout.T_c - 1e-9
+    assert position[captured].max() < 1e-7 and attitude[captured].max() < 1e-7  # on the grasp frame after the approach
+    assert np.rad2deg(np.abs(np.asarray(traj.dq_joints))).max() < 200.0
