@@ -74,3 +74,45 @@ def test_the_planner_follows_a_spinning_drifting_grasp_frame_within_T_c():
     captured = t >= path.motion_time + rollout.T_c - 1e-9
     assert position[captured].max() < 1e-7 and attitude[captured].max() < 1e-7  # on the grasp frame after the approach
     assert np.rad2deg(np.abs(np.asarray(traj.dq_joints))).max() < 200.0
+
+
+def _tumbling_toml(tmp_path, **changes) -> str:
+    """free_space with a tumbling target whose grasp frame starts at the scenario's target pose."""
+    from ffsr_gym.model.resources import scenario_path
+
+    start = np.array(SCENARIO.target.quaternion_wxyz)
+    centre = np.array(SCENARIO.target.position_m) - quat.to_rotation(start) @ HANDLE_BODY_M
+    values = {"size_m": [0.3, 0.3, 0.3], "mass_kg": 150.0, "inertia_kg_m2": [150.0, 150.0, 150.0],
+              "position_m": centre.tolist(), "quaternion_wxyz": start.tolist(),
+              "handle_position_m": HANDLE_BODY_M.tolist(), "velocity_m_s": [0.003, -0.002, 0.001],
+              "omega_body_deg_s": [0.0, 0.0, 3.0], **changes}
+    lines = [f"{key} = {value!r}" for key, value in values.items()]
+    text = scenario_path("free_space").read_text().replace('name = "free_space"', 'name = "tumbling"')
+    path = tmp_path / "tumbling.toml"
+    path.write_text(text + "\n[tumbling_target]\n" + "\n".join(lines) + "\n")
+    return str(path)
+
+
+def test_a_tumbling_target_scenario_plans_onto_its_grasp_frame(tmp_path):
+    import ffsr_gym
+    from ffsr_gym.exceptions import InvalidInputError
+
+    scenario = load_scenario(_tumbling_toml(tmp_path))
+    traj = ffsr_gym.simulate(scenario, backend="pinocchio")
+    captured = traj.t >= scenario.desired_path.motion_time_s + scenario.planner.T_c_s - 1e-9
+    assert np.asarray(traj.ee_position_error_m)[captured].max() < 1e-7
+    with pytest.raises(InvalidInputError, match="tumbling target.*backend='pinocchio'"):
+        ffsr_gym.simulate(scenario, backend="kernel")
+
+
+@pytest.mark.parametrize(("change", "named"), [
+    ({"inertia_kg_m2": [10.0, 10.0, 30.0]}, "moment 3 exceeds the sum of the other two"),
+    ({"handle_position_m": [0.0, 0.1, 0.1]}, "lies inside the body"),
+    ({"velocity_m_s": [2.0, 0.0, 0.0]}, "tumbling_target.velocity_m_s"),
+    ({"handle_quaternion_wxyz": [0.0, 0.0, 0.0, 1.0]}, "is not the grasp frame of 'tumbling_target' at t = 0"),
+])
+def test_an_impossible_tumbling_target_is_named(tmp_path, change, named):
+    from ffsr_gym.exceptions import ScenarioError
+
+    with pytest.raises(ScenarioError, match=named):
+        load_scenario(_tumbling_toml(tmp_path, **change))

@@ -38,6 +38,8 @@ from ffsr_gym.model.scenario_sections import (
     Simulation,
     Target,
     TargetNoise,
+    TumblingTarget,
+    tumbling_problems,
 )
 from ffsr_gym.model.schema import (
     TEXT,
@@ -72,6 +74,7 @@ class Scenario:
     plant: Plant | None = field(default=None, metadata=section(Plant))
     servo: ServoSettings | None = field(default=None, metadata=section(ServoSettings))
     target_noise: TargetNoise | None = field(default=None, metadata=section(TargetNoise))
+    tumbling_target: TumblingTarget | None = field(default=None, metadata=section(TumblingTarget))
     objective: ObjectiveSettings = field(default=ObjectiveSettings(), metadata=section(ObjectiveSettings))
     env: EnvSettings = field(default=EnvSettings(), metadata=section(EnvSettings))
     randomization: Randomization | None = field(default=None, metadata=section(Randomization))
@@ -162,7 +165,7 @@ def to_dict(scenario: Scenario) -> dict[str, Any]:
     """Return the scenario as plain data (the TOML layout), without its source path."""
     data = _plain(scenario)
     data.pop("source")
-    for optional in ("obstacle", "debris", "plant", "servo", "target_noise", "randomization"):
+    for optional in ("obstacle", "debris", "plant", "servo", "target_noise", "tumbling_target", "randomization"):
         if data[optional] is None:
             data.pop(optional)
     for (table, key), default in ADDED_KEYS.items():
@@ -330,6 +333,7 @@ def _check_cross_fields(s: Scenario, where: str) -> None:
         raise ScenarioError(f"{where}key 'plant.com_offset_m' lists {len(s.plant.com_offset_m)} rows; allowed: none, "
                             "or one [x, y, z] per link (12)")
     _check_servo(s, where)
+    _check_tumbling(s, where)
     if s.randomization is not None and s.obstacle is None:
         raise ScenarioError(f"{where}section 'randomization' needs an 'obstacle' section (its radii are used)")
     try:
@@ -355,6 +359,16 @@ def _check_servo(s: Scenario, where: str) -> None:
         if not path.is_file():
             raise RobotFileError(f"{where}key 'simulation.plant' = 'servo' needs the robot's drive file {str(path)!r}, "
                                  "which does not exist (docs/robots.md)")
+
+
+def _check_tumbling(s: Scenario, where: str) -> None:
+    """A ``[tumbling_target]`` of a real body, whose grasp frame at t = 0 is the scenario's ``[target]``."""
+    problems = [] if s.tumbling_target is None else tumbling_problems(s.tumbling_target, s.target)
+    if s.tumbling_target is not None and s.target_noise is not None:
+        problems.append("sections 'tumbling_target' and 'target_noise' together: not supported yet (the noisy "
+                        "estimate is of a still target)")
+    if problems:
+        raise ScenarioError(where + "; ".join(problems))
 
 
 def _normalised(s: Scenario) -> Scenario:

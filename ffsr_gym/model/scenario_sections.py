@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from ffsr_gym.model.schema import (
     BOOL,
     Vec,
@@ -15,6 +17,7 @@ from ffsr_gym.model.schema import (
     rows,
     vector,
 )
+from ffsr_gym.model.tumbling import grasp_pose
 
 
 @dataclass(frozen=True)
@@ -218,3 +221,62 @@ class Randomization:
     min_final_distance_m: float = field(default=0.1, metadata=number(0.0, 10.0))
     min_self_clearance_m: float = field(default=0.02, metadata=number(0.0, 10.0))
     max_attempts: float = field(default=1000, metadata=number(1, 1e6))
+
+
+@dataclass(frozen=True)
+class TumblingTarget:
+    """A target body that drifts and tumbles, and the grasp frame on it (beyond the paper; docs/model.md §22).
+
+    The body is a box of edges ``size_m`` [m] with its centre of mass at its centre, ``mass_kg`` [kg] and principal
+    moments ``inertia_kg_m2`` [kg m²] about its body axes. At t = 0 its centre is at ``position_m`` [m] with attitude
+    ``quaternion_wxyz`` (body → world); it drifts at ``velocity_m_s`` [m/s] and turns at ``omega_body_deg_s``
+    [deg/s] (body frame), with no torque (:mod:`ffsr_gym.model.tumbling`). The grasp frame (the handle) is fixed on
+    the body at ``handle_position_m`` [m] with attitude ``handle_quaternion_wxyz``, both in the body frame, outside
+    the box. The scenario's ``[target]`` is the grasp frame at t = 0 (checked on load).
+    """
+
+    size_m: Vec = field(metadata=vector(3, 0.05, 5.0))
+    mass_kg: float = field(metadata=number(1.0, 1e5))
+    inertia_kg_m2: Vec = field(metadata=vector(3, 1e-3, 1e6))
+    position_m: Vec = field(metadata=vector(3, -100.0, 100.0))
+    quaternion_wxyz: Vec = field(metadata=vector(4, -1.01, 1.01))
+    handle_position_m: Vec = field(metadata=vector(3, -5.0, 5.0))
+    handle_quaternion_wxyz: Vec = field(default=(1.0, 0.0, 0.0, 0.0), metadata=vector(4, -1.01, 1.01))
+    velocity_m_s: Vec = field(default=(0.0,) * 3, metadata=vector(3, -1.0, 1.0))
+    omega_body_deg_s: Vec = field(default=(0.0,) * 3, metadata=vector(3, -90.0, 90.0))
+
+
+def tumbling_problems(body: TumblingTarget, target: Target) -> list[str]:
+    """What makes a ``[tumbling_target]`` section impossible, key by key (empty when nothing): moments no body has,
+    quaternions far from unit norm, a handle inside the box, a ``[target]`` that is not the grasp frame at t = 0."""
+    problems = []
+    i1, i2, i3 = body.inertia_kg_m2
+    for k, (moment, others) in enumerate(((i1, i2 + i3), (i2, i1 + i3), (i3, i1 + i2))):
+        if moment > others * (1.0 + 1e-12):
+            problems.append(f"key 'tumbling_target.inertia_kg_m2' = {list(body.inertia_kg_m2)}: moment {k + 1} exceeds "
+                            "the sum of the other two; allowed: principal moments of a real body (each at most the "
+                            "sum of the others)")
+    for key in ("quaternion_wxyz", "handle_quaternion_wxyz"):
+        norm = sum(c * c for c in getattr(body, key)) ** 0.5
+        if abs(norm - 1.0) > 1e-2:
+            problems.append(f"key 'tumbling_target.{key}' = {list(getattr(body, key))} has norm {norm:.6f}; allowed: a "
+                            "unit quaternion [w, x, y, z] within 1e-2 of norm 1 (it is normalised on load)")
+    if all(abs(h) <= e / 2.0 for h, e in zip(body.handle_position_m, body.size_m)):
+        problems.append(f"key 'tumbling_target.handle_position_m' = {list(body.handle_position_m)} lies inside the "
+                        f"body (edges {list(body.size_m)} m, centred on the body frame); allowed: a point outside it")
+    if not problems:
+        problems += _grasp_target_problems(body, target)
+    return problems
+
+
+def _grasp_target_problems(body: TumblingTarget, target: Target) -> list[str]:
+    position, attitude = grasp_pose(body.position_m, body.quaternion_wxyz, body.handle_position_m,
+                                    body.handle_quaternion_wxyz)
+    wanted = np.array(target.quaternion_wxyz) / np.linalg.norm(target.quaternion_wxyz)
+    off = max(np.abs(position - np.array(target.position_m)).max(),
+              min(np.abs(attitude - wanted).max(), np.abs(attitude + wanted).max()))
+    if off <= 1e-6:
+        return []
+    return [f"section 'target' ({list(target.position_m)}, {list(target.quaternion_wxyz)}) is not the grasp frame of "
+            f"'tumbling_target' at t = 0 ({[round(float(x), 9) for x in position]}, "
+            f"{[round(float(x), 9) for x in attitude]}); allowed: that pose, within 1e-6"]

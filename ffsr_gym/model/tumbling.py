@@ -127,3 +127,14 @@ def point_motion(motion: TargetMotion, offset_body_m: Array) -> tuple[Array, Arr
     ``offset_body_m`` (3,) from the centre of mass in the body frame: p + R r and v + ω_world × R r."""
     arm = np.einsum("nij,j->ni", rotations(motion.quaternion), np.asarray(offset_body_m, dtype=float))
     return motion.position_m + arm, motion.velocity_m_s[None, :] + np.cross(motion.omega_world_rad_s(), arm)
+
+
+def grasp_pose(position_m: Array, quaternion: Array, handle_position_m: Array,
+               handle_quaternion: Array) -> tuple[Array, Array]:
+    """World position [m] and attitude (scalar first, normalised) of a grasp frame fixed on the body at
+    ``handle_position_m`` with attitude ``handle_quaternion`` (body frame), for the body's pose (p, q):
+    p + R(q) h and q ⊗ q_h."""
+    q = np.asarray(quaternion, dtype=float) / np.linalg.norm(quaternion)
+    q_h = np.asarray(handle_quaternion, dtype=float) / np.linalg.norm(handle_quaternion)
+    position = np.asarray(position_m, dtype=float) + to_rotation(q) @ np.asarray(handle_position_m, dtype=float)
+    return position, multiply(q, q_h)

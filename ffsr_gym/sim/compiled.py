@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from ffsr_gym.exceptions import FFSRError
+from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.kernel import cache as kernel_cache
 from ffsr_gym.kernel import first_use, servo
 from ffsr_gym.kernel import loop as kernel_loop
@@ -25,8 +25,15 @@ kernel_cache.refresh()  # a cache written by other kernel sources is flushed (it
 
 
 def settings_vectors(setup: ScenarioSetup, *, method: str, m: float, T_c: float) -> tuple[Array, Array]:
-    """The kernel's float and integer settings of a scenario, a method and (m, T_c [s])."""
+    """The kernel's float and integer settings of a scenario, a method and (m, T_c [s]).
+
+    Raises:
+        InvalidInputError: a scenario with a tumbling target (the kernel plans onto a still target only, so far).
+    """
     scenario = setup.scenario
+    if scenario.tumbling_target is not None:
+        raise InvalidInputError(f"scenario {scenario.name!r} has a tumbling target, which the compiled kernel does "
+                                "not plan onto yet; allowed: backend='pinocchio' (docs/model.md §22)")
     estimates = setup.estimates
     s, ip = scenario.planner, np.zeros(kp.N_IP, dtype=np.int64)
     fp = np.zeros(kp.N_FP + kp.TARGET_FIELDS * len(estimates))

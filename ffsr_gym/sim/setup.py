@@ -22,6 +22,7 @@ from ffsr_gym.model.robot import Robot, files_stamp, load_robot
 from ffsr_gym.model.robot_check import check_robot_folder
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning.desired_path import DesiredPath
+from ffsr_gym.planning.moving_target import MovingTargetPath, grasp_motion
 from ffsr_gym.planning.planner import reference_targets
 from ffsr_gym.planning.target_estimate import estimated_paths
 from ffsr_gym.types import Array
@@ -102,8 +103,8 @@ class ScenarioSetup:
     obstacles: ObstacleField
     plant: Robot
     plant_arrays: tuple
-    path: DesiredPath
-    estimates: tuple[DesiredPath, ...]
+    path: DesiredPath | MovingTargetPath
+    estimates: tuple[DesiredPath | MovingTargetPath, ...]
     estimate_interval_s: float
     base_target: tuple[Array, Array]
 
@@ -135,6 +136,10 @@ def _prepare(scenario: Scenario, stamp: tuple) -> ScenarioSetup:
     q0 = initial_configuration(assets.robot, scenario)
     q0.flags.writeable = False  # shared by every rollout of this scenario
     path, base_target = reference_targets(assets.robot, scenario, q0)
+    if scenario.tumbling_target is not None:  # the approach onto its moving grasp frame (docs/model.md §22)
+        grasp = grasp_motion(scenario.tumbling_target, dt_s=scenario.simulation.dt_s, steps=scenario.n_steps)
+        path = MovingTargetPath.onto(path.start_position, path.start_attitude, grasp, motion_time=path.motion_time,
+                                     accel_time=path.accel_time)
     plant, kernel = assets.robot, assets.kernel
     if scenario.plant is not None:
         changes = scenario.plant
