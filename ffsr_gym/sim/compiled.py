@@ -32,8 +32,9 @@ def settings_vectors(setup: ScenarioSetup, *, method: str, m: float, T_c: float)
     """
     scenario = setup.scenario
     if scenario.tumbling_target is not None:
-        raise InvalidInputError(f"scenario {scenario.name!r} has a tumbling target, which the compiled kernel does "
-                                "not plan onto yet; allowed: backend='pinocchio' (docs/model.md §22)")
+        raise InvalidInputError(f"scenario {scenario.name!r} has a tumbling target, which the compiled kernel (and so "
+                                "every environment) does not plan onto yet; allowed: ffsr_gym.simulate(..., "
+                                "backend='pinocchio') (docs/model.md §22)")
     estimates = setup.estimates
     s, ip = scenario.planner, np.zeros(kp.N_IP, dtype=np.int64)
     fp = np.zeros(kp.N_FP + kp.TARGET_FIELDS * len(estimates))
