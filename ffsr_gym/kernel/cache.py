@@ -26,11 +26,11 @@ from ffsr_gym.kernel import (
     planner,
     score_terms,
     servo,
+    tumbling,
 )
 
-#: Modules with compiled functions (their caches are flushed together). ``tumbling`` is not among them: it inlines
-#: nothing from another module, so numba's own key (its file's timestamp) keeps its cache right.
-MODULES = (linalg, physics, dynamics, servo, collision, inverse, planner, loop, score_terms, decision, batch)
+#: Modules with compiled functions (their caches are flushed together).
+MODULES = (linalg, physics, dynamics, servo, collision, inverse, planner, loop, score_terms, decision, batch, tumbling)
 #: Everything compiled into those functions: the modules and the intrinsics they use.
 SOURCES = (borrow, *MODULES)
 
