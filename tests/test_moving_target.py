@@ -16,7 +16,7 @@ from ffsr_gym.sim.reference import ReferenceRollout
 
 SCENARIO = load_scenario("free_space")
 DT, STEPS = SCENARIO.simulation.dt_s, SCENARIO.n_steps
-HANDLE_BODY_M = np.array([0.0, 0.0, 0.2])  # the grasp frame, 20 cm from the centre on the spin axis
+HANDLE_BODY_M = np.array([0.0, 0.0, -0.2])  # the grasp frame, 20 cm before the centre along the approach (z) axis
 
 
 def _grasp(spin_deg_s: float, drift_m_s=(0.0, 0.0, 0.0)) -> GraspFrameMotion:
@@ -116,3 +116,31 @@ def test_an_impossible_tumbling_target_is_named(tmp_path, change, named):
 
     with pytest.raises(ScenarioError, match=named):
         load_scenario(_tumbling_toml(tmp_path, **change))
+
+
+def test_the_target_body_is_an_obstacle_whose_clearance_the_trajectory_logs(tmp_path):
+    """The body's clearance as logged is at most the end-effector frame's distance to the box, computed here in
+    the box's frame (the robot's nearest part is never farther than its end-effector's frame)."""
+    from ffsr_gym.sim.setup import prepare
+
+    scenario = load_scenario(_tumbling_toml(tmp_path))
+    rollout = ReferenceRollout(scenario)
+    for _ in range(STEPS):
+        rollout.step()
+    rollout.finish()
+    traj, motion = rollout.trajectory(), prepare(scenario).target_motion
+    clearance = np.asarray(traj.clearance_m)
+    assert np.all(np.isfinite(clearance)) and clearance.min() > 0.0  # no contact (free_space sets no keep-out)
+    half = np.array(scenario.tumbling_target.size_m) / 2.0
+    # captured, the tool capsule ends on the handle, which stands off the box face: clearance = stand-off - radius
+    import tomllib
+
+    from ffsr_gym.model.resources import envs_dir
+
+    radius = tomllib.loads((envs_dir() / "robots" / "ffsr_dual_arm" / "collision.toml").read_text())["capsule_radius_m"]
+    assert clearance[-1] == pytest.approx(abs(HANDLE_BODY_M[2]) - half[2] - radius, abs=1e-6)
+    for k in range(0, STEPS + 1, 250):
+        ee = rollout.robot.transform_ee_to_world(traj.q[k], 0).translation
+        local = quat.to_rotation(motion.quaternion[k]).T @ (ee - motion.position_m[k])
+        outside = np.linalg.norm(np.maximum(np.abs(local) - half, 0.0))
+        assert clearance[k] <= outside + 1e-9

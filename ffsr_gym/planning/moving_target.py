@@ -26,6 +26,7 @@ import numpy as np
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model import quaternion as quat
 from ffsr_gym.model.scenario_sections import TumblingTarget
+from ffsr_gym.model.tumbling import TargetMotion, point_motion, propagate
 from ffsr_gym.planning.desired_path import trapezoid
 from ffsr_gym.types import Array
 
@@ -107,14 +108,17 @@ class MovingTargetPath:
         return position, attitude, np.concatenate((s_dot * chord + s * g.velocity_m_s[k], omega))
 
 
-def grasp_motion(body: TumblingTarget, *, dt_s: float, steps: int) -> GraspFrameMotion:
-    """The grasp frame of a ``[tumbling_target]`` at every step of ``dt_s`` [s] over ``steps`` steps."""
-    from ffsr_gym.model.tumbling import point_motion, propagate
+def body_motion(body: TumblingTarget, *, dt_s: float, steps: int) -> TargetMotion:
+    """The motion of a ``[tumbling_target]``'s body at every step of ``dt_s`` [s] over ``steps`` steps."""
+    return propagate(position_m=np.array(body.position_m), velocity_m_s=np.array(body.velocity_m_s),
+                     quaternion=np.array(body.quaternion_wxyz), omega_body_rad_s=np.deg2rad(body.omega_body_deg_s),
+                     inertia_kg_m2=np.array(body.inertia_kg_m2), dt_s=dt_s, steps=steps)
 
-    motion = propagate(position_m=np.array(body.position_m), velocity_m_s=np.array(body.velocity_m_s),
-                       quaternion=np.array(body.quaternion_wxyz), omega_body_rad_s=np.deg2rad(body.omega_body_deg_s),
-                       inertia_kg_m2=np.array(body.inertia_kg_m2), dt_s=dt_s, steps=steps)
+
+def grasp_motion(body: TumblingTarget, motion: TargetMotion) -> GraspFrameMotion:
+    """The grasp frame of a ``[tumbling_target]`` along its body's ``motion`` (:func:`body_motion`)."""
     position, velocity = point_motion(motion, np.array(body.handle_position_m))
     handle = np.array(body.handle_quaternion_wxyz) / np.linalg.norm(body.handle_quaternion_wxyz)
     attitude = np.stack([quat.multiply(q, handle) for q in motion.quaternion])
+    dt_s = float(motion.time_s[1] - motion.time_s[0]) if len(motion.time_s) > 1 else 1.0
     return GraspFrameMotion(dt_s, position, attitude, velocity, motion.omega_world_rad_s())

@@ -21,8 +21,9 @@ from ffsr_gym.model.resources import is_shipped_robot, robot_dir, robot_files
 from ffsr_gym.model.robot import Robot, files_stamp, load_robot
 from ffsr_gym.model.robot_check import check_robot_folder
 from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.model.tumbling import TargetMotion
 from ffsr_gym.planning.desired_path import DesiredPath
-from ffsr_gym.planning.moving_target import MovingTargetPath, grasp_motion
+from ffsr_gym.planning.moving_target import MovingTargetPath, body_motion, grasp_motion
 from ffsr_gym.planning.planner import reference_targets
 from ffsr_gym.planning.target_estimate import estimated_paths
 from ffsr_gym.types import Array
@@ -95,6 +96,7 @@ class ScenarioSetup:
             ``[target_noise]``; :mod:`ffsr_gym.planning.target_estimate`).
         estimate_interval_s: how long each estimate holds [s] (0 without ``[target_noise]``).
         base_target: the base set-point ``(r0d [m], sigma_bd (4,) wxyz)``.
+        target_motion: the tumbling target's body at every step (``[tumbling_target]``; None without one).
     """
 
     scenario: Scenario
@@ -107,6 +109,7 @@ class ScenarioSetup:
     estimates: tuple[DesiredPath | MovingTargetPath, ...]
     estimate_interval_s: float
     base_target: tuple[Array, Array]
+    target_motion: TargetMotion | None = None
 
     @property
     def robot(self) -> Robot:
@@ -136,9 +139,11 @@ def _prepare(scenario: Scenario, stamp: tuple) -> ScenarioSetup:
     q0 = initial_configuration(assets.robot, scenario)
     q0.flags.writeable = False  # shared by every rollout of this scenario
     path, base_target = reference_targets(assets.robot, scenario, q0)
+    target = None
     if scenario.tumbling_target is not None:  # the approach onto its moving grasp frame (docs/model.md §22)
-        grasp = grasp_motion(scenario.tumbling_target, dt_s=scenario.simulation.dt_s, steps=scenario.n_steps)
-        path = MovingTargetPath.onto(path.start_position, path.start_attitude, grasp, motion_time=path.motion_time,
+        target = body_motion(scenario.tumbling_target, dt_s=scenario.simulation.dt_s, steps=scenario.n_steps)
+        path = MovingTargetPath.onto(path.start_position, path.start_attitude,
+                                     grasp_motion(scenario.tumbling_target, target), motion_time=path.motion_time,
                                      accel_time=path.accel_time)
     plant, kernel = assets.robot, assets.kernel
     if scenario.plant is not None:
@@ -150,4 +155,4 @@ def _prepare(scenario: Scenario, stamp: tuple) -> ScenarioSetup:
                          plant_arrays=(kernel.mass, kernel.lever, kernel.inertia, _drive(scenario)),
                          path=path, estimates=estimated_paths(scenario, path),
                          estimate_interval_s=0.0 if scenario.target_noise is None else scenario.target_noise.interval_s,
-                         base_target=base_target)
+                         base_target=base_target, target_motion=target)
