@@ -1,6 +1,6 @@
 """The docs site's generated pages: one per registered id (its spaces, reward, episode end, arguments and info
 keys, from the live environment and its version's spec) and one per tier (its rule, its pools' counts and
-certificates, its top entries and a GIF), and the README's table of ids and tiers; written by
+certificates and a GIF), and the README's table of ids and tiers; written by
 ``ffsr-gym docs pages``, checked by a test to be up to date."""
 
 from __future__ import annotations
@@ -11,7 +11,6 @@ from typing import Any
 
 import gymnasium
 
-from ffsr_gym.bench import tables
 from ffsr_gym.environments.info import markdown_table
 from ffsr_gym.model.spec import BenchmarkSpec, all_specs, ranked_spec
 from ffsr_gym.scoring.rules import score_rule
@@ -114,9 +113,10 @@ def _example_kwargs(spec: BenchmarkSpec) -> str:
 
 
 def tier_page(tier: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
-    """The page of one tier of the ranked version: its rule, its pools, its first entries and its GIF.
+    """The page of one tier of the ranked version: its rule, its pools and its GIF.
 
-    ``ranked``: the tier's verified entries as (rank label, entry), in table order.
+    ``ranked``: the tier's verified entries as (rank label, entry), in table order (the GIF's caption reads the
+    default planner's row on its task).
     """
     spec = ranked_spec()
     data = load_pools(None, (tier,), spec.version)
@@ -141,10 +141,9 @@ def tier_page(tier: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
                      f"{margins['peak_rate_deg_s']:.1f} |")
     lines += ["", "Every task stores a certificate: an action that succeeds at dt, dt/2 and dt/4, from perturbed "
               "starts and on the second backend, with margins (the rule, and the counts of rejected candidates: "
-              "[Environments, Task tiers](../envs.md)).", "", "## Leaderboard (test pool), first five", "",
-              *(line for line in tables.header(spec, tier) if not line.startswith("#")),
-              *(tables.row(spec, label, e) for label, e in ranked[:5]), "",
-              "The whole table, and how to submit: [Leaderboards](../leaderboards.md)."]
+              "[Environments, Task tiers](../envs.md)).", "",
+              f"Its ranked table, with every entry's scores, compute and verification, and how to submit: "
+              f"[Leaderboards](../leaderboards.md) (\"{tier} (test pool)\")."]
     return "\n".join(lines) + "\n"
 
 
