@@ -168,12 +168,14 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
     staging = _staging_folder(final, name)  # before the episodes are played: every option is checked first
     try:
         ref_min, ref_max, refs = reference_returns(tier, split, stored, version)
-        env = gym.make(env_id, task=tier, split=split)
+        env, scored = gym.make(env_id, task=tier, split=split), gym.make(env_id, task=tier, split="test")
+        eval_spec = scored.spec  # what evaluation plays: the tier's test pool
+        scored.close()
         buffers = [record_episode(env, r, Schedule.from_dict(r["families"][family]["schedule"]), k)
                    for k, r in enumerate(stored)]
         with _datasets_root(staging):
             minari.create_dataset_from_buffers(
-                name, buffers, env=env, eval_env=gym.make(env_id, task=tier, split="test").spec,
+                name, buffers, env=env, eval_env=eval_spec,
                 algorithm_name=("best known schedules: per-task CMA-ES, or a baseline's absorbed episode "
                                 "(ffsr_gym.optim)"),
                 code_permalink=code_permalink(), author=author, author_email=author_email,
