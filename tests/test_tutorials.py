@@ -58,3 +58,15 @@ def test_the_tutorial_runs_as_written(path, tmp_path):
     done = subprocess.run([sys.executable, "tutorial.py"], cwd=tmp_path, env=env, capture_output=True, text=True,
                           timeout=900)
     assert done.returncode == 0, f"{path.name} fails as written:\n{done.stdout[-2000:]}\n{done.stderr[-3000:]}"
+
+
+def test_the_readmes_ten_lines_run(tmp_path):
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    code = re.search(r"## Ten lines\n\n```python\n(.*?)```", text, flags=re.S).group(1)
+    assert len(code.strip().splitlines()) <= 12
+    (tmp_path / "readme.py").write_text(code)
+    done = subprocess.run([sys.executable, "readme.py"], cwd=tmp_path, capture_output=True, text=True, timeout=900,
+                          env={**os.environ, "FFSR_GYM_QUIET_COMPILE": "1"})
+    assert done.returncode == 0, done.stderr[-3000:]
+    score, success = done.stdout.split("\n")[0].split()
+    assert 0.0 <= float(score) <= 1.0 and success in ("True", "False")
