@@ -108,6 +108,26 @@ class MovingTargetPath:
         return position, attitude, np.concatenate((s_dot * chord + s * g.velocity_m_s[k], omega))
 
 
+def pre_grasp(grasp: GraspFrameMotion, *, standoff_m: float, insert_start_s: float, insert_time_s: float,
+              axis: int = 2) -> GraspFrameMotion:
+    """The grasp frame moved back along its approach axis (column ``axis`` of its rotation, the tool's z by
+    default) by a standoff that closes to 0 over the insertion: d(t) = standoff (1 − s_i(t)), s_i the trapezoid of
+    §5 over [insert_start_s, insert_start_s + insert_time_s] (acceleration time a quarter of it). Approaching this
+    frame brings the tool in along the grasp axis instead of across the body (docs/model.md §22).
+
+    Its velocity is v_h − ḋ a − d ω_h × a for the approach axis a = R(σ_h) e_axis; its attitude and angular
+    velocity are the grasp frame's.
+    """
+    t = np.arange(len(grasp.position_m)) * grasp.dt_s - insert_start_s
+    profile = np.array([trapezoid(x, insert_time_s, insert_time_s / 4.0) for x in t])
+    distance, rate = standoff_m * (1.0 - profile[:, 0]), -standoff_m * profile[:, 1]
+    approach = np.stack([quat.to_rotation(q)[:, axis] for q in grasp.quaternion])
+    position = grasp.position_m - distance[:, None] * approach
+    velocity = (grasp.velocity_m_s - rate[:, None] * approach
+                - distance[:, None] * np.cross(grasp.omega_rad_s, approach))
+    return GraspFrameMotion(grasp.dt_s, position, grasp.quaternion, velocity, grasp.omega_rad_s)
+
+
 def body_motion(body: TumblingTarget, *, dt_s: float, steps: int) -> TargetMotion:
     """The motion of a ``[tumbling_target]``'s body at every step of ``dt_s`` [s] over ``steps`` steps."""
     return propagate(position_m=np.array(body.position_m), velocity_m_s=np.array(body.velocity_m_s),
