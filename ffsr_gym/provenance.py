@@ -65,6 +65,11 @@ def source_commit() -> str | None:
     return _git("rev-parse", "HEAD", cwd=_SOURCE) if is_source_checkout() else None
 
 
+def git_config(key: str) -> str | None:
+    """A value of the user's git configuration (``user.name``, ...), or None (no git, or not set)."""
+    return _git("config", "--get", key, cwd=Path.cwd()) or None
+
+
 def _version() -> str:
     try:
         return metadata.version("ffsr-gym")

@@ -145,8 +145,10 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
         raise InvalidInputError(f"split {split!r}; allowed: 'train' or 'validation' (the test pool's best trajectories "
                                 "are the answers the leaderboard scores against: never a dataset)")
     minari = require("minari", "dataset", "minari, h5py", "datasets need")
-    author = author if author is not None else _git_config("user.name")
-    author_email = author_email if author_email is not None else _git_config("user.email")
+    from ffsr_gym.provenance import git_config
+
+    author = author if author is not None else git_config("user.name")
+    author_email = author_email if author_email is not None else git_config("user.email")
     if env_id not in FAMILY_OF:
         raise InvalidInputError(f"env_id {env_id!r}; allowed: {sorted(FAMILY_OF)}")
     family = FAMILY_OF[env_id]
@@ -203,17 +205,6 @@ def code_permalink() -> str:
 
     commit = source_commit()
     return f"ffsr-gym {version('ffsr-gym')}" + (f", commit {commit}" if commit else "") + ": ffsr_gym/bench/dataset.py"
-
-
-def _git_config(key: str) -> str | None:
-    """A value of the user's git configuration, or None (no git, or not set)."""
-    import subprocess
-
-    try:
-        done = subprocess.run(["git", "config", "--get", key], capture_output=True, text=True, timeout=10)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return done.stdout.strip() or None
 
 
 def _staging_folder(final: Path, name: str) -> Path:

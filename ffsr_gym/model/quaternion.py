@@ -64,3 +64,20 @@ def from_rotation(rotation: Array) -> Array:
 def from_axis_angle(axis: Array, angle_rad: float) -> Array:
     """Quaternion of a rotation by ``angle_rad`` [rad] about the unit ``axis``."""
     return np.concatenate(([math.cos(angle_rad / 2.0)], math.sin(angle_rad / 2.0) * np.asarray(axis)))
+
+
+def from_rotation_vector(rotation: Array) -> Array:
+    """Quaternion of a rotation vector (axis × angle [rad]); the identity for the zero vector."""
+    angle = portable.norm(rotation)
+    if angle == 0.0:
+        return np.array([1.0, 0.0, 0.0, 0.0])
+    return from_axis_angle(np.asarray(rotation) / angle, angle)
+
+
+def rotation_vector(quaternion: Array) -> Array:
+    """The rotation vector (axis × angle [rad], angle in [0, π]) of a scalar-first unit quaternion."""
+    q = -np.asarray(quaternion) if quaternion[0] < 0.0 else np.asarray(quaternion)
+    sin_half = portable.norm(q[1:])
+    if sin_half == 0.0:
+        return np.zeros(3)
+    return 2.0 * math.atan2(sin_half, float(q[0])) * q[1:] / sin_half

@@ -311,9 +311,12 @@ def _check_cross_fields(s: Scenario, where: str) -> None:
             f"allowed: (0, duration_s] = (0, {s.simulation.duration_s}]"
         )
     _check_whole_steps(s, where)
+    body = s.tumbling_target
     for key, quat in (
         ("initial.base_quaternion_wxyz", s.initial.base_quaternion_wxyz),
         ("target.quaternion_wxyz", s.target.quaternion_wxyz),
+        *(() if body is None else (("tumbling_target.quaternion_wxyz", body.quaternion_wxyz),
+                                   ("tumbling_target.handle_quaternion_wxyz", body.handle_quaternion_wxyz))),
     ):
         norm = portable.norm(quat)
         if abs(norm - 1.0) > 1e-2:
@@ -378,4 +381,8 @@ def _normalised(s: Scenario) -> Scenario:
 
     initial = dataclasses.replace(s.initial, base_quaternion_wxyz=unit(s.initial.base_quaternion_wxyz))
     target = dataclasses.replace(s.target, quaternion_wxyz=unit(s.target.quaternion_wxyz))
-    return dataclasses.replace(s, initial=initial, target=target)
+    body = s.tumbling_target
+    if body is not None:
+        body = dataclasses.replace(body, quaternion_wxyz=unit(body.quaternion_wxyz),
+                                   handle_quaternion_wxyz=unit(body.handle_quaternion_wxyz))
+    return dataclasses.replace(s, initial=initial, target=target, tumbling_target=body)

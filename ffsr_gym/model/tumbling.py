@@ -125,8 +125,10 @@ def kinetic_energy(motion: TargetMotion, inertia_kg_m2: Array) -> Array:
 def point_motion(motion: TargetMotion, offset_body_m: Array) -> tuple[Array, Array]:
     """Position [m] and velocity [m/s] in the world frame, (N+1, 3) each, of a point fixed on the body at
     ``offset_body_m`` (3,) from the centre of mass in the body frame: p + R r and v + ω_world × R r."""
-    arm = np.einsum("nij,j->ni", rotations(motion.quaternion), np.asarray(offset_body_m, dtype=float))
-    return motion.position_m + arm, motion.velocity_m_s[None, :] + np.cross(motion.omega_world_rad_s(), arm)
+    turn = rotations(motion.quaternion)
+    arm = np.einsum("nij,j->ni", turn, np.asarray(offset_body_m, dtype=float))
+    omega_world = np.einsum("nij,nj->ni", turn, motion.omega_body_rad_s)
+    return motion.position_m + arm, motion.velocity_m_s[None, :] + np.cross(omega_world, arm)
 
 
 def grasp_pose(position_m: Array, quaternion: Array, handle_position_m: Array,

@@ -18,7 +18,6 @@ predefined-time feedback φ(e₁) removes what is left within T_c. A still grasp
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,18 +25,9 @@ import numpy as np
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model import quaternion as quat
 from ffsr_gym.model.scenario_sections import TumblingTarget
-from ffsr_gym.model.tumbling import TargetMotion, point_motion, propagate
+from ffsr_gym.model.tumbling import TargetMotion, point_motion, propagate, rotations
 from ffsr_gym.planning.desired_path import trapezoid
 from ffsr_gym.types import Array
-
-
-def rotation_vector(quaternion: Array) -> Array:
-    """The rotation vector (axis × angle [rad], angle in [0, π]) of a scalar-first unit quaternion."""
-    q = -quaternion if quaternion[0] < 0.0 else quaternion
-    sin_half = float(np.linalg.norm(q[1:]))
-    if sin_half == 0.0:
-        return np.zeros(3)
-    return 2.0 * math.atan2(sin_half, float(q[0])) * q[1:] / sin_half
 
 
 @dataclass(frozen=True)
@@ -90,7 +80,7 @@ class MovingTargetPath:
     def onto(cls, start_position: Array, start_attitude: Array, grasp: GraspFrameMotion, *, motion_time: float,
              accel_time: float) -> MovingTargetPath:
         """The approach from the end-effector's initial pose onto ``grasp``."""
-        offset = rotation_vector(quat.multiply(quat.conjugate(grasp.quaternion[0]), np.asarray(start_attitude)))
+        offset = quat.rotation_vector(quat.multiply(quat.conjugate(grasp.quaternion[0]), np.asarray(start_attitude)))
         return cls(np.asarray(start_position, float), np.asarray(start_attitude, float), offset, grasp, motion_time,
                    accel_time)
 
@@ -100,10 +90,7 @@ class MovingTargetPath:
         k, g = self.grasp.index(t), self.grasp
         chord = g.position_m[k] - self.start_position
         position = self.start_position + s * chord
-        remaining = (1.0 - s) * self.offset
-        angle = float(np.linalg.norm(remaining))
-        turn = quat.from_axis_angle(remaining / angle, angle) if angle > 0.0 else np.array([1.0, 0.0, 0.0, 0.0])
-        attitude = quat.multiply(g.quaternion[k], turn)
+        attitude = quat.multiply(g.quaternion[k], quat.from_rotation_vector((1.0 - s) * self.offset))
         omega = g.omega_rad_s[k] - s_dot * quat.to_rotation(g.quaternion[k]) @ self.offset
         return position, attitude, np.concatenate((s_dot * chord + s * g.velocity_m_s[k], omega))
 
@@ -121,7 +108,7 @@ def pre_grasp(grasp: GraspFrameMotion, *, standoff_m: float, insert_start_s: flo
     t = np.arange(len(grasp.position_m)) * grasp.dt_s - insert_start_s
     profile = np.array([trapezoid(x, insert_time_s, insert_time_s / 4.0) for x in t])
     distance, rate = standoff_m * (1.0 - profile[:, 0]), -standoff_m * profile[:, 1]
-    approach = np.stack([quat.to_rotation(q)[:, axis] for q in grasp.quaternion])
+    approach = rotations(grasp.quaternion)[:, :, axis]
     position = grasp.position_m - distance[:, None] * approach
     velocity = (grasp.velocity_m_s - rate[:, None] * approach
                 - distance[:, None] * np.cross(grasp.omega_rad_s, approach))

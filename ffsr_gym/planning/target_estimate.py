@@ -58,9 +58,8 @@ def estimated_paths(scenario: Scenario, path: DesiredPath) -> tuple[DesiredPath,
     true_attitude = np.asarray(scenario.target.quaternion_wxyz, dtype=float)
     paths = []
     for position, rotation in zip(positions, rotations):
-        angle = portable.norm(rotation)
-        attitude = true_attitude if angle == 0.0 else quat.multiply(
-            quat.from_axis_angle(rotation / angle, angle), true_attitude)
+        attitude = true_attitude if portable.norm(rotation) == 0.0 else quat.multiply(
+            quat.from_rotation_vector(rotation), true_attitude)
         paths.append(DesiredPath.between(path.start_position, path.start_attitude, position, attitude,
                                          motion_time=path.motion_time, accel_time=path.accel_time))
     return tuple(paths)

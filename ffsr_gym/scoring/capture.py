@@ -8,6 +8,7 @@ margins a certificate needs, as v2's certificates keep theirs).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,7 +58,8 @@ def relative_motion(ee_position_m: Array, ee_quaternion: Array, ee_twist: Array,
     first)."""
     position = np.linalg.norm(np.asarray(ee_position_m) - grasp_position_m, axis=1)
     dot = np.abs(np.sum(np.asarray(ee_quaternion) * np.asarray(grasp_quaternion), axis=1))
-    attitude = 2.0 * np.arccos(np.clip(dot, 0.0, 1.0))  # the angle between the frames, in [0, π]
+    # the angle between the frames, in [0, π]; math's acos, as everything that feeds a score (docs/model.md §17)
+    attitude = np.array([2.0 * math.acos(min(float(c), 1.0)) for c in dot])
     difference = np.asarray(ee_twist) - np.asarray(grasp_twist)
     return np.column_stack([position, attitude, np.linalg.norm(difference[:, :3], axis=1),
                             np.linalg.norm(difference[:, 3:], axis=1)])

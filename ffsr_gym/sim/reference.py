@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from ffsr_gym.exceptions import FFSRError
-from ffsr_gym.model.collision import BoxObstacle, Proximity
+from ffsr_gym.model.collision import BoxObstacle, Obstacle, Proximity
 from ffsr_gym.model.quaternion import to_rotation
 from ffsr_gym.model.robot import check_state
 from ffsr_gym.model.scenario import Scenario
@@ -90,7 +90,7 @@ class ReferenceRollout:
             raise FFSRError(f"planner produced non-finite joint rates at t = {self.t:.3f} s")
         v = self.plant.velocity(self.q, dq, self.momentum)
         self.collision.place(self.q)
-        obstacles = self.obstacles.spheres(self.t) + self._target_body()
+        obstacles = self._obstacles_now()
         obstacle = self.collision.obstacle_proximity(self.q, obstacles, place=False) if obstacles else None
         self_clear = self.collision.self_proximity(self.q, place=False).distance_m
         e1, e0 = plan.true_ee_error, plan.base_error  # logged and scored against the true target
@@ -102,13 +102,13 @@ class ReferenceRollout:
         self.last_plan, self.last_proximity = plan, obstacle
         return dq
 
-    def _target_body(self) -> tuple[BoxObstacle, ...]:
-        """The tumbling target's body where it is now, as a box obstacle (none without ``[tumbling_target]``)."""
-        motion = self.setup.target_motion
+    def _obstacles_now(self) -> tuple[Obstacle, ...]:
+        """Every obstacle where it is now: the scenario's spheres and, with ``[tumbling_target]``, its body as a box."""
+        spheres, motion = self.obstacles.spheres(self.t), self.setup.target_motion
         if motion is None:
-            return ()
-        return (BoxObstacle(motion.position_m[self.k], np.array(self.scenario.tumbling_target.size_m),
-                            to_rotation(motion.quaternion[self.k]), name="target body"),)
+            return spheres
+        return (*spheres, BoxObstacle(motion.position_m[self.k], np.array(self.scenario.tumbling_target.size_m),
+                                      to_rotation(motion.quaternion[self.k]), name="target body"))
 
     def step(self, residual: Array | None = None) -> None:
         """Plan, record and integrate one step of ``dt``; ``residual`` [rad/s] (12,) is added to the plan."""
@@ -147,7 +147,7 @@ class ReferenceRollout:
         """Joint angles (12), EE error (6), base error (6), obstacle-relative vector (3), clearance [m]."""
         plan = self.planner(self.t, self.q)
         relative, clearance = np.zeros(3), np.inf
-        obstacles = self.obstacles.spheres(self.t) + self._target_body()
+        obstacles = self._obstacles_now()
         if obstacles:
             prox = self.collision.obstacle_proximity(self.q, obstacles)
             relative, clearance = prox.witness_points[1] - prox.witness_points[0], prox.distance_m
