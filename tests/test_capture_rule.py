@@ -32,6 +32,8 @@ def test_a_decaying_error_is_captured_once_it_has_held_inside_for_the_window():
     assert result.captured and result.time_s == pytest.approx(math.ceil(first_inside / 0.01) * 0.01 + 1.0, abs=1e-9)
     assert result.worst_ratio[0] == pytest.approx(0.1 * math.exp(-(result.time_s - 1.0)) / 0.01)
     assert result.worst_ratio[0] <= 1.0 and np.all(result.worst_ratio[1:] == 0.0)
+    # the best window is the last: it starts at t = 9 s, where the error is 0.1 e^-9
+    assert result.margin_ratio == pytest.approx(0.1 * math.exp(-9.0) / 0.01)
 
 
 def test_a_window_broken_by_one_sample_outside_starts_again():
@@ -43,3 +45,4 @@ def test_a_window_broken_by_one_sample_outside_starts_again():
     assert result.captured and result.time_s == pytest.approx(2.51)
     never = capture(t, relative + np.array([0.02, 0.0, 0.0, 0.0]), TOLERANCES)
     assert not never.captured and math.isnan(never.time_s)
+    assert never.margin_ratio == pytest.approx(0.02 / 0.01)  # tolerances twice as wide would capture

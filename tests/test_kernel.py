@@ -234,7 +234,7 @@ def test_danger_field_segments_match_the_reference_integrals():
     """One logarithm per segment and the kept geometry against ``planning.avoidance``'s closed form (two inverse
     hyperbolic sines, hypot): the feet before, on and after the segment, nearly collinear points, and a segment
     of zero length (skipped)."""
-    from ffsr_gym.kernel.planner import _field_of_segment, _moments_of_segment
+    from ffsr_gym.kernel.field import _field_of_segment, _moments_of_segment
     from ffsr_gym.planning.avoidance import _segment_integrals
 
     rng, geometry = np.random.default_rng(8), np.empty(5)

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 
 def build_targets() -> list[str]:
-    """What ``tasks build --tier`` builds: ``base`` (easy, medium and hard together) or one perturbed tier."""
+    """What ``tasks build --tier`` builds: ``base`` (easy, medium and hard together), one perturbed tier, or one
+    capture tier (``--version capture-v0``)."""
+    from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
     from ffsr_gym.tasks.perturbation import PERTURBED_TIERS
 
-    return ["base", *PERTURBED_TIERS]
+    return ["base", *PERTURBED_TIERS, *CAPTURE_TIERS]
 
 
 def all_task_tiers() -> list[str]:
@@ -18,10 +20,10 @@ def all_task_tiers() -> list[str]:
 
 
 def tier_versions() -> list[str]:
-    """The benchmark versions with task tiers (a rule file), newest last."""
-    from ffsr_gym.model.benchmark import VERSIONS
+    """The benchmark versions with task tiers (a rule file): the ranked v2 first, then the capture family's."""
+    from ffsr_gym.model.benchmark import CAPTURE_VERSIONS, VERSIONS
 
-    return list(VERSIONS)
+    return list(VERSIONS + CAPTURE_VERSIONS)
 
 
 def algorithm_names() -> list[str]:

@@ -45,7 +45,8 @@ def add_study_commands(sub: Any) -> None:
     _add_version(tb, "benchmark version whose rule files apply")
     tb.add_argument("--tier", default="base", choices=build_targets(),
                     help="base: the easy, medium and hard pools; debris, robust or servo: that tier, on top of the "
-                         "version's pool file's tier tasks (default: base)")
+                         "version's pool file's tier tasks; slow or fast: that capture tier (--version capture-v0) "
+                         "(default: base)")
     tb.add_argument("--work", default=None, help="folder of the finished chunks (default: runs/tasks-<version>; "
                                                  "a perturbed tier uses <work>/<tier>)")
     tb.add_argument("--out", default=None, help="pool file to write (default: the shipped "
@@ -211,6 +212,6 @@ def _tasks_freeze_reference(args: argparse.Namespace) -> None:
 
 
 def _add_version(parser: argparse.ArgumentParser, text: str = "benchmark version") -> None:
-    """The ``--version`` option of the ``tasks`` commands: a version with task tiers, the newest by default."""
-    parser.add_argument("--version", default=tier_versions()[-1], choices=tier_versions(),
-                        help=f"{text} (default: {tier_versions()[-1]})")
+    """The ``--version`` option of the ``tasks`` commands: a version with task tiers, the ranked one by default."""
+    parser.add_argument("--version", default=tier_versions()[0], choices=tier_versions(),
+                        help=f"{text} (default: {tier_versions()[0]})")

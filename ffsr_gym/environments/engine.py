@@ -29,7 +29,7 @@ from ffsr_gym.environments.task_source import TaskSource
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.kernel import batch as kernel_batch
 from ffsr_gym.kernel import decision, first_use, servo
-from ffsr_gym.kernel import planner as kp
+from ffsr_gym.kernel import settings as ks
 from ffsr_gym.model import portable
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning import ptsf
@@ -86,7 +86,7 @@ class EpisodeEngine:
         self.K, self.clipped = _scalars(N, np.int64, self.single), _scalars(N, np.int64, self.single)
         self.cost_so_far, self.potential = _scalars(N, float, self.single), _scalars(N, float, self.single)
         self.clearance, self.ee_error = _scalars(N, float, self.single), _scalars(N, float, self.single)
-        self.FP, self.IP = np.zeros((N, kp.N_FP)), np.zeros((N, kp.N_IP), dtype=np.int64)
+        self.FP, self.IP = np.zeros((N, ks.N_FP)), np.zeros((N, ks.N_IP), dtype=np.int64)
         self.plants = (np.zeros((N, 13)), np.zeros((N, 13, 3)), np.zeros((N, 13, 3, 3)), np.zeros((N, 12, servo.N_DRIVE)))
         self.DS, self.scratch = np.zeros((N, decision.N_DS)), np.zeros((N, decision.N_SCRATCH))
         self.logs = new_log(self.n_steps + 1, N) if self.compiled else None
@@ -332,7 +332,7 @@ class EpisodeEngine:
         """Validated physical (m, T_c [s]) for copy ``i``'s next decisions."""
         rollout = self.rollouts[i]
         rollout.set_parameters(*parameters)
-        self.FP[i, kp.F_M], self.FP[i, kp.F_TC] = rollout.fp[kp.F_M], rollout.fp[kp.F_TC]
+        self.FP[i, ks.F_M], self.FP[i, ks.F_TC] = rollout.fp[ks.F_M], rollout.fp[ks.F_TC]
 
     def _set_parameters_of(self, active: np.ndarray, parameters: tuple[float, float]) -> None:
         """:meth:`_set_parameters` for every ``active`` copy at once (checked once per predefined-time form; the
@@ -340,7 +340,7 @@ class EpisodeEngine:
         m, T_c = float(parameters[0]), float(parameters[1])
         for form in {self.scenarios[i].planner.phi_form for i in np.flatnonzero(active)}:
             ptsf.check_parameters(T_c, m, form)
-        self.FP[active, kp.F_M], self.FP[active, kp.F_TC] = m, T_c
+        self.FP[active, ks.F_M], self.FP[active, ks.F_TC] = m, T_c
 
     def end_copy(self, i: int) -> Any:
         """Record copy ``i``'s final sample and score its whole trajectory with the rule."""

@@ -50,6 +50,7 @@ class SceneRenderer:
             line.set_data_3d(*points.T)
         self._trace.set_data_3d(*np.array(list(self._ee_trace(rollout))).T)
         self._draw_obstacles(rollout, scenario)
+        self._draw_body(rollout, scenario)
         self._draw_end(end)
         self.ax.set_title(f"{scenario.name}: t = {rollout.t:.2f} s", fontsize=10)
         self.fig.canvas.draw()
@@ -69,8 +70,9 @@ class SceneRenderer:
         self._trace = ax.plot([], [], [], color="tab:green", lw=1, label="EE trace")[0]
         target = np.array(scenario.target.position_m)
         rotation = quat.to_rotation(np.array(scenario.target.quaternion_wxyz))
-        for i, c in enumerate(("r", "g", "b")):
-            ax.plot(*np.array([target, target + 0.1 * rotation[:, i]]).T, color=c, lw=2)
+        if scenario.tumbling_target is None:  # a moving grasp frame is drawn with its body, where it is now
+            for i, c in enumerate(("r", "g", "b")):
+                ax.plot(*np.array([target, target + 0.1 * rotation[:, i]]).T, color=c, lw=2)
         self._moving: list = []
         center = np.array(scenario.initial.base_position_m)
         ax.set(xlabel="x [m]", ylabel="y [m]", zlabel="z [m]", xlim=(center[0] - 1.2, center[0] + 1.5),
@@ -105,6 +107,30 @@ class SceneRenderer:
             if np.any(field.velocities_m_s[i]):
                 self._moving += self.ax.plot(*np.array([p0, p]).T, ":", color=color, lw=1)
             self._moving.append(self.ax.text(*p, f" {name}", color=color, fontsize=7))
+        self.ax.legend(loc="upper left", fontsize=7)
+
+    def _draw_body(self, rollout: Rollout, scenario: Scenario) -> None:
+        """A tumbling target where it is now: the box's edges, the grasp frame (the handle) with its axes, the
+        spin axis through the centre (its length the spin rate, 0.1 m per 10 deg/s) and the centre's track."""
+        setup = rollout.setup
+        motion, grasp = setup.target_motion, setup.grasp
+        if motion is None or grasp is None:
+            return
+        k = min(rollout.k, len(motion.position_m) - 1)
+        centre, rotation = motion.position_m[k], quat.to_rotation(motion.quaternion[k])
+        half = np.array(scenario.tumbling_target.size_m) / 2.0
+        corners = (_CORNERS / 0.4 * half) @ rotation.T + centre
+        for n, (a, b) in enumerate(_CUBE_EDGES):
+            self._moving += self.ax.plot(*corners[[a, b]].T, color="tab:brown", lw=1.5,
+                                         label="target body" if n == 0 else None)
+        handle, frame = grasp.position_m[k], quat.to_rotation(grasp.quaternion[k])
+        for i, c in enumerate(("r", "g", "b")):
+            self._moving += self.ax.plot(*np.array([handle, handle + 0.1 * frame[:, i]]).T, color=c, lw=2)
+        self._moving.append(self.ax.scatter(*handle, color="k", s=12, label="grasp frame"))
+        spin = motion.omega_world_rad_s()[k]
+        tip = centre + np.degrees(spin) / 10.0 * 0.1
+        self._moving += self.ax.plot(*np.array([centre, tip]).T, "--", color="tab:brown", lw=1, label="spin axis")
+        self._moving += self.ax.plot(*motion.position_m[:k + 1:10].T, ":", color="tab:brown", lw=1)
         self.ax.legend(loc="upper left", fontsize=7)
 
     def _draw_end(self, end: EpisodeEnd | None) -> None:

@@ -19,6 +19,7 @@ from ffsr_gym.kernel import (
     collision,
     decision,
     dynamics,
+    field,
     inverse,
     linalg,
     loop,
@@ -26,11 +27,13 @@ from ffsr_gym.kernel import (
     planner,
     score_terms,
     servo,
+    settings,
     tumbling,
 )
 
 #: Modules with compiled functions (their caches are flushed together).
-MODULES = (linalg, physics, dynamics, servo, collision, inverse, planner, loop, score_terms, decision, batch, tumbling)
+MODULES = (linalg, physics, dynamics, servo, collision, settings, field, inverse, planner, loop, score_terms, decision, batch,
+           tumbling)
 #: Everything compiled into those functions: the modules and the intrinsics they use.
 SOURCES = (borrow, *MODULES)
 

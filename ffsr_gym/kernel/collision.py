@@ -228,6 +228,45 @@ def _obstacle_clearance(radius, half, R_b, p_b, A, B, p_o, r_o, rel):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def body_clearance(mdl, ws, p_b, R_o, c_o, half_o):
+    """Signed distance robot–box obstacle [m] (a tumbling target's body: rotation ``R_o``, centre ``c_o``, half
+    extents ``half_o``): each capsule's axis against the box less its radius, and the base box against it.
+
+    Box against box is the smallest distance of an edge of either to the other box: exact while they are apart
+    (closest points of two convex polyhedra lie on an edge of one of them) and negative once they overlap. Needs
+    :func:`capsule_ends_into` done at the current state.
+    """
+    best = math.inf
+    for i in range(len(mdl.cap_radius)):
+        best = min(best, _capsule_box(ws.cap_A, ws.cap_B, i, R_o, c_o, half_o, ws.cand) - mdl.cap_radius[i])
+    best = min(best, _edges_to_box(ws.R_b, p_b, mdl.box_half, R_o, c_o, half_o, ws.cand))
+    return min(best, _edges_to_box(R_o, c_o, half_o, ws.R_b, p_b, mdl.box_half, ws.cand))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _edges_to_box(R_a, c_a, half_a, R_b, c_b, half_b, scratch):
+    """Smallest signed distance [m] of the 12 edges of box a to box b (rotations, centres, half extents)."""
+    best = math.inf
+    for axis in range(3):
+        j, k = (axis + 1) % 3, (axis + 2) % 3
+        u0, u1, u2 = half_a[axis] * R_a[0, axis], half_a[axis] * R_a[1, axis], half_a[axis] * R_a[2, axis]
+        for sj in (-half_a[j], half_a[j]):
+            for sk in (-half_a[k], half_a[k]):
+                # the edge runs from m − u to m + u (world), m its midpoint seen from box b's centre
+                m0 = c_a[0] - c_b[0] + sj * R_a[0, j] + sk * R_a[0, k]
+                m1 = c_a[1] - c_b[1] + sj * R_a[1, j] + sk * R_a[1, k]
+                m2 = c_a[2] - c_b[2] + sj * R_a[2, j] + sk * R_a[2, k]
+                la = (R_b[0, 0] * (m0 - u0) + R_b[1, 0] * (m1 - u1) + R_b[2, 0] * (m2 - u2),
+                      R_b[0, 1] * (m0 - u0) + R_b[1, 1] * (m1 - u1) + R_b[2, 1] * (m2 - u2),
+                      R_b[0, 2] * (m0 - u0) + R_b[1, 2] * (m1 - u1) + R_b[2, 2] * (m2 - u2))
+                d = (2.0 * (R_b[0, 0] * u0 + R_b[1, 0] * u1 + R_b[2, 0] * u2),
+                     2.0 * (R_b[0, 1] * u0 + R_b[1, 1] * u1 + R_b[2, 1] * u2),
+                     2.0 * (R_b[0, 2] * u0 + R_b[1, 2] * u1 + R_b[2, 2] * u2))
+                best = min(best, _segment_box_local(la, d, half_b, scratch))
+    return best
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def self_clearance(mdl, ws, p_b):
     """Smallest signed distance arm–arm and arm–base (mounting links excluded) [m].
 

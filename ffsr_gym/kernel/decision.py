@@ -28,8 +28,8 @@ from numba.experimental import structref
 from ffsr_gym.kernel.borrow import borrowed
 from ffsr_gym.kernel.loop import STATUS_NONFINITE, observe_into, run_into
 from ffsr_gym.kernel.physics import workspace
-from ffsr_gym.kernel.planner import F_DT, F_KEEP_OUT, F_M, F_TC
 from ffsr_gym.kernel.score_terms import N_SCORE, smoothness_cost, smoothness_into
+from ffsr_gym.kernel.settings import F_DT, F_KEEP_OUT, F_M, F_TC
 
 #: Settings of a decision (vector ``ds``): residual scale [rad/s per unit action], fade length [s],
 #: desired motion time [s], the (m, T_c [s]) action box, the rate limit [deg/s], the violation

@@ -26,7 +26,7 @@ QUIET_S = 3.0
 #: meets them, each after the one before it was cached (``benchmarks/setup_time.json``: the main job's first run
 #: less its second, then each env's first use).
 #: The servo plant runs in the same compiled functions (a flag of the settings): its first use compiles nothing.
-ESTIMATES_S = {"closed loop": 120.0, "single env": 160.0, "batched env": 185.0}
+ESTIMATES_S = {"closed loop": 120.0, "single env": 160.0, "batched env": 185.0, "target motion": 5.0}
 #: Set to 1 to say nothing (tests that time calls, quiet scripts).
 QUIET_ENV = "FFSR_GYM_QUIET_COMPILE"
 

@@ -9,25 +9,27 @@ from numba import njit
 
 from ffsr_gym.kernel.arrays import ModelArrays
 from ffsr_gym.kernel.borrow import borrowed
-from ffsr_gym.kernel.collision import capsule_ends_into, obstacle_clearance, self_clearance
+from ffsr_gym.kernel.collision import body_clearance, capsule_ends_into, obstacle_clearance, self_clearance
 from ffsr_gym.kernel.physics import midpoint_into, momentum_into, velocity_into, workspace
-from ffsr_gym.kernel.planner import (
+from ffsr_gym.kernel.planner import plan, true_error_into
+from ffsr_gym.kernel.servo import X_V, servo_period_into
+from ffsr_gym.kernel.settings import (
+    F_BODY_HALF,
     F_DT,
     F_H,
     F_KEEP_OUT,
     F_OBSTACLES,
     F_RATE_MAX,
+    I_BODY,
     I_N_EST,
     I_N_OBS,
     I_PLANT,
     I_SCOPE,
     I_SUBSTEPS,
     OBSTACLE_FIELDS,
+    frame_record,
     obstacle_at,
-    plan,
-    true_error_into,
 )
-from ffsr_gym.kernel.servo import X_V, servo_period_into
 
 STATUS_OK, STATUS_RATE, STATUS_COLLISION, STATUS_NONFINITE = 0, 1, 2, 3
 
@@ -51,12 +53,22 @@ def _nearest_obstacle(mdl, ws, x, t, fp, ip):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _clearances(mdl, x, t, fp, ip, ws):
-    """Robot–obstacle clearance (inf without obstacle) and self clearance [m] at the workspace's state."""
+    """Robot–obstacle clearance (inf without obstacle; a tumbling target's body is one) and self clearance [m] at
+    the workspace's state."""
     capsule_ends_into(mdl, ws, x)
     clear = np.inf
     if ip[I_N_OBS] > 0:
         clear = _nearest_obstacle(mdl, ws, x, t, fp, ip)
+    if ip[I_BODY] == 1:
+        clear = min(clear, _body_clearance(mdl, ws, x, t, fp, ip))
     return clear, self_clearance(mdl, ws, x)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _body_clearance(mdl, ws, x, t, fp, ip):
+    """Clearance [m] to a tumbling target's body at time ``t`` (needs :func:`capsule_ends_into` done at ``x``)."""
+    r = frame_record(t, fp, ip) + 13
+    return body_clearance(mdl, ws, x, fp[r + 3:r + 12].reshape((3, 3)), fp[r:r + 3], fp[F_BODY_HALF:F_BODY_HALF + 3])
 
 
 @njit(cache=True, error_model="numpy")
@@ -184,8 +196,11 @@ def observe_into(mdl_owner, ws_owner, x_owner, t, fp_owner, ip_owner, rel):
     mdl, ws, x, fp, ip = borrowed(mdl_owner), borrowed(ws_owner), borrowed(x_owner), borrowed(fp_owner), borrowed(ip_owner)
     plan(mdl, x, t, fp, ip, ws)
     clear = np.inf
-    if ip[I_N_OBS] > 0:
+    if ip[I_N_OBS] > 0 or ip[I_BODY] == 1:
         capsule_ends_into(mdl, ws, x)
+    if ip[I_N_OBS] > 0:
         clear = _nearest_obstacle(mdl, ws, x, t, fp, ip)
         rel[:] = ws.rel
+    if ip[I_BODY] == 1:
+        clear = min(clear, _body_clearance(mdl, ws, x, t, fp, ip))
     return clear

@@ -32,7 +32,7 @@ Workspace = namedtuple("Workspace", [
     "cap_A", "cap_B", "cap_mid", "cap_hl", "bound", "first", "second", "rel", "cand",  # collision
     "Jb", "G_b", "tri_b",  # the balance arm's Jacobian, Gram matrix and tridiagonal form (both arms' σ_min run together)
     "cs",  # cos, sin of the joint angles at the last planned state, and those angles (kinematics_into)
-    "seg",  # danger field: (length, t0, h, ρ1, ρ2) of each obstacle's view of each arm segment
+    "seg",  # danger field: (length, t0, h, ρ1, ρ2) of each obstacle's (then a tumbling body's) view of each arm segment
 ])
 
 
@@ -51,7 +51,7 @@ def workspace(n_capsules):
         np.empty(2), np.empty(2), np.empty(6), np.empty(6), np.empty((n_capsules, 3)), np.empty((n_capsules, 3)),
         np.empty((n_capsules, 3)), np.empty(n_capsules), np.empty(n_pairs), np.empty(n_pairs, dtype=np.int64),
         np.empty(n_pairs, dtype=np.int64), np.empty(3), np.empty(23), np.empty((6, 6)), np.empty((6, 6)), np.empty((2, 6)),
-        np.full((3, 12), np.nan), np.empty((6 * MAX_OBSTACLES, 5)),
+        np.full((3, 12), np.nan), np.empty((6 * MAX_OBSTACLES + 6, 5)),
     )
 
 

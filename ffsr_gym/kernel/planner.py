@@ -2,7 +2,8 @@
 
 Same equations as the Pinocchio reference (docs/model.md §3-8), validated against it to 1e-9 on
 every trajectory array (``tests/test_kernel.py``). Settings travel in two vectors built by
-:mod:`ffsr_gym.sim.compiled`: ``fp`` (floats, indices ``F_*``) and ``ip`` (integers, ``I_*``).
+:mod:`ffsr_gym.sim.compiled`: ``fp`` (floats) and ``ip`` (integers), laid out by :mod:`ffsr_gym.kernel.settings`;
+the danger field is :mod:`ffsr_gym.kernel.field`.
 Results and intermediates live in the :data:`~ffsr_gym.kernel.physics.Workspace`; 3-vectors are
 scalars, so a planner step allocates nothing.
 """
@@ -13,38 +14,42 @@ import math
 
 from numba import njit
 
+from ffsr_gym.kernel.field import avoidance_into
 from ffsr_gym.kernel.inverse import filtered_solve_into
 from ffsr_gym.kernel.linalg import smallest_singular_values, solve3
 from ffsr_gym.kernel.physics import (
-    MAX_OBSTACLES,
     R_to_quat_wxyz,
     kinematics_into,
     momentum_about_base_into,
     momentum_into,
 )
+from ffsr_gym.kernel.settings import (
+    F_BODY_DANGER,
+    F_EPS1,
+    F_EPS2,
+    F_H,
+    F_K,
+    F_LAM1,
+    F_LAM2,
+    F_M,
+    F_P0,
+    F_Q0,
+    F_R0D,
+    F_SBD,
+    F_TA,
+    F_TC,
+    F_TF,
+    F_TRUE,
+    I_ATT,
+    I_FRAMES,
+    I_METHOD,
+    I_N_OBS,
+    I_PHI,
+    I_SPLIT,
+    estimate_record,
+    frame_record,
+)
 
-F_M, F_TC, F_K, F_LAM1, F_LAM2, F_EPS1, F_EPS2, F_XI, F_DELTA, F_K1, F_DANGER = range(11)
-F_TF, F_TA, F_EST_DT, F_DT, F_RATE_MAX = 11, 12, 13, 14, 15
-#: Path start (position, attitude), then a target record at ``F_TRUE``: target position (3) [m],
-#: rotation axis from the start attitude (3) and its angle [rad] (``TARGET_FIELDS`` floats).
-F_P0, F_Q0, F_TRUE, TARGET_FIELDS = 16, 19, 23, 7
-F_R0D, F_SBD, F_H = 30, 33, 37
-#: Obstacle records from ``F_OBSTACLES`` on, ``OBSTACLE_FIELDS`` floats each: start position (3) [m],
-#: drift velocity (3) [m/s], radius [m]; ``ip[I_N_OBS]`` of the ``MAX_OBSTACLES`` slots are used.
-F_OBSTACLES, OBSTACLE_FIELDS = 43, 7
-#: Keep-out distance [m]: a robot–obstacle clearance below it is a collision (0: contact).
-F_KEEP_OUT = F_OBSTACLES + OBSTACLE_FIELDS * MAX_OBSTACLES
-#: Length of the fixed part of ``fp``. The planner's target estimates follow it: ``ip[I_N_EST]``
-#: records like ``F_TRUE``'s, record k used for t in [k, k + 1) · ``fp[F_EST_DT]``
-#: (``ffsr_gym.planning.target_estimate``; one record, the true target, without noise).
-N_FP = F_KEEP_OUT + 1
-#: ``ip[I_SUBSTEPS]``: 0 for the kinematic plant, else the servo plant's physics steps per planner step
-#: (``ffsr_gym.kernel.servo``).
-I_METHOD, I_PHI, I_SPLIT, I_ATT, I_MU, I_BAL_AVOID, I_N_OBS, I_SCOPE, I_PLANT, I_N_EST, I_SUBSTEPS = range(11)
-N_IP = 11
-#: ``ffsr_gym.planning.target_estimate.INDEX_SLACK``.
-_INDEX_SLACK = 1e-9
-METHOD_CODES = {"no_avoidance": 0, "no_feedback": 1, "proportional": 2, "predefined_time": 3}
 _CAP = 700.0
 
 
@@ -55,13 +60,6 @@ def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):
             a0 * b1 + b0 * a1 + a2 * b3 - a3 * b2,
             a0 * b2 + b0 * a2 + a3 * b1 - a1 * b3,
             a0 * b3 + b0 * a3 + a1 * b2 - a2 * b1)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def obstacle_at(fp, o, t):
-    """Position (3 scalars) [m] of obstacle ``o`` at time ``t`` [s]: p + v t (``ffsr_gym.model.obstacles``)."""
-    b = F_OBSTACLES + OBSTACLE_FIELDS * o
-    return fp[b] + fp[b + 3] * t, fp[b + 1] + fp[b + 4] * t, fp[b + 2] + fp[b + 5] * t
 
 
 @njit(cache=True, error_model="numpy")
@@ -133,11 +131,16 @@ def pose_error_into(e, Jo, Jo_d, p, sigma, p_d, sigma_d, body):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def estimate_record(t, fp, ip):
-    """Index in ``fp`` of the target estimate the planner uses at t [s] (``target_estimate.estimate_index``)."""
-    rows = ip[I_N_EST]
-    k = 0 if rows == 1 else min(int(math.floor(t / fp[F_EST_DT] + _INDEX_SLACK)), rows - 1)
-    return N_FP + TARGET_FIELDS * k
+def moving_desired_into(p_d, sigma_d, V_ed, t, fp, ip):
+    """Desired EE pose and world twist at t [s] onto a moving grasp frame: the record of the step
+    (``ffsr_gym.planning.moving_target.MovingTargetPath``, sampled once per scenario)."""
+    r = frame_record(t, fp, ip)
+    for i in range(3):
+        p_d[i] = fp[r + i]
+    for i in range(4):
+        sigma_d[i] = fp[r + 3 + i]
+    for i in range(6):
+        V_ed[i] = fp[r + 7 + i]
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -177,110 +180,6 @@ def true_error_into(ws, t, fp, ip):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _field_of_segment(ox, oy, oz, points, i, geometry):
-    """Integral of 1/ρ along segment i (points i → i+1) seen from the obstacle point (ox, oy, oz), and its
-    nearest distance [m]; stores (length, t0, h, ρ1, ρ2) in ``geometry`` (5) for :func:`_moments_of_segment`.
-
-    Returns (0, inf) for a zero-length segment (skipped, as the reference skips it). Both ends' distances
-    are plain norms (ρ1 = |p_o − a|, ρ2 = |p_o − b|), and the two inverse hyperbolic sines of a foot on
-    the segment are one logarithm: asinh(u/h) + asinh(v/h) = log((u + ρ_u)(v + ρ_v) / h²).
-    """
-    ax, ay, az = points[i, 0], points[i, 1], points[i, 2]
-    Lx, Ly, Lz = points[i + 1, 0] - ax, points[i + 1, 1] - ay, points[i + 1, 2] - az
-    length = math.sqrt(Lx * Lx + Ly * Ly + Lz * Lz)
-    geometry[0] = length
-    if length < 1e-12:
-        return 0.0, math.inf
-    wx, wy, wz = ox - ax, oy - ay, oz - az
-    t0 = (wx * Lx + wy * Ly + wz * Lz) / length
-    cx, cy, cz = Ly * wz - Lz * wy, Lz * wx - Lx * wz, Lx * wy - Ly * wx
-    h = max(math.sqrt(cx * cx + cy * cy + cz * cz) / length, 1e-12)
-    rho1 = math.sqrt(wx * wx + wy * wy + wz * wz)
-    vx, vy, vz = wx - Lx, wy - Ly, wz - Lz
-    rho2 = math.sqrt(vx * vx + vy * vy + vz * vz)
-    geometry[1], geometry[2], geometry[3], geometry[4] = t0, h, rho1, rho2
-    tau1, tau2 = -t0, length - t0
-    if tau2 > 0.0:
-        lo, hi, r_lo, r_hi = tau1, tau2, rho1, rho2
-    else:
-        lo, hi, r_lo, r_hi = -tau2, -tau1, rho2, rho1
-    if lo >= 0.0:  # the foot of the perpendicular is off the segment
-        return math.log((hi + r_hi) / (lo + r_lo)) / length, r_lo
-    return math.log((hi + r_hi) * (r_lo - lo) / (h * h)) / length, h
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _moments_of_segment(geometry):
-    """(I0, I1): integrals of 1/ρ³ and s/ρ³ along a segment from its ``geometry`` (:func:`_field_of_segment`)."""
-    length, t0, h, rho1, rho2 = geometry[0], geometry[1], geometry[2], geometry[3], geometry[4]
-    tau1, tau2 = -t0, length - t0
-    if tau2 > 0.0:
-        lo, hi, r_lo, r_hi = tau1, tau2, rho1, rho2
-    else:
-        lo, hi, r_lo, r_hi = -tau2, -tau1, rho2, rho1
-    if lo >= 0.0:
-        inv3 = (hi * hi - lo * lo) / (r_lo * r_hi * (hi * r_lo + lo * r_hi))
-    else:
-        inv3 = (hi / r_hi - lo / r_lo) / (h * h)
-    I0 = inv3 / length
-    return I0, (1.0 / rho1 - 1.0 / rho2) / (length * length) + (t0 / length) * I0
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def avoidance_into(ws, fp, ip, arm, t):
-    """μ and CDF of one arm at time ``t`` (``Planner._avoidance``); Θ̇_c (6) into ``ws.dq_c``.
-
-    The CDF and its gradient sum over the obstacles, the distance is the smallest (docs/model.md §14).
-    The gradient pass, needed only while μ < 1, reuses each segment's geometry from the field pass.
-    """
-    points, z, dq_c, pj, pe, seg = ws.points, ws.z, ws.dq_c, ws.pj, ws.pe, ws.seg
-    for a in range(3):
-        for i in range(6):
-            points[i, a] = pj[6 * arm + i, a]
-        points[6, a] = pe[arm, a]
-    total, dist = 0.0, 1e300
-    n_obs = ip[I_N_OBS]
-    for o in range(n_obs):
-        ox, oy, oz = obstacle_at(fp, o, t)
-        for i in range(6):
-            F, nearest = _field_of_segment(ox, oy, oz, points, i, seg[6 * o + i])
-            total += F
-            dist = min(dist, nearest)
-    cdf = fp[F_K1] * total
-    if ip[I_MU] == 0:
-        mu = 1.0 if cdf <= fp[F_DELTA] else fp[F_DELTA] / cdf
-    else:
-        mu = min(1.0, dist / fp[F_DANGER]) ** 2
-    if ip[I_METHOD] == 0 or (arm == 1 and ip[I_BAL_AVOID] == 0):
-        mu = 1.0
-    dq_c[:] = 0.0
-    if mu >= 1.0:
-        return 1.0, cdf
-    scale = -fp[F_XI] * fp[F_K1]  # Θ̇_c = −ξ k₁ ∂CDF/∂Θ, only needed while the avoidance acts
-    for o in range(n_obs):
-        ox, oy, oz = obstacle_at(fp, o, t)
-        for i in range(6):
-            geometry = seg[6 * o + i]
-            if geometry[0] < 1e-12:
-                continue  # zero-length segment
-            I0, I1 = _moments_of_segment(geometry)
-            ax, ay, az = points[i, 0], points[i, 1], points[i, 2]
-            bx, by, bz = points[i + 1, 0], points[i + 1, 1], points[i + 1, 2]
-            for k in range(i + 1):
-                px, py, pz = points[k, 0], points[k, 1], points[k, 2]
-                ux, uy, uz = ax - px, ay - py, az - pz  # c0 = (a - p_k) x (p_o - a)
-                wx, wy, wz = ox - ax, oy - ay, oz - az
-                c0x, c0y, c0z = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-                ux, uy, uz = bx - ax, by - ay, bz - az  # c1 = (b - a) x (p_o - p_k)
-                wx, wy, wz = ox - px, oy - py, oz - pz
-                c1x, c1y, c1z = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-                j = 6 * arm + k
-                dq_c[k] += scale * (z[j, 0] * (c0x * I0 + c1x * I1) + z[j, 1] * (c0y * I0 + c1y * I1)
-                                    + z[j, 2] * (c0z * I0 + c1z * I1))
-    return mu, cdf
-
-
-@njit(cache=True, error_model="numpy", inline="always")
 def _base_command_into(x, fp, ip, ws):
     """Commanded base twist V0 = −J_b⁻¹ f(e₀) into ``ws.V0`` (base pose error in ``ws.e0``)."""
     pose_error_into(ws.e0, ws.Jo, ws.Jo_d, x, (x[6], x[3], x[4], x[5]), fp[F_R0D:F_R0D + 3], fp[F_SBD:F_SBD + 4],
@@ -295,7 +194,10 @@ def _base_command_into(x, fp, ip, ws):
 @njit(cache=True, error_model="numpy", inline="always")
 def _mission_task_into(x, t, fp, ip, ws):
     """Mission-arm task rate x₁ = J_e⁻¹(J_ed V_ed − f(e₁)) − J₀ V0 into ``ws.x1`` (EE error in ``ws.e1``)."""
-    desired_into(ws.p_d, ws.sigma_d, ws.V_ed, t, fp, estimate_record(t, fp, ip))
+    if ip[I_FRAMES] > 0:
+        moving_desired_into(ws.p_d, ws.sigma_d, ws.V_ed, t, fp, ip)
+    else:
+        desired_into(ws.p_d, ws.sigma_d, ws.V_ed, t, fp, estimate_record(t, fp, ip))
     pe = ws.pe[0]
     pose_error_into(ws.e1, ws.Jo, ws.Jo_d, pe, R_to_quat_wxyz(ws.Re[0]), ws.p_d, ws.sigma_d, ip[I_ATT] == 1)
     f, V_ed, V0, x1, Jd = ws.target, ws.V_ed, ws.V0, ws.x1, ws.Jo_d
@@ -334,7 +236,7 @@ def plan(mdl, x, t, fp, ip, ws):
     for arm in range(2):
         mu, cdf = 1.0, 0.0
         ws.dq_c[:] = 0.0
-        if ip[I_N_OBS] > 0:
+        if ip[I_N_OBS] > 0 or fp[F_BODY_DANGER] > 0.0:
             mu, cdf = avoidance_into(ws, fp, ip, arm, t)
         if arm == 0:
             A, s_min, target, lam, eps = J, s_mission, ws.x1, fp[F_LAM1], fp[F_EPS1]

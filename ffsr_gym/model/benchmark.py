@@ -21,9 +21,24 @@ import numpy as np
 from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.scenario import Randomization, Scenario, load_scenario
-from ffsr_gym.model.schema import BOOL, TEXT, check_action_bounds, choice, integer, load_table, natural, number, section, vector
+from ffsr_gym.model.schema import (
+    BOOL,
+    TEXT,
+    Vec,
+    check_action_bounds,
+    choice,
+    integer,
+    load_table,
+    natural,
+    number,
+    section,
+    vector,
+)
 
+#: The ranked rule files shipped (the newest last: scripts default to it).
 VERSIONS = ("v2",)
+#: The capture family's rule files (beyond the paper; docs/model.md §22), loaded by the same :func:`load_benchmark`.
+CAPTURE_VERSIONS = ("capture-v0",)
 
 
 @dataclass(frozen=True)
@@ -55,7 +70,9 @@ class Ensemble:
 
     Besides the task itself: the same task at ``dt_s / d`` for each ``d`` of ``step_divisors``;
     ``start_draws`` starts whose joints are each ``start_offset_deg`` off, with signs drawn from
-    ``default_rng([seed, 4 + draw])``; and, with ``pinocchio``, the task on the Pinocchio backend.
+    ``default_rng([seed, 4 + draw])``; and, with ``pinocchio``, the task on the Pinocchio backend. With
+    ``omega_offset_deg_s`` > 0, a task with a tumbling target has one more member: its body's initial angular
+    velocity with each component that far off (signs from ``default_rng([seed, 8])``).
     The worst episode must clear every success threshold by a margin (:meth:`short_margin`).
     """
 
@@ -66,6 +83,7 @@ class Ensemble:
     rate_margin: float = field(default=1.0, metadata=number(0.0, 1.0, lo_open=True))
     clearance_margin_m: float = field(default=0.0, metadata=number(0.0, 1.0))
     error_margin: float = field(default=1.0, metadata=number(0.0, 1.0, lo_open=True))
+    omega_offset_deg_s: float = field(default=0.0, metadata=number(0.0, 10.0))
 
     def short_margin(self, peak_rate_deg_s: float, min_clearance_m: float, min_self_clearance_m: float,
                      final_errors: tuple[float, float], score: ScoreSettings) -> str | None:
@@ -83,6 +101,47 @@ class Ensemble:
                 or final_errors[1] > self.error_margin * score.ee_attitude_tolerance):
             return "final error margin"
         return None
+
+
+@dataclass(frozen=True)
+class CaptureRule:
+    """What capture means (``[capture]``, a capture rule file; ``ffsr_gym.scoring.capture``): the mission
+    end-effector within these bounds of the grasp frame's pose and twist at every sample of a ``hold_s`` [s]
+    window. Position [m], the angle between the frames [rad], relative linear [m/s] and angular [rad/s] speed."""
+
+    position_m: float = field(metadata=number(0.0, 1.0, lo_open=True))
+    attitude_rad: float = field(metadata=number(0.0, 3.2, lo_open=True))
+    linear_velocity_m_s: float = field(metadata=number(0.0, 10.0, lo_open=True))
+    angular_velocity_rad_s: float = field(metadata=number(0.0, 10.0, lo_open=True))
+    hold_s: float = field(metadata=number(0.0, 60.0))
+
+
+@dataclass(frozen=True)
+class CaptureDraw:
+    """The capture family's tumbling body (``[tasks.capture_draw]``; ``ffsr_gym.tasks.capture_family``).
+
+    Ranges are ``[low, high]``, drawn uniformly: the box's edges ``size_m`` [m] (each), its ``mass_kg`` [kg]
+    (uniform density: the inertia follows), its spin rate per tier [deg/s] (``slow_spin_deg_s``,
+    ``fast_spin_deg_s``), the spin axis' angle from the grasp axis ``spin_tilt_deg`` (azimuth uniform) and the
+    drift speed ``drift_m_s`` [m/s] (direction uniform). The grasp frame stands ``handle_standoff_m`` off one face
+    on that face's normal. The approach (``[tumbling_target]``'s keys of the same names) is fixed. A draw is kept
+    when the body clears the start configuration by ``min_start_clearance_m`` and the target configuration by
+    ``min_target_clearance_m``.
+    """
+
+    size_m: Vec = field(metadata=vector(2, 0.05, 5.0))
+    mass_kg: Vec = field(metadata=vector(2, 1.0, 1e5))
+    handle_standoff_m: float = field(metadata=number(0.0, 1.0, lo_open=True))
+    slow_spin_deg_s: Vec = field(metadata=vector(2, 0.0, 90.0))
+    fast_spin_deg_s: Vec = field(metadata=vector(2, 0.0, 90.0))
+    spin_tilt_deg: Vec = field(metadata=vector(2, 0.0, 180.0))
+    drift_m_s: Vec = field(metadata=vector(2, 0.0, 1.0))
+    standoff_m: float = field(metadata=number(0.0, 1.0))
+    insertion_time_s: float = field(metadata=number(0.5, 60.0))
+    danger_radius_m: float = field(metadata=number(0.0, 1.0))
+    min_start_clearance_m: float = field(metadata=number(0.0, 10.0))
+    min_target_clearance_m: float = field(metadata=number(0.0, 10.0))
+    max_attempts: float = field(default=500, metadata=number(1, 1e6))
 
 
 @dataclass(frozen=True)
@@ -109,7 +168,7 @@ class TaskRule:
     ``residual_trials`` seeded draws does), else rejected as unsolved.
     """
 
-    family: str = field(metadata=choice("random"))
+    family: str = field(metadata=choice("random", "capture"))
     min_balance_sigma: float = field(metadata=number(0.0, 100.0))
     min_nominal_self_clearance_m: float = field(metadata=number(-1.0, 1.0))
     grid_m: tuple[float, ...] = field(metadata=vector(6, 0.0, 1.0))
@@ -120,6 +179,8 @@ class TaskRule:
     draw: Randomization = field(metadata=section(Randomization))
     validation_tasks: float = field(default=0, metadata=number(0, 1e5))
     ensemble: Ensemble | None = field(default=None, metadata=section(Ensemble))
+    capture_draw: CaptureDraw | None = field(default=None, metadata=section(CaptureDraw))
+    min_mission_sigma: float = field(default=0.0, metadata=number(0.0, 100.0))
 
     @property
     def splits(self) -> tuple[str, ...]:
@@ -141,6 +202,7 @@ class Benchmark:
     planner: PlannerDefaults = field(metadata=section(PlannerDefaults))
     action: ActionSettings = field(metadata=section(ActionSettings))
     tasks: TaskRule = field(metadata=section(TaskRule))
+    capture: CaptureRule | None = field(default=None, metadata=section(CaptureRule))
 
     def task(self, scenario: Scenario) -> Scenario:
         """``scenario`` with this version's planner defaults, tolerances, rate limit and action box.
@@ -180,8 +242,8 @@ def load_benchmark(version: str = VERSIONS[-1]) -> Benchmark:
     Raises:
         ScenarioError: unknown version, unreadable file or an invalid key (named).
     """
-    if version not in VERSIONS:
-        raise ScenarioError(f"benchmark version {version!r}; allowed: {list(VERSIONS)}")
+    if version not in VERSIONS + CAPTURE_VERSIONS:
+        raise ScenarioError(f"benchmark version {version!r}; allowed: {list(VERSIONS + CAPTURE_VERSIONS)}")
     return load_rules(envs_dir() / "benchmark" / f"{version}.toml")
 
 

@@ -151,6 +151,13 @@ class Robot:
         J = pin.getFrameJacobian(self.model, self.data, int(self.ee_frame_ids[arm]), LWA)
         return J[:, self.arm_v_index[arm]]
 
+    def ee_twist(self, v: Array, arm: int) -> Array:
+        """World-aligned twist [v; ω] (6,) of the end-effector of ``arm`` at the generalized velocity ``v`` (18,).
+
+        Requires :meth:`update_kinematics` for the current ``q``.
+        """
+        return pin.getFrameJacobian(self.model, self.data, int(self.ee_frame_ids[arm]), LWA) @ v
+
     def joint_points(self, arm: int) -> tuple[Array, Array]:
         """Joint origins p_0..p_5 plus the end-effector p_6 [m] and joint axes z_0..z_5.
 

@@ -370,6 +370,13 @@ def _check_tumbling(s: Scenario, where: str) -> None:
     if s.tumbling_target is not None and s.target_noise is not None:
         problems.append("sections 'tumbling_target' and 'target_noise' together: not supported yet (the noisy "
                         "estimate is of a still target)")
+    body = s.tumbling_target
+    if body is not None and body.standoff_m > 0.0:
+        end = s.desired_path.motion_time_s + body.insertion_time_s
+        if end > s.simulation.duration_s + 1e-9:
+            problems.append(f"key 'tumbling_target.insertion_time_s' = {body.insertion_time_s!r}: the insertion ends at "
+                            f"t = {end:g} s, after the episode ({s.simulation.duration_s:g} s); allowed: at most "
+                            f"{s.simulation.duration_s - s.desired_path.motion_time_s:g} s (duration_s - motion_time_s)")
     if problems:
         raise ScenarioError(where + "; ".join(problems))
 

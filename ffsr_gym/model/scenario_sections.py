@@ -233,6 +233,12 @@ class TumblingTarget:
     [deg/s] (body frame), with no torque (:mod:`ffsr_gym.model.tumbling`). The grasp frame (the handle) is fixed on
     the body at ``handle_position_m`` [m] with attitude ``handle_quaternion_wxyz``, both in the body frame, outside
     the box. The scenario's ``[target]`` is the grasp frame at t = 0 (checked on load).
+
+    How the planner comes in (docs/model.md §22): with ``standoff_m`` > 0 [m] it approaches a pre-grasp frame, the
+    grasp frame backed off along its z axis (the tool's approach axis) by a distance that closes to 0 over
+    ``insertion_time_s`` [s] from the end of the desired motion on (``trajectory.motion_time_s``), so the tool comes
+    in along the grasp axis. With ``danger_radius_m`` > 0 [m] the body's centre is in every arm's danger field but
+    the tool segment's, and the avoidance blend sees the arm's distance to the body's bounding sphere over it.
     """
 
     size_m: Vec = field(metadata=vector(3, 0.05, 5.0))
@@ -244,6 +250,9 @@ class TumblingTarget:
     handle_quaternion_wxyz: Vec = field(default=(1.0, 0.0, 0.0, 0.0), metadata=vector(4, -1.01, 1.01))
     velocity_m_s: Vec = field(default=(0.0,) * 3, metadata=vector(3, -1.0, 1.0))
     omega_body_deg_s: Vec = field(default=(0.0,) * 3, metadata=vector(3, -90.0, 90.0))
+    standoff_m: float = field(default=0.0, metadata=number(0.0, 1.0))
+    insertion_time_s: float = field(default=4.0, metadata=number(0.5, 60.0))
+    danger_radius_m: float = field(default=0.0, metadata=number(0.0, 1.0))
 
 
 def tumbling_problems(body: TumblingTarget, target: Target) -> list[str]:

@@ -7,17 +7,22 @@ and the end-effector's initial pose (p_e0, σ_e0):
 .. math::
     p_d = p_{e0} + s\\,(p_h(t) - p_{e0}), \\qquad \\dot p_d = \\dot s\\,(p_h - p_{e0}) + s\\, v_h,
 
-    \\sigma_d = \\sigma_h(t) \\otimes \\exp\\big((1 - s)\\, a\\big), \\qquad
-    \\omega_d = \\omega_h - \\dot s\\, R(\\sigma_h)\\, a,
+    \\sigma_d = \\exp(s\\,\\delta(t)) \\otimes \\sigma_h(0) \\otimes \\exp\\big((1 - s)\\, a\\big),
 
-with ``a`` the rotation vector of σ_h(0)* ⊗ σ_e0 (the initial attitude seen from the grasp frame at t = 0). At
-s = 0 the desired pose is the initial one; from the end of the motion on (s = 1) it is the grasp frame itself, and
-V_ed is the grasp frame's twist: the planner's feedforward J_ed V_ed carries the target's motion, and the
-predefined-time feedback φ(e₁) removes what is left within T_c. A still grasp frame gives §5's path back.
+    \\omega_d = J_l(s\\delta)\\,(\\dot s\\,\\delta + s\\,\\dot\\delta)
+               - \\dot s\\, R(\\exp(s\\delta))\\, R(\\sigma_h(0))\\, a,
+
+with ``a`` the rotation vector of σ_h(0)* ⊗ σ_e0 (the initial attitude seen from the grasp frame at t = 0), δ(t) the
+rotation vector of the frame's turn since t = 0, σ_h(t) ⊗ σ_h(0)* (δ̇ = J_l(δ)⁻¹ ω_h), and J_l the left Jacobian of
+SO(3). The end-effector takes on the frame's turn as it arrives (s of it): at s = 0 the desired pose is the initial
+one and still; from the end of the motion on (s = 1) it is the grasp frame itself, and V_ed its twist, so the
+planner's feedforward J_ed V_ed carries the target's motion and the predefined-time feedback φ(e₁) removes what is
+left within T_c. A still grasp frame gives §5's path back.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,38 +66,78 @@ class GraspFrameMotion:
 
 @dataclass(frozen=True)
 class MovingTargetPath:
-    """The approach onto a moving grasp frame, with the same ``at(t)`` as
-    :class:`~ffsr_gym.planning.desired_path.DesiredPath`.
+    """The approach onto a moving grasp frame, sampled at every physics step, with the same ``at(t)`` as
+    :class:`~ffsr_gym.planning.desired_path.DesiredPath` (module docstring).
 
     Attributes:
-        start_position: p_e0 [m]; start_attitude: σ_e0; offset: the rotation vector ``a`` [rad];
-        grasp: the grasp frame's samples; motion_time, accel_time: t_f, t_a [s].
+        start_position: p_e0 [m]; start_attitude: σ_e0; grasp: the approached frame's samples;
+        motion_time, accel_time: t_f, t_a [s];
+        position_m: (N+1, 3) p_d [m]; attitude: (N+1, 4) σ_d; twist: (N+1, 6) V_ed = [v_d; ω_d] (world).
     """
 
     start_position: Array
     start_attitude: Array
-    offset: Array
     grasp: GraspFrameMotion
     motion_time: float
     accel_time: float
+    position_m: Array
+    attitude: Array
+    twist: Array
 
     @classmethod
     def onto(cls, start_position: Array, start_attitude: Array, grasp: GraspFrameMotion, *, motion_time: float,
              accel_time: float) -> MovingTargetPath:
-        """The approach from the end-effector's initial pose onto ``grasp``."""
-        offset = quat.rotation_vector(quat.multiply(quat.conjugate(grasp.quaternion[0]), np.asarray(start_attitude)))
-        return cls(np.asarray(start_position, float), np.asarray(start_attitude, float), offset, grasp, motion_time,
-                   accel_time)
+        """The approach from the end-effector's initial pose onto ``grasp``.
+
+        Raises:
+            InvalidInputError: the frame turns by π or more before the end of the motion (its rotation since
+                t = 0 has no unique rotation vector then).
+        """
+        p0, q0 = np.asarray(start_position, float), np.asarray(start_attitude, float)
+        t = np.arange(len(grasp.position_m)) * grasp.dt_s
+        law = np.array([trapezoid(x, motion_time, accel_time) for x in t])
+        s, s_dot = law[:, :1], law[:, 1:]
+        chord = grasp.position_m - p0
+        position, velocity = p0 + s * chord, s_dot * chord + s * grasp.velocity_m_s
+        first = grasp.quaternion[0]
+        offset = quat.rotation_vector(quat.multiply(quat.conjugate(first), q0))
+        turn = np.array([quat.rotation_vector(quat.multiply(q, quat.conjugate(first))) for q in grasp.quaternion])
+        turned = float(np.linalg.norm(turn[t < motion_time], axis=1).max(initial=0.0))
+        if turned > math.pi - 0.05:
+            raise InvalidInputError(f"the grasp frame turns by {math.degrees(turned):.0f} deg before the end of the "
+                                    f"motion ({motion_time:g} s); allowed: less than 177 deg (a slower spin or a "
+                                    "shorter trajectory.motion_time_s)")
+        attitude, omega = np.empty((len(t), 4)), np.empty((len(t), 3))
+        R_first = quat.to_rotation(first)
+        for k in range(len(t)):
+            sk, sdk = float(s[k, 0]), float(s_dot[k, 0])
+            if sk == 1.0:  # arrived: the frame itself
+                attitude[k], omega[k] = grasp.quaternion[k], grasp.omega_rad_s[k]
+                continue
+            synced = quat.from_rotation_vector(sk * turn[k])  # exp(s δ): the frame's turn since t = 0, s of it
+            still = quat.multiply(first, quat.from_rotation_vector((1.0 - sk) * offset))
+            attitude[k] = quat.multiply(synced, still)
+            turn_rate = np.linalg.solve(left_jacobian(turn[k]), grasp.omega_rad_s[k])
+            omega[k] = (left_jacobian(sk * turn[k]) @ (sdk * turn[k] + sk * turn_rate)
+                        - sdk * quat.to_rotation(synced) @ R_first @ offset)
+        return cls(p0, q0, grasp, motion_time, accel_time, position, attitude, np.hstack((velocity, omega)))
 
     def at(self, t: float) -> tuple[Array, Array, Array]:
-        """Desired position [m], attitude (scalar first) and world twist V_ed = [v_d; ω_d] at ``t`` [s]."""
-        s, s_dot = trapezoid(t, self.motion_time, self.accel_time)
-        k, g = self.grasp.index(t), self.grasp
-        chord = g.position_m[k] - self.start_position
-        position = self.start_position + s * chord
-        attitude = quat.multiply(g.quaternion[k], quat.from_rotation_vector((1.0 - s) * self.offset))
-        omega = g.omega_rad_s[k] - s_dot * quat.to_rotation(g.quaternion[k]) @ self.offset
-        return position, attitude, np.concatenate((s_dot * chord + s * g.velocity_m_s[k], omega))
+        """Desired position [m], attitude (scalar first) and world twist V_ed = [v_d; ω_d] at ``t`` [s], a
+        multiple of the step."""
+        k = self.grasp.index(t)
+        return self.position_m[k], self.attitude[k], self.twist[k]
+
+
+def left_jacobian(rotation: Array) -> Array:
+    """The left Jacobian J_l(φ) of SO(3) at the rotation vector φ: the world angular velocity of exp(φ(t)) is
+    J_l(φ) φ̇. J_l = I + (1 − cos θ)/θ² [φ]× + (θ − sin θ)/θ³ [φ]×², θ = |φ| (series below 1e-6)."""
+    theta = float(np.linalg.norm(rotation))
+    S = quat.skew(rotation)
+    if theta < 1e-6:
+        return np.eye(3) + 0.5 * S + S @ S / 6.0
+    return (np.eye(3) + (1.0 - math.cos(theta)) / theta**2 * S
+            + (theta - math.sin(theta)) / theta**3 * S @ S)
 
 
 def pre_grasp(grasp: GraspFrameMotion, *, standoff_m: float, insert_start_s: float, insert_time_s: float,
@@ -129,3 +174,39 @@ def grasp_motion(body: TumblingTarget, motion: TargetMotion) -> GraspFrameMotion
     attitude = np.stack([quat.multiply(q, handle) for q in motion.quaternion])
     dt_s = float(motion.time_s[1] - motion.time_s[0]) if len(motion.time_s) > 1 else 1.0
     return GraspFrameMotion(dt_s, position, attitude, velocity, motion.omega_world_rad_s())
+
+
+def approach_frame(body: TumblingTarget, grasp: GraspFrameMotion, motion_time_s: float) -> GraspFrameMotion:
+    """The frame the planner approaches: the grasp frame itself, or with ``standoff_m`` > 0 its :func:`pre_grasp`
+    frame, inserted over ``insertion_time_s`` from the end of the desired motion (``motion_time_s`` [s]) on."""
+    if body.standoff_m <= 0.0:
+        return grasp
+    return pre_grasp(grasp, standoff_m=body.standoff_m, insert_start_s=motion_time_s,
+                     insert_time_s=body.insertion_time_s)
+
+
+@dataclass(frozen=True)
+class BodyField:
+    """The tumbling body as the danger field sees it (docs/model.md §22): its centre at every step (a point of the
+    field, like an obstacle's), the radius of its bounding sphere and the danger radius beyond that sphere [m].
+
+    The field acts on every arm segment but the tool's (the tool must come close: it grasps the handle); the
+    blend's distance is the arm's distance to the centre minus ``bounding_radius_m``, over ``danger_radius_m``.
+    """
+
+    centre_m: Array
+    dt_s: float
+    bounding_radius_m: float
+    danger_radius_m: float
+
+    @classmethod
+    def of(cls, body: TumblingTarget, motion: TargetMotion, dt_s: float) -> BodyField | None:
+        """The field of a ``[tumbling_target]`` moving as ``motion`` (None when its ``danger_radius_m`` is 0)."""
+        if body.danger_radius_m <= 0.0:
+            return None
+        return cls(motion.position_m, dt_s, 0.5 * float(np.linalg.norm(body.size_m)), body.danger_radius_m)
+
+    def centre(self, t: float) -> Array:
+        """The centre [m] at ``t`` [s] (the sample of the step ``t`` falls on)."""
+        k = min(int(math.floor(t / self.dt_s + 0.5)), len(self.centre_m) - 1)
+        return self.centre_m[k]

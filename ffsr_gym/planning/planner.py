@@ -28,6 +28,7 @@ from ffsr_gym.planning import ptsf
 from ffsr_gym.planning.avoidance import blend_factor, danger_field, danger_field_gradient
 from ffsr_gym.planning.desired_path import DesiredPath
 from ffsr_gym.planning.inverse import filtered_inverse
+from ffsr_gym.planning.moving_target import BodyField
 from ffsr_gym.planning.pose_error import pose_error
 from ffsr_gym.planning.target_estimate import estimate_index
 from ffsr_gym.types import Array
@@ -109,12 +110,13 @@ class Planner:
         base_target: the base set-point ``(r0d [m], sigma_bd wxyz)`` (:func:`reference_targets`).
         estimates: the paths the planner follows, one per target estimate, each held for
             ``estimate_interval_s`` (:mod:`ffsr_gym.planning.target_estimate`; default: ``(path,)``).
+        body: a tumbling target's body in the danger field (:class:`~ffsr_gym.planning.moving_target.BodyField`).
     """
 
     def __init__(self, robot: Robot, scenario: Scenario, *, method: str = "predefined_time",
                  m: float | None = None, T_c: float | None = None, path: DesiredPath,
                  base_target: tuple[Array, Array], estimates: tuple[DesiredPath, ...] | None = None,
-                 estimate_interval_s: float = 0.0) -> None:
+                 estimate_interval_s: float = 0.0, body: BodyField | None = None) -> None:
         self.m, self.T_c = planner_parameters(scenario, method, m, T_c)
         self.robot, self.scenario, self.method = robot, scenario, method
         self.settings = scenario.planner
@@ -122,6 +124,7 @@ class Planner:
         self.path, self.base_target = path, base_target
         self.estimates, self.estimate_interval_s = estimates or (path,), estimate_interval_s
         self.obstacles = obstacle_field(scenario)
+        self.body = body
 
     def set_parameters(self, m: float, T_c: float) -> None:
         """Change the predefined-time parameters m ∈ (0, 1) and T_c [s] > 0 from now on."""
@@ -145,7 +148,8 @@ class Planner:
         With several obstacles the CDF and its gradient are sums over them and the distance is
         the smallest (docs/model.md §10).
         """
-        if not len(self.obstacles):
+        body = self.body
+        if not len(self.obstacles) and body is None:
             return 1.0, np.zeros(6), 0.0, np.inf
         points, axes = self.robot.joint_points(arm)
         s = self.settings
@@ -154,12 +158,18 @@ class Planner:
         for p_o in positions:
             part, nearest = danger_field(points, p_o, s.cdf_k1)
             cdf, distance = cdf + part, min(distance, nearest)
-        mu = blend_factor(cdf, distance, law=s.mu_law, delta=s.cdf_delta, danger_radius=self.scenario.obstacle.danger_radius_m)
+        ratio = distance / self.scenario.obstacle.danger_radius_m if len(positions) else math.inf
+        if body is not None:  # the tumbling body: every segment but the tool's, seen from its bounding sphere (§22)
+            part, nearest = danger_field(points[:6], body.centre(t), s.cdf_k1)
+            cdf, ratio = cdf + part, min(ratio, (nearest - body.bounding_radius_m) / body.danger_radius_m)
+        mu = blend_factor(cdf, ratio, law=s.mu_law, delta=s.cdf_delta, danger_radius=1.0)
         if self.method == "no_avoidance" or (arm == 1 and not s.balance_avoids):
             mu = 1.0
         if mu >= 1.0:
             return 1.0, np.zeros(6), cdf, distance
-        gradient = sum(danger_field_gradient(points, axes, p_o, s.cdf_k1) for p_o in positions)
+        gradient = sum((danger_field_gradient(points, axes, p_o, s.cdf_k1) for p_o in positions), np.zeros(6))
+        if body is not None:
+            gradient = gradient + danger_field_gradient(points[:6], axes, body.centre(t), s.cdf_k1)
         return mu, -s.cdf_xi * gradient, cdf, distance
 
     def __call__(self, t: float, q: Array) -> PlanStep:

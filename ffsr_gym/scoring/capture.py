@@ -13,6 +13,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.model.benchmark import CaptureRule
+from ffsr_gym.model.quaternion import from_rotation
+from ffsr_gym.sim.setup import ScenarioSetup
+from ffsr_gym.sim.trajectory import Trajectory
 from ffsr_gym.types import Array
 
 #: The relative quantities a capture bounds, in this order: position [m], attitude [rad], linear velocity [m/s],
@@ -30,6 +35,12 @@ class CaptureTolerances:
     angular_velocity_rad_s: float
     hold_s: float
 
+    @classmethod
+    def of(cls, rule: CaptureRule) -> CaptureTolerances:
+        """The tolerances of a rule file's ``[capture]`` section."""
+        return cls(rule.position_m, rule.attitude_rad, rule.linear_velocity_m_s, rule.angular_velocity_rad_s,
+                   rule.hold_s)
+
     def bounds(self) -> Array:
         """(4,) the bounds in the order of :data:`QUANTITIES`."""
         return np.array([getattr(self, name) for name in QUANTITIES])
@@ -44,11 +55,16 @@ class Capture:
         time_s: when the first such window ended (NaN when never).
         worst_ratio: (4,) over that window, the largest value / bound of each quantity (NaN when never): how far
             inside the tolerances it stayed (1 is on the bound).
+        margin_ratio: over every window of the episode, the smallest of its largest value / bound: the episode
+            captures with every tolerance scaled by this factor and by no smaller one (<= 1 exactly when
+            captured). The first window starts as soon as the quantities enter the bounds, so its own worst ratio
+            is about 1 by construction; this is the margin a certificate keeps.
     """
 
     captured: bool
     time_s: float
     worst_ratio: Array
+    margin_ratio: float = math.inf
 
 
 def relative_motion(ee_position_m: Array, ee_quaternion: Array, ee_twist: Array, grasp_position_m: Array,
@@ -74,10 +90,39 @@ def capture(time_s: Array, relative: Array, tolerances: CaptureTolerances) -> Ca
     inside = np.all(ratio <= 1.0, axis=1)
     step = float(time_s[1] - time_s[0]) if len(time_s) > 1 else 0.0
     needed = int(round(tolerances.hold_s / step)) + 1 if step > 0.0 else 1
+    largest = ratio.max(axis=1)
+    margin = (float(np.min(np.lib.stride_tricks.sliding_window_view(largest, needed).max(axis=1)))
+              if len(largest) >= needed else math.inf)
     run = 0
     for k, ok in enumerate(inside):
         run = run + 1 if ok else 0
         if run >= needed:
             window = ratio[k - needed + 1:k + 1]
-            return Capture(True, float(time_s[k]), window.max(axis=0))
-    return Capture(False, float("nan"), np.full(len(QUANTITIES), np.nan))
+            return Capture(True, float(time_s[k]), window.max(axis=0), margin)
+    return Capture(False, float("nan"), np.full(len(QUANTITIES), np.nan), margin)
+
+
+def episode_relative_motion(setup: ScenarioSetup, trajectory: Trajectory) -> Array:
+    """(N, 4) :func:`relative_motion` of an episode's mission end-effector to its scenario's grasp frame, at every
+    sample: the end-effector's pose and world twist J(q_k) v_k from the trajectory (the twist it moved with over
+    the step), the grasp frame's from :attr:`~ffsr_gym.sim.setup.ScenarioSetup.grasp`.
+
+    Raises:
+        InvalidInputError: the scenario has no ``[tumbling_target]``, or the trajectory is not on its steps.
+    """
+    grasp = setup.grasp
+    if grasp is None:
+        raise InvalidInputError(f"scenario {setup.scenario.name!r} has no [tumbling_target] to capture")
+    n = len(trajectory.t)
+    if n > len(grasp.position_m) or abs(trajectory.info.get("dt_s", grasp.dt_s) - grasp.dt_s) > 1e-12:
+        raise InvalidInputError(f"a trajectory of {n} samples at dt = {trajectory.info.get('dt_s')} s; allowed: at most "
+                                f"{len(grasp.position_m)} samples at dt = {grasp.dt_s} s (the scenario's)")
+    robot, frame = setup.robot, int(setup.robot.ee_frame_ids[0])
+    position, attitude, twist = np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 6))
+    for k in range(n):
+        robot.update_kinematics(trajectory.q[k])
+        placement = robot.data.oMf[frame]
+        position[k], attitude[k] = placement.translation, from_rotation(placement.rotation)
+        twist[k] = robot.ee_twist(trajectory.v[k], 0)
+    grasp_twist = np.hstack((grasp.velocity_m_s[:n], grasp.omega_rad_s[:n]))
+    return relative_motion(position, attitude, twist, grasp.position_m[:n], grasp.quaternion[:n], grasp_twist)

@@ -27,12 +27,16 @@ import numpy as np
 from ffsr_gym.kernel import score_terms
 from ffsr_gym.model.benchmark import Benchmark, ScoreSettings
 from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.scoring.capture import CaptureTolerances, capture, episode_relative_motion
 from ffsr_gym.scoring.objective import objective_terms
+from ffsr_gym.sim.setup import prepare
 from ffsr_gym.sim.trajectory import Trajectory
 from ffsr_gym.types import Array
 
 #: Why an episode failed, in the order they are checked.
 FAILURES = ("rate_limit", "collision", "final_error")
+#: Why an episode of a capture rule file (``[capture]``) failed: its last check is capture, not the final errors.
+CAPTURE_FAILURES = ("rate_limit", "collision", "no_capture")
 
 
 def smoothness_terms(dq_joints: Array, dt: float, previous: Array | None = None) -> tuple[Array, Array]:
@@ -122,6 +126,10 @@ class EpisodeScore:
             ``min_self_clearance_m`` arm-arm / arm-base [m].
         convergence_time_s: first time after which the EE position error stays below the
             position tolerance (None if it never does).
+        capture_time_s: under a capture rule, when the first hold window ended (None: no capture, or no rule).
+        capture_ratio: under a capture rule, the factor by which every capture tolerance could shrink and the
+            episode still capture (:attr:`~ffsr_gym.scoring.capture.Capture.margin_ratio`; > 1: no capture;
+            None: no rule).
     """
 
     score: float
@@ -137,10 +145,15 @@ class EpisodeScore:
     min_clearance_m: float
     min_self_clearance_m: float
     convergence_time_s: float | None
+    capture_time_s: float | None = None
+    capture_ratio: float | None = None
 
     def as_dict(self) -> dict:
-        """JSON-ready dict; infinite values become ``None``."""
-        return {k: (None if isinstance(v, float) and math.isinf(v) else v) for k, v in asdict(self).items()}
+        """JSON-ready dict; infinite values become ``None``; the capture keys only under a capture rule."""
+        data = {k: (None if isinstance(v, float) and math.isinf(v) else v) for k, v in asdict(self).items()}
+        if self.capture_ratio is None and self.capture_time_s is None:
+            del data["capture_time_s"], data["capture_ratio"]
+        return data
 
 
 def score_episode(traj: Trajectory, task: Scenario, benchmark: Benchmark) -> EpisodeScore:
@@ -154,12 +167,18 @@ def score_episode(traj: Trajectory, task: Scenario, benchmark: Benchmark) -> Epi
     final_p, final_o = float(traj.ee_position_error_m[-1]), float(traj.ee_attitude_error[-1])
     checks = (bool(np.any(peak > settings.max_rate_deg_s)), min_clear < task.objective.keep_out_m or min_self < 0.0,
               not (final_p <= settings.ee_position_tolerance_m and final_o <= settings.ee_attitude_tolerance))
-    failure = next((name for name, failed in zip(FAILURES, checks) if failed), None)
+    names, captured = FAILURES, {}
+    if benchmark.capture is not None:  # a capture rule: the hold window replaces the final errors
+        judged = capture(traj.t, episode_relative_motion(prepare(task), traj), CaptureTolerances.of(benchmark.capture))
+        names, checks = CAPTURE_FAILURES, (*checks[:2], not judged.captured)
+        captured = {"capture_time_s": judged.time_s if judged.captured else None,
+                    "capture_ratio": judged.margin_ratio}
+    failure = next((name for name, failed in zip(names, checks) if failed), None)
     return EpisodeScore(
         score=bounded_score(failure is None, cost), success=failure is None, failure=failure, smoothness_cost=cost,
         rate_energy=(float(energy[0]), float(energy[1])), rate_variation=(float(variation[0]), float(variation[1])),
         paper_B=objective_terms(traj, task.objective).objective,
         peak_rate_deg_s=(float(peak[0]), float(peak[1])), final_ee_position_error_m=final_p,
         final_ee_attitude_error=final_o, min_clearance_m=min_clear, min_self_clearance_m=min_self,
-        convergence_time_s=traj.convergence_time(settings.ee_position_tolerance_m),
+        convergence_time_s=traj.convergence_time(settings.ee_position_tolerance_m), **captured,
     )

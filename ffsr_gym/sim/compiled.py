@@ -6,13 +6,14 @@ from typing import Any
 
 import numpy as np
 
-from ffsr_gym.exceptions import FFSRError, InvalidInputError
+from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.kernel import cache as kernel_cache
 from ffsr_gym.kernel import first_use, servo
 from ffsr_gym.kernel import loop as kernel_loop
-from ffsr_gym.kernel import planner as kp
+from ffsr_gym.kernel import settings as ks
 from ffsr_gym.model.robot import check_state
 from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.model.tumbling import rotations
 from ffsr_gym.planning import ptsf
 from ffsr_gym.planning.planner import planner_parameters
 from ffsr_gym.sim.budget import check_run
@@ -25,42 +26,51 @@ kernel_cache.refresh()  # a cache written by other kernel sources is flushed (it
 
 
 def settings_vectors(setup: ScenarioSetup, *, method: str, m: float, T_c: float) -> tuple[Array, Array]:
-    """The kernel's float and integer settings of a scenario, a method and (m, T_c [s]).
-
-    Raises:
-        InvalidInputError: a scenario with a tumbling target (the kernel plans onto a still target only, so far).
-    """
+    """The kernel's float and integer settings of a scenario, a method and (m, T_c [s]) (layout:
+    :mod:`ffsr_gym.kernel.settings`)."""
     scenario = setup.scenario
-    if scenario.tumbling_target is not None:
-        raise InvalidInputError(f"scenario {scenario.name!r} has a tumbling target, which the compiled kernel (and so "
-                                "every environment) does not plan onto yet; allowed: ffsr_gym.simulate(..., "
-                                "backend='pinocchio') (docs/model.md §22)")
-    estimates = setup.estimates
-    s, ip = scenario.planner, np.zeros(kp.N_IP, dtype=np.int64)
-    fp = np.zeros(kp.N_FP + kp.TARGET_FIELDS * len(estimates))
+    estimates, body = setup.estimates, scenario.tumbling_target
+    frames = 0 if body is None else scenario.n_steps + 1
+    s, ip = scenario.planner, np.zeros(ks.N_IP, dtype=np.int64)
+    fp = np.zeros(ks.N_FP + ks.TARGET_FIELDS * len(estimates) + ks.FRAME_FIELDS * frames)
     obstacle, field = scenario.obstacle, setup.obstacles
-    fp[[kp.F_M, kp.F_TC, kp.F_K]] = m, T_c, s.proportional_gain_per_s
-    fp[[kp.F_LAM1, kp.F_LAM2, kp.F_EPS1, kp.F_EPS2]] = s.lambda_max_mission, s.lambda_max_balance, s.epsilon_mission, s.epsilon_balance
-    fp[[kp.F_XI, kp.F_DELTA, kp.F_K1]] = s.cdf_xi, s.cdf_delta, s.cdf_k1
+    fp[[ks.F_M, ks.F_TC, ks.F_K]] = m, T_c, s.proportional_gain_per_s
+    fp[[ks.F_LAM1, ks.F_LAM2, ks.F_EPS1, ks.F_EPS2]] = s.lambda_max_mission, s.lambda_max_balance, s.epsilon_mission, s.epsilon_balance
+    fp[[ks.F_XI, ks.F_DELTA, ks.F_K1]] = s.cdf_xi, s.cdf_delta, s.cdf_k1
     path = setup.path
-    fp[[kp.F_TF, kp.F_TA, kp.F_EST_DT, kp.F_DT, kp.F_RATE_MAX]] = (
+    fp[[ks.F_TF, ks.F_TA, ks.F_EST_DT, ks.F_DT, ks.F_RATE_MAX]] = (
         path.motion_time, path.accel_time, setup.estimate_interval_s, scenario.simulation.dt_s,
         scenario.objective.max_rate_deg_s)
-    fp[kp.F_P0:kp.F_P0 + 3], fp[kp.F_Q0:kp.F_Q0 + 4] = path.start_position, path.start_attitude
-    for start, target in ((kp.F_TRUE, path), *((kp.N_FP + kp.TARGET_FIELDS * k, e) for k, e in enumerate(estimates))):
-        fp[start:start + 3], fp[start + 3:start + 6], fp[start + 6] = target.target_position, target.axis, target.angle
-    fp[kp.F_R0D:kp.F_R0D + 3], fp[kp.F_SBD:kp.F_SBD + 4] = setup.base_target
-    fp[kp.F_H:kp.F_H + 6] = scenario.initial.momentum
+    fp[ks.F_P0:ks.F_P0 + 3], fp[ks.F_Q0:ks.F_Q0 + 4] = path.start_position, path.start_attitude
+    if body is None:
+        for start, target in ((ks.F_TRUE, path), *((ks.N_FP + ks.TARGET_FIELDS * k, e) for k, e in enumerate(estimates))):
+            fp[start:start + 3], fp[start + 3:start + 6], fp[start + 6] = target.target_position, target.axis, target.angle
+    else:
+        _frame_records(setup, fp[ks.N_FP + ks.TARGET_FIELDS * len(estimates):])
+    fp[ks.F_R0D:ks.F_R0D + 3], fp[ks.F_SBD:ks.F_SBD + 4] = setup.base_target
+    fp[ks.F_H:ks.F_H + 6] = scenario.initial.momentum
     if obstacle is not None:
-        fp[kp.F_DANGER] = obstacle.danger_radius_m
-    fp[kp.F_KEEP_OUT] = scenario.objective.keep_out_m
-    records = fp[kp.F_OBSTACLES:kp.F_OBSTACLES + kp.OBSTACLE_FIELDS * len(field)].reshape(-1, kp.OBSTACLE_FIELDS)
+        fp[ks.F_DANGER] = obstacle.danger_radius_m
+    fp[ks.F_KEEP_OUT] = scenario.objective.keep_out_m
+    records = fp[ks.F_OBSTACLES:ks.F_OBSTACLES + ks.OBSTACLE_FIELDS * len(field)].reshape(-1, ks.OBSTACLE_FIELDS)
     records[:, :3], records[:, 3:6], records[:, 6] = field.positions_m, field.velocities_m_s, field.radii_m
-    ip[:] = (kp.METHOD_CODES[method], s.phi_form == "printed", s.phi_split, s.attitude_error == "body",
+    ip[:] = (ks.METHOD_CODES[method], s.phi_form == "printed", s.phi_split, s.attitude_error == "body",
              s.mu_law == "distance", s.balance_avoids, len(field),
              scenario.objective.rate_limit_scope == "balance_arm", scenario.plant is not None, len(estimates),
-             scenario.physics_substeps)
+             scenario.physics_substeps, frames, body is not None)
+    if body is not None:
+        fp[ks.F_BODY_HALF:ks.F_BODY_HALF + 3] = np.array(body.size_m) / 2.0
+        fp[ks.F_BODY_RB], fp[ks.F_BODY_DANGER] = 0.5 * np.linalg.norm(body.size_m), body.danger_radius_m
     return fp, ip
+
+
+def _frame_records(setup: ScenarioSetup, out: Array) -> None:
+    """A tumbling target's frame records (``ffsr_gym.kernel.settings.FRAME_FIELDS`` floats per step) into ``out``:
+    the desired end-effector pose and twist, then the body's centre and rotation."""
+    path, motion = setup.path, setup.target_motion
+    records = out.reshape(-1, ks.FRAME_FIELDS)
+    records[:, 0:3], records[:, 3:7], records[:, 7:13] = path.position_m, path.attitude, path.twist
+    records[:, 13:16], records[:, 16:25] = motion.position_m, rotations(motion.quaternion).reshape(-1, 9)
 
 
 LOG_FIELDS = {"x": (19,), "v": (18,), "dq": (12,), "err": (4,), "clear": (), "self": (), "mu": (2,), "cdf": (2,),
@@ -131,17 +141,17 @@ class KernelRollout:
     @property
     def m(self) -> float:
         """Current predefined-time shape parameter."""
-        return float(self.fp[kp.F_M])
+        return float(self.fp[ks.F_M])
 
     @property
     def T_c(self) -> float:
         """Current predefined time [s]."""
-        return float(self.fp[kp.F_TC])
+        return float(self.fp[ks.F_TC])
 
     def set_parameters(self, m: float, T_c: float) -> None:
         """Change (m, T_c [s]) from the next step on (validated like the reference planner)."""
         ptsf.check_parameters(float(T_c), float(m), self.scenario.planner.phi_form)
-        self.fp[kp.F_M], self.fp[kp.F_TC] = float(m), float(T_c)
+        self.fp[ks.F_M], self.fp[ks.F_TC] = float(m), float(T_c)
 
     def _run(self, n: int, residual: Array | None, stop: bool, record_only: bool) -> int:
         res = np.zeros(12) if residual is None else np.asarray(residual, dtype=float)
@@ -197,7 +207,7 @@ class KernelRollout:
     def min_margin(self, last: int) -> float:
         """Smallest margin to a collision [m] over the last ``last`` samples (:meth:`Rollout.min_margin`)."""
         window = slice(self.rows - last, self.rows)
-        return float(min(np.min(self._log["clear"][window]) - self.fp[kp.F_KEEP_OUT], np.min(self._log["self"][window])))
+        return float(min(np.min(self._log["clear"][window]) - self.fp[ks.F_KEEP_OUT], np.min(self._log["self"][window])))
 
     def trajectory(self) -> Trajectory:
         """The :class:`Trajectory` recorded so far, in Pinocchio order."""

@@ -51,7 +51,7 @@ class ReferenceRollout:
         self.plant = setup.plant  # the physics' robot (the planner keeps self.robot)
         self.planner = Planner(self.robot, scenario, method=method, m=m, T_c=T_c, path=setup.path,
                                base_target=setup.base_target, estimates=setup.estimates,
-                               estimate_interval_s=setup.estimate_interval_s)
+                               estimate_interval_s=setup.estimate_interval_s, body=setup.body_field)
         if q0 is not None:
             check_state(q0)
         self.q = setup.q0.copy() if q0 is None else np.array(q0, dtype=float)

@@ -13,7 +13,9 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 
+from ffsr_gym.kernel import first_use
 from ffsr_gym.kernel.arrays import KernelModel, ModelArrays, extract
+from ffsr_gym.kernel.tumbling import propagate_into
 from ffsr_gym.model.collision import CollisionModel
 from ffsr_gym.model.drives import drive_array, drives_path, load_drives
 from ffsr_gym.model.obstacles import ObstacleField, obstacle_field
@@ -21,9 +23,16 @@ from ffsr_gym.model.resources import is_shipped_robot, robot_dir, robot_files
 from ffsr_gym.model.robot import Robot, files_stamp, load_robot
 from ffsr_gym.model.robot_check import check_robot_folder
 from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.model.scenario_sections import TumblingTarget
 from ffsr_gym.model.tumbling import TargetMotion
 from ffsr_gym.planning.desired_path import DesiredPath
-from ffsr_gym.planning.moving_target import MovingTargetPath, body_motion, grasp_motion
+from ffsr_gym.planning.moving_target import (
+    BodyField,
+    GraspFrameMotion,
+    MovingTargetPath,
+    approach_frame,
+    grasp_motion,
+)
 from ffsr_gym.planning.planner import reference_targets
 from ffsr_gym.planning.target_estimate import estimated_paths
 from ffsr_gym.types import Array
@@ -97,6 +106,8 @@ class ScenarioSetup:
         estimate_interval_s: how long each estimate holds [s] (0 without ``[target_noise]``).
         base_target: the base set-point ``(r0d [m], sigma_bd (4,) wxyz)``.
         target_motion: the tumbling target's body at every step (``[tumbling_target]``; None without one).
+        grasp: its grasp frame at every step (what capture is judged against; None without one).
+        body_field: the body in the danger field (None without one, or with its ``danger_radius_m`` 0).
     """
 
     scenario: Scenario
@@ -110,6 +121,8 @@ class ScenarioSetup:
     estimate_interval_s: float
     base_target: tuple[Array, Array]
     target_motion: TargetMotion | None = None
+    grasp: GraspFrameMotion | None = None
+    body_field: BodyField | None = None
 
     @property
     def robot(self) -> Robot:
@@ -139,12 +152,15 @@ def _prepare(scenario: Scenario, stamp: tuple) -> ScenarioSetup:
     q0 = initial_configuration(assets.robot, scenario)
     q0.flags.writeable = False  # shared by every rollout of this scenario
     path, base_target = reference_targets(assets.robot, scenario, q0)
-    target = None
-    if scenario.tumbling_target is not None:  # the approach onto its moving grasp frame (docs/model.md §22)
-        target = body_motion(scenario.tumbling_target, dt_s=scenario.simulation.dt_s, steps=scenario.n_steps)
+    target, grasp, field = None, None, None
+    body = scenario.tumbling_target
+    if body is not None:  # the approach onto its moving grasp frame (docs/model.md §22)
+        target = compiled_body_motion(body, dt_s=scenario.simulation.dt_s, steps=scenario.n_steps)
+        grasp = grasp_motion(body, target)
         path = MovingTargetPath.onto(path.start_position, path.start_attitude,
-                                     grasp_motion(scenario.tumbling_target, target), motion_time=path.motion_time,
+                                     approach_frame(body, grasp, path.motion_time), motion_time=path.motion_time,
                                      accel_time=path.accel_time)
+        field = BodyField.of(body, target, scenario.simulation.dt_s)
     plant, kernel = assets.robot, assets.kernel
     if scenario.plant is not None:
         changes = scenario.plant
@@ -155,4 +171,16 @@ def _prepare(scenario: Scenario, stamp: tuple) -> ScenarioSetup:
                          plant_arrays=(kernel.mass, kernel.lever, kernel.inertia, _drive(scenario)),
                          path=path, estimates=estimated_paths(scenario, path),
                          estimate_interval_s=0.0 if scenario.target_noise is None else scenario.target_noise.interval_s,
-                         base_target=base_target, target_motion=target)
+                         base_target=base_target, target_motion=target, grasp=grasp, body_field=field)
+
+
+def compiled_body_motion(body: TumblingTarget, *, dt_s: float, steps: int) -> TargetMotion:
+    """:func:`ffsr_gym.planning.moving_target.body_motion` on the compiled integrator (the same RK4, agreeing to
+    1e-13; ``tests/test_tumbling.py``): a 20 s episode at dt / 4 costs milliseconds instead of seconds."""
+    quats, omegas = np.empty((steps + 1, 4)), np.empty((steps + 1, 3))
+    first_use.call("target motion", propagate_into, np.array(body.quaternion_wxyz, dtype=float),
+                   np.deg2rad(np.array(body.omega_body_deg_s, dtype=float)), np.array(body.inertia_kg_m2, dtype=float),
+                   dt_s, 4, quats, omegas)
+    time, velocity = dt_s * np.arange(steps + 1), np.array(body.velocity_m_s, dtype=float)
+    return TargetMotion(time_s=time, position_m=np.array(body.position_m, dtype=float) + time[:, None] * velocity,
+                        quaternion=quats, omega_body_rad_s=omegas, velocity_m_s=velocity)

@@ -38,6 +38,7 @@ from ffsr_gym.model.drives import drives_path
 from ffsr_gym.model.resources import envs_dir, robot_dir
 from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.provenance import provenance, write_json_atomic
+from ffsr_gym.tasks.capture_family import CAPTURE_REJECTIONS, CAPTURE_TIERS, classify_capture
 from ffsr_gym.tasks.certificate import Certificate, Margins, replay
 from ffsr_gym.tasks.perturbation import (
     PERTURBED_TIERS,
@@ -54,8 +55,15 @@ _ADMITTED = {LABEL_CODES[tier] for tier in TIERS}
 
 def targets(version: str) -> tuple[str, ...]:
     """What ``--tier`` builds for ``version``: the rule file's tiers together (named after the version), or one
-    perturbed tier."""
+    perturbed tier; a capture rule file's tiers, one at a time."""
+    if load_benchmark(version).capture is not None:
+        return CAPTURE_TIERS
     return (version, *PERTURBED_TIERS)
+
+
+def _one_tier(target: str) -> bool:
+    """Whether ``target`` is one tier with a pool file of its own (perturbed or capture)."""
+    return target in PERTURBED_TIERS or target in CAPTURE_TIERS
 
 
 def _check_target(target: str, version: str) -> None:
@@ -95,6 +103,8 @@ def base_admitted(split: str, start: int, stop: int, version: str) -> list[bool]
 def classify_chunk(split: str, start: int, stop: int, target: str, version: str) -> list[dict[str, Any]]:
     """Verdicts (as dicts) of the candidate seeds [start, stop) (a worker's unit of work)."""
     benchmark = load_benchmark(version)
+    if target in CAPTURE_TIERS:
+        return [classify_capture(target, seed, benchmark).as_dict() for seed in range(start, stop)]
     if target not in PERTURBED_TIERS:
         return [classify(seed, benchmark).as_dict() for seed in range(start, stop)]
     rule = load_perturbed_rule(version)
@@ -117,7 +127,7 @@ def confirm(tier: str, seed: int, certificate: dict[str, Any], version: str) -> 
 
 
 def _work_dir(work: Path, target: str) -> Path:
-    return work / target if target in PERTURBED_TIERS else work
+    return work / target if _one_tier(target) else work
 
 
 def _chunk_path(work: Path, split: str, start: int) -> Path:
@@ -135,7 +145,7 @@ def _load_chunk(path: Path, sha: str) -> list[Verdict] | None:
 
 
 def _tiers(target: str) -> tuple[str, ...]:
-    return (target,) if target in PERTURBED_TIERS else TIERS
+    return (target,) if _one_tier(target) else TIERS
 
 
 def _complete(verdicts: list[Verdict], want: dict[str, int]) -> bool:
@@ -263,7 +273,8 @@ def die_with_parent() -> None:
 def summarise_split(verdicts: list[Verdict], needed: int, target: str) -> dict[str, Any]:
     """The pools, labels and counts of a split from its consecutive verdicts (trimmed to the last pool seed)."""
     tiers = _tiers(target)
-    rejections = PERTURBED_REJECTIONS if target in PERTURBED_TIERS else REJECTIONS
+    rejections = (CAPTURE_REJECTIONS if target in CAPTURE_TIERS else PERTURBED_REJECTIONS if target in PERTURBED_TIERS
+                  else REJECTIONS)
     pools: dict[str, list[Verdict]] = {tier: [] for tier in tiers}
     last = 0
     for i, v in enumerate(verdicts):
@@ -294,9 +305,12 @@ def summarise_split(verdicts: list[Verdict], needed: int, target: str) -> dict[s
 def _pool_entry(v: Verdict) -> dict[str, Any]:
     entry = {"seed": v.seed, "certificate": v.certificate.as_dict(), "certificate_score": v.certificate_score,
              "default_failure": v.default_failure}
-    if v.nominal:  # screening's measurements of the nominal motion (base tiers)
+    if len(v.nominal) == 3:  # screening's measurements of the nominal motion (base tiers)
         entry["nominal"] = {"final_ee_position_error_m": v.nominal[0], "min_balance_sigma": v.nominal[1],
                             "min_self_clearance_m": v.nominal[2]}
+    elif v.nominal:  # a capture tier's (capture_family.classify_capture)
+        entry["nominal"] = dict(zip(("capture_time_s", "min_mission_sigma", "min_balance_sigma", "min_self_clearance_m",
+                                     "peak_rate_deg_s"), v.nominal))
     if v.margins is not None and v.margins.episodes > 1:
         entry["margins"] = v.margins.as_dict()
     return entry

@@ -165,11 +165,17 @@ def start_offsets(seed: int, draw: int, offset_deg: float) -> np.ndarray:
 
 def ensemble_members(task: Scenario, seed: int, ensemble: Ensemble, *, pinocchio: bool | None = None) -> list[Member]:
     """The members of ``task``'s ensemble besides the task itself, in a fixed order: the smaller steps,
-    the offset starts, then (``pinocchio``, default: the ensemble's own setting) the Pinocchio backend."""
+    the offset starts, a tumbling target's perturbed spin (``omega_offset_deg_s`` > 0), then (``pinocchio``,
+    default: the ensemble's own setting) the Pinocchio backend."""
     dt = task.simulation.dt_s
     members = [Member(f"dt/{int(d)}", task.at_step(dt / d)) for d in ensemble.step_divisors]
     members += [Member(f"start {draw + 1}", offset_start(task, start_offsets(seed, draw, ensemble.start_offset_deg)))
                 for draw in range(ensemble.start_draws)]
+    body = task.tumbling_target
+    if body is not None and ensemble.omega_offset_deg_s > 0.0:
+        signs = np.random.default_rng([int(seed), 8]).choice((-1.0, 1.0), 3)
+        spin = tuple(float(w + ensemble.omega_offset_deg_s * s) for w, s in zip(body.omega_body_deg_s, signs))
+        members.append(Member("omega", task.replace(tumbling_target=dataclasses.replace(body, omega_body_deg_s=spin))))
     if ensemble.pinocchio if pinocchio is None else pinocchio:
         if task.simulation.plant == "servo":
             raise InvalidInputError(f"task {task.name!r}: the servo plant runs on the kernel only, so it has no "
@@ -188,6 +194,8 @@ class Margins:
         peak_rate_deg_s: largest joint rate of either arm [deg/s].
         final_ee_position_error_m, final_ee_attitude_error: largest final end-effector errors.
         episodes: how many episodes these are the worst of.
+        capture_ratio: under a capture rule, the largest worst value / bound of the capture quantities over the
+            hold windows (None: no capture rule).
     """
 
     min_clearance_m: float
@@ -196,43 +204,57 @@ class Margins:
     final_ee_position_error_m: float
     final_ee_attitude_error: float
     episodes: int
+    capture_ratio: float | None = None
 
     @classmethod
     def worst(cls, results: list[EpisodeScore]) -> Margins:
         """The worst margins of ``results`` (at least one episode)."""
+        ratios = [r.capture_ratio for r in results if r.capture_ratio is not None]
         return cls(min(r.min_clearance_m for r in results), min(r.min_self_clearance_m for r in results),
                    max(max(r.peak_rate_deg_s) for r in results), max(r.final_ee_position_error_m for r in results),
-                   max(r.final_ee_attitude_error for r in results), len(results))
+                   max(r.final_ee_attitude_error for r in results), len(results), max(ratios) if ratios else None)
 
     def short(self, benchmark: Benchmark) -> str | None:
-        """Which margin is inside the ensemble's hair's-breadth band (None: all clear it, or no ensemble)."""
+        """Which margin is inside the ensemble's hair's-breadth band (None: all clear it, or no ensemble). Under a
+        capture rule the capture ratio must stay within ``error_margin`` instead of the final errors."""
         ensemble = benchmark.tasks.ensemble
         if ensemble is None:
             return None
-        return ensemble.short_margin(self.peak_rate_deg_s, self.min_clearance_m, self.min_self_clearance_m,
-                                     (self.final_ee_position_error_m, self.final_ee_attitude_error), benchmark.score)
+        if benchmark.capture is None:
+            return ensemble.short_margin(self.peak_rate_deg_s, self.min_clearance_m, self.min_self_clearance_m,
+                                         (self.final_ee_position_error_m, self.final_ee_attitude_error), benchmark.score)
+        short = ensemble.short_margin(self.peak_rate_deg_s, self.min_clearance_m, self.min_self_clearance_m, (0.0, 0.0),
+                                      benchmark.score)
+        if short is None and (self.capture_ratio is None or self.capture_ratio > ensemble.error_margin):
+            return "capture margin"
+        return short
 
     def merge(self, other: Margins) -> Margins:
         """The worst of both."""
+        ratios = [r for r in (self.capture_ratio, other.capture_ratio) if r is not None]
         return Margins(min(self.min_clearance_m, other.min_clearance_m),
                        min(self.min_self_clearance_m, other.min_self_clearance_m),
                        max(self.peak_rate_deg_s, other.peak_rate_deg_s),
                        max(self.final_ee_position_error_m, other.final_ee_position_error_m),
-                       max(self.final_ee_attitude_error, other.final_ee_attitude_error), self.episodes + other.episodes)
+                       max(self.final_ee_attitude_error, other.final_ee_attitude_error), self.episodes + other.episodes,
+                       max(ratios) if ratios else None)
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (an infinite clearance becomes None)."""
+        """JSON-ready dict (an infinite clearance becomes None; the capture ratio only under a capture rule)."""
         data = dataclasses.asdict(self)
         data["min_clearance_m"] = None if math.isinf(self.min_clearance_m) else self.min_clearance_m
+        if self.capture_ratio is None:
+            del data["capture_ratio"]
         return data
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Margins:
         """Inverse of :meth:`as_dict`."""
-        clearance = data["min_clearance_m"]
+        clearance, ratio = data["min_clearance_m"], data.get("capture_ratio")
         return cls(math.inf if clearance is None else float(clearance), float(data["min_self_clearance_m"]),
                    float(data["peak_rate_deg_s"]), float(data["final_ee_position_error_m"]),
-                   float(data["final_ee_attitude_error"]), int(data["episodes"]))
+                   float(data["final_ee_attitude_error"]), int(data["episodes"]),
+                   None if ratio is None else float(ratio))
 
 
 def replay_members(members: list[Member], certificate: Certificate, benchmark: Benchmark

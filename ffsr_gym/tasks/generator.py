@@ -27,8 +27,9 @@ import numpy as np
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.benchmark import Benchmark
 from ffsr_gym.model.scenario import Scenario, load_scenario
-from ffsr_gym.scoring.score import score_episode
+from ffsr_gym.scoring.score import EpisodeScore, score_episode
 from ffsr_gym.sim.simulate import make_rollout
+from ffsr_gym.sim.trajectory import Trajectory
 from ffsr_gym.tasks.random_family import sample_scenario
 
 #: Screening causes, in the order they are checked.
@@ -81,14 +82,20 @@ class NominalMotion:
     cause: str | None
 
 
-def screen(task: Scenario, benchmark: Benchmark) -> NominalMotion:
-    """Run the nominal motion of ``task`` and apply the screening margins of ``benchmark``."""
-    rule = benchmark.tasks
+def nominal_motion(task: Scenario, benchmark: Benchmark) -> tuple[Trajectory, EpisodeScore]:
+    """The nominal motion of ``task``: the version's default planner with avoidance switched off, run for the whole
+    episode, and its score."""
     rollout = make_rollout(task, method="no_avoidance", m=benchmark.planner.m, T_c=benchmark.planner.T_c_s)
     rollout.advance(task.n_steps)
     rollout.finish()
     traj = rollout.trajectory()
-    result = score_episode(traj, task, benchmark)
+    return traj, score_episode(traj, task, benchmark)
+
+
+def screen(task: Scenario, benchmark: Benchmark) -> NominalMotion:
+    """Run the nominal motion of ``task`` and apply the screening margins of ``benchmark``."""
+    rule = benchmark.tasks
+    traj, result = nominal_motion(task, benchmark)
     sigma = float(np.min(traj.sigma_min[:, 1]))
     checks = (result.final_ee_position_error_m > benchmark.score.ee_position_tolerance_m
               or result.final_ee_attitude_error > benchmark.score.ee_attitude_tolerance,

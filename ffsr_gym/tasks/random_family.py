@@ -5,14 +5,18 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pinocchio as pin
 
 from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model import portable
 from ffsr_gym.model.collision import SphereObstacle
 from ffsr_gym.model.quaternion import from_rotation
+from ffsr_gym.model.robot import Robot
 from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.model.scenario_sections import Randomization
 from ffsr_gym.planning.desired_path import DesiredPath
 from ffsr_gym.sim.setup import prepare
+from ffsr_gym.types import Array
 
 
 def sample_scenario(family: Scenario, rng: np.random.Generator) -> Scenario:
@@ -44,15 +48,10 @@ def sample_scenario(family: Scenario, rng: np.random.Generator) -> Scenario:
         return collision.obstacle_proximity(q, [SphereObstacle(point, radius)]).distance_m
 
     for _ in range(int(spec.max_attempts)):
-        q_target = q_start.copy()
-        offsets = rng.uniform(-1.0, 1.0, 6) * np.radians(spec.mission_joint_offsets_deg)
-        q_target[robot.arm_q_index[0]] += offsets
-        robot.update_kinematics(q_target)
-        target = robot.data.oMf[int(robot.ee_frame_ids[0])].copy()
-        if portable.norm(target.translation - start.translation) < spec.min_travel_m:
+        drawn = target_attempt(robot, q_start, spec, rng)
+        if drawn is None:
             continue
-        if np.linalg.svd(robot.arm_jacobian(0), compute_uv=False)[-1] < spec.min_sigma_target:
-            continue
+        q_target, target = drawn
         path = DesiredPath.between(start.translation, from_rotation(start.rotation), target.translation,
                                    from_rotation(target.rotation), motion_time=1.0, accel_time=0.25)
         lateral = rng.normal(size=3)
@@ -68,3 +67,21 @@ def sample_scenario(family: Scenario, rng: np.random.Generator) -> Scenario:
         )
     raise ScenarioError(f"scenario {family.name!r}: no admissible target/obstacle in {int(spec.max_attempts)} draws; "
                         "widen the 'randomization' ranges")
+
+
+def target_attempt(robot: Robot, q_start: Array, spec: Randomization, rng: np.random.Generator
+                   ) -> tuple[Array, pin.SE3] | None:
+    """One draw of a target: the mission arm's start angles plus offsets uniform in ``±mission_joint_offsets_deg``,
+    kept (as ``(q_target, end-effector pose)``) when the end-effector travels at least ``min_travel_m`` and the
+    target configuration has σ_min(J_m) >= ``min_sigma_target``; else None. Six uniform numbers from ``rng``."""
+    q_target = q_start.copy()
+    offsets = rng.uniform(-1.0, 1.0, 6) * np.radians(spec.mission_joint_offsets_deg)
+    q_target[robot.arm_q_index[0]] += offsets
+    start = robot.transform_ee_to_world(q_start, 0)
+    robot.update_kinematics(q_target)
+    target = robot.data.oMf[int(robot.ee_frame_ids[0])].copy()
+    if portable.norm(target.translation - start.translation) < spec.min_travel_m:
+        return None
+    if np.linalg.svd(robot.arm_jacobian(0), compute_uv=False)[-1] < spec.min_sigma_target:
+        return None
+    return q_target, target

@@ -25,6 +25,7 @@ from ffsr_gym.model.benchmark import Benchmark, load_benchmark
 from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.model.spec import ranked_spec
+from ffsr_gym.tasks.capture_family import CAPTURE_REJECTIONS, CAPTURE_TIERS, draw_capture_task
 from ffsr_gym.tasks.certificate import Certificate, Margins
 from ffsr_gym.tasks.generator import draw_task
 from ffsr_gym.tasks.perturbation import PERTURBED_TIERS, load_perturbed_rule, perturbed_task
@@ -37,8 +38,10 @@ SEED_RANGES = {"train": (0, 1_000_000), "validation": (2_000_000, 3_000_000), "t
 #: One character per candidate label in the pool file.
 LABEL_CODES = {"easy": "e", "medium": "m", "hard": "h", "nominal_final_error": "f", "balance_singularity": "b",
                "self_collision": "s", "unsolved_rate_limit": "r", "unsolved_collision": "c", "unsolved_final_error": "t",
-               "debris": "D", "robust": "R", "servo": "S", "base_rejected": "x", "draw_failed": "d", "fragile": "g"}
-assert set(LABEL_CODES) == set(ALL_TIERS + REJECTIONS + PERTURBED_REJECTIONS)
+               "debris": "D", "robust": "R", "servo": "S", "base_rejected": "x", "draw_failed": "d", "fragile": "g",
+               "slow": "L", "fast": "F", "nominal_no_capture": "n", "mission_singularity": "w",
+               "unsolved_no_capture": "u"}
+assert set(LABEL_CODES) == set(ALL_TIERS + REJECTIONS + PERTURBED_REJECTIONS + CAPTURE_TIERS + CAPTURE_REJECTIONS)
 
 
 @dataclass(frozen=True)
@@ -68,10 +71,16 @@ def pool_path(tier: str = "easy", version: str | None = None) -> Path:
     return envs_dir() / "benchmark" / name
 
 
+def version_tiers(version: str | None = None) -> tuple[str, ...]:
+    """The tiers of ``version``'s pools: :data:`ALL_TIERS`, or a capture rule file's :data:`CAPTURE_TIERS`."""
+    return CAPTURE_TIERS if load_benchmark(live_version(version)).capture is not None else ALL_TIERS
+
+
 def check_tier_split(tier: str, split: str, version: str | None = None) -> None:
-    """Raise :class:`InvalidInputError` unless ``tier`` is in :data:`ALL_TIERS` and ``split`` one of ``version``'s."""
-    if tier not in ALL_TIERS:
-        raise InvalidInputError(f"tier {tier!r}; allowed: {list(ALL_TIERS)}")
+    """Raise :class:`InvalidInputError` unless ``tier`` is one of ``version``'s tiers and ``split`` one of its splits."""
+    tiers = version_tiers(version)
+    if tier not in tiers:
+        raise InvalidInputError(f"tier {tier!r}; allowed: {list(tiers)}")
     splits = version_splits(version)
     if split not in splits:
         raise InvalidInputError(f"split {split!r}; allowed: {list(splits)}")
@@ -114,11 +123,14 @@ def task_scenario(tier: str, seed: int, benchmark: Benchmark) -> Scenario:
     """The scenario of a pool task of ``tier`` (the candidate of ``seed``, perturbed in a perturbed tier).
 
     Raises:
-        ScenarioError: a perturbed tier's seed without an admissible draw (not a pool seed).
+        ScenarioError: a perturbed or capture tier's seed without an admissible draw (not a pool seed).
     """
-    if tier not in PERTURBED_TIERS:
+    if tier in CAPTURE_TIERS:
+        task = draw_capture_task(tier, seed, benchmark)
+    elif tier not in PERTURBED_TIERS:
         return draw_task(seed, benchmark)
-    task = perturbed_task(tier, seed, benchmark)
+    else:
+        task = perturbed_task(tier, seed, benchmark)
     if task is None:
         raise ScenarioError(f"{tier} candidate of seed {seed}: no admissible draw (not a pool task)")
     return task
