@@ -123,14 +123,17 @@ def test_observation_is_the_documented_layout():
     rng = np.random.default_rng(5)
     angles, rates = rng.uniform(-7, 7, 12), rng.uniform(-40, 40, 12)
     ee, base, rel = rng.uniform(-20, 20, 6), rng.uniform(-20, 20, 6), rng.uniform(-20, 20, 3)
+    twist = rng.uniform(-20, 20, 6)
     for clearance, fraction in ((math.inf, 0.5), (-12.0, 1.2), (0.03, 0.0)):
-        obs = np.zeros(decision.N_OBS, dtype=np.float32)
-        decision.observation_into(obs, angles, rates, ee, base, rel, clearance, fraction)
+        obs, longer = np.zeros(decision.N_OBS, dtype=np.float32), np.zeros(decision.N_OBS_TWIST, dtype=np.float32)
+        decision.observation_into(obs, angles, rates, ee, base, rel, clearance, fraction, twist)
+        decision.observation_into(longer, angles, rates, ee, base, rel, clearance, fraction, twist)
         expected = np.concatenate([np.sin(angles), np.cos(angles), np.clip(rates, -20, 20), np.clip(ee, -10, 10),
                                    np.clip(base, -10, 10), np.clip(rel, -10, 10), [np.clip(clearance, -10, 10)],
                                    [min(1.0, fraction)]]).astype(np.float32)
-        np.testing.assert_array_equal(obs, expected)
-    assert OBS_CLIP == {"rates": 20.0, "errors": 10.0, "relative": 10.0, "clearance": 10.0}
+        np.testing.assert_array_equal(obs, expected)  # 53 floats: the twist is only in a capture spec's observation
+        np.testing.assert_array_equal(longer, np.concatenate([expected, np.clip(twist, -10, 10).astype(np.float32)]))
+    assert OBS_CLIP == {"rates": 20.0, "errors": 10.0, "relative": 10.0, "clearance": 10.0, "twist": 10.0}
 
 
 def test_batched_step_with_parameters_equals_single_envs():

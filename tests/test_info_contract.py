@@ -52,8 +52,8 @@ def test_every_info_has_every_key_with_its_dtype_from_reset_to_the_end(env_id):
 
 def test_failure_codes_name_their_failures():
     assert [failure_name(code) for code in range(len(FAILURES))] == [None, "rate_limit", "collision", "final_error",
-                                                                    "incomplete"]
-    for bad in (-1, 5, "1", True, 1.0):
+                                                                    "incomplete", "no_capture"]
+    for bad in (-1, 6, "1", True, 1.0):
         with pytest.raises(InvalidInputError, match="failure code"):
             failure_name(bad)
     assert ffsr_gym.failure_name is failure_name

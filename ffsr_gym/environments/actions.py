@@ -15,34 +15,41 @@ from ffsr_gym.model.benchmark import residual_rates as scaled_residual
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.scoring.score import score_vector
 
-OBS_CLIP = {"rates": 20.0, "errors": 10.0, "relative": 10.0, "clearance": 10.0}
+OBS_CLIP = {"rates": 20.0, "errors": 10.0, "relative": 10.0, "clearance": 10.0, "twist": 10.0}
 
 
 def assemble_observation(angles: np.ndarray, last_rates: np.ndarray, ee_error: np.ndarray, base_error: np.ndarray,
-                         relative: np.ndarray, clearance: Any, time_fraction: Any) -> np.ndarray:
-    """The 53-dim float32 observation from its parts (docs/envs.md); leading batch axes allowed.
+                         relative: np.ndarray, clearance: Any, time_fraction: Any,
+                         twist: np.ndarray | None = None) -> np.ndarray:
+    """The 53-dim float32 observation from its parts (docs/envs.md), 59-dim with ``twist``; leading batch axes
+    allowed.
 
     Args:
         angles: joint angles [rad] (..., 12). last_rates: joint rates applied last [rad/s] (..., 12).
         ee_error, base_error: pose errors (..., 6). relative: obstacle relative to the nearest robot
         point [m] (..., 3). clearance: robot–obstacle clearance [m] (...). time_fraction: t / duration (...).
+        twist: the desired end-effector twist [m/s, rad/s] (..., 6) of a spec with ``target_twist``, or None.
     """
-    return np.concatenate([
+    parts = [
         np.sin(angles), np.cos(angles),
         np.clip(last_rates, -OBS_CLIP["rates"], OBS_CLIP["rates"]),
         np.clip(np.concatenate((ee_error, base_error), axis=-1), -OBS_CLIP["errors"], OBS_CLIP["errors"]),
         np.clip(relative, -OBS_CLIP["relative"], OBS_CLIP["relative"]),
         np.clip(np.asarray(clearance, dtype=float), -OBS_CLIP["clearance"], OBS_CLIP["clearance"])[..., None],
         np.minimum(1.0, np.asarray(time_fraction, dtype=float))[..., None],
-    ], axis=-1).astype(np.float32)
+    ]
+    if twist is not None:
+        parts.append(np.clip(twist, -OBS_CLIP["twist"], OBS_CLIP["twist"]))
+    return np.concatenate(parts, axis=-1).astype(np.float32)
 
 
-def observation_bounds() -> tuple[np.ndarray, np.ndarray]:
-    """(low, high) of the observation's box (float32)."""
+def observation_bounds(target_twist: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) of the observation's box (float32); ``target_twist`` appends the twist's six bounds."""
     high = np.concatenate([np.ones(24), np.full(12, OBS_CLIP["rates"]), np.full(12, OBS_CLIP["errors"]),
-                           np.full(3, OBS_CLIP["relative"]), [OBS_CLIP["clearance"]], [1.0]]).astype(np.float32)
+                           np.full(3, OBS_CLIP["relative"]), [OBS_CLIP["clearance"]], [1.0],
+                           np.full(6 if target_twist else 0, OBS_CLIP["twist"])]).astype(np.float32)
     low = -high
-    low[-1] = 0.0
+    low[52] = 0.0
     return low, high
 
 

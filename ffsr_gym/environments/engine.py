@@ -75,7 +75,8 @@ class EpisodeEngine:
         self.scenarios: list[Scenario | None] = [None] * N
         self.rollouts: list[Rollout | None] = [None] * N
         self.results: list[Any] = [None] * N  # each copy's last finished episode's result (the rule's)
-        self.obs = np.zeros((N, decision.N_OBS), dtype=np.float32)
+        self.twist = self.spec.target_twist  # the observation ends with the desired twist (a capture spec)
+        self.obs = np.zeros((N, decision.N_OBS_TWIST if self.twist else decision.N_OBS), dtype=np.float32)
         self._obs0 = self.obs[0]  # copy 0's row (the single env's compiled step writes it)
         self._mode = decision.MODE_RESIDUAL if residual else decision.MODE_PARAMETERS
         self._no_action = np.zeros(2, dtype=np.float32)  # the action of a decision with (m, T_c) already set
@@ -109,7 +110,8 @@ class EpisodeEngine:
             rollout = self.rollouts[i] = make_rollout(scenario, backend=self.backend)
         self.last_rates[i], self.clipped[i], self.cost_so_far[i], self.K[i] = 0.0, 0, 0.0, 0
         angles, e1, e0, rel, clear = rollout.observation()
-        self.obs[i] = act.assemble_observation(angles, self.last_rates[i], e1, e0, rel, clear, 0.0)
+        self.obs[i] = act.assemble_observation(angles, self.last_rates[i], e1, e0, rel, clear, 0.0,
+                                               self._desired_twist(rollout))
         self.clearance[i], self.ee_error[i] = clear, portable.norm(e1[:3])
         self.out[i, 5], self.out[i, 6] = self.clearance[i], self.ee_error[i]
         self.potential[i] = self._potential(self.ee_error[i])
@@ -225,8 +227,13 @@ class EpisodeEngine:
         self.K[0] = rollout.k
         angles, e1, e0, rel, clear = rollout.observation()
         self.clearance[0], self.ee_error[0] = float(clear), portable.norm(e1[:3])
-        obs = act.assemble_observation(angles, self.last_rates[0], e1, e0, rel, clear, rollout.k / rollout.n_steps)
+        obs = act.assemble_observation(angles, self.last_rates[0], e1, e0, rel, clear, rollout.k / rollout.n_steps,
+                                       self._desired_twist(rollout))
         return code, increment, cost, obs
+
+    def _desired_twist(self, rollout: Rollout) -> np.ndarray | None:
+        """The desired end-effector twist V_ed at the rollout's time (a capture spec's observation; else None)."""
+        return rollout.setup.path.at(rollout.t)[2] if self.twist else None
 
     def _finish_one(self, status: int, increment: float, cost: float, obs: np.ndarray) -> tuple:
         """Episode end (the rule's result of the whole trajectory), reward, shaping and info."""

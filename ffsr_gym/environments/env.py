@@ -111,7 +111,7 @@ class FFSREnv(gym.Env):
                                     terminate_on_violation=options.get("terminate_on_violation", True),
                                     dense_shaping=options.get("dense_shaping", False))
         self.action_space = gym.spaces.Box(-1.0, 1.0, self.engine.action_shape, np.float32)
-        self.observation_space = gym.spaces.Box(*observation_bounds(), dtype=np.float32)
+        self.observation_space = gym.spaces.Box(*observation_bounds(spec.target_twist), dtype=np.float32)
         self.family = self.scenario = self.source.family
         self.benchmark = rule.benchmark
         self.task_name, self.split, self.pool = self.source.name, self.source.split, self.source.pool
@@ -185,11 +185,14 @@ class FFSREnv(gym.Env):
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
             return None
         from ffsr_gym.environments.render import SceneRenderer
-        from ffsr_gym.sim.episode_end import episode_end
+        from ffsr_gym.sim.episode_end import episode_end, with_capture
 
         if self._renderer is None:
             self._renderer = SceneRenderer(interactive=self.render_mode == "human")
         end = episode_end(self.rollout) if self._started and self.engine.finished(0) else None
+        rule = self.benchmark.capture if self.benchmark is not None else None
+        if end is not None and rule is not None:  # the capture window, from the episode's result
+            end = with_capture(end, self.engine.results[0].capture_time_s, rule.hold_s)
         return self._renderer.draw(self.rollout, self.scenario, end)
 
     def close(self) -> None:

@@ -18,7 +18,7 @@ import numpy as np
 from ffsr_gym.exceptions import InvalidInputError
 
 #: Failure codes: the index of each name (0: none; ``incomplete``: a run cut short without a violation).
-FAILURES = (None, "rate_limit", "collision", "final_error", "incomplete")
+FAILURES = (None, "rate_limit", "collision", "final_error", "incomplete", "no_capture")
 #: Per key: (unit, when it is meaningful). Keys of one rule only are listed with it.
 MEANING = {
     "task_index": ("-", "always (-1: not a pool task)"),
@@ -34,8 +34,11 @@ MEANING = {
     "episode_end": ("-", "always: True on the episode's last step"),
     "score": ("1", "when episode_end: the episode's score (0 before)"),
     "success": ("-", "when episode_end (False before)"),
-    "failure": ("code", "when episode_end: 0 none, 1 rate_limit, 2 collision, 3 final_error, 4 incomplete "
-                        "(ffsr_gym.failure_name)"),
+    "failure": ("code", "when episode_end: 0 none, 1 rate_limit, 2 collision, 3 final_error, 4 incomplete, "
+                        "5 no_capture (ffsr_gym.failure_name)"),
+    "capture_time_s": ("s", "when episode_end: when the first hold window ended (0 before, and without a capture)"),
+    "capture_ratio": ("1", "when episode_end: the factor by which every capture tolerance could shrink and the "
+                           "episode still capture (> 1: no capture; inf: cut short; 0 before)"),
     "smoothness_cost": ("1", "when episode_end: C (0 before)"),
     "paper_B": ("1", "when episode_end: the paper's B, inf when a rate exceeds the limit (0 before)"),
     "objective": ("1", "when episode_end: the paper's B, inf when infeasible (0 before)"),
@@ -89,8 +92,9 @@ def blank(rule: Any, copies: int) -> dict[str, np.ndarray]:
 
 def end_values(rule: Any, result: Any) -> dict[str, Any]:
     """The episode-end keys of a rule's result, as numbers (the failure as its code)."""
-    return {key: failure_code(getattr(result, key)) if key == "failure" else getattr(result, key)
-            for key in rule.end_keys}
+    values = {key: failure_code(getattr(result, key)) if key == "failure" else getattr(result, key)
+              for key in rule.end_keys}
+    return {key: 0.0 if value is None else value for key, value in values.items()}  # e.g. no capture time
 
 
 def scalars(arrays: dict[str, np.ndarray], i: int) -> dict[str, Any]:

@@ -14,7 +14,9 @@ Observation layout (53 floats): sin (12), cos (12) of the joint angles; last app
 [rad/s] (12, clipped to ±``OBS_RATE``); EE pose error (6) and base pose error (6), clipped to
 ±``OBS_ERROR``; obstacle position relative to the nearest robot point [m] (3, ±``OBS_RELATIVE``,
 zeros without obstacle); clearance [m] (±``OBS_CLEARANCE``; the bound without obstacle); elapsed
-fraction of the episode (≤ 1).
+fraction of the episode (≤ 1). A capture spec (``[observation] target_twist``) appends the desired end-effector
+twist V_ed (6) [m/s, rad/s] of the planner's step, ±``OBS_TWIST``: the approach's, the grasp frame's own once the
+approach has arrived (59 floats).
 """
 
 from __future__ import annotations
@@ -40,8 +42,9 @@ N_DS = D_SCORE + N_SCORE
 MODE_RESIDUAL, MODE_PARAMETERS, MODE_SET = 0, 1, 2
 #: :func:`decide`'s status besides :mod:`ffsr_gym.kernel.loop`'s: a NaN or infinite action (nothing done).
 STATUS_BAD_ACTION = 4
-OBS_RATE, OBS_ERROR, OBS_RELATIVE, OBS_CLEARANCE = 20.0, 10.0, 10.0, 10.0
-N_OBS = 53
+OBS_RATE, OBS_ERROR, OBS_RELATIVE, OBS_CLEARANCE, OBS_TWIST = 20.0, 10.0, 10.0, 10.0, 10.0
+#: The observation's length, and with the desired end-effector twist appended (a capture spec's ``[observation]``).
+N_OBS, N_OBS_TWIST = 53, 59
 #: Scratch floats of a decision: residual rates (12), score terms (4), obstacle-relative vector (3),
 #: then what the last observation's plan was computed with (``_PLANNED``: flag, step, m, T_c).
 _PLANNED = 19
@@ -65,8 +68,12 @@ def residual_fade(t, motion_time_s, fade_s):
 
 
 @njit(cache=True, error_model="numpy")
-def observation_into(obs, angles, last_rates, ee_error, base_error, relative, clearance, time_fraction):
-    """Write the 53-float observation (module docstring) into ``obs`` (float32)."""
+def observation_into(obs, angles, last_rates, ee_error, base_error, relative, clearance, time_fraction, twist):
+    """Write the 53-float observation (module docstring) into ``obs`` (float32); a 59-float ``obs`` also gets the
+    desired end-effector twist ``twist`` (6) [m/s, rad/s], clipped to ±``OBS_TWIST``."""
+    if obs.shape[0] > N_OBS:
+        for j in range(6):
+            obs[N_OBS + j] = _clip(twist[j], OBS_TWIST)
     for j in range(12):
         obs[j] = math.sin(angles[j])
         obs[12 + j] = math.cos(angles[j])
@@ -160,7 +167,7 @@ def decide(mdl_owner, plant_owner, ws_owner, x, k, n_total, n_max, fp, ip, ds, a
     if own_workspace:
         scratch[_PLANNED], scratch[_PLANNED + 1], scratch[_PLANNED + 2], scratch[_PLANNED + 3] = 1.0, k + rows, fp[F_M], fp[F_TC]
     e1 = ws.e1
-    observation_into(obs, x[7:19], last_rates, e1, ws.e0, rel, clearance, (k + rows) / n_total)
+    observation_into(obs, x[7:19], last_rates, e1, ws.e0, rel, clearance, (k + rows) / n_total, ws.V_ed)
     ee_error = math.sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2])
     return rows, status, clipped, increment, cost, clearance, ee_error
 
@@ -198,10 +205,3 @@ def step_episode(episode, action, mode, stop, k, row0, n_total, n_max, obs):
 def new_episode(mdl, plant, x, fp, ip, ds, logs, last_rates):
     """An :class:`Episode` over the given arrays, with a fresh workspace and scratch."""
     return Episode(mdl, plant, workspace(len(mdl.cap_radius)), x, fp, ip, ds, logs, last_rates, np.zeros(N_SCRATCH))
-
-
-@njit(cache=True, error_model="numpy")
-def observations_into(OBS, ANGLES, LAST, E1, E0, REL, CLEAR, FRACTION):
-    """:func:`observation_into` for each row of (n, ...) arrays."""
-    for i in range(OBS.shape[0]):
-        observation_into(OBS[i], ANGLES[i], LAST[i], E1[i], E0[i], REL[i], CLEAR[i], FRACTION[i])

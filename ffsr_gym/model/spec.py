@@ -22,8 +22,9 @@ from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.schema import BOOL, TEXT, TEXTS, choice, integer, load_table, natural, rows, section
 
 #: Score rules the engine knows (``ffsr_gym.scoring.rules``): the paper's objective B (lower is
-#: better, +inf when infeasible) and the bounded episode score 1 / (1 + C) (higher is better).
-SCORE_RULES = ("paper_objective", "bounded_smoothness")
+#: better, +inf when infeasible), the bounded episode score 1 / (1 + C) (higher is better) and the same
+#: with success a capture of a tumbling target.
+SCORE_RULES = ("paper_objective", "bounded_smoothness", "capture_smoothness")
 #: Rankings the leaderboard renderer knows: by feasible rate then IQM (ascending), or by IQM with
 #: ranks that only a non-overlapping bootstrap CI separates.
 RANKINGS = ("feasible_then_iqm", "ci_separation")
@@ -80,6 +81,14 @@ class TaskSpec:
 
 
 @dataclass(frozen=True)
+class ObservationSpec:
+    """What the observation holds besides v2's 53 floats: with ``target_twist``, the desired end-effector twist (6)
+    of the planner's step (a moving target's motion; ``ffsr_gym.kernel.decision``)."""
+
+    target_twist: bool = field(default=False, metadata=BOOL)
+
+
+@dataclass(frozen=True)
 class EvaluationSpec:
     """The evaluation protocol: public seeds per id, or one episode per task of a tier's split."""
 
@@ -126,7 +135,13 @@ class BenchmarkSpec:
     tasks: TaskSpec = field(metadata=section(TaskSpec))
     evaluation: EvaluationSpec = field(metadata=section(EvaluationSpec))
     leaderboard: LeaderboardSpec = field(metadata=section(LeaderboardSpec))
+    observation: ObservationSpec | None = field(default=None, metadata=section(ObservationSpec))
     source: str = field(default="", compare=False)
+
+    @property
+    def target_twist(self) -> bool:
+        """Whether the observation ends with the desired end-effector twist (``[observation] target_twist``)."""
+        return self.observation is not None and self.observation.target_twist
 
     @property
     def env_ids(self) -> tuple[str, str]:
@@ -183,8 +198,8 @@ def read_spec(path: str | Path) -> BenchmarkSpec:
 
 def _check(spec: BenchmarkSpec, path: Path) -> None:
     """Cross-field rules of a spec (each error names the key)."""
-    if spec.score.rule == "bounded_smoothness" and not spec.score.rules_file:
-        raise ScenarioError(f"{path}: key 'score.rules_file' is empty; the rule 'bounded_smoothness' needs a rule file")
+    if spec.score.rule in ("bounded_smoothness", "capture_smoothness") and not spec.score.rules_file:
+        raise ScenarioError(f"{path}: key 'score.rules_file' is empty; the rule {spec.score.rule!r} needs a rule file")
     if spec.actions.boxes == "rules" and not spec.score.rules_file:
         raise ScenarioError(f"{path}: key 'actions.boxes' = 'rules' needs 'score.rules_file'")
     if spec.tasks.kind == "tiers" and not (spec.tasks.tiers and spec.tasks.splits):
@@ -199,6 +214,9 @@ def _check(spec: BenchmarkSpec, path: Path) -> None:
         raise ScenarioError(f"{path}: keys 'ids.parameters' and 'ids.residual' must differ")
     if spec.score.rules_file:
         spec.rules  # noqa: B018 - loads and validates the rule file now, naming it on error
+    if (spec.score.rule == "capture_smoothness") != (spec.score.rules_file != "" and spec.rules.capture is not None):
+        raise ScenarioError(f"{path}: key 'score.rule' = {spec.score.rule!r} with rule file {spec.score.rules_file!r}; "
+                            "allowed: 'capture_smoothness' exactly when the rule file has a [capture] section")
 
 
 def shipped_spec_paths() -> list[Path]:

@@ -10,6 +10,7 @@ code path computes every version's score:
   scenario's ``[objective]`` section; reward = −(B's finite-part increment) − penalties.
 * ``bounded_smoothness`` (v2): 1 / (1 + C) on success (:mod:`ffsr_gym.scoring.score`) from the
   spec's rule file; reward = the change of the episode's value.
+* ``capture_smoothness`` (capture-v0): the same, with success a capture of the tumbling target's grasp frame.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model.benchmark import Benchmark
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.model.spec import BenchmarkSpec
@@ -175,6 +177,21 @@ class BoundedSmoothness:
                 names.rate: float(np.mean(rates.astype(float))), "episodes": len(scores)}
 
 
+class CaptureSmoothness(BoundedSmoothness):
+    """v2's bounded score with success a capture (a rule file with ``[capture]``; ``FFSR-Capture-v0``): the same
+    :func:`~ffsr_gym.scoring.score.score_episode`, whose failure is then ``no_capture`` instead of
+    ``final_error``; the episode's end also says when the capture happened and its margin."""
+
+    name = "capture_smoothness"
+    end_keys: dict[str, type] = {**BoundedSmoothness.end_keys, "capture_time_s": float, "capture_ratio": float}
+
+    def __init__(self, spec: BenchmarkSpec) -> None:
+        super().__init__(spec)
+        if self.benchmark.capture is None:
+            raise ScenarioError(f"{spec.source}: score rule 'capture_smoothness' needs a rule file with a [capture] "
+                                f"section; {spec.score.rules_file!r} has none")
+
+
 def incomplete(traj: Trajectory, scenario: Scenario, violated: bool) -> bool:
     """Whether an episode ended before its horizon without a violation (cut short by a wrapper, a time limit
     or a caller): such an episode is never scored as complete. A complete one holds every step's sample
@@ -190,8 +207,9 @@ def _iqm_or_inf(values: Array) -> float:
     return float(np.mean(middle)) if np.all(np.isfinite(middle)) else math.inf
 
 
-RULES = {PaperObjective.name: PaperObjective, BoundedSmoothness.name: BoundedSmoothness}
-ScoreRule = PaperObjective | BoundedSmoothness
+RULES = {PaperObjective.name: PaperObjective, BoundedSmoothness.name: BoundedSmoothness,
+         CaptureSmoothness.name: CaptureSmoothness}
+ScoreRule = PaperObjective | BoundedSmoothness | CaptureSmoothness
 
 
 def score_rule(spec: BenchmarkSpec) -> ScoreRule:

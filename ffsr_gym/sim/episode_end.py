@@ -22,7 +22,8 @@ class EpisodeEnd:
     """The end of an episode.
 
     Attributes:
-        kind: ``"rate limit"``, ``"collision"``, ``"self contact"``, ``"reached"`` or ``"missed"``.
+        kind: ``"rate limit"``, ``"collision"``, ``"self contact"``, ``"reached"`` or ``"missed"``; under a capture
+            rule (:func:`with_capture`) ``"captured"`` or ``"no capture"`` instead of the last two.
         t_s: time of the last sample [s].
         point_m: where (3,) [m]: the joint over the rate limit, the robot's point closest to what
             it hit, or the end-effector.
@@ -36,8 +37,8 @@ class EpisodeEnd:
 
     @property
     def failed(self) -> bool:
-        """Whether the episode ended in a violation or away from the target."""
-        return self.kind != "reached"
+        """Whether the episode ended in a violation, away from the target or without a capture."""
+        return self.kind not in ("reached", "captured")
 
 
 def _first(flags: Array) -> int | None:
@@ -66,7 +67,7 @@ def episode_end(rollout: Rollout) -> EpisodeEnd:
                           f"rate limit at t = {t:.2f} s: {ARMS[arm]} joint {k + 1} at {rates[index, joint]:.0f} deg/s "
                           f"> {objective.max_rate_deg_s:g} deg/s")
     if kind == "collision":
-        near = collision.obstacle_proximity(q, setup.obstacles.spheres(t))
+        near = collision.obstacle_proximity(q, setup.obstacles_at(index))
         return EpisodeEnd(kind, t, near.witness_points[0],
                           f"collision at t = {t:.2f} s: {near.pair[0]} {1000 * near.distance_m:.1f} mm from "
                           f"{near.pair[1]} (keep-out {1000 * objective.keep_out_m:g} mm)")
@@ -80,3 +81,15 @@ def episode_end(rollout: Rollout) -> EpisodeEnd:
         return EpisodeEnd("reached", t, ee, f"reached the target at t = {t:.2f} s (error {1000 * error:.2f} mm)")
     return EpisodeEnd("missed", t, ee, f"ended at t = {t:.2f} s, {1000 * error:.1f} mm from the target "
                                        f"(tolerance {1000 * objective.ee_position_tolerance_m:g} mm)")
+
+
+def with_capture(end: EpisodeEnd, capture_time_s: float | None, hold_s: float) -> EpisodeEnd:
+    """``end`` of an episode judged by a capture rule: an end without a violation says whether and when the
+    end-effector captured the grasp frame, and over which hold window [s]."""
+    if end.kind not in ("reached", "missed"):
+        return end
+    if capture_time_s is None:
+        return EpisodeEnd("no capture", end.t_s, end.point_m, f"no capture: the end-effector never held the grasp "
+                                                              f"frame within the tolerances for {hold_s:g} s")
+    return EpisodeEnd("captured", end.t_s, end.point_m, f"captured: held within the tolerances over t = "
+                                                        f"{capture_time_s - hold_s:.2f}-{capture_time_s:.2f} s")

@@ -7,8 +7,7 @@ from typing import Any
 import numpy as np
 
 from ffsr_gym.exceptions import FFSRError
-from ffsr_gym.model.collision import BoxObstacle, Obstacle, Proximity
-from ffsr_gym.model.quaternion import to_rotation
+from ffsr_gym.model.collision import Proximity
 from ffsr_gym.model.robot import check_state
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning.planner import Planner, PlanStep
@@ -90,7 +89,7 @@ class ReferenceRollout:
             raise FFSRError(f"planner produced non-finite joint rates at t = {self.t:.3f} s")
         v = self.plant.velocity(self.q, dq, self.momentum)
         self.collision.place(self.q)
-        obstacles = self._obstacles_now()
+        obstacles = self.setup.obstacles_at(self.k)
         obstacle = self.collision.obstacle_proximity(self.q, obstacles, place=False) if obstacles else None
         self_clear = self.collision.self_proximity(self.q, place=False).distance_m
         e1, e0 = plan.true_ee_error, plan.base_error  # logged and scored against the true target
@@ -101,14 +100,6 @@ class ReferenceRollout:
             self._log[key].append(value)
         self.last_plan, self.last_proximity = plan, obstacle
         return dq
-
-    def _obstacles_now(self) -> tuple[Obstacle, ...]:
-        """Every obstacle where it is now: the scenario's spheres and, with ``[tumbling_target]``, its body as a box."""
-        spheres, motion = self.obstacles.spheres(self.t), self.setup.target_motion
-        if motion is None:
-            return spheres
-        return (*spheres, BoxObstacle(motion.position_m[self.k], np.array(self.scenario.tumbling_target.size_m),
-                                      to_rotation(motion.quaternion[self.k]), name="target body"))
 
     def step(self, residual: Array | None = None) -> None:
         """Plan, record and integrate one step of ``dt``; ``residual`` [rad/s] (12,) is added to the plan."""
@@ -144,13 +135,17 @@ class ReferenceRollout:
         return np.array(self._log["dq_joints"][start:]), STATUS[0]
 
     def observation(self) -> tuple[Array, Array, Array, Array, float]:
-        """Joint angles (12), EE error (6), base error (6), obstacle-relative vector (3), clearance [m]."""
+        """Joint angles (12), EE error (6), base error (6), vector to the nearest sphere obstacle (3; a tumbling
+        target's body is not one: its motion is in the desired twist), clearance to every obstacle [m]."""
         plan = self.planner(self.t, self.q)
         relative, clearance = np.zeros(3), np.inf
-        obstacles = self._obstacles_now()
-        if obstacles:
-            prox = self.collision.obstacle_proximity(self.q, obstacles)
+        obstacles = self.setup.obstacles_at(self.k)
+        spheres = obstacles[:len(self.obstacles)]
+        if spheres:
+            prox = self.collision.obstacle_proximity(self.q, spheres)
             relative, clearance = prox.witness_points[1] - prox.witness_points[0], prox.distance_m
+        if len(obstacles) > len(spheres):
+            clearance = min(clearance, self.collision.obstacle_proximity(self.q, obstacles[len(spheres):]).distance_m)
         return self.robot.joint_angles(self.q), plan.ee_error, plan.base_error, relative, clearance
 
     def latest(self, key: str) -> Any:

@@ -16,9 +16,10 @@ import numpy as np
 from ffsr_gym.kernel import first_use
 from ffsr_gym.kernel.arrays import KernelModel, ModelArrays, extract
 from ffsr_gym.kernel.tumbling import propagate_into
-from ffsr_gym.model.collision import CollisionModel
+from ffsr_gym.model.collision import BoxObstacle, CollisionModel, Obstacle
 from ffsr_gym.model.drives import drive_array, drives_path, load_drives
 from ffsr_gym.model.obstacles import ObstacleField, obstacle_field
+from ffsr_gym.model.quaternion import to_rotation
 from ffsr_gym.model.resources import is_shipped_robot, robot_dir, robot_files
 from ffsr_gym.model.robot import Robot, files_stamp, load_robot
 from ffsr_gym.model.robot_check import check_robot_folder
@@ -128,6 +129,16 @@ class ScenarioSetup:
     def robot(self) -> Robot:
         """The scenario's robot model."""
         return self.assets.robot
+
+    def obstacles_at(self, k: int) -> tuple[Obstacle, ...]:
+        """Every obstacle where it is at step ``k``: the scenario's spheres and, with ``[tumbling_target]``, its
+        body as a box."""
+        spheres, motion = self.obstacles.spheres(k * self.scenario.simulation.dt_s), self.target_motion
+        if motion is None:
+            return spheres
+        k = min(k, len(motion.position_m) - 1)
+        return (*spheres, BoxObstacle(motion.position_m[k], np.array(self.scenario.tumbling_target.size_m),
+                                      to_rotation(motion.quaternion[k]), name="target body"))
 
 
 def prepare(scenario: Scenario) -> ScenarioSetup:
