@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.benchmark import load_benchmark, load_rules
-from ffsr_gym.model.resources import envs_dir
+from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.tumbling import propagate
 from ffsr_gym.tasks.capture_family import box_inertia, draw_capture_task, screen_capture
 from ffsr_gym.tasks.certificate import ensemble_members, planner_episode
@@ -121,3 +120,21 @@ def test_the_capture_tier_rule_labels_candidates():
     assert rejected.nominal[3] < RULES.tasks.min_nominal_self_clearance_m
     assert set(CAPTURE_REJECTIONS) <= set(LABEL_CODES)
     assert type(admitted).from_dict(admitted.as_dict()) == admitted
+
+
+def test_a_capture_pool_builds_resumes_and_replays_on_pinocchio(tmp_path, monkeypatch):
+    """A two-task test pool of the slow tier through the pool build: chunks of consecutive seeds, the Pinocchio
+    member replayed on the pool tasks, and a second build that only reads what the first wrote."""
+    from ffsr_gym.tasks import build
+
+    monkeypatch.setattr(build, "expected_count", lambda tier, split, version=None: 2)
+    verdicts = build.build_split(tmp_path, "test", version="capture-v0", target="slow", chunk=5, progress=False)
+    pool = [v for v in verdicts if v.tier == "slow"][:2]
+    assert len(pool) == 2 and all(v.margins.episodes == 7 for v in pool)  # dt, dt/2, dt/4, 2 starts, spin, Pinocchio
+    assert all(v.margins.capture_ratio <= RULES.tasks.ensemble.error_margin for v in pool)
+    assert sorted(p.name for p in (tmp_path / "slow" / "test").iterdir())[-1] == "pinocchio.json"
+    monkeypatch.setattr(build, "classify_chunk", lambda *args: pytest.fail("a finished chunk was classified again"))
+    again = build.build_split(tmp_path, "test", version="capture-v0", target="slow", chunk=5, progress=False)
+    assert [v.as_dict() for v in again] == [v.as_dict() for v in verdicts]
+    summary = build.summarise_split(verdicts, 2, "slow")
+    assert summary["tier_counts"] == {"slow": 2} and set(summary["labels"]) <= set("LnwbsugdF")

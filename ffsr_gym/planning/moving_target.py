@@ -90,8 +90,8 @@ class MovingTargetPath:
         """The approach from the end-effector's initial pose onto ``grasp``.
 
         Raises:
-            InvalidInputError: the frame turns by π or more before the end of the motion (its rotation since
-                t = 0 has no unique rotation vector then).
+            InvalidInputError: the frame turns by 177 deg or more before the end of the motion (near half a
+                turn its rotation since t = 0 has no unique rotation vector).
         """
         p0, q0 = np.asarray(start_position, float), np.asarray(start_attitude, float)
         t = np.arange(len(grasp.position_m)) * grasp.dt_s
