@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from ffsr_gym.model import quaternion as quat
-from ffsr_gym.scoring.capture import CaptureTolerances, capture, relative_motion
+from ffsr_gym.model.benchmark import CaptureRule
+from ffsr_gym.scoring.capture import capture, relative_motion
 
-TOLERANCES = CaptureTolerances(position_m=0.01, attitude_rad=0.05, linear_velocity_m_s=0.02,
+TOLERANCES = CaptureRule(position_m=0.01, attitude_rad=0.05, linear_velocity_m_s=0.02,
                                angular_velocity_rad_s=0.03, hold_s=1.0)
 
 

@@ -13,8 +13,9 @@ from test_moving_target import _tumbling_toml
 
 from ffsr_gym.kernel.collision import _edges_to_box
 from ffsr_gym.model import quaternion as quat
+from ffsr_gym.model.benchmark import CaptureRule
 from ffsr_gym.model.scenario import load_scenario
-from ffsr_gym.scoring.capture import CaptureTolerances, capture, episode_relative_motion
+from ffsr_gym.scoring.capture import capture, episode_relative_motion
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.sim.simulate import simulate
 
@@ -82,7 +83,7 @@ def test_capture_quantities_come_from_the_trajectory(tmp_path):
     assert relative[after, 0].max() < 1e-6 and relative[after, 1].max() < 1e-6
     assert relative[after, 2].max() < 1e-5 and relative[after, 3].max() < 1e-5
     assert relative[~after, 0].max() > 0.1  # it was not there before: the stand-off, then the approach
-    rule = CaptureTolerances(position_m=0.005, attitude_rad=0.0175, linear_velocity_m_s=0.005,
+    rule = CaptureRule(position_m=0.005, attitude_rad=0.0175, linear_velocity_m_s=0.005,
                              angular_velocity_rad_s=0.0087, hold_s=1.0)
     result = capture(t, relative, rule)
     assert result.captured and scenario.desired_path.motion_time_s + 1.0 < result.time_s <= t[-1]

@@ -21,29 +21,8 @@ from ffsr_gym.sim.trajectory import Trajectory
 from ffsr_gym.types import Array
 
 #: The relative quantities a capture bounds, in this order: position [m], attitude [rad], linear velocity [m/s],
-#: angular velocity [rad/s].
+#: angular velocity [rad/s] (each a field of :class:`~ffsr_gym.model.benchmark.CaptureRule`, the bound).
 QUANTITIES = ("position_m", "attitude_rad", "linear_velocity_m_s", "angular_velocity_rad_s")
-
-
-@dataclass(frozen=True)
-class CaptureTolerances:
-    """The capture rule: each bound of :data:`QUANTITIES` (> 0) and the hold window ``hold_s`` [s] (>= 0)."""
-
-    position_m: float
-    attitude_rad: float
-    linear_velocity_m_s: float
-    angular_velocity_rad_s: float
-    hold_s: float
-
-    @classmethod
-    def of(cls, rule: CaptureRule) -> CaptureTolerances:
-        """The tolerances of a rule file's ``[capture]`` section."""
-        return cls(rule.position_m, rule.attitude_rad, rule.linear_velocity_m_s, rule.angular_velocity_rad_s,
-                   rule.hold_s)
-
-    def bounds(self) -> Array:
-        """(4,) the bounds in the order of :data:`QUANTITIES`."""
-        return np.array([getattr(self, name) for name in QUANTITIES])
 
 
 @dataclass(frozen=True)
@@ -81,25 +60,24 @@ def relative_motion(ee_position_m: Array, ee_quaternion: Array, ee_twist: Array,
                             np.linalg.norm(difference[:, 3:], axis=1)])
 
 
-def capture(time_s: Array, relative: Array, tolerances: CaptureTolerances) -> Capture:
+def capture(time_s: Array, relative: Array, rule: CaptureRule) -> Capture:
     """The first hold window over which every quantity of ``relative`` ((N, 4), :func:`relative_motion`) stays
-    within its bound, at samples ``time_s`` (N,) [s] equally spaced; the window holds ``hold_s`` [s] of
-    consecutive samples that are all inside."""
+    within its bound of ``rule`` (a rule file's ``[capture]``), at samples ``time_s`` (N,) [s] equally spaced; the
+    window holds ``rule.hold_s`` [s] of consecutive samples that are all inside."""
     time_s = np.asarray(time_s, dtype=float)
-    ratio = np.asarray(relative, dtype=float) / tolerances.bounds()
-    inside = np.all(ratio <= 1.0, axis=1)
+    ratio = np.asarray(relative, dtype=float) / np.array([getattr(rule, name) for name in QUANTITIES])
     step = float(time_s[1] - time_s[0]) if len(time_s) > 1 else 0.0
-    needed = int(round(tolerances.hold_s / step)) + 1 if step > 0.0 else 1
-    largest = ratio.max(axis=1)
-    margin = (float(np.min(np.lib.stride_tricks.sliding_window_view(largest, needed).max(axis=1)))
-              if len(largest) >= needed else math.inf)
-    run = 0
-    for k, ok in enumerate(inside):
-        run = run + 1 if ok else 0
-        if run >= needed:
-            window = ratio[k - needed + 1:k + 1]
-            return Capture(True, float(time_s[k]), window.max(axis=0), margin)
-    return Capture(False, float("nan"), np.full(len(QUANTITIES), np.nan), margin)
+    needed = int(round(rule.hold_s / step)) + 1 if step > 0.0 else 1
+    if len(ratio) < needed:
+        return Capture(False, float("nan"), np.full(len(QUANTITIES), np.nan))
+    # each window's largest value / bound: <= 1 exactly when all its samples are inside (NaN never is)
+    windows = np.lib.stride_tricks.sliding_window_view(ratio.max(axis=1), needed).max(axis=1)
+    margin = float(np.min(windows))
+    hits = np.flatnonzero(windows <= 1.0)
+    if not len(hits):
+        return Capture(False, float("nan"), np.full(len(QUANTITIES), np.nan), margin)
+    first = int(hits[0])
+    return Capture(True, float(time_s[first + needed - 1]), ratio[first:first + needed].max(axis=0), margin)
 
 
 def episode_relative_motion(setup: ScenarioSetup, trajectory: Trajectory) -> Array:

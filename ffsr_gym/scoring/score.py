@@ -27,7 +27,7 @@ import numpy as np
 from ffsr_gym.kernel import score_terms
 from ffsr_gym.model.benchmark import Benchmark, ScoreSettings
 from ffsr_gym.model.scenario import Scenario
-from ffsr_gym.scoring.capture import CaptureTolerances, capture, episode_relative_motion
+from ffsr_gym.scoring.capture import capture, episode_relative_motion
 from ffsr_gym.scoring.objective import objective_terms
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.sim.trajectory import Trajectory
@@ -169,7 +169,7 @@ def score_episode(traj: Trajectory, task: Scenario, benchmark: Benchmark) -> Epi
               not (final_p <= settings.ee_position_tolerance_m and final_o <= settings.ee_attitude_tolerance))
     names, captured = FAILURES, {}
     if benchmark.capture is not None:  # a capture rule: the hold window replaces the final errors
-        judged = capture(traj.t, episode_relative_motion(prepare(task), traj), CaptureTolerances.of(benchmark.capture))
+        judged = capture(traj.t, episode_relative_motion(prepare(task), traj), benchmark.capture)
         names, checks = CAPTURE_FAILURES, (*checks[:2], not judged.captured)
         captured = {"capture_time_s": judged.time_s if judged.captured else None,
                     "capture_ratio": judged.margin_ratio}
