@@ -45,6 +45,16 @@ class TargetMotion:
     omega_body_rad_s: Array
     velocity_m_s: Array
 
+    @classmethod
+    def drifting(cls, position_m: Array, velocity_m_s: Array, dt_s: float, quaternion: Array,
+                 omega_body_rad_s: Array) -> TargetMotion:
+        """The motion of a body whose attitude and body rates (N+1 rows, one per step of ``dt_s`` [s]) are given and
+        whose centre drifts from ``position_m`` [m] at ``velocity_m_s`` [m/s]."""
+        time = dt_s * np.arange(len(quaternion))
+        velocity = np.asarray(velocity_m_s, dtype=float)
+        return cls(time_s=time, position_m=np.asarray(position_m, dtype=float) + time[:, None] * velocity,
+                   quaternion=quaternion, omega_body_rad_s=omega_body_rad_s, velocity_m_s=velocity)
+
     def omega_world_rad_s(self) -> Array:
         """(N+1, 3) angular velocity in the world frame, R(q) ω [rad/s]."""
         return np.einsum("nij,nj->ni", rotations(self.quaternion), self.omega_body_rad_s)
@@ -100,10 +110,7 @@ def propagate(*, position_m: Array, velocity_m_s: Array, quaternion: Array, omeg
         for _ in range(substeps):
             q, w = rk4_step(q, w, inertia, h)
         quats[n + 1], omegas[n + 1] = q, w
-    time = dt_s * np.arange(steps + 1)
-    velocity = np.asarray(velocity_m_s, dtype=float)
-    return TargetMotion(time_s=time, position_m=np.asarray(position_m, dtype=float) + time[:, None] * velocity,
-                        quaternion=quats, omega_body_rad_s=omegas, velocity_m_s=velocity)
+    return TargetMotion.drifting(position_m, velocity_m_s, dt_s, quats, omegas)
 
 
 def rotations(quaternions: Array) -> Array:

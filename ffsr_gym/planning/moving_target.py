@@ -30,7 +30,7 @@ import numpy as np
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model import quaternion as quat
 from ffsr_gym.model.scenario_sections import TumblingTarget
-from ffsr_gym.model.tumbling import TargetMotion, point_motion, propagate, rotations
+from ffsr_gym.model.tumbling import TargetMotion, point_motion, rotations
 from ffsr_gym.planning.desired_path import trapezoid
 from ffsr_gym.types import Array
 
@@ -160,15 +160,8 @@ def pre_grasp(grasp: GraspFrameMotion, *, standoff_m: float, insert_start_s: flo
     return GraspFrameMotion(grasp.dt_s, position, grasp.quaternion, velocity, grasp.omega_rad_s)
 
 
-def body_motion(body: TumblingTarget, *, dt_s: float, steps: int) -> TargetMotion:
-    """The motion of a ``[tumbling_target]``'s body at every step of ``dt_s`` [s] over ``steps`` steps."""
-    return propagate(position_m=np.array(body.position_m), velocity_m_s=np.array(body.velocity_m_s),
-                     quaternion=np.array(body.quaternion_wxyz), omega_body_rad_s=np.deg2rad(body.omega_body_deg_s),
-                     inertia_kg_m2=np.array(body.inertia_kg_m2), dt_s=dt_s, steps=steps)
-
-
 def grasp_motion(body: TumblingTarget, motion: TargetMotion) -> GraspFrameMotion:
-    """The grasp frame of a ``[tumbling_target]`` along its body's ``motion`` (:func:`body_motion`)."""
+    """The grasp frame of a ``[tumbling_target]`` along its body's ``motion`` (``ffsr_gym.sim.setup``)."""
     position, velocity = point_motion(motion, np.array(body.handle_position_m))
     handle = np.array(body.handle_quaternion_wxyz) / np.linalg.norm(body.handle_quaternion_wxyz)
     attitude = np.stack([quat.multiply(q, handle) for q in motion.quaternion])

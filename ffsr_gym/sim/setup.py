@@ -186,12 +186,11 @@ def _prepare(scenario: Scenario, stamp: tuple) -> ScenarioSetup:
 
 
 def compiled_body_motion(body: TumblingTarget, *, dt_s: float, steps: int) -> TargetMotion:
-    """:func:`ffsr_gym.planning.moving_target.body_motion` on the compiled integrator (the same RK4, agreeing to
-    1e-13; ``tests/test_tumbling.py``): a 20 s episode at dt / 4 costs milliseconds instead of seconds."""
+    """The motion of a ``[tumbling_target]``'s body at every step of ``dt_s`` [s] over ``steps`` steps:
+    :func:`ffsr_gym.model.tumbling.propagate` on the compiled integrator (the same RK4, agreeing to 1e-13;
+    ``tests/test_tumbling.py``), so a 20 s episode at dt / 4 costs milliseconds instead of seconds."""
     quats, omegas = np.empty((steps + 1, 4)), np.empty((steps + 1, 3))
     first_use.call("target motion", propagate_into, np.array(body.quaternion_wxyz, dtype=float),
                    np.deg2rad(np.array(body.omega_body_deg_s, dtype=float)), np.array(body.inertia_kg_m2, dtype=float),
                    dt_s, 4, quats, omegas)
-    time, velocity = dt_s * np.arange(steps + 1), np.array(body.velocity_m_s, dtype=float)
-    return TargetMotion(time_s=time, position_m=np.array(body.position_m, dtype=float) + time[:, None] * velocity,
-                        quaternion=quats, omega_body_rad_s=omegas, velocity_m_s=velocity)
+    return TargetMotion.drifting(body.position_m, body.velocity_m_s, dt_s, quats, omegas)
