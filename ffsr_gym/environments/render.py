@@ -127,7 +127,7 @@ class SceneRenderer:
         for i, c in enumerate(("r", "g", "b")):
             self._moving += self.ax.plot(*np.array([handle, handle + 0.1 * frame[:, i]]).T, color=c, lw=2)
         self._moving.append(self.ax.scatter(*handle, color="k", s=12, label="grasp frame"))
-        spin = motion.omega_world_rad_s()[k]
+        spin = rotation @ motion.omega_body_rad_s[k]  # the world angular velocity now
         tip = centre + np.degrees(spin) / 10.0 * 0.1
         self._moving += self.ax.plot(*np.array([centre, tip]).T, "--", color="tab:brown", lw=1, label="spin axis")
         self._moving += self.ax.plot(*motion.position_m[:k + 1:10].T, ":", color="tab:brown", lw=1)
