@@ -1,6 +1,7 @@
 """Entries of the classical planners on every tier's test pool of a benchmark version (perturbed tiers included).
 
     python baselines/classical.py --version v2 --leaderboard leaderboards [--tune-tasks 50]
+    python baselines/classical.py --version capture-v0 --leaderboard leaderboards [--tiers slow]
 
 Per tier:
 * ``reference_<version>_default``: the predefined-time planner at the version's default (m, T_c);
@@ -22,10 +23,9 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.planner_scores import evaluate_planner
+from ffsr_gym.model.benchmark import CAPTURE_VERSIONS, VERSIONS, load_benchmark
 from ffsr_gym.tasks.certificate import planner_episode
-from ffsr_gym.model.benchmark import VERSIONS, load_benchmark
-from ffsr_gym.tasks.splits import pool, task_scenario
-from ffsr_gym.tasks.tiers import ALL_TIERS
+from ffsr_gym.tasks.splits import pool, task_scenario, version_tiers
 
 GAINS_PER_S = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
 
@@ -43,7 +43,9 @@ def tune(tier: str, candidates: list[dict], tasks: int, version: str) -> tuple[d
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--version", default=VERSIONS[-1], choices=VERSIONS, help=f"default: {VERSIONS[-1]}")
+    parser.add_argument("--version", default=VERSIONS[-1], choices=VERSIONS + CAPTURE_VERSIONS,
+                        help=f"default: {VERSIONS[-1]}")
+    parser.add_argument("--tiers", nargs="+", default=None, help="tiers (default: every tier of the version)")
     parser.add_argument("--leaderboard", required=True, help="leaderboard root; entries go to <root>/<version>/<tier>/")
     parser.add_argument("--tune-tasks", type=int, default=50, help="training tasks per tuning candidate (default: 50)")
     args = parser.parse_args()
@@ -54,7 +56,7 @@ def main() -> None:
     jobs = {f"reference_{args.version}_default": [{"method": "predefined_time", "m": default.m, "T_c": default.T_c_s}],
             "reference_paper_default": [{"method": "predefined_time", "m": 0.1, "T_c": 3.0}],
             "reference_best_constant": grid, "proportional_tuned": gains}
-    for tier in ALL_TIERS:
+    for tier in args.tiers or version_tiers(args.version):
         folder = Path(args.leaderboard) / args.version / tier
         for name, candidates in jobs.items():
             if (folder / f"{name}.json").exists():

@@ -1,6 +1,7 @@
 """Entries of the paper's GA and of CMA-ES over constant (m, T_c), on every tier of a benchmark version.
 
     python baselines/optimisers.py --version v2 --leaderboard leaderboards [--tasks 20] [--work runs/optimisers-v2]
+    python baselines/optimisers.py --version capture-v0 --leaderboard leaderboards [--tiers slow]
 
 Both minimise the same loss, 1 − the mean score over the first ``--tasks`` tasks of the tier's
 *training* pool (``ffsr_gym.bench.planner_scores.training_loss``), inside the version's (m, T_c)
@@ -19,9 +20,9 @@ import cma
 import numpy as np
 
 from ffsr_gym.bench.planner_scores import evaluate_planner, training_loss
-from ffsr_gym.model.benchmark import VERSIONS, load_benchmark
+from ffsr_gym.model.benchmark import CAPTURE_VERSIONS, VERSIONS, load_benchmark
 from ffsr_gym.optim import ga
-from ffsr_gym.tasks.tiers import ALL_TIERS
+from ffsr_gym.tasks.splits import version_tiers
 
 
 def run_ga(tier, tasks, work, pool, generations, population, version):
@@ -49,7 +50,9 @@ def run_cmaes(tier, tasks, pool, evaluations, version):
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--version", default=VERSIONS[-1], choices=VERSIONS, help=f"default: {VERSIONS[-1]}")
+    parser.add_argument("--version", default=VERSIONS[-1], choices=VERSIONS + CAPTURE_VERSIONS,
+                        help=f"default: {VERSIONS[-1]}")
+    parser.add_argument("--tiers", nargs="+", default=None, help="tiers (default: every tier of the version)")
     parser.add_argument("--leaderboard", required=True, help="leaderboard root; entries go to <root>/<version>/<tier>/")
     parser.add_argument("--tasks", type=int, default=20, help="training tasks per loss evaluation (default: 20)")
     parser.add_argument("--work", default=None, help="GA checkpoints (default: runs/optimisers-<version>)")
@@ -61,7 +64,7 @@ def main() -> None:
     version, work = args.version, args.work or f"runs/optimisers-{args.version}"
     names = {f"ga_{version}": "paper GA", f"cmaes_{version}": "CMA-ES (cma)"}
     with ProcessPoolExecutor(args.workers) as pool:
-        for tier in ALL_TIERS:
+        for tier in args.tiers or version_tiers(version):
             folder = Path(args.leaderboard) / version / tier
             ga_name, cmaes_name = names
             searches = {ga_name: partial(run_ga, tier, args.tasks, work, pool, args.generations, args.population, version),

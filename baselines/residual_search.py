@@ -23,7 +23,7 @@ import numpy as np
 import ffsr_gym
 from ffsr_gym.bench.planner_scores import residual_training_loss
 from ffsr_gym.model.spec import spec_for_version
-from ffsr_gym.tasks.tiers import ALL_TIERS
+from ffsr_gym.tasks.splits import version_tiers
 
 
 def search(tier: str, tasks: int, evaluations: int, pool: ProcessPoolExecutor, version: str) -> tuple[tuple, dict, float]:
@@ -41,7 +41,8 @@ def search(tier: str, tasks: int, evaluations: int, pool: ProcessPoolExecutor, v
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--version", default="v2", help="a pool benchmark version (default: v2)")
+    parser.add_argument("--version", default="v2", help="a pool benchmark version (default: v2; or capture-v0)")
+    parser.add_argument("--tiers", nargs="+", default=None, help="tiers (default: every tier of the version)")
     parser.add_argument("--leaderboard", required=True, help="leaderboard root; entries go to <root>/<version>/<tier>/")
     parser.add_argument("--tasks", type=int, default=20, help="training tasks per loss evaluation (default: 20)")
     parser.add_argument("--evaluations", type=int, default=120, help="CMA-ES loss evaluations (default: 120)")
@@ -49,7 +50,7 @@ def main() -> None:
     args = parser.parse_args()
     env_id = spec_for_version(args.version).ids.residual
     with ProcessPoolExecutor(args.workers) as pool:
-        for tier in ALL_TIERS:
+        for tier in args.tiers or version_tiers(args.version):
             folder = Path(args.leaderboard) / args.version / tier
             if (folder / "cmaes_residual.json").exists():
                 print("kept", folder / "cmaes_residual.json")

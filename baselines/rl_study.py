@@ -28,7 +28,7 @@ from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.optim import study_plan
 from ffsr_gym.optim.rl import load_hyperparams
 from ffsr_gym.optim.rl_study import train_and_evaluate
-from ffsr_gym.tasks.tiers import ALL_TIERS
+from ffsr_gym.tasks.splits import version_tiers
 
 ALGOS = ("ppo", "sac")
 
@@ -72,14 +72,18 @@ def main() -> None:
     parser.add_argument("--points", type=int, default=20, help="validation scorings per run after step 0 (default: 20)")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4], help="training seeds (default: 0-4)")
     parser.add_argument("--algos", nargs="+", default=list(ALGOS), choices=ALGOS, help="algorithms (default: ppo sac)")
-    parser.add_argument("--tiers", nargs="+", default=list(ALL_TIERS), choices=ALL_TIERS, help="tiers (default: all)")
+    parser.add_argument("--tiers", nargs="+", default=None, help="tiers (default: every tier of the version)")
     parser.add_argument("--env-ids", nargs="+", default=None, help="env ids (default: the version's two)")
     parser.add_argument("--plan", action="store_true", help="print what is left (seeds done and left, and the core-hours "
                                                             "left, estimated from finished seeds) and stop")
     args = parser.parse_args()
     version, work = args.version, args.work or f"studies/rl-{args.version}"
     env_ids = args.env_ids or list(spec_for_version(version).env_ids)
-    asked = [(algo, env_id, tier) for tier in args.tiers for algo in args.algos for env_id in env_ids]
+    tiers = args.tiers or version_tiers(version)
+    unknown = sorted(set(tiers) - set(version_tiers(version)))
+    if unknown:
+        parser.error(f"--tiers {unknown}: allowed {list(version_tiers(version))} (the tiers of {version})")
+    asked = [(algo, env_id, tier) for tier in tiers for algo in args.algos for env_id in env_ids]
     study_plan.check_entry_seeds(Path(args.leaderboard), version, asked, args.seeds)
     groups = [group for group in asked if not study_plan.entries_written(Path(args.leaderboard), version, *group)]
     if args.plan:

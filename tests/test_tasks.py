@@ -245,6 +245,22 @@ def test_docs_tier_table_is_generated_from_the_pool_file():
     from ffsr_gym.tasks.pool_tables import splice_docs_tables
 
     assert splice_docs_tables(text, "v2") == text, "rerun: ffsr-gym tasks tables --docs docs/envs.md"
+    assert splice_docs_tables(text, "capture-v0") == text, \
+        "rerun: ffsr-gym tasks tables --version capture-v0 --docs docs/envs.md"
+
+
+def test_the_capture_tables_count_every_candidate_once():
+    from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
+    from ffsr_gym.tasks.splits import load_pools
+
+    for tier in CAPTURE_TIERS:
+        data = load_pools(None, (tier,), "capture-v0")
+        for split, s in data["splits"].items():
+            assert len(s["labels"]) == s["candidates"], (tier, split)
+            assert s["tier_counts"][tier] + sum(s["rejection_counts"].values()) == s["candidates"], (tier, split)
+            codes = data["label_codes"]
+            for cause, count in s["rejection_counts"].items():
+                assert s["labels"].count(codes[cause]) == count, (tier, split, cause)
 
 
 def test_training_loss_is_one_minus_the_mean_certified_score():

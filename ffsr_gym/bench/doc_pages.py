@@ -27,6 +27,10 @@ TIER_MEANING = {
               "momentum, with a noisy, biased target estimate",
     "servo": "tier tasks on a torque-level plant: the planned rates command torque-limited joint velocity servos "
              "that drive the free-floating multibody dynamics at a 1 ms physics step",
+    "slow": "capture of a box tumbling at 1-3 deg/s: hold its grasp frame within 5 mm, 1 deg, 5 mm/s and "
+            "0.5 deg/s for 1 s, certified in every member of the ensemble",
+    "fast": "capture of a box tumbling at 5-10 deg/s, where the handle's speed brings the arms near the rate "
+            "limit, certified in every member of the ensemble",
 }
 #: The README's GIF and the tier pages' GIFs: the reference planner on a test task (index), one frame per 8 decisions.
 README_GIF = ("debris", 1)
@@ -44,7 +48,7 @@ def id_page(env_id: str) -> str:
         limit = env.spec.max_episode_steps if env.spec else None
     finally:
         env.close()
-    frozen = spec.version != ranked_spec().version
+    frozen = spec.status == "frozen"
     lines = [f"# `{env_id}`", "", f"Benchmark {spec.version}{' (frozen)' if frozen else ''}: {spec.description}.", "",
              "| | |", "|---|---|",
              f"| action space | `{_space(action)}` |",
@@ -109,25 +113,41 @@ def _scenario_text(spec: BenchmarkSpec) -> str:
 
 
 def _example_kwargs(spec: BenchmarkSpec) -> str:
-    return f", {spec.tasks.keyword}=\"easy\", split=\"train\"" if spec.tasks.kind == "tiers" else ""
+    return f", {spec.tasks.keyword}=\"{spec.tasks.default}\", split=\"train\"" if spec.tasks.kind == "tiers" else ""
+
+
+def ranked_specs() -> list[BenchmarkSpec]:
+    """The live versions with tiers and a ranked leaderboard (each tier has a page), the summary's first."""
+    live = [s for s in all_specs().values()
+            if s.status == "live" and s.tasks.kind == "tiers" and s.leaderboard.ranking == "ci_separation"]
+    return sorted(live, key=lambda s: s.version != ranked_spec().version)
+
+
+def tier_spec(tier: str) -> BenchmarkSpec:
+    """The live ranked version ``tier`` belongs to."""
+    return next(s for s in ranked_specs() if tier in s.tasks.tiers)
 
 
 def tier_page(tier: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
-    """The page of one tier of the ranked version: its rule, its pools and its GIF.
+    """The page of one tier of a live ranked version: its rule, its pools and its GIF.
 
     ``ranked``: the tier's verified entries as (rank label, entry), in table order (the GIF's caption reads the
     default planner's row on its task).
     """
-    spec = ranked_spec()
+    spec = tier_spec(tier)
     data = load_pools(None, (tier,), spec.version)
     index = gif_task(tier)
+    default = spec.rules.planner
+    setting = f"({default.m:g}, {default.T_c_s:g})"
+    parameters, residual = spec.ids.parameters, spec.ids.residual
     lines = [f"# Tier `{tier}`", "", f"Benchmark {spec.version}: {TIER_MEANING[tier]}.", "",
              f"![The reference planner on test task {index} of {tier}](../_static/tiers/{tier}.gif)", "",
-             f"The reference planner (0.3, 4 s) on test task {index}: {_outcome(ranked, index)} "
-             f"(`ffsr-gym render --task {tier} --split test --task-index {index} --every {GIF_EVERY}`).", "",
+             f"The reference planner ({default.m:g}, {default.T_c_s:g} s) on test task {index}: "
+             f"{_outcome(ranked, index, spec.version)} (`ffsr-gym render --env-id {parameters} --task {tier} "
+             f"--split test --task-index {index} --every {GIF_EVERY}`).", "",
              "```python", "import gymnasium as gym, ffsr_gym",
-             f"env = gym.make(\"FFSR-Residual-v2\", task=\"{tier}\", split=\"train\")   # or FFSR-v2",
-             f"report = ffsr_gym.evaluate((0.3, 4.0), \"FFSR-v2\", task=\"{tier}\")           # its test pool",
+             f"env = gym.make(\"{residual}\", task=\"{tier}\", split=\"train\")   # or {parameters}",
+             f"report = ffsr_gym.evaluate({setting}, \"{parameters}\", task=\"{tier}\")   # its test pool",
              "```", "", "## Pools", "",
              "| split | seeds | tasks | certificates: constant / residual | worst obstacle clearance [mm] | "
              "largest peak rate [deg/s] |", "|---|---|---|---|---|---|"]
@@ -152,9 +172,9 @@ def gif_task(tier: str) -> int:
     return README_GIF[1] if tier == README_GIF[0] else 0
 
 
-def _outcome(ranked: list[tuple[str, dict[str, Any]]], index: int) -> str:
+def _outcome(ranked: list[tuple[str, dict[str, Any]]], index: int, version: str) -> str:
     """What the default planner's entry recorded on test task ``index``: its score, or how it failed."""
-    row = next((r for _, e in ranked if e["name"] == "reference_v2_default" for r in e["episodes"]
+    row = next((r for _, e in ranked if e["name"] == f"reference_{version}_default" for r in e["episodes"]
                 if r["task_index"] == index), None)
     if row is None:
         return "not in the leaderboard"
@@ -162,10 +182,10 @@ def _outcome(ranked: list[tuple[str, dict[str, Any]]], index: int) -> str:
 
 
 def ids_table() -> str:
-    """The README's table of registered ids and the tiers of the ranked version."""
+    """The README's table of registered ids: their actions, tasks and whether their version is ranked or frozen."""
     lines = ["| id | action | tasks | status |", "|---|---|---|---|"]
-    for spec in sorted(all_specs().values(), key=lambda s: s.version, reverse=True):
-        status = "ranked" if spec.version == ranked_spec().version else "frozen"
+    for spec in sorted(all_specs().values(), key=lambda s: (s.status != "live", s.version != ranked_spec().version)):
+        status = "ranked" if spec.status == "live" else "frozen"
         for env_id in spec.env_ids:
             action = ("12 residual joint rates added to the reference planner" if spec.is_residual(env_id)
                       else "the planner's (m, T_c)")
@@ -179,5 +199,5 @@ def page_paths(docs: str | Path) -> dict[Path, str]:
     """Every generated page (path under ``docs``) by what writes it: an id or a tier name."""
     docs = Path(docs)
     pages = {docs / "ids" / f"{env_id}.md": env_id for spec in all_specs().values() for env_id in spec.env_ids}
-    pages.update({docs / "tiers" / f"{tier}.md": tier for tier in ranked_spec().tasks.tiers})
+    pages.update({docs / "tiers" / f"{tier}.md": tier for spec in ranked_specs() for tier in spec.tasks.tiers})
     return pages

@@ -42,11 +42,12 @@ def header(spec: BenchmarkSpec, group: str) -> list[str]:
         return [f"### {group}", "", "| rank | entry | method | feasible rate | score IQM [95% CI] | score mean | episodes "
                 "| commit |", "|---|---|---|---|---|---|---|---|"]
     sha = reference.reference_sha256(spec.rules.version)
+    ending = ("capture time [s], captures | capture ratio, captures" if spec.rules.capture is not None
+              else "final error [m], successes | convergence [s], successes")
     return [f"### {group} ({spec.evaluation.split} pool)", "",
-            (f"| rank | entry | score IQM [95% CI] | success | normalised{f' (ref. {sha[:8]})' if sha else ''} | "
-             "paper B (median) | peak rate mission / "
-             "balance [deg/s] | final error [m], successes | convergence [s], successes | compute | trained on | "
-             "commit |"), "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+            (f"| rank | entry | score IQM [95% CI] | {spec.leaderboard.rate_column} | "
+             f"normalised{f' (ref. {sha[:8]})' if sha else ''} | paper B (median) | peak rate mission / "
+             f"balance [deg/s] | {ending} | compute | trained on | commit |"), "|---|---|---|---|---|---|---|---|---|---|---|---|"]
 
 
 def commit(entry: dict[str, Any]) -> str:
@@ -106,9 +107,18 @@ def row(spec: BenchmarkSpec, label: str, e: dict[str, Any]) -> str:
     return (f"| {label} | {entry_cell(e)} | {m[names.iqm]:.3f} [{lo:.3f}, {hi:.3f}] | {m[names.rate]:.2f} | "
             f"{_fmt(normalised_mean(e, spec.rules.version), '.3f')} | {_fmt(_median(rows, 'paper_B'))} | {_fmt(_median(rows, 'peak_rate_deg_s', 0), '.0f')} / "
             f"{_fmt(_median(rows, 'peak_rate_deg_s', 1), '.0f')} | "
-            f"{_fmt(_median(rows, 'final_ee_position_error_m', successes=True), '.1e')} | "
-            f"{_fmt(_median(rows, 'convergence_time_s', successes=True), '.1f')} | {compute_text(extra.get('compute', {}))} | "
+            f"{_ending(spec, rows)} | {compute_text(extra.get('compute', {}))} | "
             f"{safe(extra.get('training_pool') or '-')} | {commit(e)} |")
+
+
+def _ending(spec: BenchmarkSpec, rows: list[dict[str, Any]]) -> str:
+    """The last two metric cells: the capture's time and ratio (a capture version), else final error and
+    convergence time; medians over the successful episodes."""
+    if spec.rules.capture is not None:
+        return (f"{_fmt(_median(rows, 'capture_time_s', successes=True), '.1f')} | "
+                f"{_fmt(_median(rows, 'capture_ratio', successes=True), '.2g')}")
+    return (f"{_fmt(_median(rows, 'final_ee_position_error_m', successes=True), '.1e')} | "
+            f"{_fmt(_median(rows, 'convergence_time_s', successes=True), '.1f')}")
 
 
 def method_name(entry: dict[str, Any], tier: str) -> str:

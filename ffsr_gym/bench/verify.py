@@ -26,7 +26,7 @@ from typing import Any
 
 from ffsr_gym.bench.stamp import stamp_problems
 from ffsr_gym.model.spec import BenchmarkSpec
-from ffsr_gym.scoring.rules import score_rule
+from ffsr_gym.scoring.rules import BoundedSmoothness, score_rule
 from ffsr_gym.tasks.reference import reference_path, reference_sha256
 from ffsr_gym.tasks.splits import pool, pool_path
 
@@ -108,7 +108,7 @@ def _row_problems(rows: list[dict], spec: BenchmarkSpec) -> list[str]:
     rule = score_rule(spec)
     scores, flags = rule.row_values(rows)
     problems = []
-    if rule.name == "bounded_smoothness":
+    if isinstance(rule, BoundedSmoothness):  # capture_smoothness too
         if not all(0.0 <= s <= 1.0 for s in scores) or any((s > 0.0) != f for s, f in zip(scores, flags)):
             problems.append("rows: a score outside [0, 1], or a score > 0 without success (or the reverse)")
     elif any(math.isnan(s) or s < 0.0 or (f != math.isfinite(s)) for s, f in zip(scores, flags)):

@@ -44,12 +44,14 @@ def _generated(root: str, docs: Path) -> dict[Path, str]:
     """Each generated page's text by path: the id pages, and the tier pages with their tier's verified entries."""
     from ffsr_gym.bench import doc_pages
     from ffsr_gym.bench.leaderboard import load_entries, ordered, verified
-    from ffsr_gym.model.spec import ranked_spec
 
-    spec = ranked_spec()
-    entries = verified(load_entries(root, spec))
-    return {path: (doc_pages.tier_page(name, ordered(spec, entries.get(name, []))) if path.parent.name == "tiers"
-                   else doc_pages.id_page(name))
+    entries = {spec.version: verified(load_entries(root, spec)) for spec in doc_pages.ranked_specs()}
+
+    def tier_page(tier: str) -> str:
+        spec = doc_pages.tier_spec(tier)
+        return doc_pages.tier_page(tier, ordered(spec, entries[spec.version].get(tier, [])))
+
+    return {path: tier_page(name) if path.parent.name == "tiers" else doc_pages.id_page(name)
             for path, name in doc_pages.page_paths(docs).items()}
 
 
@@ -57,16 +59,16 @@ def _gifs(docs: Path) -> None:
     """Each tier's GIF: the reference planner on its page's test task (about 10 s each)."""
     from ffsr_gym.bench import doc_pages
     from ffsr_gym.cli.policy_commands import add_policy_commands
-    from ffsr_gym.model.spec import ranked_spec
 
     parser = argparse.ArgumentParser(prog="ffsr-gym")  # the render command, as a user runs it
     add_policy_commands(parser.add_subparsers(dest="command", required=True))
-    for tier in ranked_spec().tasks.tiers:
-        args = parser.parse_args(
-            ["render", "--env-id", "FFSR-v2", "--policy", "reference", "--task", tier, "--split", "test",
-             "--task-index", str(doc_pages.gif_task(tier)), "--every", str(doc_pages.GIF_EVERY),
-             "--out", str(docs / "_static" / "tiers" / f"{tier}.gif")])
-        args.func(args)
+    for spec in doc_pages.ranked_specs():
+        for tier in spec.tasks.tiers:
+            args = parser.parse_args(
+                ["render", "--env-id", spec.ids.parameters, "--policy", "reference", "--task", tier, "--split", "test",
+                 "--task-index", str(doc_pages.gif_task(tier)), "--every", str(doc_pages.GIF_EVERY),
+                 "--out", str(docs / "_static" / "tiers" / f"{tier}.gif")])
+            args.func(args)
 
 
 def add_docs_commands(sub: argparse._SubParsersAction) -> None:

@@ -43,6 +43,17 @@ def multiply(a: Array, b: Array) -> Array:
                      (aw * bz + bw * az) + (ax * by - ay * bx)])
 
 
+def multiply_rows(a: Array, b: Array) -> Array:
+    """Row-wise :func:`multiply` of (N, 4) (or (4,), broadcast) quaternions, with its operations in its order (the
+    same bits, row by row)."""
+    aw, ax, ay, az = np.moveaxis(np.asarray(a, dtype=float), -1, 0)
+    bw, bx, by, bz = np.moveaxis(np.asarray(b, dtype=float), -1, 0)
+    return np.stack([aw * bw - ((ax * bx + ay * by) + az * bz),
+                     (aw * bx + bw * ax) + (ay * bz - az * by),
+                     (aw * by + bw * ay) + (az * bx - ax * bz),
+                     (aw * bz + bw * az) + (ax * by - ay * bx)], axis=-1)
+
+
 def conjugate(a: Array) -> Array:
     """Return the conjugate (w, -x, -y, -z)."""
     return np.array([a[0], -a[1], -a[2], -a[3]])
@@ -52,6 +63,16 @@ def to_rotation(quat_wxyz: Array) -> Array:
     """Rotation matrix R(σ) = (η² − εᵀε) I + 2 ε εᵀ + 2 η S(ε) of a unit quaternion."""
     eta, eps = quat_wxyz[0], np.asarray(quat_wxyz[1:])
     return (eta * eta - portable.dot(eps, eps)) * np.eye(3) + 2.0 * np.outer(eps, eps) + 2.0 * eta * skew(eps)
+
+
+def to_rotations(quats_wxyz: Array) -> Array:
+    """(N, 3, 3) :func:`to_rotation` of (N, 4) unit quaternions, with its operations in its order (the same bits,
+    row by row): diagonal s + 2 ε_i², off-diagonal 2 ε_i ε_j + 2η S(ε)_ij, s = η² − ((ε₁² + ε₂²) + ε₃²)."""
+    w, x, y, z = np.asarray(quats_wxyz, dtype=float).T
+    s, tw = w * w - ((x * x + y * y) + z * z), 2.0 * w
+    return np.stack([s + 2.0 * (x * x), 2.0 * (x * y) - tw * z, 2.0 * (x * z) + tw * y,
+                     2.0 * (y * x) + tw * z, s + 2.0 * (y * y), 2.0 * (y * z) - tw * x,
+                     2.0 * (z * x) - tw * y, 2.0 * (z * y) + tw * x, s + 2.0 * (z * z)], axis=-1).reshape(-1, 3, 3)
 
 
 def from_rotation(rotation: Array) -> Array:

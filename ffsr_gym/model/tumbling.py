@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ffsr_gym.model.quaternion import multiply, to_rotation
+from ffsr_gym.model.quaternion import multiply, to_rotation, to_rotations
 from ffsr_gym.types import Array
 
 
@@ -115,7 +115,7 @@ def propagate(*, position_m: Array, velocity_m_s: Array, quaternion: Array, omeg
 
 def rotations(quaternions: Array) -> Array:
     """(N, 3, 3) rotation matrices of (N, 4) scalar-first unit quaternions."""
-    return np.stack([to_rotation(q) for q in quaternions])
+    return to_rotations(quaternions)
 
 
 def angular_momentum_world(motion: TargetMotion, inertia_kg_m2: Array) -> Array:

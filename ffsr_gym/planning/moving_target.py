@@ -101,18 +101,20 @@ class MovingTargetPath:
         position, velocity = p0 + s * chord, s_dot * chord + s * grasp.velocity_m_s
         first = grasp.quaternion[0]
         offset = quat.rotation_vector(quat.multiply(quat.conjugate(first), q0))
-        turn = np.array([quat.rotation_vector(quat.multiply(q, quat.conjugate(first))) for q in grasp.quaternion])
+        moving = np.flatnonzero((s[:, 0] != 1.0) | (t < motion_time))  # the rows before arrival
+        turned_rows = quat.multiply_rows(grasp.quaternion[moving], quat.conjugate(first))
+        turn = np.zeros((len(t), 3))  # δ: the frame's turn since t = 0 (needed before arrival only)
+        turn[moving] = [quat.rotation_vector(q) for q in turned_rows]
         turned = float(np.linalg.norm(turn[t < motion_time], axis=1).max(initial=0.0))
         if turned > math.pi - 0.05:
             raise InvalidInputError(f"the grasp frame turns by {math.degrees(turned):.0f} deg before the end of the "
                                     f"motion ({motion_time:g} s); allowed: less than 177 deg (a slower spin or a "
                                     "shorter trajectory.motion_time_s)")
-        attitude, omega = np.empty((len(t), 4)), np.empty((len(t), 3))
+        attitude, omega = grasp.quaternion.copy(), grasp.omega_rad_s.copy()  # arrived (s = 1): the frame itself
         R_first = quat.to_rotation(first)
-        for k in range(len(t)):
+        for k in moving:
             sk, sdk = float(s[k, 0]), float(s_dot[k, 0])
-            if sk == 1.0:  # arrived: the frame itself
-                attitude[k], omega[k] = grasp.quaternion[k], grasp.omega_rad_s[k]
+            if sk == 1.0:
                 continue
             synced = quat.from_rotation_vector(sk * turn[k])  # exp(s δ): the frame's turn since t = 0, s of it
             still = quat.multiply(first, quat.from_rotation_vector((1.0 - sk) * offset))
@@ -164,7 +166,7 @@ def grasp_motion(body: TumblingTarget, motion: TargetMotion) -> GraspFrameMotion
     """The grasp frame of a ``[tumbling_target]`` along its body's ``motion`` (``ffsr_gym.sim.setup``)."""
     position, velocity = point_motion(motion, np.array(body.handle_position_m))
     handle = np.array(body.handle_quaternion_wxyz) / np.linalg.norm(body.handle_quaternion_wxyz)
-    attitude = np.stack([quat.multiply(q, handle) for q in motion.quaternion])
+    attitude = quat.multiply_rows(motion.quaternion, handle)
     dt_s = float(motion.time_s[1] - motion.time_s[0]) if len(motion.time_s) > 1 else 1.0
     return GraspFrameMotion(dt_s, position, attitude, velocity, motion.omega_world_rad_s())
 

@@ -157,7 +157,7 @@ def _drive(scenario: Scenario) -> Array:
     return drive_array(drives, gain_scale=settings.gain_scale, torque_limited=settings.torque_limited)
 
 
-@lru_cache(maxsize=64)
+@lru_cache(maxsize=256)  # a training and a validation pool (200 + 50 tasks; a capture task's setup is about 1 MB at dt)
 def _prepare(scenario: Scenario, stamp: tuple) -> ScenarioSetup:
     assets = robot_assets(scenario.robot)
     q0 = initial_configuration(assets.robot, scenario)

@@ -10,6 +10,7 @@ import numpy as np
 
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.provenance import splice_generated
+from ffsr_gym.tasks.capture_family import CAPTURE_REJECTIONS, CAPTURE_TIERS
 from ffsr_gym.tasks.perturbation import PERTURBED_TIERS
 from ffsr_gym.tasks.splits import load_pools
 from ffsr_gym.tasks.tiers import PERTURBED_REJECTIONS, REJECTIONS, TIERS
@@ -83,8 +84,49 @@ def _physics_rows(s: dict[str, Any]) -> list[str]:
     return lines
 
 
+def capture_table(files: list[dict[str, Any]]) -> str:
+    """Markdown table of capture pool files' counts: per tier and split, the candidates, the tasks admitted, the
+    rejections by cause and the share of the pool the default planner captures."""
+    causes = [cause for cause in CAPTURE_REJECTIONS
+              if any(data["splits"][split]["rejection_counts"].get(cause) for data in files for split in data["splits"])]
+    lines = ["| tier | split | candidates | admitted | " + " | ".join(f"`{cause}`" for cause in causes)
+             + " | default captures, pool |", "|---" * (5 + len(causes)) + "|"]
+    for data in files:
+        tier = data["tiers"][0]
+        for split, s in data["splits"].items():
+            counts = s["rejection_counts"]
+            lines.append(f"| {tier} | {split} | {s['candidates']} | {s['tier_counts'][tier]} | "
+                         + " | ".join(str(counts.get(cause, 0)) for cause in causes)
+                         + f" | {100 * s['default_success_in_pool'][tier]:.0f} % |")
+    return "\n".join(lines) + "\n"
+
+
+def capture_physics_table(files: list[dict[str, Any]], split: str = "test") -> str:
+    """Markdown table of the capture test pools: how the default planner ends, the certificates' kinds and their
+    worst margins over the ensemble (clearance to obstacles and the target body, self clearance, peak rate, the
+    capture ratio: the factor by which every capture tolerance could shrink and the capture stand)."""
+    lines = ["| tier | tasks | default planner: captures / no capture / rate limit / collision | certificates: "
+             "constant / residual | median worst clearance [mm] | worst clearance [mm] | worst self clearance [mm] | "
+             "largest peak rate [deg/s] | largest capture ratio |", "|---" * 9 + "|"]
+    for data in files:
+        tier = data["tiers"][0]
+        s = data["splits"][split]
+        fails = s["default_failures_in_pool"][tier]
+        causes = " / ".join(str(fails.get(c, 0)) for c in ("none", "no_capture", "rate_limit", "collision"))
+        kinds = [e["certificate"]["kind"] for e in s["pools"][tier]]
+        m = s["pool_margins"][tier]
+        lines.append(f"| {tier} | {len(kinds)} | {causes} | {kinds.count('constant')} / {kinds.count('residual')} | "
+                     f"{1000 * m['median_min_clearance_m']:.0f} | {1000 * m['min_clearance_m']:.1f} | "
+                     f"{1000 * m['min_self_clearance_m']:.1f} | {m['peak_rate_deg_s']:.1f} | {m['capture_ratio']:.2f} |")
+    return "\n".join(lines) + "\n"
+
+
 def docs_tables(version: str) -> dict[str, str]:
-    """The tables docs/envs.md shows of ``version``'s pool files, by marker name (``<!-- <name>:begin -->``)."""
+    """The tables docs/envs.md shows of ``version``'s pool files, by marker name (``<!-- <name>:begin -->``; a
+    capture version's are ``<version>-tiers`` and ``<version>-physics``)."""
+    if load_benchmark(version).capture is not None:
+        files = [load_pools(None, (tier,), version) for tier in CAPTURE_TIERS]
+        return {f"{version}-tiers": capture_table(files), f"{version}-physics": capture_physics_table(files)}
     base = load_pools(version=version)
     perturbed = {tier: load_pools(None, (tier,), version) for tier in PERTURBED_TIERS}
     tables = {"tiers": tier_table(base), "tiers-physics": physics_table([base, *perturbed.values()])}
