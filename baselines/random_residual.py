@@ -1,8 +1,8 @@
 """The lower reference: a uniformly random residual on every tier's test pool (``random_residual`` entries).
 
-    python baselines/random_residual.py --leaderboard leaderboards
+    python baselines/random_residual.py --leaderboard leaderboards [--version capture-v0]
 
-At every decision the policy draws each of the 12 residual actions of ``FFSR-Residual-v2``
+At every decision the policy draws each of the 12 residual actions of the version's residual id
 uniformly from [-1, 1] (``ffsr_gym.bench.policies.uniform_random_residual``, seeded by the
 observation so that ``ffsr-gym leaderboard verify`` re-runs it exactly). An existing entry is kept.
 """
@@ -12,21 +12,23 @@ from pathlib import Path
 
 import ffsr_gym
 from ffsr_gym.bench.policies import uniform_random_residual
-from ffsr_gym.tasks.tiers import ALL_TIERS
+from ffsr_gym.model.spec import spec_for_version
 
 CALLABLE = "ffsr_gym.bench.policies:uniform_random_residual"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--leaderboard", required=True, help="leaderboard root; entries go to <root>/v2/<tier>/")
+    parser.add_argument("--leaderboard", required=True, help="leaderboard root; entries go to <root>/<version>/<tier>/")
+    parser.add_argument("--version", default="v2", help="a pool benchmark version (default: v2; or capture-v0)")
     args = parser.parse_args()
-    for tier in ALL_TIERS:
-        folder = Path(args.leaderboard) / "v2" / tier
+    spec = spec_for_version(args.version)
+    for tier in spec.tasks.tiers:
+        folder = Path(args.leaderboard) / args.version / tier
         if (folder / "random_residual.json").exists():
             print("kept", folder / "random_residual.json")
             continue
-        report = ffsr_gym.evaluate(uniform_random_residual, "FFSR-Residual-v2", task=tier, name="random_residual",
+        report = ffsr_gym.evaluate(uniform_random_residual, spec.ids.residual, task=tier, name="random_residual",
                                    progress=True)
         report.extra |= {"policy": {"callable": CALLABLE},
                          "method": "uniform random residual in [-1, 1]^12 at every decision (lower reference)"}

@@ -9,7 +9,7 @@ dt/2 and at dt/4 (the decision interval stays 0.1 s), once under each of two rul
 * ``cdf``: v1's law on the same tasks (μ = min(1, Δ / CDF), collision at contact): the reason for v2.
 
 With ``--version capture-v0`` it plays the capture tiers' test pools (``slow``, ``fast``) under the capture rule
-file's own law, with four fixed planners of its own (:func:`capture_planners`).
+file's own law, with two more fixed planners (:func:`capture_planners`).
 
 Per (law, tier, planner) it reports the share of tasks whose verdict (success or not) is the
 same at dt and dt/4, the Spearman rank correlation of per-task scores between dt and dt/4, the
@@ -20,8 +20,7 @@ from the trajectory.
 
     python benchmarks/dt_sensitivity.py --out runs/dt_sensitivity-v2.json --summary benchmarks/dt_sensitivity.json \
         --docs docs/model.md [--tasks 100] [--workers 2]
-    python benchmarks/dt_sensitivity.py --version capture-v0 --out runs/dt_sensitivity-capture-v0.json \
-        --summary benchmarks/dt_sensitivity_capture.json --pool-work studies/tasks-capture-v0 --docs docs/model.md
+    python benchmarks/dt_sensitivity.py --version capture-v0 --docs docs/model.md
 
 Resumable: finished (law, tier, planner, dt) pieces, with every episode's row, are kept in
 ``--out`` (written atomically; a run folder, about 2 MB), and a rerun computes only the missing
@@ -74,21 +73,16 @@ def study_laws(version: str) -> tuple[str, ...]:
 
 
 def capture_planners(version: str) -> dict[str, dict]:
-    """The four fixed planners of a capture tier (no leaderboard entries to take them from yet): the reference
-    default, a stiff constant of the tier grid (0.5, 2.5 s: it presses through the body's danger field), the
-    paper's (0.1, 3 s) and the proportional planner at the scenarios' gain."""
-    default = load_benchmark(version).planner
-    return {f"reference default ({default.m:g}, {default.T_c_s:g} s)": {"method": "predefined_time", "m": default.m,
-                                                                       "T_c": default.T_c_s},
-            "stiff constant (0.5, 2.5 s)": {"method": "predefined_time", "m": 0.5, "T_c": 2.5},
-            "paper default (0.1, 3 s)": {"method": "predefined_time", "m": 0.1, "T_c": 3.0},
+    """Two more fixed planners of a capture tier: a stiff constant of the tier grid (0.5, 2.5 s: it presses through
+    the body's danger field) and the proportional planner at the scenarios' gain (K = 1 1/s)."""
+    return {"stiff constant (0.5, 2.5 s)": {"method": "predefined_time", "m": 0.5, "T_c": 2.5},
             "proportional (K = 1 1/s)": {"method": "proportional", "gain_per_s": 1.0}}
 
 
 def planners(tier: str, root: Path, version: str = VERSIONS[-1]) -> dict[str, dict]:
-    """The four fixed planners of a tier: name -> planner_episode keyword arguments."""
-    if is_capture(version):
-        return capture_planners(version)
+    """The fixed planners of a tier: name -> planner_episode keyword arguments (the version's reference default,
+    the tier's best constant and tuned proportional from its leaderboard entries, the paper's; a capture tier's
+    :func:`capture_planners` too)."""
 
     def entry(name: str) -> dict:
         return json.loads((root / version / tier / f"{name}.json").read_text())["extra"]["planner"]
@@ -101,7 +95,8 @@ def planners(tier: str, root: Path, version: str = VERSIONS[-1]) -> dict[str, di
                                                                  "T_c": best["T_c_s"]},
             "paper default (0.1, 3 s)": {"method": "predefined_time", "m": 0.1, "T_c": 3.0},
             f"tuned proportional (K = {tuned['gain_per_s']} 1/s)": {"method": "proportional",
-                                                                    "gain_per_s": tuned["gain_per_s"]}}
+                                                                    "gain_per_s": tuned["gain_per_s"]},
+            **(capture_planners(version) if is_capture(version) else {})}
 
 
 def test_seeds(tier: str, version: str, tasks: int, work: str | None, chunk: int) -> list[int]:
@@ -216,8 +211,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--version", default=VERSIONS[-1], choices=VERSIONS + CAPTURE_VERSIONS,
                         help=f"default: {VERSIONS[-1]}")
-    parser.add_argument("--out", default="runs/dt_sensitivity-v2.json", help="per-episode results (resumable)")
-    parser.add_argument("--summary", default="benchmarks/dt_sensitivity.json", help="summary file with provenance")
+    parser.add_argument("--out", default=None,
+                        help="per-episode results (resumable; default: runs/dt_sensitivity-<version>.json)")
+    parser.add_argument("--summary", default=None, help="summary file with provenance (default: "
+                        "benchmarks/dt_sensitivity.json, a capture version's benchmarks/dt_sensitivity_capture.json)")
     parser.add_argument("--tasks", type=int, default=100, help="test tasks per tier (default: 100, the whole pool)")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default: 2)")
     parser.add_argument("--root", default="leaderboards", help="leaderboard root with the version's planner entries")
@@ -231,7 +228,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.tasks < 1 or args.workers < 1:
         parser.error(f"--tasks {args.tasks} and --workers {args.workers}: each must be >= 1")
-    out = Path(args.out)
+    out = Path(args.out or f"runs/dt_sensitivity-{args.version}.json")
+    args.summary = args.summary or ("benchmarks/dt_sensitivity_capture.json" if is_capture(args.version)
+                                    else "benchmarks/dt_sensitivity.json")
     out.parent.mkdir(parents=True, exist_ok=True)
     data = json.loads(out.read_text()) if out.is_file() else {"pieces": [], "version": args.version}
     if data.get("version") != args.version:
@@ -274,7 +273,7 @@ def markers(version: str) -> tuple[str, str]:
     """The docs markers of ``version``'s tables (v2's, or the capture rule file's own)."""
     if not is_capture(version):
         return START, END
-    command = f"python benchmarks/dt_sensitivity.py --version {version} [--pool-work DIR] --docs docs/model.md"
+    command = f"python benchmarks/dt_sensitivity.py --version {version} --docs docs/model.md"
     name = f"dt-sensitivity-{version}"
     return f"<!-- {name}:start (generated by `{command}`) -->", f"<!-- {name}:end -->"
 

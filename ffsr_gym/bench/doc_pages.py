@@ -138,7 +138,7 @@ def tier_page(tier: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
     data = load_pools(None, (tier,), spec.version)
     index = gif_task(tier)
     default = spec.rules.planner
-    setting = f"({default.m:g}, {default.T_c_s:g})"
+    setting = f"({default.m!r}, {default.T_c_s!r})"
     parameters, residual = spec.ids.parameters, spec.ids.residual
     lines = [f"# Tier `{tier}`", "", f"Benchmark {spec.version}: {TIER_MEANING[tier]}.", "",
              f"![The reference planner on test task {index} of {tier}](../_static/tiers/{tier}.gif)", "",
@@ -151,6 +151,10 @@ def tier_page(tier: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
              "```", "", "## Pools", "",
              "| split | seeds | tasks | certificates: constant / residual | worst obstacle clearance [mm] | "
              "largest peak rate [deg/s] |", "|---|---|---|---|---|---|"]
+    capture = spec.rules.capture is not None
+    if capture:  # the tumbling body is an obstacle too; the capture's margin
+        lines[-2:] = ["| split | seeds | tasks | certificates: constant / residual | worst clearance, obstacles and "
+                      "body [mm] | largest peak rate [deg/s] | largest capture ratio |", "|---|---|---|---|---|---|---|"]
     for split, s in data["splits"].items():
         entries = s["pools"][tier]
         kinds = [e["certificate"]["kind"] for e in entries]
@@ -158,10 +162,11 @@ def tier_page(tier: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
         first, stop = data["seed_ranges"][split]
         lines.append(f"| {split} | [{first:,}, {stop:,}) | {len(entries)} | {kinds.count('constant')} / "
                      f"{kinds.count('residual')} | {1000 * margins['min_clearance_m']:.1f} | "
-                     f"{margins['peak_rate_deg_s']:.1f} |")
+                     f"{margins['peak_rate_deg_s']:.1f} |" + (f" {margins['capture_ratio']:.2f} |" if capture else ""))
+    section, spin = ("Capture of a tumbling target", ", with the body's spin perturbed") if capture else ("Task tiers", "")
     lines += ["", "Every task stores a certificate: an action that succeeds at dt, dt/2 and dt/4, from perturbed "
-              "starts and on the second backend, with margins (the rule, and the counts of rejected candidates: "
-              "[Environments, Task tiers](../envs.md)).", "",
+              f"starts{spin} and on the second backend, with margins (the rule, and the counts of rejected candidates: "
+              f"[Environments, {section}](../envs.md)).", "",
               f"Its ranked table, with every entry's scores, compute and verification, and how to submit: "
               f"[Leaderboards](../leaderboards.md) (\"{tier} (test pool)\")."]
     return "\n".join(lines) + "\n"

@@ -174,9 +174,9 @@ def _render(args: argparse.Namespace) -> None:
     options = None if args.task_index is None else {"task_index": args.task_index}
     frames, decisions, info = record_episode(env, stepper(policy, env), seed=args.seed, every=args.every,
                                              options=options)
-    from ffsr_gym.sim.episode_end import episode_end
+    from ffsr_gym.environments.render import ending
 
-    end, played = episode_end(env.unwrapped.rollout), env.unwrapped.scenario.name
+    end, played = ending(env.unwrapped.engine), env.unwrapped.scenario.name
     env.close()
     write_gif(frames, out, interval_ms)
     outcome = {k: info.get(k) for k in ("score", "success", "failure") if k in info}

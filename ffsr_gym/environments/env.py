@@ -184,15 +184,11 @@ class FFSREnv(gym.Env):
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
             return None
-        from ffsr_gym.environments.render import SceneRenderer
-        from ffsr_gym.sim.episode_end import episode_end, with_capture
+        from ffsr_gym.environments.render import SceneRenderer, ending
 
         if self._renderer is None:
             self._renderer = SceneRenderer(interactive=self.render_mode == "human")
-        end = episode_end(self.rollout) if self._started and self.engine.finished(0) else None
-        rule = self.benchmark.capture if self.benchmark is not None else None
-        if end is not None and rule is not None:  # the capture window, from the episode's result
-            end = with_capture(end, self.engine.results[0].capture_time_s, rule.hold_s)
+        end = ending(self.engine) if self._started else None
         return self._renderer.draw(self.rollout, self.scenario, end)
 
     def close(self) -> None:

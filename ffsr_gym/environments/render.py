@@ -7,11 +7,23 @@ import numpy as np
 
 from ffsr_gym.model import quaternion as quat
 from ffsr_gym.model.scenario import Scenario
-from ffsr_gym.sim.episode_end import EpisodeEnd
+from ffsr_gym.sim.episode_end import EpisodeEnd, episode_end, with_capture
 from ffsr_gym.sim.rollout import Rollout
 
 _CUBE_EDGES = [(a, b) for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1]
 _CORNERS = np.array([[x, y, z] for x in (-0.4, 0.4) for y in (-0.4, 0.4) for z in (-0.4, 0.4)])  # base cube [m]
+
+
+def ending(engine, index: int = 0) -> EpisodeEnd | None:
+    """How the episode of copy ``index`` of an :class:`~ffsr_gym.environments.engine.EpisodeEngine` ended (None
+    while it runs): its first violation or last sample, and under a capture rule the capture window."""
+    if not engine.finished(index):
+        return None
+    end = episode_end(engine.rollout(index))
+    rules = getattr(engine.rule, "benchmark", None)
+    if rules is not None and rules.capture is not None:  # the capture window, from the episode's result
+        end = with_capture(end, engine.results[index].capture_time_s, rules.capture.hold_s)
+    return end
 
 
 class SceneRenderer:

@@ -261,14 +261,11 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
             return None
         if not self._started:
             raise InvalidInputError("call reset() before render()")
-        from ffsr_gym.environments.render import SceneRenderer
-        from ffsr_gym.sim.episode_end import episode_end
+        from ffsr_gym.environments.render import SceneRenderer, ending
 
         if self._renderer is None:
             self._renderer = SceneRenderer()
-        rollout = self.engine.rollout(0)
-        end = episode_end(rollout) if self.engine.finished(0) else None
-        return (self._renderer.draw(rollout, self.engine.scenarios[0], end),)
+        return (self._renderer.draw(self.engine.rollout(0), self.engine.scenarios[0], ending(self.engine)),)
 
     def close_extras(self, **kwargs: Any) -> None:
         if self._renderer is not None:

@@ -1,0 +1,120 @@
+"""The shipped capture ids and pools: FFSR-Capture-v0 / FFSR-Capture-Residual-v0 pass Gymnasium's and SB3's
+checkers, and the pool certificates of both tiers replay through them to success with their stored scores, in every
+ensemble member with their stored margins (a spread sample here; every certificate with ``-m slow``)."""
+
+from __future__ import annotations
+
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import ffsr_gym  # noqa: F401  (registers the ids)
+from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.tasks.build import rule_sha256
+from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
+from ffsr_gym.tasks.certificate import Margins, Member, ensemble_members, replay_members
+from ffsr_gym.tasks.perturbation import confirmation_member
+from ffsr_gym.tasks.splits import load_pools, pool, task_scenario
+
+VERSION = "capture-v0"
+RULES = load_benchmark(VERSION)
+IDS = ("FFSR-Capture-v0", "FFSR-Capture-Residual-v0")
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_the_capture_ids_pass_gymnasium_and_sb3_checks(env_id):
+    sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        env = gym.make(env_id, task="fast", split="test")
+        check_env(env.unwrapped, skip_render_check=True)
+        sb3_checker.check_env(env.unwrapped, warn=True)
+    assert not caught, [str(w.message) for w in caught]
+    assert env.spec.max_episode_steps == 240 and env.observation_space.shape == (59,)
+
+
+@pytest.mark.parametrize("tier", CAPTURE_TIERS)
+def test_the_pool_files_hold_full_pools_built_under_todays_rule(tier):
+    data = load_pools(tiers=(tier,), version=VERSION)
+    assert data["rule_sha256"] == rule_sha256(tier, VERSION)
+    for split, count in (("train", 200), ("validation", 50), ("test", 100)):
+        tasks = pool(tier, split, version=VERSION)
+        assert len(tasks) == count and all(t.margins.capture_ratio <= RULES.tasks.ensemble.error_margin for t in tasks)
+
+
+def replay_in_env(tier: str, split: str, index: int) -> dict:
+    """A certificate stepped through the registered environment; the last step's info."""
+    task = pool(tier, split, version=VERSION)[index]
+    certificate = task.certificate
+    env = gym.make(IDS[certificate.kind != "constant"], task=tier, split=split)
+    _, info = env.reset(seed=0, options={"task_index": index})
+    assert info["task_seed"] == task.seed
+    action = None if certificate.residual is None else np.array(certificate.residual, dtype=np.float32)
+    while True:
+        if action is None:
+            _, _, terminated, truncated, info = env.unwrapped.step_with_parameters(certificate.m, certificate.T_c_s)
+        else:
+            _, _, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            env.close()
+            return info
+
+
+def cases(per_pool: int | None, splits: tuple[str, ...] = ("train", "validation", "test")) -> list[tuple]:
+    """(tier, split, index) of ``per_pool`` spread tasks (None: all) of every capture pool."""
+    out = []
+    for tier in CAPTURE_TIERS:
+        for split in splits:
+            n = len(pool(tier, split, version=VERSION))
+            picks = range(n) if per_pool is None else np.linspace(0, n - 1, per_pool).round().astype(int)
+            out += [(tier, split, int(i)) for i in picks]
+    return out
+
+
+@pytest.mark.parametrize(("tier", "split", "index"), cases(1))
+def test_a_certificate_replays_to_its_capture_in_the_env(tier, split, index):
+    info = replay_in_env(tier, split, index)
+    assert info["success"] and info["capture_time_s"] > 0.0, info["failure"]
+    assert info["score"] == pytest.approx(pool(tier, split, version=VERSION)[index].certificate_score, rel=0, abs=1e-12)
+    assert info["capture_ratio"] <= RULES.tasks.ensemble.error_margin
+
+
+def ensemble_problems(tier: str, split: str, index: int) -> list[str]:
+    """Replay a certificate at dt and in every ensemble member (the perturbed spin and Pinocchio included); what
+    fails, or what differs from the worst margins the pool file stores."""
+    entry = pool(tier, split, version=VERSION)[index]
+    task = task_scenario(tier, entry.seed, RULES)
+    members = [Member("dt", task), *ensemble_members(task, entry.seed, RULES.tasks.ensemble, pinocchio=False),
+               confirmation_member(task, VERSION)]
+    failed, results = replay_members(members, entry.certificate, RULES)
+    where = f"{tier}/{split}[{index}]"
+    if failed is not None:
+        return [f"{where}: fails at {failed} ({results[-1].failure})"]
+    worst, stored = Margins.worst(results), entry.margins
+    problems = [] if worst.short(RULES) is None else [f"{where}: {worst.short(RULES)}"]
+    if stored is None or stored.episodes != worst.episodes:
+        return [*problems, f"{where}: stored margins {stored} for {worst.episodes} episodes"]
+    for key in ("min_clearance_m", "min_self_clearance_m", "peak_rate_deg_s", "capture_ratio"):
+        if getattr(stored, key) != pytest.approx(getattr(worst, key), rel=1e-9):  # Pinocchio's last bits
+            problems.append(f"{where}: stored {key} {getattr(stored, key)} != {getattr(worst, key)}")
+    return problems
+
+
+@pytest.mark.parametrize("tier", CAPTURE_TIERS)
+def test_a_test_certificate_holds_in_every_ensemble_member_with_its_stored_margins(tier):
+    assert not ensemble_problems(tier, "test", 0)
+
+
+@pytest.mark.slow
+def test_every_capture_certificate_replays_to_its_capture_in_the_env():
+    failed = [(case, info["failure"]) for case in cases(None) if not (info := replay_in_env(*case))["success"]]
+    assert not failed
+
+
+@pytest.mark.slow
+def test_every_capture_certificate_holds_in_every_ensemble_member():
+    problems = [p for case in cases(None) for p in ensemble_problems(*case)]
+    assert not problems, problems[:20]
