@@ -24,7 +24,6 @@ import sys
 from collections import Counter
 from pathlib import Path
 
-import numpy as np
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.leaderboard import load_entries, ordered, verified
