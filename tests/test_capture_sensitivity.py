@@ -50,7 +50,7 @@ def test_the_docs_hold_the_generated_tables():
     assert block.strip() == study.docs_text(data).strip()
 
 
-@pytest.mark.parametrize("index", [0, 13, 26, 35])  # both tiers, several planners and steps
+@pytest.mark.parametrize("index", [0, 35])  # slow at dt, fast at dt/4
 def test_sampled_dt_study_episodes_replay(index):
     entry = DT_STUDY["sample"][index]
     kwargs = dt_study.planners(entry["tier"], ROOT / "leaderboards", "capture-v0")[entry["planner"]]

@@ -19,6 +19,13 @@ def all_task_tiers() -> list[str]:
     return list(ALL_TIERS)
 
 
+def capture_tiers() -> list[str]:
+    """The capture family's tiers (``--version capture-v0``)."""
+    from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
+
+    return list(CAPTURE_TIERS)
+
+
 def tier_versions() -> list[str]:
     """The benchmark versions with task tiers (a rule file): the ranked v2 first, then the capture family's."""
     from ffsr_gym.model.benchmark import CAPTURE_VERSIONS, VERSIONS

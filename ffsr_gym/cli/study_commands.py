@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from ffsr_gym.bench.options import natural, positive_int, shard
-from ffsr_gym.cli.choices import algorithm_names, all_task_tiers, build_targets, tier_versions
+from ffsr_gym.cli.choices import algorithm_names, all_task_tiers, build_targets, capture_tiers, tier_versions
 from ffsr_gym.model.spec import all_task_names, registered_ids
 
 
@@ -60,8 +60,8 @@ def add_study_commands(sub: Any) -> None:
                                                  "action schedules; resumable) into envs/benchmark/<version>_best_known.json "
                                                  "(training pools: <version>_best_known_train.json)")
     _add_version(bk)
-    bk.add_argument("--tiers", nargs="+", default=list(all_task_tiers()), choices=all_task_tiers(),
-                    help="tiers (default: all)")
+    bk.add_argument("--tiers", nargs="+", default=None, choices=all_task_tiers() + capture_tiers(),
+                    help="tiers (default: every tier of --version)")
     bk.add_argument("--splits", nargs="+", default=["test", "validation"], choices=["train", "validation", "test"],
                     help="pools searched (default: test validation)")
     bk.add_argument("--work", default="studies/best-known",
@@ -151,8 +151,14 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
     from ffsr_gym.exceptions import InvalidInputError
     from ffsr_gym.optim import best_known_build as build
     from ffsr_gym.tasks.best_known import records
+    from ffsr_gym.tasks.splits import version_tiers
 
     work = Path(args.work)
+    args.tiers = args.tiers or list(version_tiers(args.version))
+    wrong = sorted(set(args.tiers) - set(version_tiers(args.version)))
+    if wrong:
+        raise InvalidInputError(f"--tiers {wrong} with --version {args.version}; allowed: "
+                                f"{list(version_tiers(args.version))}")
     if args.doubled and args.shard is not None:
         raise InvalidInputError("--shard with --doubled; allowed: --shard only for the search (without --doubled)")
     if args.doubled:
@@ -169,7 +175,8 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
     for tier in args.tiers:
         for split in args.splits:
             build.run(tier, split, work, version=args.version, shard=args.shard, progress=not args.no_progress)
-    command = shlex.join(["ffsr-gym", "tasks", "best-known", "--tiers", *args.tiers, "--splits", *args.splits]
+    command = shlex.join(["ffsr-gym", "tasks", "best-known", "--version", args.version, "--tiers", *args.tiers,
+                          "--splits", *args.splits]
                          + ([] if args.shard is None else ["--shard", "/".join(map(str, args.shard))])
                          + (["--write-shipped"] if args.write_shipped else []))
     for path in build.assemble(work, version=args.version, command=command, splits=args.splits,

@@ -125,11 +125,12 @@ def run(tier: str, split: str, work: str | Path, *, version: str = "v2", generat
     return path
 
 
-def budget() -> dict[str, Any]:
-    """The search budget per task, as the file records it."""
+def budget(version: str = "v2") -> dict[str, Any]:
+    """The search budget per task, as the file records it (the env ids: ``version``'s)."""
+    ids = spec_for_version(version).ids
     return {"knots": search.KNOTS, "sigma0": search.SIGMA0, "generations": search.GENERATIONS,
             "popsize": {family: popsize(family) for family in FAMILIES}, "cma_seed": search.CMA_SEED,
-            "tried_in_ensemble": search.TRIED, "env_ids": ENV_IDS}
+            "tried_in_ensemble": search.TRIED, "env_ids": {"residual": ids.residual, "parameters": ids.parameters}}
 
 
 def target_file(work: str | Path, version: str, split: str, *, shipped: bool = False) -> Path:
@@ -191,7 +192,7 @@ def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = 
                                 for record in slot)
         tiers = sorted(tasks)
         old = load_best_known(version, target) or {}
-        data = {"version": version, "budget": budget() | {"generations": generations},
+        data = {"version": version, "budget": budget(version) | {"generations": generations},
                 "pool_files_sha256": {t: hashlib.sha256(pool_path(t, version).read_bytes()).hexdigest() for t in tiers},
                 "counts": {t: {s: len(v) for s, v in tasks[t].items()} for t in tiers},
                 "compute": {"objective_evaluations": cost[target][0], "wall_time_s": cost[target][1], "cores": 1},
