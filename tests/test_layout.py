@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 PACKAGE = Path(__file__).resolve().parent.parent / "ffsr_gym"
-FOUNDATION = {"exceptions", "types", "provenance", "user_files"}
+FOUNDATION = {"cluster", "exceptions", "types", "provenance", "user_files"}
 #: What each stage may import of the project (besides itself and the foundation modules).
 ALLOWED = {
     "model": set(),

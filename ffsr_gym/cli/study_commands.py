@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -53,6 +55,7 @@ def add_study_commands(sub: Any) -> None:
                                                 "envs/benchmark/<version>_tasks.json, or <version>_<tier>_tasks.json)")
     tb.add_argument("--chunk", type=positive_int, default=100, help="candidates per chunk (default: 100)")
     tb.add_argument("--workers", type=positive_int, default=2, help="worker processes (default: 2)")
+    _add_scheduler(tb, "chunks of candidates (instead of --workers)")
     tb.add_argument("--max-candidates", type=positive_int, default=50_000, help="give up after this many per split (default: 50000)")
     tb.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     tb.set_defaults(func=_tasks)
@@ -76,6 +79,7 @@ def add_study_commands(sub: Any) -> None:
                     help="write the package's own best-known files (a build of each whole file, from a source "
                          "checkout); default: their copies inside --work")
     bk.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    _add_scheduler(bk, "tasks' searches")
     bk.set_defaults(func=_tasks_best_known)
     tt = tasks_sub.add_parser("tables", help="the tier tables of a version's pool files (docs/envs.md shows them)")
     _add_version(tt)
@@ -122,22 +126,45 @@ def _train(args: argparse.Namespace) -> None:
             print("wrote", report.save(folder, overwrite=args.force))
 
 
-def _tasks(args: argparse.Namespace) -> None:
+@contextmanager
+def _executor(args: argparse.Namespace, local_workers: int = 1) -> Iterator[tuple[Any, int]]:
+    """``(executor, slots)`` of a long command: the cluster ``--scheduler`` names, else ``local_workers`` processes
+    of this machine (``(None, 1)``: this process alone)."""
+    if args.scheduler is not None:
+        from ffsr_gym.cluster import cluster_executor
+
+        with cluster_executor(args.scheduler) as pair:
+            yield pair
+        return
+    if local_workers <= 1:
+        yield None, 1
+        return
     from concurrent.futures import ProcessPoolExecutor
 
-    from ffsr_gym.tasks.build import build, die_with_parent
+    from ffsr_gym.tasks.build import die_with_parent
 
-    workers = args.workers
-    executor = ProcessPoolExecutor(workers, initializer=die_with_parent) if workers > 1 else None
+    executor = ProcessPoolExecutor(local_workers, initializer=die_with_parent)
     try:
+        yield executor, local_workers
+    finally:
+        executor.shutdown()
+
+
+def _add_scheduler(parser: argparse.ArgumentParser, pieces: str) -> None:
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help=f"run the {pieces} on a Dask cluster: a scheduler's address (tcp://host:8786) or local:N "
+                             "(N worker processes here); results are identical to a local run (docs/cluster.md)")
+
+
+def _tasks(args: argparse.Namespace) -> None:
+    from ffsr_gym.tasks.build import build
+
+    with _executor(args, args.workers) as (executor, workers):
         version = args.version
         work = args.work or f"runs/tasks-{version}"
         data = build(work, version=version, target=version if args.tier == "base" else args.tier, out=args.out,
                      chunk=args.chunk, max_candidates=args.max_candidates, executor=executor, workers=workers,
                      progress=not args.no_progress)
-    finally:
-        if executor is not None:
-            executor.shutdown()
     for split, summary in data["splits"].items():
         print(f"{split}: {summary['candidates']} candidates, tiers {summary['tier_counts']}, "
               f"rejected {summary['rejection_counts']}")
@@ -161,6 +188,9 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
                                 f"{list(version_tiers(args.version))}")
     if args.doubled and args.shard is not None:
         raise InvalidInputError("--shard with --doubled; allowed: --shard only for the search (without --doubled)")
+    if args.scheduler is not None and (args.shard is not None or args.doubled):
+        raise InvalidInputError("--scheduler with --shard or --doubled; allowed: --scheduler for the search alone (a "
+                                "cluster shares the pools without shards)")
     if args.doubled:
         rng = np.random.default_rng(0)
         stored = [(t, s, r["index"]) for t in args.tiers for s in args.splits for r in records(t, s, args.version)]
@@ -172,9 +202,11 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
         print(f"doubled budget on {len(sample)} tasks: mean gap {summary['mean_gap']:.4f}, median relative gap "
               f"{summary['median_relative_gap']:.4f}, max {summary['max_relative_gap']:.4f}")
         return
-    for tier in args.tiers:
-        for split in args.splits:
-            build.run(tier, split, work, version=args.version, shard=args.shard, progress=not args.no_progress)
+    with _executor(args) as (executor, _):
+        for tier in args.tiers:
+            for split in args.splits:
+                build.run(tier, split, work, version=args.version, shard=args.shard, progress=not args.no_progress,
+                          executor=executor)
     command = shlex.join(["ffsr-gym", "tasks", "best-known", "--version", args.version, "--tiers", *args.tiers,
                           "--splits", *args.splits]
                          + ([] if args.shard is None else ["--shard", "/".join(map(str, args.shard))])

@@ -29,7 +29,7 @@ from ffsr_gym.model.benchmark import Benchmark
 from ffsr_gym.tasks.certificate import Margins, ensemble_members
 from ffsr_gym.tasks.perturbation import confirmation_member
 from ffsr_gym.tasks.schedule import FAMILIES, Schedule, replay_schedule
-from ffsr_gym.tasks.splits import PoolTask, task_scenario
+from ffsr_gym.tasks.splits import PoolTask, pool, task_scenario
 
 #: Knots per schedule.
 KNOTS = 4
@@ -176,3 +176,29 @@ def best_known(populations: dict[str, Population], task: PoolTask, tier: str, sp
             "certificate_score": task.certificate_score, "best": chosen,
             "families": {family: result.as_dict() for family, result in results.items()},
             "generations": generations, "wall_time_s": time.perf_counter() - started}
+
+
+def popsize(family: str) -> int:
+    """cma's default population for the family's search dimension, 4 + floor(3 ln n)."""
+    return 4 + int(3 * np.log(KNOTS * FAMILIES[family]))
+
+
+#: One pool's populations per process, made by the first :func:`search_task` on that pool and kept for the next.
+_POPULATIONS: dict[tuple[str, str, str], dict[str, Population]] = {}
+
+
+def search_task(tier: str, split: str, index: int, version: str, generations: int = GENERATIONS) -> dict[str, Any]:
+    """:func:`best_known` of pool task ``index`` as a piece of its own (a cluster worker runs it; picklable), with
+    the populations of its pool made once per process."""
+    from ffsr_gym.model.spec import spec_for_version
+
+    key = (tier, split, version)
+    if key not in _POPULATIONS:
+        for populations in _POPULATIONS.values():
+            for population in populations.values():
+                population.close()
+        _POPULATIONS.clear()
+        _POPULATIONS[key] = {family: Population(family, tier, split, popsize(family), version) for family in FAMILIES}
+    benchmark = spec_for_version(version).rules
+    return best_known(_POPULATIONS[key], pool(tier, split, version=version)[index], tier, split, index, benchmark,
+                      generations)

@@ -17,6 +17,7 @@ import json
 import os
 import time
 import warnings
+from concurrent.futures import Executor, as_completed
 from pathlib import Path
 from typing import Any
 
@@ -33,10 +34,7 @@ from ffsr_gym.tasks.schedule import ENV_IDS, FAMILIES, Schedule, replay_schedule
 from ffsr_gym.tasks.splits import pool, pool_path
 from ffsr_gym.user_files import nesting_depth, read_text
 
-
-def popsize(family: str) -> int:
-    """cma's default population for the family's search dimension, 4 + floor(3 ln n)."""
-    return 4 + int(3 * np.log(search.KNOTS * FAMILIES[family]))
+popsize = search.popsize
 
 
 #: What every search record holds (a line without them is torn or foreign: named, skipped, its task searched again).
@@ -100,10 +98,13 @@ def pool_files(work: str | Path, tier: str, split: str) -> list[Path]:
 
 
 def run(tier: str, split: str, work: str | Path, *, version: str = "v2", generations: int = search.GENERATIONS,
-        indices: list[int] | None = None, shard: tuple[int, int] | None = None, progress: bool = True) -> Path:
+        indices: list[int] | None = None, shard: tuple[int, int] | None = None, progress: bool = True,
+        executor: Executor | None = None) -> Path:
     """Search every task of ``tier``'s ``split`` pool (or ``indices`` of it) not yet in one of the pool's work
     files. With ``shard`` ``(k, n)``, only the tasks whose index is k modulo n, into a work file of the shard's
-    own, so that n processes share a pool without writing into one file."""
+    own, so that n processes share a pool without writing into one file. With ``executor`` (a cluster's,
+    :func:`ffsr_gym.cluster.cluster_executor`), each task is a piece of its own, and this process appends the
+    records as they arrive."""
     benchmark = score_rule(spec_for_version(version)).benchmark
     path = work_file(work, tier, split, shard)
     tasks = pool(tier, split, version=version)
@@ -114,9 +115,14 @@ def run(tier: str, split: str, work: str | Path, *, version: str = "v2", generat
     todo = [i for i in wanted if i not in done]
     if not todo:
         return path
+    label = f"best known {tier}/{split}" + ("" if shard is None else f" shard {shard[0]}/{shard[1]}")
+    if executor is not None:
+        pieces = [executor.submit(search.search_task, tier, split, index, version, generations) for index in todo]
+        for piece in tqdm(as_completed(pieces), total=len(pieces), desc=label, unit="task", disable=not progress):
+            _append(path, piece.result())
+        return path
     populations = {family: search.Population(family, tier, split, popsize(family), version) for family in FAMILIES}
     try:
-        label = f"best known {tier}/{split}" + ("" if shard is None else f" shard {shard[0]}/{shard[1]}")
         for index in tqdm(todo, desc=label, unit="task", disable=not progress):
             _append(path, search.best_known(populations, tasks[index], tier, split, index, benchmark, generations))
     finally:

@@ -1,0 +1,159 @@
+"""Long studies on a Dask cluster (``--scheduler``): the address is checked by name, workers run with pinned threads,
+and a real scheduler with two worker processes on 127.0.0.1 (separate processes, TCP) gives the same results as a
+local run: a best-known search, a pool build, and a pool build one of whose workers is killed with SIGKILL."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from ffsr_gym.cluster import Scheduler, cluster_executor, parse_scheduler
+from ffsr_gym.exceptions import InvalidInputError
+
+ROOT = Path(__file__).resolve().parents[1]
+distributed = pytest.importorskip("distributed")
+
+
+@pytest.mark.parametrize(("text", "parsed"), [("local:2", Scheduler(None, 2)), ("127.0.0.1:8786",
+                                              Scheduler("tcp://127.0.0.1:8786")),
+                                              ("tcp://head.cluster:8786", Scheduler("tcp://head.cluster:8786"))])
+def test_a_scheduler_is_named_one_way(text, parsed):
+    assert parse_scheduler(text) == parsed
+
+
+@pytest.mark.parametrize("text", ["local:0", "local:257", "local:two", "localhost", "host:99999", "", "tcp://", 2])
+def test_a_malformed_scheduler_is_refused_by_name(text):
+    with pytest.raises(InvalidInputError, match="allowed: local:N"):
+        parse_scheduler(text)
+
+
+def _threads() -> tuple[int, int, str]:
+    import numba
+    import torch
+
+    return numba.get_num_threads(), torch.get_num_threads(), os.environ["OMP_NUM_THREADS"]
+
+
+def test_a_local_cluster_pins_its_workers_threads():
+    pytest.importorskip("torch")
+    with cluster_executor("local:1", say=lambda text: None) as (executor, slots):
+        assert slots == 1
+        assert executor.submit(_threads).result(timeout=120) == (1, 1, "1")
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class _Cluster:
+    """A ``dask scheduler`` and two ``dask worker`` processes on 127.0.0.1, as a user starts them by hand."""
+
+    def __init__(self, tmp: Path) -> None:
+        self.address = f"tcp://127.0.0.1:{_free_port()}"
+        dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
+        env = {**os.environ, "PYTHONPATH": str(ROOT)}
+        port = self.address.rsplit(":", 1)[1]
+        self.scheduler = subprocess.Popen([*dask, "--host", "127.0.0.1", "--port", port, "--no-dashboard"],
+                                          env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        worker = [sys.executable, "-m", "distributed.cli.dask_worker", self.address, "--nthreads", "1", "--no-nanny",
+                  "--no-dashboard", "--memory-limit", "0", "--local-directory", str(tmp)]
+        self.workers = [subprocess.Popen(worker, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                        for _ in range(2)]
+        with distributed.Client(self.address, timeout=60) as client:
+            client.wait_for_workers(2, timeout=120)
+
+    def close(self) -> None:
+        for process in [*self.workers, self.scheduler]:
+            if process.poll() is None:
+                process.terminate()
+        for process in [*self.workers, self.scheduler]:
+            try:
+                process.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                process.kill()
+
+
+@pytest.fixture
+def cluster(tmp_path):
+    running = _Cluster(tmp_path / "dask")
+    yield running
+    running.close()
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def _records(path: Path) -> list[dict]:
+    """A best-known work file's records by task, without the wall times (the only field that depends on the run)."""
+    rows = [json.loads(line) for line in path.read_text().splitlines()]
+    return sorted(({k: v for k, v in r.items() if k != "wall_time_s"} for r in rows), key=lambda r: r["index"])
+
+
+@pytest.mark.slow
+def test_a_best_known_search_on_a_real_cluster_equals_the_local_one(cluster, tmp_path):
+    from ffsr_gym.optim import best_known_build as build
+
+    local = build.run("slow", "test", tmp_path / "local", version="capture-v0", generations=2, indices=[0, 1, 2],
+                      progress=False)
+    with cluster_executor(cluster.address, say=lambda text: None) as (executor, slots):
+        assert slots == 2
+        remote = build.run("slow", "test", tmp_path / "remote", version="capture-v0", generations=2,
+                           indices=[0, 1, 2], progress=False, executor=executor)
+    assert _records(remote) == _records(local)
+
+
+def _pool_build(work: Path, monkeypatch, executor=None, workers: int = 2) -> tuple[list[dict], dict]:
+    """A two-task slow test pool: its verdicts and its summary (what the pool file holds). Without ``executor``, two
+    local processes (``--workers 2``): the chunks classified at once are the build's, so both runs use two."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from ffsr_gym.tasks import build
+
+    monkeypatch.setattr(build, "expected_count", lambda tier, split, version=None: 2)  # the client decides the size
+    local = ProcessPoolExecutor(workers) if executor is None else None
+    try:
+        verdicts = build.build_split(work, "test", version="capture-v0", target="slow", chunk=4,
+                                     executor=executor or local, workers=workers, progress=False)
+    finally:
+        if local is not None:
+            local.shutdown()
+    return [v.as_dict() for v in verdicts], build.summarise_split(verdicts, 2, "slow")
+
+
+@pytest.mark.slow
+def test_a_pool_build_on_a_real_cluster_is_byte_identical_to_the_local_one(cluster, tmp_path, monkeypatch):
+    local = _pool_build(tmp_path / "local", monkeypatch)
+    with cluster_executor(cluster.address, say=lambda text: None) as (executor, slots):
+        remote = _pool_build(tmp_path / "remote", monkeypatch, executor, slots)
+    assert remote == local
+    assert _files(tmp_path / "remote") == _files(tmp_path / "local")
+
+
+@pytest.mark.slow
+def test_a_worker_killed_mid_build_loses_only_its_piece(cluster, tmp_path, monkeypatch):
+    local = _pool_build(tmp_path / "local", monkeypatch)
+    with cluster_executor(cluster.address, say=lambda text: None) as (executor, slots):
+        def kill_soon() -> None:
+            time.sleep(5.0)  # both workers are classifying their first chunk
+            cluster.workers[0].send_signal(signal.SIGKILL)
+
+        import threading
+
+        killer = threading.Thread(target=kill_soon)
+        killer.start()
+        remote = _pool_build(tmp_path / "remote", monkeypatch, executor, slots)
+        killer.join()
+    assert cluster.workers[0].poll() == -signal.SIGKILL  # it did die, mid-run
+    assert remote == local
+    assert _files(tmp_path / "remote") == _files(tmp_path / "local")
