@@ -104,3 +104,31 @@ def assert_edited_rule_file_is_named(monkeypatch: pytest.MonkeyPatch, tmp_path: 
     finally:
         monkeypatch.undo()
         loader.cache_clear()
+
+
+def replay_certificate(version: str, tier: str, split: str, index: int) -> dict:
+    """Step pool task ``index``'s certificate through the version's registered environment (its parameters id
+    with ``step_with_parameters`` for a constant certificate, its residual id for a residual one); the last
+    step's info."""
+    import gymnasium as gym
+
+    from ffsr_gym.model.spec import spec_for_version
+    from ffsr_gym.tasks.splits import pool
+
+    task = pool(tier, split, version=version)[index]
+    certificate, ids = task.certificate, spec_for_version(version).ids
+    env = gym.make(ids.parameters if certificate.kind == "constant" else ids.residual, task=tier, split=split)
+    _, info = env.reset(seed=0, options={"task_index": index})
+    assert info["task_seed"] == task.seed
+    action = None if certificate.residual is None else np.array(certificate.residual, dtype=np.float32)
+    try:
+        while True:
+            if action is None:
+                _, _, terminated, truncated, info = env.unwrapped.step_with_parameters(certificate.m,
+                                                                                       certificate.T_c_s)
+            else:
+                _, _, terminated, truncated, info = env.step(action)
+            if terminated or truncated:
+                return info
+    finally:
+        env.close()

@@ -9,6 +9,7 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import replay_certificate
 from gymnasium.utils.env_checker import check_env
 
 import ffsr_gym  # noqa: F401  (registers the ids)
@@ -47,20 +48,7 @@ def test_the_pool_files_hold_full_pools_built_under_todays_rule(tier):
 
 def replay_in_env(tier: str, split: str, index: int) -> dict:
     """A certificate stepped through the registered environment; the last step's info."""
-    task = pool(tier, split, version=VERSION)[index]
-    certificate = task.certificate
-    env = gym.make(IDS[certificate.kind != "constant"], task=tier, split=split)
-    _, info = env.reset(seed=0, options={"task_index": index})
-    assert info["task_seed"] == task.seed
-    action = None if certificate.residual is None else np.array(certificate.residual, dtype=np.float32)
-    while True:
-        if action is None:
-            _, _, terminated, truncated, info = env.unwrapped.step_with_parameters(certificate.m, certificate.T_c_s)
-        else:
-            _, _, terminated, truncated, info = env.step(action)
-        if terminated or truncated:
-            env.close()
-            return info
+    return replay_certificate(VERSION, tier, split, index)
 
 
 def cases(per_pool: int | None, splits: tuple[str, ...] = ("train", "validation", "test")) -> list[tuple]:

@@ -10,13 +10,13 @@ import json
 from pathlib import Path
 
 import pytest
+from conftest import benchmark_script
 
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.scoring.capture import QUANTITIES, capture, episode_relative_motion
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.tasks.capture_family import draw_capture_task
 from ffsr_gym.tasks.certificate import planner_episode, planner_run, planner_task
-from tests.conftest import benchmark_script
 
 ROOT = Path(__file__).resolve().parents[1]
 RULES = load_benchmark("capture-v0")

@@ -25,6 +25,7 @@ from ffsr_gym.tasks.generator import draw_task, screen
 from ffsr_gym.tasks.perturbation import confirmation_member
 from ffsr_gym.tasks.splits import LABEL_CODES, SEED_RANGES, load_pools, pool, task_scenario
 from ffsr_gym.tasks.tiers import ALL_TIERS, TIERS, classify
+from conftest import replay_certificate
 
 BENCH = load_benchmark("v2")
 SPLITS = BENCH.tasks.splits
@@ -35,18 +36,7 @@ IDS = ("FFSR-v2", "FFSR-Residual-v2")
 
 def replay_in_env(tier: str, split: str, index: int) -> dict:
     """Step a certificate through the registered environment; the last step's info."""
-    certificate = pool(tier, split)[index].certificate
-    env = gym.make("FFSR-v2" if certificate.kind == "constant" else "FFSR-Residual-v2", task=tier, split=split)
-    _, info = env.reset(seed=0, options={"task_index": index})
-    assert info["task_seed"] == pool(tier, split)[index].seed
-    action = None if certificate.residual is None else np.array(certificate.residual, dtype=np.float32)
-    while True:
-        if action is None:
-            _, _, terminated, truncated, info = env.unwrapped.step_with_parameters(certificate.m, certificate.T_c_s)
-        else:
-            _, _, terminated, truncated, info = env.step(action)
-        if terminated or truncated:
-            return info
+    return replay_certificate("v2", tier, split, index)
 
 
 def certificate_cases(per_pool: int | None) -> list[tuple[str, str, int]]:
