@@ -157,3 +157,35 @@ def test_a_worker_killed_mid_build_loses_only_its_piece(cluster, tmp_path, monke
     assert cluster.workers[0].poll() == -signal.SIGKILL  # it did die, mid-run
     assert remote == local
     assert _files(tmp_path / "remote") == _files(tmp_path / "local")
+
+
+def _comparable(value):
+    """A record without what belongs to the run rather than its result: provenance, wall times, file paths."""
+    if isinstance(value, dict):
+        return {k: _comparable(v) for k, v in value.items()
+                if k != "provenance" and "wall_time" not in k and k != "created_utc"}
+    if isinstance(value, list):
+        return [_comparable(v) for v in value]
+    return value
+
+
+@pytest.mark.slow
+def test_an_rl_study_on_a_real_cluster_records_what_a_local_run_records(cluster, tmp_path):
+    pytest.importorskip("stable_baselines3")
+    from ffsr_gym.optim.rl_study import seed_folder, seed_piece, train_and_evaluate, write_seed
+
+    group, steps = ("ppo", "FFSR-v2", "easy"), 2048  # one PPO rollout of 16 envs x 128 steps
+    for seed in (0, 1):
+        train_and_evaluate(*group[:2], task=group[2], seeds=[seed], out=tmp_path / "local", timesteps=steps,
+                           curve_every=steps, progress=False)
+    with cluster_executor(cluster.address, say=lambda text: None) as (executor, _):
+        pieces = {seed: executor.submit(seed_piece, *group, seed, steps, steps, ["rl_study.py"]) for seed in (0, 1)}
+        for seed, piece in pieces.items():
+            write_seed(tmp_path / "remote", *group, seed, piece.result(timeout=1800))
+    for seed in (0, 1):
+        local, remote = (seed_folder(tmp_path / side, *group, seed) for side in ("local", "remote"))
+        names = sorted(p.name for p in remote.glob("*.json"))
+        assert names == ["evaluation.json", "evaluation_best_on_validation.json", "train_record.json"]
+        for name in names:
+            assert _comparable(json.loads((remote / name).read_text())) == \
+                _comparable(json.loads((local / name).read_text())), (seed, name)

@@ -21,7 +21,7 @@ from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.optim.rl import BEST_MODEL, curve_split, entry_name, train
-from ffsr_gym.provenance import provenance, write_json_atomic
+from ffsr_gym.provenance import provenance, write_json_atomic, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
 
 
@@ -145,3 +145,32 @@ def _merged_traces(traces: list[dict[str, Any]]) -> dict[str, Any]:
     if all("clipped" in trace for trace in traces):
         merged["clipped"] = [indices for trace in traces for indices in trace["clipped"]]
     return merged
+
+
+def seed_piece(algo: str, env_id: str, task: str, seed: int, timesteps: int, curve_every: int,
+               command: list[str]) -> dict[str, str]:
+    """One training seed of a study as a cluster piece: trained and scored in a folder of its own on the machine
+    that runs it (its models stay there), its records returned (file name -> text) for the client to write into
+    the study's folder (:func:`write_seed`). ``command`` is the client's command line, which the records' provenance
+    names instead of the worker's."""
+    import sys
+    import tempfile
+
+    asked, sys.argv = sys.argv, list(command)
+    try:
+        with tempfile.TemporaryDirectory(prefix="ffsr-gym-seed-") as tmp:
+            train_and_evaluate(algo, env_id, task=task, seeds=[seed], out=tmp, timesteps=timesteps,
+                               curve_every=curve_every, progress=False)
+            folder = seed_folder(tmp, algo, env_id, task, seed)
+            return {p.name: p.read_text(encoding="utf-8") for p in sorted(folder.glob("*.json"))}
+    finally:
+        sys.argv = asked
+
+
+def write_seed(out: str | Path, algo: str, env_id: str, task: str, seed: int, files: dict[str, str]) -> Path:
+    """Write a :func:`seed_piece`'s records into the seed's folder of the study at ``out``, each atomically, the
+    training record last (a folder is a finished seed once all are there)."""
+    folder = seed_folder(out, algo, env_id, task, seed)
+    for name in sorted(files, key=lambda n: n == "train_record.json"):
+        write_text_atomic(folder / Path(name).name, files[name])
+    return folder
