@@ -189,3 +189,14 @@ def test_an_rl_study_on_a_real_cluster_records_what_a_local_run_records(cluster,
         for name in names:
             assert _comparable(json.loads((remote / name).read_text())) == \
                 _comparable(json.loads((local / name).read_text())), (seed, name)
+
+
+@pytest.mark.slow
+def test_the_ga_on_a_local_cluster_finds_what_it_finds_in_this_process(tmp_path):
+    from ffsr_gym.optim.ga import GAConfig
+    from ffsr_gym.optim.ga_study import run_study
+
+    config = GAConfig(population=6, generations=2, seed=3)
+    here = run_study(tmp_path / "here", modes=("reproduction",), config=config, executor="none", progress=False)
+    there = run_study(tmp_path / "there", modes=("reproduction",), config=config, scheduler="local:2", progress=False)
+    assert there["reproduction"]["optimum"] == here["reproduction"]["optimum"]

@@ -50,7 +50,8 @@ def _ga(args: argparse.Namespace) -> None:
     config = GAConfig(population=args.population, generations=args.generations, seed=args.seed,
                       selection=args.selection, scenario=args.scenario)
     results = run_study(args.out, modes=tuple(args.modes), config=config, executor=args.executor,
-                        workers=args.workers, leaderboard=args.leaderboard, progress=not args.no_progress)
+                        workers=args.workers, leaderboard=args.leaderboard, progress=not args.no_progress,
+                        scheduler=args.scheduler)
     for mode, summary in results.items():
         o = summary["optimum"]
         print(f"{mode}: m = {o['m']:.4f}, T_c = {o['T_c_s']:.3f} s, B = {o['score']} "
@@ -82,6 +83,9 @@ def add_model_commands(sub: Any) -> None:
     ga.add_argument("--executor", default="process", choices=["process", "dask", "none"],
                     help="where objective evaluations run (default: process pool)")
     ga.add_argument("--workers", type=positive_int, default=None, help="worker processes (default: all cores)")
+    ga.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                    help="run the evaluations on a Dask cluster: a scheduler's address or local:N (overrides "
+                         "--executor; docs/cluster.md)")
     ga.add_argument("--leaderboard", default=None, help="write leaderboard entries under this folder")
     ga.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ga.set_defaults(func=_ga)

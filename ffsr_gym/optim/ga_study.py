@@ -6,6 +6,7 @@ import json
 import math
 import os
 from concurrent.futures import Executor, ProcessPoolExecutor
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
@@ -40,8 +41,10 @@ def make_executor(kind: str, workers: int | None) -> Executor | None:
 
 def run_study(out: str | Path, *, modes: tuple[str, ...] = ("reproduction", "full"), config: ga.GAConfig | None = None,
               executor: str = "process", workers: int | None = None, leaderboard: str | Path | None = None,
-              progress: bool = True) -> dict[str, Any]:
-    """Run the GA in each mode (resuming from ``out/<mode>/checkpoint.json``), then write the report.
+              progress: bool = True, scheduler: str | None = None) -> dict[str, Any]:
+    """Run the GA in each mode (resuming from ``out/<mode>/checkpoint.json``), then write the report. The fitness
+    evaluations run on ``executor`` with ``workers``, or on the Dask cluster ``scheduler`` names
+    (:func:`ffsr_gym.cluster.cluster_executor`; it overrides ``executor``).
 
     Returns:
         ``{mode: summary}`` with the optimum, its metrics, the baseline's and the paper's numbers.
@@ -49,15 +52,19 @@ def run_study(out: str | Path, *, modes: tuple[str, ...] = ("reproduction", "ful
     out = Path(out)
     base = config or ga.GAConfig()
     results = {}
-    pool = make_executor(executor, workers)
-    try:
+    with ExitStack() as stack:
+        if scheduler is not None:
+            from ffsr_gym.cluster import cluster_executor
+
+            pool, _ = stack.enter_context(cluster_executor(scheduler))
+        else:
+            pool = make_executor(executor, workers)
+            if pool is not None:
+                stack.callback(pool.shutdown)
         for mode in modes:
             cfg = ga.GAConfig(**{**base.__dict__, "T_c_fixed": MODES[mode]})
             state = ga.run(cfg, executor=pool, checkpoint=out / mode / "checkpoint.json", progress=progress)
             results[mode] = _report(out / mode, state, mode, leaderboard)
-    finally:
-        if pool is not None:
-            pool.shutdown()
     write_json_atomic(out / "ga_study.json", results)
     return results
 
