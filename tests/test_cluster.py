@@ -200,3 +200,14 @@ def test_the_ga_on_a_local_cluster_finds_what_it_finds_in_this_process(tmp_path)
     here = run_study(tmp_path / "here", modes=("reproduction",), config=config, executor="none", progress=False)
     there = run_study(tmp_path / "there", modes=("reproduction",), config=config, scheduler="local:2", progress=False)
     assert there["reproduction"]["optimum"] == here["reproduction"]["optimum"]
+
+
+def test_the_docs_hold_the_measured_speed_up():
+    from conftest import benchmark_script
+
+    study = benchmark_script("cluster_speedup")
+    result = json.loads((ROOT / "benchmarks" / "cluster_speedup.json").read_text())
+    text = (ROOT / "docs" / "cluster.md").read_text(encoding="utf-8")
+    block = text[text.index(study.START) + len(study.START):text.index(study.END)]
+    assert block.strip() == study.docs_text(result).strip()
+    assert result["same_records"] and result["wall_time_s"]["1"] / result["wall_time_s"]["2"] == result["speedup"]
