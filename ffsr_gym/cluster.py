@@ -61,8 +61,9 @@ def parse_scheduler(text: str) -> Scheduler:
 
 
 def pin_threads(threads: int = 1) -> None:
-    """Run this process's numba, torch and BLAS code on ``threads`` threads (a worker's setup; the environment
-    variables reach the libraries loaded after it)."""
+    """Run numba's code in the calling thread, and torch's and the BLAS libraries' in this process, on ``threads``
+    threads (every cluster piece calls it first, :func:`pinned`; the environment variables reach the libraries
+    loaded after it)."""
     for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ[name] = str(threads)
     import numba
