@@ -132,3 +132,25 @@ def cluster_executor(scheduler: str, *, threads: int = 1, say=print) -> Iterator
     finally:
         if cluster is not None:
             cluster.close()
+
+
+@contextmanager
+def study_executor(scheduler: str | None, local_workers: int = 1,
+                   initializer: Callable[[], None] | None = None) -> Iterator[tuple[Executor | None, int]]:
+    """``(executor, slots)`` of a long study: the cluster ``scheduler`` names (:func:`cluster_executor`), else
+    ``local_workers`` processes of this machine started with ``initializer``, else (``(None, 1)``) this process
+    alone."""
+    if scheduler is not None:
+        with cluster_executor(scheduler) as pair:
+            yield pair
+        return
+    if local_workers <= 1:
+        yield None, 1
+        return
+    from concurrent.futures import ProcessPoolExecutor
+
+    executor = ProcessPoolExecutor(local_workers, initializer=initializer)
+    try:
+        yield executor, local_workers
+    finally:
+        executor.shutdown()

@@ -140,6 +140,7 @@ def tier_page(tier: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
     default = spec.rules.planner
     setting = f"({default.m!r}, {default.T_c_s!r})"
     parameters, residual = spec.ids.parameters, spec.ids.residual
+    capture = spec.rules.capture is not None  # the tumbling body is an obstacle too; the capture's margin
     lines = [f"# Tier `{tier}`", "", f"Benchmark {spec.version}: {TIER_MEANING[tier]}.", "",
              f"![The reference planner on test task {index} of {tier}](../_static/tiers/{tier}.gif)", "",
              f"The reference planner ({default.m:g}, {default.T_c_s:g} s) on test task {index}: "
@@ -149,12 +150,10 @@ def tier_page(tier: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
              f"env = gym.make(\"{residual}\", task=\"{tier}\", split=\"train\")   # or {parameters}",
              f"report = ffsr_gym.evaluate({setting}, \"{parameters}\", task=\"{tier}\")   # its test pool",
              "```", "", "## Pools", "",
-             "| split | seeds | tasks | certificates: constant / residual | worst obstacle clearance [mm] | "
-             "largest peak rate [deg/s] |", "|---|---|---|---|---|---|"]
-    capture = spec.rules.capture is not None
-    if capture:  # the tumbling body is an obstacle too; the capture's margin
-        lines[-2:] = ["| split | seeds | tasks | certificates: constant / residual | worst clearance, obstacles and "
-                      "body [mm] | largest peak rate [deg/s] | largest capture ratio |", "|---|---|---|---|---|---|---|"]
+             "| split | seeds | tasks | certificates: constant / residual | "
+             + ("worst clearance, obstacles and body [mm] | largest peak rate [deg/s] | largest capture ratio |"
+                if capture else "worst obstacle clearance [mm] | largest peak rate [deg/s] |"),
+             "|---" * (7 if capture else 6) + "|"]
     for split, s in data["splits"].items():
         entries = s["pools"][tier]
         kinds = [e["certificate"]["kind"] for e in entries]
@@ -163,7 +162,8 @@ def tier_page(tier: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
         lines.append(f"| {split} | [{first:,}, {stop:,}) | {len(entries)} | {kinds.count('constant')} / "
                      f"{kinds.count('residual')} | {1000 * margins['min_clearance_m']:.1f} | "
                      f"{margins['peak_rate_deg_s']:.1f} |" + (f" {margins['capture_ratio']:.2f} |" if capture else ""))
-    section, spin = ("Capture of a tumbling target", ", with the body's spin perturbed") if capture else ("Task tiers", "")
+    section, spin = (("Capture of a tumbling target", ", with the body's spin perturbed") if capture
+                     else ("Task tiers", ""))
     lines += ["", "Every task stores a certificate: an action that succeeds at dt, dt/2 and dt/4, from perturbed "
               f"starts{spin} and on the second backend, with margins (the rule, and the counts of rejected candidates: "
               f"[Environments, {section}](../envs.md)).", "",

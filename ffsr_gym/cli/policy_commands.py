@@ -116,10 +116,9 @@ def _compute(text: str | None) -> dict | None:
 
 
 def _evaluate(args: argparse.Namespace) -> None:
-    from concurrent.futures import ProcessPoolExecutor
-
     from ffsr_gym.bench.evaluation import evaluate, spec_of
     from ffsr_gym.bench.options import free_entry
+    from ffsr_gym.cluster import study_executor
     from ffsr_gym.exceptions import InvalidInputError
 
     spec = spec_of(args.env_id)
@@ -143,15 +142,11 @@ def _evaluate(args: argparse.Namespace) -> None:
             policy = _load_policy(args.policy, args.algo, args.trust_model, env)
     else:
         policy = _load_policy(args.policy, args.algo, args.trust_model)
-    executor = ProcessPoolExecutor(args.workers) if args.workers > 1 else None
-    try:
+    with study_executor(None, args.workers) as (executor, _):
         report = evaluate(policy, args.env_id, name=args.name, progress=not args.no_progress, compute=compute,
                           seeds=args.seeds, policy_library=args.policy_library,
                           **(_env_kwargs(args) | {"training_pool": args.training_pool, "executor": executor} if pooled
                              else {"env_kwargs": _env_kwargs(args)}))
-    finally:
-        if executor is not None:
-            executor.shutdown()
     if not isinstance(policy, tuple):  # what `ffsr-gym leaderboard verify --run-code` runs (with the file's hash)
         from ffsr_gym.bench.policies import policy_record
 

@@ -128,26 +128,12 @@ def _train(args: argparse.Namespace) -> None:
 
 @contextmanager
 def _executor(args: argparse.Namespace, local_workers: int = 1) -> Iterator[tuple[Any, int]]:
-    """``(executor, slots)`` of a long command: the cluster ``--scheduler`` names, else ``local_workers`` processes
-    of this machine (``(None, 1)``: this process alone)."""
-    if args.scheduler is not None:
-        from ffsr_gym.cluster import cluster_executor
-
-        with cluster_executor(args.scheduler) as pair:
-            yield pair
-        return
-    if local_workers <= 1:
-        yield None, 1
-        return
-    from concurrent.futures import ProcessPoolExecutor
-
+    """``(executor, slots)`` of a long command: :func:`ffsr_gym.cluster.study_executor` of its ``--scheduler``."""
+    from ffsr_gym.cluster import study_executor
     from ffsr_gym.tasks.build import die_with_parent
 
-    executor = ProcessPoolExecutor(local_workers, initializer=die_with_parent)
-    try:
-        yield executor, local_workers
-    finally:
-        executor.shutdown()
+    with study_executor(args.scheduler, local_workers, die_with_parent) as pair:
+        yield pair
 
 
 def _add_scheduler(parser: argparse.ArgumentParser, pieces: str) -> None:

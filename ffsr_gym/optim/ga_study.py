@@ -5,46 +5,32 @@ from __future__ import annotations
 import json
 import math
 import os
-from concurrent.futures import Executor, ProcessPoolExecutor
-from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
 from ffsr_gym.bench.evaluation import evaluate
+from ffsr_gym.cluster import study_executor
+from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.optim import ga
 from ffsr_gym.provenance import provenance, write_json_atomic, write_text_atomic
 from ffsr_gym.report import plotting
 from ffsr_gym.sim.simulate import simulate
 
+#: Where the fitness evaluations run: local processes, a local Dask cluster, or this process.
+EXECUTORS = ("process", "dask", "none")
 MODES = {"reproduction": 2.19, "full": None}  # T_c fixed at the paper's value, or optimised
 BASELINE = (0.1, 2.19)  # the paper's non-optimised setting
 PAPER = {"m": 0.2167, "T_c_s": 2.19, "mission_peak_deg_s": (94.12, 198.40), "balance_j4_deg_s": (-110.70, -241.40),
          "balance_j5_deg_s": (-124.00, -231.90), "final_error_m": 2.816e-7, "convergence_s": 1.751}
 
 
-def make_executor(kind: str, workers: int | None) -> Executor | None:
-    """``"process"`` (local processes), ``"dask"`` (a LocalCluster; any dask Client works too) or ``"none"``."""
-    workers = workers or os.cpu_count() or 1
-    if kind == "process":
-        return ProcessPoolExecutor(workers)
-    if kind == "dask":
-        try:
-            from distributed import Client, LocalCluster
-        except ImportError as exc:
-            from ffsr_gym.exceptions import MissingDependencyError
-
-            raise MissingDependencyError("the Dask executor needs: pip install 'ffsr-gym[dask]'") from exc
-        return Client(LocalCluster(n_workers=workers, threads_per_worker=1, processes=True)).get_executor()
-    return None
-
-
 def run_study(out: str | Path, *, modes: tuple[str, ...] = ("reproduction", "full"), config: ga.GAConfig | None = None,
               executor: str = "process", workers: int | None = None, leaderboard: str | Path | None = None,
               progress: bool = True, scheduler: str | None = None) -> dict[str, Any]:
     """Run the GA in each mode (resuming from ``out/<mode>/checkpoint.json``), then write the report. The fitness
-    evaluations run on ``executor`` with ``workers``, or on the Dask cluster ``scheduler`` names
-    (:func:`ffsr_gym.cluster.cluster_executor`; it overrides ``executor``).
+    evaluations run on ``executor`` (one of :data:`EXECUTORS`) with ``workers`` (default: every core), or on the
+    Dask cluster ``scheduler`` names (:func:`ffsr_gym.cluster.study_executor`; it overrides ``executor``).
 
     Returns:
         ``{mode: summary}`` with the optimum, its metrics, the baseline's and the paper's numbers.
@@ -52,15 +38,12 @@ def run_study(out: str | Path, *, modes: tuple[str, ...] = ("reproduction", "ful
     out = Path(out)
     base = config or ga.GAConfig()
     results = {}
-    with ExitStack() as stack:
-        if scheduler is not None:
-            from ffsr_gym.cluster import cluster_executor
-
-            pool, _ = stack.enter_context(cluster_executor(scheduler))
-        else:
-            pool = make_executor(executor, workers)
-            if pool is not None:
-                stack.callback(pool.shutdown)
+    if executor not in EXECUTORS:
+        raise InvalidInputError(f"executor {executor!r}; allowed: {list(EXECUTORS)}")
+    workers = workers or os.cpu_count() or 1
+    if scheduler is None and executor == "dask":  # a local cluster of that many workers
+        scheduler = f"local:{workers}"
+    with study_executor(scheduler, workers if executor == "process" else 1) as (pool, _):
         for mode in modes:
             cfg = ga.GAConfig(**{**base.__dict__, "T_c_fixed": MODES[mode]})
             state = ga.run(cfg, executor=pool, checkpoint=out / mode / "checkpoint.json", progress=progress)
