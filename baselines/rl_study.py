@@ -26,6 +26,7 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
+from ffsr_gym.bench.options import add_scheduler_option
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.optim import study_plan
@@ -77,9 +78,7 @@ def main() -> None:
     parser.add_argument("--algos", nargs="+", default=list(ALGOS), choices=ALGOS, help="algorithms (default: ppo sac)")
     parser.add_argument("--tiers", nargs="+", default=None, help="tiers (default: every tier of the version)")
     parser.add_argument("--env-ids", nargs="+", default=None, help="env ids (default: the version's two)")
-    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                        help="train the seeds on a Dask cluster (a scheduler's address, or local:N) instead of "
-                             "--workers local processes (docs/cluster.md)")
+    add_scheduler_option(parser, "seeds (one piece each, instead of --workers)")
     parser.add_argument("--plan", action="store_true", help="print what is left (seeds done and left, and the "
                                                             "core-hours left, estimated from finished seeds) and stop")
     args = parser.parse_args()

@@ -1,6 +1,7 @@
 """Long studies on a Dask cluster (``--scheduler``): the address is checked by name, workers run with pinned threads,
 and a real scheduler with two worker processes on 127.0.0.1 (separate processes, TCP) gives the same results as a
-local run: a best-known search, a pool build, and a pool build one of whose workers is killed with SIGKILL."""
+local run: a best-known search, a pool build, a pool build one of whose workers is killed with SIGKILL, RL seeds,
+hyperparameter-search trials, and a best-known search whose client is killed and run again."""
 
 from __future__ import annotations
 
@@ -100,16 +101,39 @@ def _records(path: Path) -> list[dict]:
     return sorted(({k: v for k, v in r.items() if k != "wall_time_s"} for r in rows), key=lambda r: r["index"])
 
 
+_KILLED_CLIENT = """
+from ffsr_gym.cluster import cluster_executor
+from ffsr_gym.optim import best_known_build as build
+with cluster_executor({address!r}, say=lambda text: None) as (executor, _):
+    build.run("slow", "test", {work!r}, version="capture-v0", generations=2, indices=[0, 1, 2], progress=False,
+              executor=executor)
+"""
+
+
 @pytest.mark.slow
-def test_a_best_known_search_on_a_real_cluster_equals_the_local_one(cluster, tmp_path):
+def test_a_best_known_search_on_a_real_cluster_equals_the_local_one_after_its_client_is_killed(cluster, tmp_path):
     from ffsr_gym.optim import best_known_build as build
 
     local = build.run("slow", "test", tmp_path / "local", version="capture-v0", generations=2, indices=[0, 1, 2],
                       progress=False)
+    remote = build.work_file(tmp_path / "remote", "slow", "test")
+    client = subprocess.Popen([sys.executable, "-c", _KILLED_CLIENT.format(address=cluster.address,
+                                                                           work=str(remote.parent))],
+                              env={**os.environ, "PYTHONPATH": str(ROOT)})
+    deadline = time.monotonic() + 900
+    while not (remote.is_file() and build.read_lines(remote)) and time.monotonic() < deadline:
+        assert client.poll() is None, "the client ended before it was killed"
+        time.sleep(0.2)
+    client.send_signal(signal.SIGKILL)
+    client.wait()
+    kept = [r["index"] for r in build.read_lines(remote)]
+    assert 1 <= len(kept) < 3  # killed with work left
     with cluster_executor(cluster.address, say=lambda text: None) as (executor, slots):
         assert slots == 2
-        remote = build.run("slow", "test", tmp_path / "remote", version="capture-v0", generations=2,
-                           indices=[0, 1, 2], progress=False, executor=executor)
+        build.run("slow", "test", remote.parent, version="capture-v0", generations=2, indices=[0, 1, 2],
+                  progress=False, executor=executor)
+    records = build.read_lines(remote)
+    assert [r["index"] for r in records][:len(kept)] == kept  # what the killed client wrote is kept, not redone
     assert _records(remote) == _records(local)
 
 
@@ -189,6 +213,26 @@ def test_an_rl_study_on_a_real_cluster_records_what_a_local_run_records(cluster,
         for name in names:
             assert _comparable(json.loads((remote / name).read_text())) == \
                 _comparable(json.loads((local / name).read_text())), (seed, name)
+
+
+@pytest.mark.slow
+def test_a_hyperparameter_search_on_a_real_cluster_equals_the_local_one(cluster):
+    pytest.importorskip("stable_baselines3")
+    optuna = pytest.importorskip("optuna")
+    from functools import partial
+
+    from ffsr_gym.optim.tune_loop import default_space, search, train_trial
+    from ffsr_gym.optim.tuning import make_pruner, make_sampler
+
+    piece, space = partial(train_trial, "ppo", "FFSR-v2", "easy", 2048, 2), default_space("ppo", "FFSR-v2")
+    studies = [optuna.create_study(direction="maximize", sampler=make_sampler(), pruner=make_pruner())
+               for _ in range(2)]
+    search(studies[0], piece, space, trials=2, batch=2, progress=False)
+    with cluster_executor(cluster.address, say=lambda text: None) as (executor, _):
+        search(studies[1], piece, space, trials=2, batch=2, executor=executor, progress=False)
+    here, there = ([(t.number, t.state.name, t.params, t.value, t.intermediate_values, t.user_attrs["env_steps"])
+                    for t in study.trials] for study in studies)
+    assert there == here and len(here) == 2
 
 
 @pytest.mark.slow

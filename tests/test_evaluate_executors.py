@@ -35,11 +35,25 @@ def test_process_pool_gives_the_serial_entry_and_the_planner_episodes():
 
 
 def test_dask_cluster_gives_the_serial_entry():
-    distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
-            distributed.Client(cluster) as client:
-        remote = evaluate_pool((0.3, 4.0), "FFSR-v2", task="medium", indices=INDICES, executor=client.get_executor(), chunk=3)
+    """The executor of ``ffsr-gym evaluate --scheduler local:2`` (pinned workers of a LocalCluster)."""
+    pytest.importorskip("distributed")
+    from ffsr_gym.cluster import cluster_executor
+
+    with cluster_executor("local:2", say=lambda text: None) as (executor, slots):
+        assert slots == 2
+        remote = evaluate_pool((0.3, 4.0), "FFSR-v2", task="medium", indices=INDICES, executor=executor, chunk=3)
     _same(evaluate_pool((0.3, 4.0), "FFSR-v2", task="medium", indices=INDICES), remote)
+
+
+@pytest.mark.parametrize(("argv", "named"), [
+    (["--scheduler", "local:0"], "allowed: local:N"),
+    (["--scheduler", "local:2", "--scenario", "paper"], "only for a tier's pool")])
+def test_evaluate_names_a_bad_scheduler(argv, named, capsys, tmp_path):
+    from ffsr_gym.cli.main import main
+
+    assert main(["evaluate", "--env-id", "FFSR-v2", "--policy", "0.3,4", "--leaderboard", str(tmp_path), *argv]) == 2
+    assert named in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
 
 
 def test_chunk_is_checked():

@@ -218,13 +218,12 @@ def test_cli_render_writes_a_gif_of_an_episode(tmp_path, capsys):
     assert main(["render", "--every", "0", "--out", str(out)]) == 2
 
 
-@pytest.mark.parametrize("bad", ["2/2", "-1/2", "1/0", "1", "a/b", "0/2/3"])
-def test_cli_best_known_shard_is_named_with_its_range(tmp_path, capsys, bad):
+@pytest.mark.parametrize("bad", ["local:0", "local:x", "nohost", "host:99999"])
+def test_cli_best_known_scheduler_is_named_with_its_forms(tmp_path, capsys, bad):
     from ffsr_gym.cli.main import main
 
-    assert main(["tasks", "best-known", "--work", str(tmp_path), f"--shard={bad}"]) == 2
-    err = capsys.readouterr().err
-    assert "--shard" in err and ("0 <= K < N" in err or "not an integer" in err)
+    assert main(["tasks", "best-known", "--work", str(tmp_path), f"--scheduler={bad}"]) == 2
+    assert "allowed: local:N" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())  # refused before any work
-    assert main(["tasks", "best-known", "--work", str(tmp_path), "--shard", "0/2", "--doubled", "1"]) == 2
-    assert "--shard" in capsys.readouterr().err
+    assert main(["tasks", "best-known", "--work", str(tmp_path), "--scheduler", "local:2", "--doubled", "1"]) == 2
+    assert "--scheduler with --doubled" in capsys.readouterr().err

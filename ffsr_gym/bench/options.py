@@ -1,8 +1,7 @@
 """Checks of command-line options and output places, made before any work starts.
 
 The ``argparse`` types (:func:`positive_int`, :func:`natural`, :func:`positive_float`,
-:func:`shard`) make a bad number an ``ffsr-gym: error: argument --x: ...`` line naming the option
-and the allowed range; :func:`writable_folder` and :func:`free_entry` refuse an output place that
+:func:`scheduler`) make a bad number or address an ``ffsr-gym: error: argument --x: ...`` line naming the option and the allowed range; :func:`writable_folder` and :func:`free_entry` refuse an output place that
 would lose the run's result at its end (a file where a folder is needed, a folder without write
 permission, an entry that a previous run saved).
 """
@@ -51,14 +50,23 @@ def positive_float(text: str) -> float:
     return value
 
 
-def shard(text: str) -> tuple[int, int]:
-    """``K/N``: the K-th of N interleaved shares of a pool (tasks whose index is K modulo N), 0 <= K < N."""
-    parts = text.split("/")
-    if len(parts) == 2:
-        k, n = (_integer(part) for part in parts)
-        if 0 <= k < n:
-            return k, n
-    raise argparse.ArgumentTypeError(f"{text!r}; allowed: K/N with integers 0 <= K < N, e.g. 0/2")
+def scheduler(text: str) -> str:
+    """``--scheduler``: ``local:N`` or a Dask scheduler's address, checked by :func:`ffsr_gym.cluster.parse_scheduler`."""
+    from ffsr_gym.cluster import parse_scheduler
+
+    try:
+        parse_scheduler(text)
+    except InvalidInputError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix(f"--scheduler {text!r}; ")) from None
+    return text
+
+
+def add_scheduler_option(parser: argparse.ArgumentParser, pieces: str) -> None:
+    """The ``--scheduler`` option of every long command, whose ``pieces`` run on the cluster it names."""
+    parser.add_argument("--scheduler", type=scheduler, default=None, metavar="ADDRESS",
+                        help=f"run the {pieces} on a Dask cluster: a scheduler's address (tcp://host:8786) or local:N "
+                             "(N single-threaded worker processes here); the same results as a local run "
+                             "(docs/cluster.md) (default: none)")
 
 
 def writable_folder(path: str | Path, option: str) -> Path:

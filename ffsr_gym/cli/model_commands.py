@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from ffsr_gym.bench.options import natural, positive_float, positive_int
+from ffsr_gym.bench.options import add_scheduler_option, natural, positive_float, positive_int
 
 
 def _info(args: argparse.Namespace) -> None:
@@ -83,9 +83,7 @@ def add_model_commands(sub: Any) -> None:
     ga.add_argument("--executor", default="process", choices=["process", "dask", "none"],
                     help="where objective evaluations run (default: process pool)")
     ga.add_argument("--workers", type=positive_int, default=None, help="worker processes (default: all cores)")
-    ga.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                    help="run the evaluations on a Dask cluster: a scheduler's address or local:N (overrides "
-                         "--executor; docs/cluster.md)")
+    add_scheduler_option(ga, "evaluations (instead of --executor)")
     ga.add_argument("--leaderboard", default=None, help="write leaderboard entries under this folder")
     ga.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ga.set_defaults(func=_ga)

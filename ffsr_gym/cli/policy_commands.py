@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from ffsr_gym.bench.options import natural, positive_float, positive_int
+from ffsr_gym.bench.options import add_scheduler_option, natural, positive_float, positive_int
 from ffsr_gym.cli.choices import algorithm_names
 from ffsr_gym.model.spec import all_splits, all_task_names, registered_ids
 
@@ -27,6 +27,7 @@ def add_policy_commands(sub: Any) -> None:
                          "(default: the package of the policy object's module)")
     ev.add_argument("--workers", type=positive_int, default=1,
                     help="pool versions: score the pool on this many processes; the same entry as with 1 (default: 1)")
+    add_scheduler_option(ev, "pool's episodes (instead of --workers); the same entry")
     ev.add_argument("--leaderboard", default=None,
                     help="write the entry under this leaderboard root: <root>/<version>/<tier>/ (a custom --scenario: "
                          "<root>/<version>/custom/, unranked) (default: do not write)")
@@ -126,6 +127,8 @@ def _evaluate(args: argparse.Namespace) -> None:
     custom = pooled and args.scenario is not None
     if args.workers > 1 and (not pooled or custom):
         raise InvalidInputError(f"--workers {args.workers}; more than 1 only for a tier's pool")
+    if args.scheduler is not None and (not pooled or custom):
+        raise InvalidInputError(f"--scheduler {args.scheduler}; only for a tier's pool")
     if args.seeds is not None and pooled and not custom:
         raise InvalidInputError("--seeds: a tier's pool is scored one episode per task; --seeds applies to a custom "
                                 "--scenario or to a version scored on seeds")
@@ -142,7 +145,7 @@ def _evaluate(args: argparse.Namespace) -> None:
             policy = _load_policy(args.policy, args.algo, args.trust_model, env)
     else:
         policy = _load_policy(args.policy, args.algo, args.trust_model)
-    with study_executor(None, args.workers) as (executor, _):
+    with study_executor(args.scheduler, args.workers) as (executor, _):
         report = evaluate(policy, args.env_id, name=args.name, progress=not args.no_progress, compute=compute,
                           seeds=args.seeds, policy_library=args.policy_library,
                           **(_env_kwargs(args) | {"training_pool": args.training_pool, "executor": executor} if pooled

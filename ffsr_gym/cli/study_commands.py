@@ -8,7 +8,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from ffsr_gym.bench.options import natural, positive_int, shard
+from ffsr_gym.bench.options import add_scheduler_option, natural, positive_int
 from ffsr_gym.cli.choices import algorithm_names, all_task_tiers, build_targets, capture_tiers, tier_versions
 from ffsr_gym.model.spec import all_task_names, registered_ids
 
@@ -55,7 +55,7 @@ def add_study_commands(sub: Any) -> None:
                                                 "envs/benchmark/<version>_tasks.json, or <version>_<tier>_tasks.json)")
     tb.add_argument("--chunk", type=positive_int, default=100, help="candidates per chunk (default: 100)")
     tb.add_argument("--workers", type=positive_int, default=2, help="worker processes (default: 2)")
-    _add_scheduler(tb, "chunks of candidates (instead of --workers)")
+    add_scheduler_option(tb, "chunks of candidates (instead of --workers)")
     tb.add_argument("--max-candidates", type=positive_int, default=50_000, help="give up after this many per split (default: 50000)")
     tb.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     tb.set_defaults(func=_tasks)
@@ -69,9 +69,6 @@ def add_study_commands(sub: Any) -> None:
                     help="pools searched (default: test validation)")
     bk.add_argument("--work", default="studies/best-known",
                     help="finished tasks, one jsonl per pool (default: studies/best-known, kept in git)")
-    bk.add_argument("--shard", type=shard, default=None, metavar="K/N",
-                    help="only the tasks whose index is K modulo N, into a work file of the shard's own: run N "
-                         "processes with 0/N ... N-1/N to share the pools (default: every task)")
     bk.add_argument("--doubled", type=positive_int, default=None, metavar="N",
                     help="instead: re-run N random stored tasks of these pools with twice the generations and store "
                          "the gap in the file")
@@ -79,7 +76,7 @@ def add_study_commands(sub: Any) -> None:
                     help="write the package's own best-known files (a build of each whole file, from a source "
                          "checkout); default: their copies inside --work")
     bk.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    _add_scheduler(bk, "tasks' searches")
+    add_scheduler_option(bk, "tasks' searches")
     bk.set_defaults(func=_tasks_best_known)
     tt = tasks_sub.add_parser("tables", help="the tier tables of a version's pool files (docs/envs.md shows them)")
     _add_version(tt)
@@ -136,12 +133,6 @@ def _executor(args: argparse.Namespace, local_workers: int = 1) -> Iterator[tupl
         yield pair
 
 
-def _add_scheduler(parser: argparse.ArgumentParser, pieces: str) -> None:
-    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                        help=f"run the {pieces} on a Dask cluster: a scheduler's address (tcp://host:8786) or local:N "
-                             "(N worker processes here); results are identical to a local run (docs/cluster.md)")
-
-
 def _tasks(args: argparse.Namespace) -> None:
     from ffsr_gym.tasks.build import build
 
@@ -172,11 +163,8 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
     if wrong:
         raise InvalidInputError(f"--tiers {wrong} with --version {args.version}; allowed: "
                                 f"{list(version_tiers(args.version))}")
-    if args.doubled and args.shard is not None:
-        raise InvalidInputError("--shard with --doubled; allowed: --shard only for the search (without --doubled)")
-    if args.scheduler is not None and (args.shard is not None or args.doubled):
-        raise InvalidInputError("--scheduler with --shard or --doubled; allowed: --scheduler for the search alone (a "
-                                "cluster shares the pools without shards)")
+    if args.scheduler is not None and args.doubled:
+        raise InvalidInputError("--scheduler with --doubled; allowed: --scheduler for the search alone")
     if args.doubled:
         rng = np.random.default_rng(0)
         stored = [(t, s, r["index"]) for t in args.tiers for s in args.splits for r in records(t, s, args.version)]
@@ -191,11 +179,10 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
     with _executor(args) as (executor, _):
         for tier in args.tiers:
             for split in args.splits:
-                build.run(tier, split, work, version=args.version, shard=args.shard, progress=not args.no_progress,
+                build.run(tier, split, work, version=args.version, progress=not args.no_progress,
                           executor=executor)
     command = shlex.join(["ffsr-gym", "tasks", "best-known", "--version", args.version, "--tiers", *args.tiers,
                           "--splits", *args.splits]
-                         + ([] if args.shard is None else ["--shard", "/".join(map(str, args.shard))])
                          + (["--write-shipped"] if args.write_shipped else []))
     for path in build.assemble(work, version=args.version, command=command, splits=args.splits,
                                shipped=args.write_shipped):

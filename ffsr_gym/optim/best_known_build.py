@@ -2,8 +2,8 @@
 
 Each (tier, split) is searched task by task into ``<work>/<tier>_<split>.jsonl`` (one line per
 finished task, appended and flushed; a line torn by a kill is ignored and that task searched
-again), so a killed run resumes at the task it was on. Processes sharing a pool each take a shard
-(every n-th task) into a file of their own, and every run skips the tasks any of them finished.
+again), so a killed run resumes at the task it was on. On a cluster (``executor``), each task is a piece of
+its own and this process appends the records as they arrive, so a killed worker loses only its task.
 :func:`assemble` writes every finished record into ``envs/benchmark/<version>_best_known.json``
 with the search budget, the pool files' hashes and provenance. :func:`convergence` re-runs a sample
 of tasks with twice the generations and stores how much the best known scores move (how far from
@@ -85,37 +85,25 @@ def _append(path: Path, record: dict[str, Any]) -> None:
         os.fsync(handle.fileno())
 
 
-def work_file(work: str | Path, tier: str, split: str, shard: tuple[int, int] | None = None) -> Path:
-    """Where a run writes one pool's records: ``<tier>_<split>.jsonl``, or ``<tier>_<split>.shard<K>of<N>.jsonl``."""
-    name = f"{tier}_{split}" if shard is None else f"{tier}_{split}.shard{shard[0]}of{shard[1]}"
-    return Path(work) / f"{name}.jsonl"
-
-
-def pool_files(work: str | Path, tier: str, split: str) -> list[Path]:
-    """Every work file of one pool: the unsharded one and its shards' (:func:`work_file`)."""
-    whole = work_file(work, tier, split)
-    return sorted(p for p in [whole, *Path(work).glob(f"{tier}_{split}.shard*of*.jsonl")] if p.is_file())
+def work_file(work: str | Path, tier: str, split: str) -> Path:
+    """Where a run writes one pool's records: ``<work>/<tier>_<split>.jsonl``."""
+    return Path(work) / f"{tier}_{split}.jsonl"
 
 
 def run(tier: str, split: str, work: str | Path, *, version: str = "v2", generations: int = search.GENERATIONS,
-        indices: list[int] | None = None, shard: tuple[int, int] | None = None, progress: bool = True,
-        executor: Executor | None = None) -> Path:
-    """Search every task of ``tier``'s ``split`` pool (or ``indices`` of it) not yet in one of the pool's work
-    files. With ``shard`` ``(k, n)``, only the tasks whose index is k modulo n, into a work file of the shard's
-    own, so that n processes share a pool without writing into one file. With ``executor`` (a cluster's,
-    :func:`ffsr_gym.cluster.cluster_executor`), each task is a piece of its own, and this process appends the
-    records as they arrive."""
+        indices: list[int] | None = None, progress: bool = True, executor: Executor | None = None) -> Path:
+    """Search every task of ``tier``'s ``split`` pool (or ``indices`` of it) not yet in the pool's work file
+    (:func:`work_file`). With ``executor`` (a cluster's, :func:`ffsr_gym.cluster.cluster_executor`), each task is a
+    piece of its own, and this process appends the records as they arrive."""
     benchmark = score_rule(spec_for_version(version)).benchmark
-    path = work_file(work, tier, split, shard)
+    path = work_file(work, tier, split)
     tasks = pool(tier, split, version=version)
     wanted = list(range(len(tasks))) if indices is None else list(indices)
-    if shard is not None:
-        wanted = [i for i in wanted if i % shard[1] == shard[0]]
-    done = {r["index"] for f in pool_files(work, tier, split) for r in read_lines(f) if r["generations"] == generations}
+    done = {r["index"] for r in read_lines(path) if r["generations"] == generations}
     todo = [i for i in wanted if i not in done]
     if not todo:
         return path
-    label = f"best known {tier}/{split}" + ("" if shard is None else f" shard {shard[0]}/{shard[1]}")
+    label = f"best known {tier}/{split}"
     if executor is not None:
         pieces = [executor.submit(search.search_task, tier, split, index, version, generations) for index in todo]
         for piece in tqdm(as_completed(pieces), total=len(pieces), desc=label, unit="task", disable=not progress):

@@ -7,14 +7,13 @@ study, :mod:`ffsr_gym.optim.rl`). Optuna's median pruner stops a trial whose val
 lies below the median of earlier trials at the same point. The test pool is never touched.
 
 The study lives in an SQLite file (``studies/tune/`` keeps it in git), so a killed search resumes
-with the trials it finished; :func:`summary` turns it into the JSON record shipped next to the
-hyperparameter files (search space, every trial, the best, and what the search cost). Needs ``pip install "ffsr-gym[tune]"``.
+with the trials it finished; :mod:`ffsr_gym.optim.tune_loop` runs the trials, here or on a cluster;
+:func:`summary` turns it into the JSON record shipped next to the hyperparameter files (search space, every
+trial, the best, and what the search cost). Needs ``pip install "ffsr-gym[tune]"``.
 """
 
 from __future__ import annotations
 
-import time
-from pathlib import Path
 from typing import Any
 
 from ffsr_gym.exceptions import InvalidInputError, require
@@ -70,39 +69,18 @@ def to_hyperparams(algo: str, values: dict[str, Any]) -> dict[str, Any]:
     return params
 
 
-def objective(algo: str, env_id: str, tier: str, timesteps: int, points: int, work: Path):
-    """The Optuna objective: a trial's best validation mean (pruned by the study's pruner)."""
-    optuna = optuna_module()
-    from ffsr_gym.bench.evaluation import spec_of
-    from ffsr_gym.optim.rl import train
-
-    residual = spec_of(env_id).is_residual(env_id)
-
-    def run(trial: Any) -> float:
-        params = to_hyperparams(algo, draw(trial, search_space(algo, residual)))
-        pruned = []
-
-        def on_point(steps: int, mean: float) -> bool:
-            trial.report(mean, steps)
-            if trial.should_prune():
-                pruned.append(steps)
-                return False
-            return True
-
-        start = time.perf_counter()
-        _, record = train(algo, env_id, seed=0, out=work / f"trial{trial.number}", task=tier, timesteps=timesteps,
-                          curve_every=max(1, timesteps // points), progress=False, params=params, on_point=on_point)
-        trial.set_user_attr("env_steps", record["trained_steps"])
-        trial.set_user_attr("wall_time_s", time.perf_counter() - start)
-        if pruned:
-            raise optuna.TrialPruned(f"validation mean below the median at {pruned[0]} steps")
-        return record["best_on_validation"]["validation_mean"]
-
-    return run
+def make_sampler() -> Any:
+    """The search's sampler: Optuna's TPE, seed 0."""
+    return optuna_module().samplers.TPESampler(seed=0)
 
 
-def summary(study: Any, *, algo: str, env_id: str, tier: str, timesteps: int, points: int,
-            command: str) -> dict[str, Any]:
+def make_pruner() -> Any:
+    """The search's pruner: Optuna's median pruner after 5 complete trials, from the second curve point on."""
+    return optuna_module().pruners.MedianPruner(n_startup_trials=5, n_warmup_steps=1)
+
+
+def summary(study: Any, *, algo: str, env_id: str, tier: str, timesteps: int, points: int, command: str,
+            batch: int = 1) -> dict[str, Any]:
     """The search as its shipped record: space, trials, the best trial's hyperparameters, cost, provenance."""
     from ffsr_gym.bench.evaluation import spec_of
     from ffsr_gym.provenance import provenance
@@ -122,7 +100,9 @@ def summary(study: Any, *, algo: str, env_id: str, tier: str, timesteps: int, po
             "objective": "best mean score on the whole validation pool over the trial's curve points "
                          "(deterministic actions)",
             "trial": {"env_steps": timesteps, "curve_points": points, "seed": 0, "n_envs": N_ENVS[algo]},
-            "sampler": "optuna TPESampler(seed=0)", "pruner": "optuna MedianPruner(n_startup_trials=5, n_warmup_steps=1)",
+            "sampler": "optuna TPESampler(seed=0)",
+            "pruner": "optuna MedianPruner(n_startup_trials=5, n_warmup_steps=1)",
+            **({} if batch == 1 else {"batch": batch}),
             "space": {k: (list(v) if isinstance(v, tuple) else v) for k, v in space.items()},
             "trials": trials, "best": {"number": best.number, "value": best.value, "params": best.params,
                                        "hyperparams": to_hyperparams(algo, best.params)},
