@@ -28,6 +28,7 @@ ALLOWED = {
     "bench": {"model", "planning", "sim", "scoring", "tasks", "environments"},
     "report": {"model", "planning", "sim", "scoring", "tasks"},  # tasks: the tier names the figures order
     "optim": {"model", "planning", "sim", "scoring", "tasks", "environments", "bench", "report"},
+    "jax": {"model", "planning", "kernel", "sim", "scoring", "tasks", "environments"},  # the loop in JAX
     "cli": {"model", "planning", "sim", "scoring", "tasks", "environments", "bench", "report", "optim"},  # the front
 }
 PHYSICS_STAGES = ("model", "planning", "kernel", "sim", "scoring", "tasks")
