@@ -49,8 +49,9 @@ class PlanTask:
 
     Path: ``start_position``, ``target_position`` [m], ``start_attitude`` (w, x, y, z), the rotation to the
     target as ``axis`` and ``angle`` [rad], ``motion_time``, ``accel_time`` [s]. Base set-point: ``base_position``
-    [m], ``base_attitude`` (w, x, y, z). Obstacles: ``obstacle_position`` (n, 3) [m] at t = 0 and
-    ``obstacle_velocity`` (n, 3) [m/s], ``danger_radius`` [m] (the first obstacle's). ``momentum``: the conserved
+    [m], ``base_attitude`` (w, x, y, z). Obstacles: ``obstacle_position`` (n, 3) [m] at t = 0,
+    ``obstacle_velocity`` (n, 3) [m/s], ``obstacle_mask`` (n,): 1 for an obstacle, 0 for a padding row (so that
+    tasks with fewer obstacles stack with the others), ``danger_radius`` [m] (the first obstacle's). ``momentum``: the conserved
     [P; L_G]. Settings: ``m``, ``T_c`` [s], ``gain`` [1/s] (proportional), ``lambda_max``, ``epsilon`` (mission,
     balance), ``cdf_k1``, ``cdf_xi``, ``cdf_delta``.
     """
@@ -66,6 +67,7 @@ class PlanTask:
     base_attitude: jnp.ndarray
     obstacle_position: jnp.ndarray
     obstacle_velocity: jnp.ndarray
+    obstacle_mask: jnp.ndarray
     danger_radius: jnp.ndarray
     momentum: jnp.ndarray
     m: jnp.ndarray
@@ -243,7 +245,10 @@ def _avoidance(arm, kin: Kinematics, t, task: PlanTask, rules: PlanRules):
     cdf, distance, grad = 0.0, jnp.inf, jnp.zeros(6)
     for o in range(task.n_obstacles):
         part, nearest, g = danger(points, kin.z[rows], positions[o], task.cdf_k1, rules.segments[arm])
-        cdf, distance, grad = cdf + part, jnp.minimum(distance, nearest), grad + g
+        real = task.obstacle_mask[o] > 0.0
+        cdf = cdf + jnp.where(real, part, 0.0)
+        distance = jnp.minimum(distance, jnp.where(real, nearest, jnp.inf))
+        grad = grad + jnp.where(real, g, 0.0)
     if rules.mu_law == "cdf":
         mu = jnp.where(cdf <= task.cdf_delta, 1.0, task.cdf_delta / jnp.where(cdf > 0.0, cdf, 1.0))
     else:

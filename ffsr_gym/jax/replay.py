@@ -1,0 +1,62 @@
+"""Whole episodes of a pool's tasks in one compiled call: every task's certificate (or any constant action)
+played by the JAX episode at once (``vmap`` over the tasks, ``lax.scan`` over the decisions).
+
+This is how the JAX loop is checked against the kernel: the stored certificates of a tier's pool, replayed, must
+give the stored verdicts and scores (``benchmarks/jax_agreement.py``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ffsr_gym.jax.collision import shapes_of
+from ffsr_gym.jax.episode import EpisodeTask, reset, stacked, step
+from ffsr_gym.jax.physics import jax, jnp
+from ffsr_gym.jax.scenario import episode_task
+from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.model.obstacles import obstacle_field
+from ffsr_gym.sim.setup import robot_assets
+from ffsr_gym.tasks.splits import pool, task_scenario
+
+
+def certificate_tasks(tier: str, split: str = "test", *, version: str = "v2", indices: list[int] | None = None):
+    """``(model, rules, tasks, actions, stored)`` of a pool's certificates: the stacked :class:`EpisodeTask` of
+    each task with its certificate's (m, T_c), the certificate's residual action (zeros for a constant one, as
+    float32 the environments see, in float64) and the stored certificate scores."""
+    benchmark = load_benchmark(version)
+    chosen = list(pool(tier, split, version=version))
+    chosen = chosen if indices is None else [chosen[i] for i in indices]
+    scenarios = [task_scenario(tier, t.seed, benchmark) for t in chosen]
+    most = max(len(obstacle_field(s)) for s in scenarios)
+    built = [episode_task(s, version=version, m=t.certificate.m, T_c=t.certificate.T_c_s, obstacles=most)
+             for s, t in zip(scenarios, chosen)]
+    model, rules = built[0][0], built[0][1]
+    actions = np.array([np.asarray(t.certificate.residual if t.certificate.residual is not None else np.zeros(12),
+                                   dtype=np.float32) for t in chosen], dtype=np.float64)
+    return (model, rules, stacked([b[2] for b in built]), jnp.asarray(actions),
+            np.array([t.certificate_score for t in chosen]))
+
+
+def play(model: Any, rules: Any, tasks: EpisodeTask, actions: jnp.ndarray) -> dict[str, np.ndarray]:
+    """Play every stacked task to its end with its constant action: score, success, status, smoothness cost,
+    peak rates [deg/s], smallest clearances [m], the final state and step, one row per task."""
+    shapes = shapes_of(robot_assets("ffsr_dual_arm").kernel)
+    decisions = -(-tasks.n_steps // tasks.steps_per_decision)
+
+    def one(task, action):
+        state, _ = reset(model, shapes, rules, task)
+
+        def decide(carry, _):
+            state, score, success = carry
+            state, _, _, info = step(model, shapes, rules, task, state, action)
+            return (state, info["score"], info["success"]), None
+
+        (state, score, success), _ = jax.lax.scan(decide, (state, jnp.array(0.0), jnp.array(False)), None,
+                                                  length=decisions)
+        return {"score": score, "success": success, "status": state.status, "cost": state.cost, "peak": state.peak,
+                "min_clear": state.min_clear, "min_self": state.min_self, "x": state.x, "k": state.k}
+
+    out = jax.jit(jax.vmap(one))(tasks, actions)
+    return {key: np.asarray(value) for key, value in out.items()}
