@@ -114,8 +114,9 @@ def observe(model: Model, shapes: Shapes, rules: PlanRules, task: EpisodeTask, s
 
 def reset(model: Model, shapes: Shapes, rules: PlanRules, task: EpisodeTask) -> tuple[EpisodeState, Observed]:
     """The episode's first state and observation (the task's own (m, T_c), no rate applied yet)."""
-    state = EpisodeState(task.x0, jnp.array(0), jnp.zeros(12), jnp.array(0.0), task.plan.m, task.plan.T_c,
-                         jnp.array(STATUS_OK), jnp.zeros(2), jnp.array(jnp.inf), jnp.array(jnp.inf), jnp.array(False))
+    state = EpisodeState(task.x0, jnp.zeros((), jnp.int64), jnp.zeros(12), jnp.zeros(()), task.plan.m, task.plan.T_c,
+                         jnp.full((), STATUS_OK, jnp.int64), jnp.zeros(2), jnp.full((), jnp.inf), jnp.full((), jnp.inf),
+                         jnp.zeros((), bool))  # strong types: a jitted step takes its own output again, no retrace
     seen = observe(model, shapes, rules, task, state)
     return state._replace(min_clear=seen.clearance, min_self=seen.self_clearance), seen
 

@@ -21,22 +21,30 @@ from ffsr_gym.sim.setup import robot_assets
 from ffsr_gym.tasks.splits import pool, task_scenario
 
 
-def certificate_tasks(tier: str, split: str = "test", *, version: str = "v2", indices: list[int] | None = None):
-    """``(model, rules, tasks, actions, stored)`` of a pool's certificates: the stacked :class:`EpisodeTask` of
-    each task with its certificate's (m, T_c), the certificate's residual action (zeros for a constant one, as
-    float32 the environments see, in float64) and the stored certificate scores."""
+def pool_tasks(tier: str, split: str, *, residual: bool = True, version: str = "v2",
+               indices: list[int] | None = None, certificates: bool = False):
+    """``(model, rules, tasks, records)``: a pool's tasks (or ``indices`` of it) as one stacked
+    :class:`EpisodeTask` (obstacle rows padded to the pool's most), with the task's own (m, T_c), or with each
+    certificate's; ``records``: the pool's task records (seed, certificate, stored score)."""
     benchmark = load_benchmark(version)
     chosen = list(pool(tier, split, version=version))
     chosen = chosen if indices is None else [chosen[i] for i in indices]
     scenarios = [task_scenario(tier, t.seed, benchmark) for t in chosen]
     most = max(len(obstacle_field(s)) for s in scenarios)
-    built = [episode_task(s, version=version, m=t.certificate.m, T_c=t.certificate.T_c_s, obstacles=most)
+    built = [episode_task(s, residual=residual, version=version, obstacles=most,
+                          **({"m": t.certificate.m, "T_c": t.certificate.T_c_s} if certificates else {}))
              for s, t in zip(scenarios, chosen)]
-    model, rules = built[0][0], built[0][1]
+    return built[0][0], built[0][1], stacked([b[2] for b in built]), chosen
+
+
+def certificate_tasks(tier: str, split: str = "test", *, version: str = "v2", indices: list[int] | None = None):
+    """``(model, rules, tasks, actions, stored)`` of a pool's certificates: the stacked :class:`EpisodeTask` of
+    each task with its certificate's (m, T_c), the certificate's residual action (zeros for a constant one, as
+    float32 the environments see, in float64) and the stored certificate scores."""
+    model, rules, tasks, chosen = pool_tasks(tier, split, version=version, indices=indices, certificates=True)
     actions = np.array([np.asarray(t.certificate.residual if t.certificate.residual is not None else np.zeros(12),
                                    dtype=np.float32) for t in chosen], dtype=np.float64)
-    return (model, rules, stacked([b[2] for b in built]), jnp.asarray(actions),
-            np.array([t.certificate_score for t in chosen]))
+    return model, rules, tasks, jnp.asarray(actions), np.array([t.certificate_score for t in chosen])
 
 
 def play(model: Any, rules: Any, tasks: EpisodeTask, actions: jnp.ndarray) -> dict[str, np.ndarray]:
