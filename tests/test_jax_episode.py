@@ -60,3 +60,24 @@ def test_certificates_replay_to_their_stored_verdicts(tier):
     assert np.array_equal(out["success"], stored > 0.0)
     np.testing.assert_allclose(out["score"], stored, rtol=2e-3)
     assert np.all(out["k"] == tasks.n_steps) and np.all(out["status"] == 0)
+
+
+@pytest.mark.slow
+def test_the_episode_cost_gradient_matches_central_differences():
+    """d C / d knots through the whole closed loop (2000 physics steps) against central differences of the
+    episode itself, on a task whose success the perturbations do not change."""
+    from ffsr_gym.jax.gradient import episode, span
+
+    t = pool("easy", "test")[1]
+    scenario = task_scenario("easy", t.seed, load_benchmark("v2"))
+    model, rules, task = episode_task(scenario)
+    spread = span(task, scenario.env.decision_interval_s, scenario.desired_path.motion_time_s)
+    knots = jnp.full((4, 12), 0.05)
+    play = jax.jit(lambda k: episode(model, SHAPES, rules, task, k, spread))
+    gradient = np.asarray(jax.grad(lambda k: episode(model, SHAPES, rules, task, k, spread).cost)(knots))
+    for i, j in [(0, 0), (0, 2), (2, 7), (3, 11)]:
+        e = jnp.zeros((4, 12)).at[i, j].set(1e-3)
+        up, down = play(knots + e), play(knots - e)
+        assert bool(up.success) and bool(down.success)
+        fd = (float(up.cost) - float(down.cost)) / 2e-3
+        assert fd == pytest.approx(gradient[i, j], rel=1e-3)
