@@ -15,8 +15,7 @@ from typing import Any
 import numpy as np
 
 from ffsr_gym.tasks import reference
-from ffsr_gym.tasks.splits import version_splits
-from ffsr_gym.tasks.tiers import ALL_TIERS
+from ffsr_gym.tasks.splits import version_splits, version_tiers
 
 
 def reference_scores(entry: dict[str, Any], version: str) -> np.ndarray | None:
@@ -27,7 +26,7 @@ def reference_scores(entry: dict[str, Any], version: str) -> np.ndarray | None:
     if not isinstance(where, str) or extra.get("custom_task") is not None:
         return None
     tier, _, split = where.partition("/")
-    if tier not in ALL_TIERS or split not in version_splits(version):
+    if tier not in version_tiers(version) or split not in version_splits(version):
         return None
     return reference.reference_scores(tier, split, version)
 

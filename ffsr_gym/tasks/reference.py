@@ -25,8 +25,7 @@ from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.provenance import provenance, write_json_atomic
 from ffsr_gym.tasks import best_known
-from ffsr_gym.tasks.splits import live_version, pool, version_splits
-from ffsr_gym.tasks.tiers import ALL_TIERS
+from ffsr_gym.tasks.splits import live_version, pool, version_splits, version_tiers
 
 #: The pools a reference covers (the training pools are never scored by an entry).
 SPLITS = ("test", "validation")
@@ -97,7 +96,7 @@ def freeze(version: str | None = None, *, out: str | Path | None = None, command
     if not source.is_file():
         raise InvalidInputError(f"{source}: no best-known file to freeze")
     scores: dict[str, dict[str, list[float]]] = {}
-    for tier in ALL_TIERS:
+    for tier in version_tiers(version):
         for split in (s for s in SPLITS if s in version_splits(version)):
             values = best_known.scores(tier, split, len(pool(tier, split, version=version)), version)
             if values is not None:
