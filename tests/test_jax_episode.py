@@ -53,7 +53,7 @@ def test_decisions_match_the_environment_step_by_step(tier):
             assert not terminated and not truncated and not bool(state.done)
 
 
-@pytest.mark.parametrize("tier", ["hard", "debris"])
+@pytest.mark.parametrize("tier", [pytest.param("hard", marks=pytest.mark.slow), "debris"])
 def test_certificates_replay_to_their_stored_verdicts(tier):
     model, rules, tasks, actions, stored = certificate_tasks(tier, indices=[0, 1])
     out = play(model, rules, tasks, actions)

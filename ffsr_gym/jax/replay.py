@@ -7,6 +7,7 @@ give the stored verdicts and scores (``benchmarks/jax_agreement.py``).
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -47,24 +48,30 @@ def certificate_tasks(tier: str, split: str = "test", *, version: str = "v2", in
     return model, rules, tasks, jnp.asarray(actions), np.array([t.certificate_score for t in chosen])
 
 
+def _episode(model: Any, shapes: Any, rules: Any, task: EpisodeTask, action: jnp.ndarray) -> dict:
+    """One task played to its end with a constant action."""
+    state, _ = reset(model, shapes, rules, task)
+
+    def decide(carry, _):
+        state, score, success = carry
+        state, _, _, info = step(model, shapes, rules, task, state, action)
+        return (state, info["score"], info["success"]), None
+
+    decisions = -(-task.n_steps // task.steps_per_decision)
+    (state, score, success), _ = jax.lax.scan(decide, (state, jnp.zeros(()), jnp.zeros((), bool)), None,
+                                              length=decisions)
+    return {"score": score, "success": success, "status": state.status, "cost": state.cost, "peak": state.peak,
+            "min_clear": state.min_clear, "min_self": state.min_self, "x": state.x, "k": state.k}
+
+
+@partial(jax.jit, static_argnums=2)
+def _play(model: Any, shapes: Any, rules: Any, tasks: EpisodeTask, actions: jnp.ndarray) -> dict:
+    return jax.vmap(lambda task, action: _episode(model, shapes, rules, task, action))(tasks, actions)
+
+
 def play(model: Any, rules: Any, tasks: EpisodeTask, actions: jnp.ndarray) -> dict[str, np.ndarray]:
     """Play every stacked task to its end with its constant action: score, success, status, smoothness cost,
-    peak rates [deg/s], smallest clearances [m], the final state and step, one row per task."""
-    shapes = shapes_of(robot_assets("ffsr_dual_arm").kernel)
-    decisions = -(-tasks.n_steps // tasks.steps_per_decision)
-
-    def one(task, action):
-        state, _ = reset(model, shapes, rules, task)
-
-        def decide(carry, _):
-            state, score, success = carry
-            state, _, _, info = step(model, shapes, rules, task, state, action)
-            return (state, info["score"], info["success"]), None
-
-        (state, score, success), _ = jax.lax.scan(decide, (state, jnp.array(0.0), jnp.array(False)), None,
-                                                  length=decisions)
-        return {"score": score, "success": success, "status": state.status, "cost": state.cost, "peak": state.peak,
-                "min_clear": state.min_clear, "min_self": state.min_self, "x": state.x, "k": state.k}
-
-    out = jax.jit(jax.vmap(one))(tasks, actions)
+    peak rates [deg/s], smallest clearances [m], the final state and step, one row per task. Compiled once per
+    shape of the stack (obstacle rows, tasks) and planner rules."""
+    out = _play(model, shapes_of(robot_assets("ffsr_dual_arm").kernel), rules, tasks, actions)
     return {key: np.asarray(value) for key, value in out.items()}
