@@ -1,8 +1,9 @@
 """Checks of command-line options and output places, made before any work starts.
 
 The ``argparse`` types (:func:`positive_int`, :func:`natural`, :func:`positive_float`,
-:func:`scheduler`) make a bad number or address an ``ffsr-gym: error: argument --x: ...`` line naming the option and the allowed range; :func:`writable_folder` and :func:`free_entry` refuse an output place that
-would lose the run's result at its end (a file where a folder is needed, a folder without write
+:func:`scheduler`) make a bad number or address an ``ffsr-gym: error: argument --x: ...`` line naming
+the option and the allowed range; :func:`writable_folder` and :func:`free_entry` refuse an output
+place that would lose the run's result at its end (a file where a folder is needed, a folder without write
 permission, an entry that a previous run saved).
 """
 
