@@ -6,6 +6,7 @@ central differences."""
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -85,3 +86,12 @@ def test_the_planners_gradient_matches_finite_differences():
     grad = np.asarray(jax.grad(f)(point))
     fd = np.array([(f(point + e) - f(point - e)) / 2e-6 for e in (jnp.array([1e-6, 0.0]), jnp.array([0.0, 1e-6]))])
     np.testing.assert_allclose(grad, fd, rtol=1e-6)
+
+
+@pytest.mark.parametrize(("tier", "named"), [("robust", "[target_noise]"), ("servo", "[servo]")])
+def test_what_the_jax_loop_does_not_cover_is_refused_by_name(tier, named):
+    from ffsr_gym.exceptions import InvalidInputError
+
+    scenario = task_scenario(tier, pool(tier, "test")[0].seed, load_benchmark("v2"))
+    with pytest.raises(InvalidInputError, match=re.escape(named)):
+        from_scenario(scenario)
