@@ -21,6 +21,7 @@ from ffsr_gym.jax.brax_env import FFSRBraxEnv  # noqa: E402
 from ffsr_gym.jax.vector import FFSRJaxVectorEnv  # noqa: E402
 
 
+@pytest.mark.slow
 def test_brax_wrappers_step_the_env_without_retracing():
     from brax.envs.wrappers.training import wrap
 

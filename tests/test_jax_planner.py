@@ -40,7 +40,8 @@ def _scenario(name):
     return task_scenario(name, pool(name, "test")[3].seed, load_benchmark("v2"))
 
 
-@pytest.mark.parametrize("name", ["paper", "easy", "medium", "hard", "debris", "hard-near", "debris-near"])
+@pytest.mark.parametrize("name", ["paper", *(pytest.param(n, marks=pytest.mark.slow) for n in ("easy", "medium", "hard")),
+                                  "debris", "hard-near", "debris-near"])
 def test_the_jax_planner_decides_what_the_numpy_planner_decides(name):
     scenario = _scenario(name)
     setup = prepare(scenario)
@@ -74,6 +75,7 @@ def test_the_jax_planner_decides_what_the_numpy_planner_decides(name):
         assert avoided > 0  # the avoidance branch was compared, not only tracking
 
 
+@pytest.mark.slow
 def test_the_planners_gradient_matches_finite_differences():
     model, task, rules, x0 = from_scenario(_scenario("hard"))
     weights = jnp.asarray(np.random.default_rng(8).normal(size=12))
