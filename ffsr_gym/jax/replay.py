@@ -75,3 +75,26 @@ def play(model: Any, rules: Any, tasks: EpisodeTask, actions: jnp.ndarray) -> di
     shape of the stack (obstacle rows, tasks) and planner rules."""
     out = _play(model, shapes_of(robot_assets("ffsr_dual_arm").kernel), rules, tasks, actions)
     return {key: np.asarray(value) for key, value in out.items()}
+
+
+@partial(jax.jit, static_argnums=(2, 5))
+def _play_policy(model: Any, shapes: Any, rules: Any, tasks: EpisodeTask, params: Any, act: Any) -> jnp.ndarray:
+    def one(task):
+        state, seen = reset(model, shapes, rules, task)
+
+        def decide(carry, _):
+            state, obs, score = carry
+            state, seen, _, info = step(model, shapes, rules, task, state, act(params, obs).astype(jnp.float64))
+            return (state, seen.obs, info["score"]), None
+
+        decisions = -(-task.n_steps // task.steps_per_decision)
+        (_, _, score), _ = jax.lax.scan(decide, (state, seen.obs, jnp.zeros(())), None, length=decisions)
+        return score
+
+    return jax.vmap(one)(tasks)
+
+
+def play_policy(model: Any, rules: Any, tasks: EpisodeTask, params: Any, act: Any) -> np.ndarray:
+    """Every stacked task's score under a JAX policy ``act(params, obs) -> action`` (deterministic; the same
+    ``act`` object compiles once, whatever its ``params``): how a checkpoint is scored on a whole pool."""
+    return np.asarray(_play_policy(model, shapes_of(robot_assets("ffsr_dual_arm").kernel), rules, tasks, params, act))

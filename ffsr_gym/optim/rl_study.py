@@ -94,7 +94,7 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
         prov = provenance(**({"scenarios": scenarios} if scenarios else {}), seeds=seeds,
                           wall_time_s=time.perf_counter() - start)
         if traces[checkpoint]:  # ``verify`` replays every seed's episodes from their applied actions
-            extra["trace"] = _merged_traces(traces[checkpoint])
+            extra["trace"] = merged_traces(traces[checkpoint])
         name = entry_name(algo, spec, env_id, task) + CHECKPOINTS[checkpoint]
         reports[checkpoint] = EvalReport(env_id, env_kwargs, score_rule(spec).aggregate(rows[checkpoint]),
                                          rows[checkpoint], prov, name=name, extra=extra, score_rule=spec.score.text)
@@ -138,7 +138,7 @@ def _evaluation(model: Any, spec: BenchmarkSpec, env_id: str, task: str, folder:
     return evaluation
 
 
-def _merged_traces(traces: list[dict[str, Any]]) -> dict[str, Any]:
+def merged_traces(traces: list[dict[str, Any]]) -> dict[str, Any]:
     """One trace record of the seeds' evaluations, row after row (the clipped decisions while every seed has them)."""
     merged = traces[0] | {"episodes": [text for trace in traces for text in trace["episodes"]]}
     merged.pop("clipped", None)
