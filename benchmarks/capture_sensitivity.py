@@ -29,7 +29,7 @@ from tqdm.auto import tqdm
 from ffsr_gym.bench.leaderboard import load_entries, ordered, verified
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.spec import spec_for_version
-from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic, write_text_atomic
+from ffsr_gym.provenance import provenance, splice_file, write_json_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
 from ffsr_gym.tasks.certificate import planner_episode
@@ -143,8 +143,7 @@ def main(argv: list[str] | None = None) -> int:
             "danger_radius": radius_rows(), "provenance": provenance(command=" ".join(["python", *sys.argv]))}
     write_json_atomic(Path(args.out), json.loads(json.dumps(data)))
     if args.docs:
-        docs = Path(args.docs)
-        write_text_atomic(docs, splice_generated(docs.read_text(encoding="utf-8"), START, END, docs_text(data)))
+        splice_file(args.docs, START, END, docs_text(data))
     print(docs_text(data))
     return 0
 

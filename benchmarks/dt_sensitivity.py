@@ -41,7 +41,7 @@ from tqdm.auto import tqdm
 
 from ffsr_gym.model.benchmark import CAPTURE_VERSIONS, VERSIONS, load_benchmark
 from ffsr_gym.model.scenario import Scenario
-from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic, write_text_atomic
+from ffsr_gym.provenance import provenance, splice_file, write_json_atomic
 from ffsr_gym.scoring.aggregate import iqm
 from ffsr_gym.tasks.build import build_split
 from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
@@ -263,7 +263,7 @@ def main(argv: list[str] | None = None) -> int:
                  else f"test pools of the {args.version} pool files")
         text = docs_text(data["summary"], args.summary, commit, args.tasks, args.version, pools)
         start, end = markers(args.version)
-        write_text_atomic(docs, splice_generated(docs.read_text(encoding="utf-8"), start, end, text))
+        splice_file(docs, start, end, text)
     for law in study_laws(args.version):
         print(f"\n{law}:\n{table(data['summary'], law)}")
     return 0

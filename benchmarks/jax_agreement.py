@@ -33,7 +33,7 @@ from ffsr_gym.jax.replay import certificate_tasks, play
 from ffsr_gym.jax.scenario import episode_task
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.quaternion import wxyz_from_xyzw
-from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic, write_text_atomic
+from ffsr_gym.provenance import provenance, splice_file, write_json_atomic
 from ffsr_gym.sim.setup import robot_assets
 from ffsr_gym.tasks.certificate import replay
 from ffsr_gym.tasks.splits import pool, task_scenario
@@ -144,8 +144,7 @@ def main(argv: list[str] | None = None) -> int:
         write_json_atomic(path, result)
         print(tier, json.dumps(result["tiers"][tier]), flush=True)
     if args.docs:
-        docs = Path(args.docs)
-        write_text_atomic(docs, splice_generated(docs.read_text(encoding="utf-8"), START, END, docs_text(result)))
+        splice_file(args.docs, START, END, docs_text(result))
     print(docs_text(result))
     return 0
 

@@ -187,6 +187,13 @@ def splice_generated(text: str, start: str, end: str, body: str, *, where: str =
     return f"{head}{start}\n{body}{end}{tail}"
 
 
+def splice_file(path: str | Path, start: str, end: str, body: str) -> None:
+    """Put ``body`` between the markers of the file at ``path`` (:func:`splice_generated`), written atomically:
+    how a measurement's script writes its generated block into a docs page."""
+    path = Path(path)
+    write_text_atomic(path, splice_generated(path.read_text(encoding="utf-8"), start, end, body, where=str(path)))
+
+
 def write_json_atomic(path: str | Path, data: Any) -> None:
     """Write ``data`` as indented JSON, atomically (see :func:`write_text_atomic`)."""
     write_text_atomic(path, json.dumps(data, indent=2, sort_keys=False, allow_nan=False) + "\n")
