@@ -32,7 +32,7 @@ SHAPES = shapes_of(robot_assets("ffsr_dual_arm").kernel)
 @pytest.mark.parametrize("tier", ["debris"])
 def test_decisions_match_the_environment_step_by_step(tier):
     """The first 40 decisions (4 s) of a residual certificate, side by side with ``FFSR-Residual-v2`` (debris: two
-    or more obstacles, drifting)."""
+    or more obstacles, drifting); then a NaN action."""
     index = next(i for i, t in enumerate(pool(tier, "test")) if t.certificate.residual is not None)
     task_record = pool(tier, "test")[index]
     scenario = task_scenario(tier, task_record.seed, load_benchmark("v2"))
@@ -51,6 +51,12 @@ def test_decisions_match_the_environment_step_by_step(tier):
             assert float(jax_info["smoothness_increment"]) == pytest.approx(info["smoothness_increment"], rel=1e-9)
             assert float(jax_info["cost"]) == pytest.approx(info["cost"], abs=1e-12)
             assert not terminated and not truncated and not bool(state.done)
+    # A compiled step cannot raise: a non-finite action shows as a failed end that moved nothing, never NaN states.
+    after, seen_after, reward, info = step(state, jnp.full(12, jnp.nan))
+    assert bool(after.done) and int(info["status"]) == ep.STATUS_BAD_ACTION and not bool(info["success"])
+    np.testing.assert_array_equal(after.x, state.x)
+    np.testing.assert_array_equal(seen_after.obs, seen.obs)
+    assert float(reward) == pytest.approx(-1.0 / (1.0 + float(state.cost))) and float(info["score"]) == 0.0
 
 
 @pytest.mark.parametrize("tier", [pytest.param("hard", marks=pytest.mark.slow), "debris"])
@@ -81,3 +87,4 @@ def test_the_episode_cost_gradient_matches_central_differences():
         assert bool(up.success) and bool(down.success)
         fd = (float(up.cost) - float(down.cost)) / 2e-3
         assert fd == pytest.approx(gradient[i, j], rel=1e-3)
+

@@ -21,8 +21,10 @@ from ffsr_gym.jax.physics import Model, jax, jnp, kinematics, midpoint
 from ffsr_gym.jax.planner import PlanRules, PlanTask, plan
 from ffsr_gym.kernel import decision
 
-#: Status codes of a decision (``ffsr_gym.kernel.loop``): running, a rate above the limit, a collision.
-STATUS_OK, STATUS_RATE, STATUS_COLLISION = 0, 1, 2
+#: Status codes of a decision (``ffsr_gym.kernel.loop``): running, a rate above the limit, a collision, and a
+#: non-finite action (``ffsr_gym.kernel.decision.STATUS_BAD_ACTION``: nothing is done, the episode ends as failed;
+#: a compiled function cannot raise, so this is how a NaN action shows instead of NaN states).
+STATUS_OK, STATUS_RATE, STATUS_COLLISION, STATUS_BAD_ACTION = 0, 1, 2, decision.STATUS_BAD_ACTION
 RESIDUAL, PARAMETERS = decision.MODE_RESIDUAL, decision.MODE_PARAMETERS
 
 
@@ -148,9 +150,11 @@ def step(model: Model, shapes: Shapes, rules: PlanRules, task: EpisodeTask, stat
          action: jnp.ndarray) -> tuple[EpisodeState, Observed, jnp.ndarray, dict]:
     """One decision: ``(state, observed, reward, info)``; ``info`` holds the smoothness increment, the violation
     cost, the rows stepped, the status and, once ``state.done``, the score and success. A finished episode's
-    step changes nothing and rewards 0."""
+    step changes nothing and rewards 0. A non-finite action moves nothing and ends the episode as failed
+    (status :data:`STATUS_BAD_ACTION`, score 0)."""
     s = task.settings
-    a = jnp.clip(action, -1.0, 1.0)
+    bad = ~jnp.all(jnp.isfinite(action))
+    a = jnp.clip(jnp.where(bad, 0.0, action), -1.0, 1.0)
     t0 = state.k * task.dt
     if task.mode == RESIDUAL:
         residual = _fade(task, t0) * (s[decision.D_RATE_SCALE] * a)
@@ -186,8 +190,17 @@ def step(model: Model, shapes: Shapes, rules: PlanRules, task: EpisodeTask, stat
     success, score = judge(task, final, seen.ee_error)
     value_before = 1.0 / (1.0 + state.cost)
     reward = jnp.where(ended, score - value_before, 1.0 / (1.0 + final.cost) - value_before)
+    refused = bad & ~state.done  # nothing moves; the episode ends, failed
+    kept = state._replace(status=jnp.full((), STATUS_BAD_ACTION, jnp.int64), done=jnp.ones((), bool))
+    final = jax.tree_util.tree_map(lambda new, old: jnp.where(refused, old, new), final, kept)
+    reward = jnp.where(refused, -value_before, reward)
     reward = jnp.where(state.done, 0.0, reward)
     final = jax.tree_util.tree_map(lambda new, old: jnp.where(state.done, old, new), final, state)
+    status = jnp.where(refused, STATUS_BAD_ACTION, status)
+    success, score = success & ~refused, jnp.where(refused, 0.0, score)
+    seen = jax.tree_util.tree_map(lambda new, old: jnp.where(refused, old, new), seen,
+                                  observe(model, shapes, rules, task, state))  # a refused decision shows where it was
+    increment, cost, rows = (jnp.where(refused, 0, v) for v in (increment, cost, rows))
     info = {"smoothness_increment": increment, "cost": cost, "rows": rows, "status": status, "score": score,
             "success": success, "terminated": status != STATUS_OK, "truncated": (status == STATUS_OK) & ended}
     return final, seen, reward, info
