@@ -71,7 +71,9 @@ def test_certificates_replay_to_their_stored_verdicts(tier):
 @pytest.mark.slow
 def test_the_episode_cost_gradient_matches_central_differences():
     """d C / d knots through the whole closed loop (2000 physics steps) against central differences of the
-    episode itself, on a task whose success the perturbations do not change."""
+    episode itself (step 1e-4: at 1e-3 the largest component's difference quotient is 0.9 % off by curvature, and
+    it converges onto the gradient as the step shrinks), on a task whose success the perturbations do not
+    change."""
     from ffsr_gym.jax.gradient import episode, span
 
     t = pool("easy", "test")[1]
@@ -82,9 +84,9 @@ def test_the_episode_cost_gradient_matches_central_differences():
     play = jax.jit(lambda k: episode(model, SHAPES, rules, task, k, spread))
     gradient = np.asarray(jax.grad(lambda k: episode(model, SHAPES, rules, task, k, spread).cost)(knots))
     for i, j in [(0, 0), (0, 2), (2, 7), (3, 11)]:
-        e = jnp.zeros((4, 12)).at[i, j].set(1e-3)
+        e = jnp.zeros((4, 12)).at[i, j].set(1e-4)
         up, down = play(knots + e), play(knots - e)
         assert bool(up.success) and bool(down.success)
-        fd = (float(up.cost) - float(down.cost)) / 2e-3
+        fd = (float(up.cost) - float(down.cost)) / 2e-4
         assert fd == pytest.approx(gradient[i, j], rel=1e-3)
 
