@@ -194,6 +194,13 @@ def splice_file(path: str | Path, start: str, end: str, body: str) -> None:
     write_text_atomic(path, splice_generated(path.read_text(encoding="utf-8"), start, end, body, where=str(path)))
 
 
+def save_result(path: str | Path, data: Any) -> Any:
+    """Write a measurement's ``data`` as JSON (:func:`write_json_atomic`) and return it as read back: what a
+    script then prints and writes into the docs is exactly what the file holds."""
+    write_json_atomic(path, data)
+    return json.loads(json.dumps(data))
+
+
 def write_json_atomic(path: str | Path, data: Any) -> None:
     """Write ``data`` as indented JSON, atomically (see :func:`write_text_atomic`)."""
     write_text_atomic(path, json.dumps(data, indent=2, sort_keys=False, allow_nan=False) + "\n")
