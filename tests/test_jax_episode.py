@@ -3,8 +3,8 @@ decision against ``FFSR-Residual-v2`` (observations, rewards, smoothness increme
 certificate replays against the stored verdicts and scores.
 
 Where the end-effector error is near zero, the predefined-time feedback's discrete chatter amplifies rounding: the
-kernel and the Pinocchio backend then differ by up to 1e-3 of a score on the same task (easy test task 3), and so
-does the JAX loop; verdicts never move (docs/jax.md)."""
+kernel and the Pinocchio backend then differ by a few 1e-3 of a score on some tasks, and so does the JAX loop;
+verdicts do not move (docs/jax.md, ``benchmarks/jax_agreement.json``)."""
 
 from __future__ import annotations
 
