@@ -132,3 +132,12 @@ def replay_certificate(version: str, tier: str, split: str, index: int) -> dict:
                 return info
     finally:
         env.close()
+
+
+def random_states(rng, n):
+    """(19,) kernel states: base position, unit quaternion (x, y, z, w), 12 joint angles in ±1.5 rad."""
+    out = []
+    for _ in range(n):
+        quat = rng.normal(size=4)
+        out.append(np.concatenate((rng.uniform(-0.5, 0.5, 3), quat / np.linalg.norm(quat), rng.uniform(-1.5, 1.5, 12))))
+    return out

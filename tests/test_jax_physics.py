@@ -11,6 +11,7 @@ pytest.importorskip("jax")
 
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
+from conftest import random_states  # noqa: E402
 
 from ffsr_gym.jax import physics  # noqa: E402
 from ffsr_gym.model.quaternion import wxyz_from_xyzw  # noqa: E402
@@ -19,15 +20,6 @@ from ffsr_gym.sim.setup import robot_assets  # noqa: E402
 ASSETS = robot_assets("ffsr_dual_arm")
 MODEL = physics.model_of(ASSETS.kernel)
 ROBOT = ASSETS.robot
-
-
-def _states(rng, n):
-    """(19,) states: base position, unit quaternion (x, y, z, w), 12 joint angles in ±1.5 rad."""
-    out = []
-    for _ in range(n):
-        quat = rng.normal(size=4)
-        out.append(np.concatenate((rng.uniform(-0.5, 0.5, 3), quat / np.linalg.norm(quat), rng.uniform(-1.5, 1.5, 12))))
-    return out
 
 
 def _q(x):
@@ -39,7 +31,7 @@ def _x(q):
 
 
 def test_frames_match_pinocchio():
-    for x in _states(np.random.default_rng(1), 10):
+    for x in random_states(np.random.default_rng(1), 10):
         kin = physics.kinematics(MODEL, jnp.asarray(x))
         q = _q(x)
         ROBOT.update_kinematics(q)
@@ -53,7 +45,7 @@ def test_frames_match_pinocchio():
 
 def test_momentum_and_base_velocity_match_pinocchio():
     rng = np.random.default_rng(2)
-    for x in _states(rng, 10):
+    for x in random_states(rng, 10):
         xj, q = jnp.asarray(x), _q(x)
         kin = physics.kinematics(MODEL, xj)
         mom = physics.momentum(MODEL, xj, kin)
@@ -69,7 +61,7 @@ def test_momentum_and_base_velocity_match_pinocchio():
 def test_the_midpoint_step_matches_pinocchio():
     rng = np.random.default_rng(3)
     step = jax.jit(physics.midpoint, static_argnums=4)
-    for x in _states(rng, 5):
+    for x in random_states(rng, 5):
         dq = rng.normal(scale=0.5, size=12)
         x1, v_mid = step(MODEL, jnp.asarray(x), jnp.asarray(dq), jnp.zeros(6), 0.01)
         q1, v_ref = ROBOT.step(_q(x), dq, 0.01)
@@ -97,7 +89,7 @@ def _com_drift(x0, dt, seconds=5.0):
 def test_a_rollout_keeps_the_centre_of_mass_and_a_unit_quaternion():
     """Zero linear momentum keeps the system CoM still: along 5 s of the JAX physics, Pinocchio's CoM moves by the
     midpoint rule's error only, which shrinks as dt² (second order)."""
-    x0 = jnp.asarray(_states(np.random.default_rng(4), 1)[0])
+    x0 = jnp.asarray(random_states(np.random.default_rng(4), 1)[0])
     coarse, norm_error = _com_drift(x0, 0.02)
     fine, _ = _com_drift(x0, 0.01)
     assert fine < 1e-5 and norm_error < 1e-14
@@ -107,7 +99,7 @@ def test_a_rollout_keeps_the_centre_of_mass_and_a_unit_quaternion():
 def test_gradients_of_the_step_match_finite_differences():
     """d(x_next)/d(dq) by reverse mode against central differences of the step itself."""
     rng = np.random.default_rng(5)
-    x, dq = jnp.asarray(_states(rng, 1)[0]), jnp.asarray(rng.normal(scale=0.5, size=12))
+    x, dq = jnp.asarray(random_states(rng, 1)[0]), jnp.asarray(rng.normal(scale=0.5, size=12))
     weights = jnp.asarray(rng.normal(size=19))
 
     def f(rates):

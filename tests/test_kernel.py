@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import random_states as _random_states
 
 from ffsr_gym.bench.planner_scores import scenario_for_seed
 from ffsr_gym.kernel.collision import segment_box
@@ -175,13 +176,6 @@ def test_cache_guard_covers_every_compiled_module():
     assert compiled | intrinsics == {module.__name__ for module in kernel_cache.SOURCES}
 
 
-def _random_states(rng, n):
-    """(19,) kernel states: base position, unit quaternion (x, y, z, w), 12 joint angles in ±1.5 rad."""
-    out = []
-    for _ in range(n):
-        quat = rng.normal(size=4)
-        out.append(np.concatenate((rng.uniform(-0.5, 0.5, 3), quat / np.linalg.norm(quat), rng.uniform(-1.5, 1.5, 12))))
-    return out
 
 
 def _pinocchio_q(rollout, x):
