@@ -56,9 +56,10 @@ def random_configuration(robot: Robot, rng: np.random.Generator) -> np.ndarray:
 
 
 @cache
-def benchmark_script(name: str) -> ModuleType:
-    """``benchmarks/<name>.py`` (a script, not a package module) loaded as a module, once per session."""
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+def benchmark_script(name: str, folder: str = "benchmarks") -> ModuleType:
+    """``<folder>/<name>.py`` (a script of ``benchmarks/`` or ``baselines/``, not a package module) loaded as a
+    module, once per session."""
+    path = Path(__file__).resolve().parents[1] / folder / f"{name}.py"
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

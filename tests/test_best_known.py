@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import ffsr_gym  # noqa: F401 - registers the ids
+from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks import best_known
@@ -198,7 +199,6 @@ def test_an_existing_dataset_is_refused_by_name(small, tmp_path):
     pytest.importorskip("minari")
     pytest.importorskip("h5py")
     from ffsr_gym.bench.dataset import write_dataset
-    from ffsr_gym.exceptions import InvalidInputError
 
     _, path = small
     write_dataset("easy", "FFSR-Residual-v2", root=tmp_path, best_known_file=path)
@@ -231,11 +231,37 @@ def test_a_policys_better_episodes_are_absorbed_as_exact_schedules(small, tmp_pa
         residual = record["families"]["residual"]
         if residual["origin"] == "a constant":
             assert residual["score"] == next(r["score"] for r in played.episodes if r["task_index"] == index)
-            assert len(residual["schedule"]["knots"]) == 100  # one knot per decision of the motion
+            assert len(residual["schedule"]["knots"]) == 1  # a constant: one knot, held over every decision
             assert _env_score(record, "residual") == residual["score"]  # the stored schedule is the episode
         else:
             assert residual == before[index]["families"]["residual"]
         assert record["best"]["score"] == max(f["score"] for f in record["families"].values())
+
+
+def test_a_policy_of_another_versions_id_is_refused_by_name(small, tmp_path):
+    with pytest.raises(InvalidInputError, match="FFSR-Capture-v0.*allowed.*FFSR-Residual-v2"):
+        build.absorb((0.0, 0.0), "FFSR-Capture-v0", "easy", "train", tmp_path, "wrong id", progress=False)
+
+
+def test_a_planner_entrys_constants_become_the_action_that_maps_onto_them():
+    """The inverse of the env's linear action map, checked by the env's own map (float32 rounding only); the
+    proportional law and constants outside the box are not actions."""
+    from conftest import benchmark_script
+
+    from ffsr_gym.model.benchmark import action_to_parameters
+
+    absorb = benchmark_script("absorb_best_known", "baselines")
+    task = task_scenario("slow", pool("slow", "test", version="capture-v0")[0].seed,
+                         score_rule(spec_for_version("capture-v0")).benchmark)
+    for m, T_c in [(0.1, 3.0), (0.3, 4.0), (0.05, 10.0), (0.6, 1.0)]:
+        entry = {"name": "x", "extra": {"planner": {"method": "predefined_time", "m": m, "T_c_s": T_c}}}
+        action = absorb.parameters_action(entry, "slow", "capture-v0")
+        assert action is not None and all(np.float32(a) == a for a in action)
+        np.testing.assert_allclose(action_to_parameters(action, task), (m, T_c), rtol=1e-6)
+    entry = {"name": "x", "extra": {"planner": {"method": "proportional", "m": None, "T_c_s": None, "gain_per_s": 8}}}
+    assert absorb.parameters_action(entry, "slow", "capture-v0") is None
+    entry = {"name": "x", "extra": {"planner": {"method": "predefined_time", "m": 0.7, "T_c_s": 3.0}}}
+    assert absorb.parameters_action(entry, "slow", "capture-v0") is None
 
 
 def test_training_records_are_assembled_into_a_file_of_their_own(small, tmp_path, monkeypatch):
@@ -317,7 +343,6 @@ def test_a_work_folder_never_writes_the_shipped_files(small, tmp_path):
     before = shipped.read_bytes()
     [written] = build.assemble(mine, generations=1)  # by default into the work folder
     assert written == mine / shipped.name and json.loads(written.read_text())["counts"] == {"easy": {"train": 2}}
-    from ffsr_gym.exceptions import InvalidInputError
 
     with pytest.raises(InvalidInputError, match=r"stores 200 \w+/train tasks, the work folder holds"):
         build.assemble(mine, generations=1, splits=["train"], shipped=True)
@@ -347,7 +372,6 @@ def test_a_dataset_killed_or_failing_mid_write_leaves_nothing_minari_loads(small
     minari = pytest.importorskip("minari")
     pytest.importorskip("h5py")
     import ffsr_gym.bench.dataset as dataset
-    from ffsr_gym.exceptions import InvalidInputError
 
     _, path = small
     real = minari.create_dataset_from_buffers

@@ -30,7 +30,7 @@ from ffsr_gym.optim import best_known as search
 from ffsr_gym.provenance import provenance, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.best_known import best_known_path, load_best_known
-from ffsr_gym.tasks.schedule import ENV_IDS, FAMILIES, Schedule, replay_schedule
+from ffsr_gym.tasks.schedule import FAMILIES, Schedule, replay_schedule
 from ffsr_gym.tasks.splits import pool, pool_path
 from ffsr_gym.user_files import nesting_depth, read_text
 
@@ -255,7 +255,8 @@ def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, or
     """Play ``policy`` (SB3-style ``predict``, a callable, or a constant action tuple) on every stored task of a pool,
     and keep each episode that beats the stored score of its env's family and passes the certificate test
     (ensemble with margins, and Pinocchio) as that family's schedule: its actions, clipped to [-1, 1] in float32,
-    one knot per decision, so the schedule's replay is the episode, exactly (checked before it is kept). Lines go
+    one knot per decision (one knot in all when every action is the same), so the schedule's replay is the episode,
+    exactly (checked before it is kept). ``env_id`` is one of ``version``'s two ids. Lines go
     to ``<work>/absorbed_<tier>_<split>.jsonl``; :func:`assemble` merges them. Returns how many tasks improved.
 
     This makes the best known score at least every absorbed policy's: a closed-loop policy can beat the
@@ -268,8 +269,12 @@ def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, or
     from ffsr_gym.bench.entry import actor
     from ffsr_gym.tasks.best_known import records
 
-    family = {v: k for k, v in ENV_IDS.items()}[env_id]
-    benchmark = score_rule(spec_for_version(version)).benchmark
+    spec = spec_for_version(version)
+    families = {spec.ids.residual: "residual", spec.ids.parameters: "parameters"}
+    if env_id not in families:
+        raise InvalidInputError(f"env id {env_id!r} is not one of {version}'s; allowed: {sorted(families)}")
+    family = families[env_id]
+    benchmark = score_rule(spec).benchmark
     stored = {r["index"]: r for r in records(tier, split, version)}
     tasks = pool(tier, split, version=version)
     path = _absorbed_path(work, tier, split)
@@ -288,7 +293,8 @@ def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, or
             continue
         scenario = env.unwrapped.scenario
         span = Schedule.constant(family, np.zeros(FAMILIES[family]), 1).span(scenario)
-        schedule = Schedule(family, tuple(tuple(float(x) for x in row) for row in played[:span]))
+        knots = played[:span] if any(np.any(row != played[0]) for row in played[:span]) else played[:1]
+        schedule = Schedule(family, tuple(tuple(float(x) for x in row) for row in knots))  # a constant: one knot
         if replay_schedule(scenario, schedule, benchmark).score != info["score"]:
             continue  # not an exact open-loop replay: kept out rather than stored wrong
         margins = search.passes(tasks[index], tier, schedule, benchmark, pinocchio=True)

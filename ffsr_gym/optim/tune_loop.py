@@ -44,7 +44,10 @@ def pruning_judge(complete: list[dict[str, Any]]) -> Callable[[int, float], bool
     """``keep_going(step, value)``: report a point of a new trial and say whether it may go on, as the study's
     pruner (:func:`ffsr_gym.optim.tuning.make_pruner`) judges it against ``complete`` (:func:`snapshot`)."""
     optuna = optuna_module()
+    verbosity = optuna.logging.get_verbosity()
+    optuna.logging.set_verbosity(optuna.logging.WARNING)  # a scratch study's creation is not news to the user
     study = optuna.create_study(direction="maximize", pruner=make_pruner())
+    optuna.logging.set_verbosity(verbosity)
     for t in complete:
         study.add_trial(optuna.trial.create_trial(
             params=t["params"], value=t["value"], intermediate_values={int(s): v for s, v in
