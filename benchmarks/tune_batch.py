@@ -43,7 +43,8 @@ def one_search(args: argparse.Namespace, batch: int) -> dict:
         with cluster_executor(f"local:{batch}", say=lambda text: None) as (executor, _):
             search(study, piece, space, trials=args.trials, batch=batch, executor=executor)
     wall = time.perf_counter() - start
-    trials = [{"number": t.number, "state": t.state.name, "value": t.value, "params": t.params} for t in study.trials]
+    trials = [{"number": t.number, "state": t.state.name, "value": t.value, "params": t.params,
+               "env_steps": t.user_attrs.get("env_steps")} for t in study.trials]
     complete = [t for t in trials if t["state"] == "COMPLETE"]
     best = max(complete, key=lambda t: t["value"]) if complete else None
     return {"batch": batch, "wall_time_s": wall, "trials": trials, "best": best,
@@ -63,7 +64,20 @@ def docs_text(result: dict) -> str:
             f"{two['wall_time_s']:.0f} s ({one['wall_time_s'] / two['wall_time_s']:.2f}x faster). The two searches "
             f"drew the same values for {same} of {result['trials']} trials (TPE draws its first {result['startup']} "
             f"at random, from its seed alone); the best values differ by "
-            f"{abs(one['best']['value'] - two['best']['value']):.4f}.\n")
+            f"{abs(one['best']['value'] - two['best']['value']):.4f}.{why_not_twice(one, two)}\n")
+
+
+def why_not_twice(one: dict, two: dict) -> str:
+    """Why two workers bought less than half the wall time, when the record shows it (pruning, env steps)."""
+    ratio = one["wall_time_s"] / two["wall_time_s"]
+    if ratio >= 1.8 or two["pruned"] >= one["pruned"]:
+        return ""
+    steps = [sum(t.get("env_steps") or 0 for t in s["trials"]) for s in (one, two)]
+    trained = f", so it trained {steps[1] / steps[0]:.2f}x the env steps" if all(steps) else ""
+    return (f" Two workers bought {ratio:.2f}x, not 2x. The record shows one reason: a batch's trials are pruned "
+            f"against the trials complete when the batch was asked, fewer than the sequential search has, and a pruned "
+            f"trial stops early: `--batch 2` pruned "
+            f"{two['pruned']} trials where `--batch 1` pruned {one['pruned']}{trained}.")
 
 
 def main(argv: list[str] | None = None) -> int:
