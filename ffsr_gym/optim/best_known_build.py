@@ -29,9 +29,9 @@ from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.optim import best_known as search
 from ffsr_gym.provenance import provenance, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
-from ffsr_gym.tasks.best_known import best_known_path, load_best_known
+from ffsr_gym.tasks.best_known import best_known_path, load_best_known, records
 from ffsr_gym.tasks.schedule import FAMILIES, Schedule, replay_schedule
-from ffsr_gym.tasks.splits import pool, pool_path
+from ffsr_gym.tasks.splits import pool, pool_path, task_scenario
 from ffsr_gym.user_files import nesting_depth, read_text
 
 popsize = search.popsize
@@ -207,10 +207,10 @@ def _check_whole(files: dict[Path, dict[str, dict[str, list]]], version: str) ->
     for target, tasks in files.items():
         stored = load_best_known(version, target) or {"tasks": {}}
         for tier, splits in stored["tasks"].items():
-            for split, records in splits.items():
+            for split, kept in splits.items():
                 have = len(tasks.get(tier, {}).get(split, []))
-                if have < len(records):
-                    raise InvalidInputError(f"{target.name} stores {len(records)} {tier}/{split} tasks, the work "
+                if have < len(kept):
+                    raise InvalidInputError(f"{target.name} stores {len(kept)} {tier}/{split} tasks, the work "
                                             f"folder holds {have}; allowed: a build of the whole file (every stored "
                                             "task)")
 
@@ -267,17 +267,13 @@ def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, or
     import gymnasium as gym
 
     from ffsr_gym.bench.entry import actor
-    from ffsr_gym.tasks.best_known import records
 
     spec = spec_for_version(version)
     families = {spec.ids.residual: "residual", spec.ids.parameters: "parameters"}
     if env_id not in families:
         raise InvalidInputError(f"env id {env_id!r} is not one of {version}'s; allowed: {sorted(families)}")
     family = families[env_id]
-    benchmark = score_rule(spec).benchmark
     stored = {r["index"]: r for r in records(tier, split, version)}
-    tasks = pool(tier, split, version=version)
-    path = _absorbed_path(work, tier, split)
     env = gym.make(env_id, task=tier, split=split)
     improved = 0
     for index in tqdm(sorted(stored), desc=f"absorb {origin} {tier}/{split}", unit="task", disable=not progress):
@@ -291,19 +287,10 @@ def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, or
             done = terminated or truncated
         if not info.get("success") or info["score"] <= stored[index]["families"][family]["score"]:
             continue
-        scenario = env.unwrapped.scenario
-        span = Schedule.constant(family, np.zeros(FAMILIES[family]), 1).span(scenario)
+        span = Schedule.constant(family, np.zeros(FAMILIES[family]), 1).span(env.unwrapped.scenario)
         knots = played[:span] if any(np.any(row != played[0]) for row in played[:span]) else played[:1]
         schedule = Schedule(family, tuple(tuple(float(x) for x in row) for row in knots))  # a constant: one knot
-        if replay_schedule(scenario, schedule, benchmark).score != info["score"]:
-            continue  # not an exact open-loop replay: kept out rather than stored wrong
-        margins = search.passes(tasks[index], tier, schedule, benchmark, pinocchio=True)
-        if margins is None:
-            continue
-        result = {"family": family, "schedule": schedule.as_dict(), "score": info["score"],
-                  "margins": margins.as_dict(), "origin": origin, "evaluations": 1}
-        _append(path, {"index": index, "family": family, "score": info["score"], "result": result})
-        improved += 1
+        improved += offer(schedule, tier, split, index, work, origin, version=version, score=info["score"]) is not None
     env.close()
     if key is not None:
         with _done_path(work, tier, split).open("a", encoding="utf-8") as handle:
@@ -311,6 +298,30 @@ def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, or
             handle.flush()
             os.fsync(handle.fileno())
     return improved
+
+
+def offer(schedule: Schedule, tier: str, split: str, index: int, work: str | Path, origin: str, *,
+          version: str = "v2", score: float | None = None) -> dict[str, Any] | None:
+    """Keep ``schedule`` as its family's result for pool task ``index`` when its episode (the kernel's replay) beats
+    the stored score of that family and passes the certificate test (ensemble with margins, and Pinocchio); with
+    ``score``, only when the replay scores exactly that (the episode the schedule claims to be). The kept line goes to
+    ``<work>/absorbed_<tier>_<split>.jsonl`` (:func:`assemble` merges it) and is returned; otherwise None."""
+    benchmark = score_rule(spec_for_version(version)).benchmark
+    stored = {r["index"]: r for r in records(tier, split, version)}[index]
+    task = pool(tier, split, version=version)[index]
+    played = replay_schedule(task_scenario(tier, task.seed, benchmark), schedule, benchmark)
+    if score is not None and played.score != score:
+        return None  # not an exact open-loop replay: kept out rather than stored wrong
+    if not played.success or played.score <= stored["families"][schedule.family]["score"]:
+        return None
+    margins = search.passes(task, tier, schedule, benchmark, pinocchio=True)
+    if margins is None:
+        return None
+    result = {"family": schedule.family, "schedule": schedule.as_dict(), "score": played.score,
+              "margins": margins.as_dict(), "origin": origin, "evaluations": 1}
+    line = {"index": index, "family": schedule.family, "score": played.score, "result": result}
+    _append(_absorbed_path(work, tier, split), line)
+    return line
 
 
 def _write(path: Path, data: dict[str, Any]) -> None:
