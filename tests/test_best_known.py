@@ -396,3 +396,50 @@ def test_a_dataset_killed_or_failing_mid_write_leaves_nothing_minari_loads(small
         with pytest.raises(InvalidInputError, match="not a writable folder"):
             dataset.write_dataset("easy", "FFSR-Residual-v2", root=root, best_known_file=path)
     assert played == []  # refused before any episode
+
+
+def test_the_screened_objective_ranks_a_capture_inside_the_band_below_every_clean_one():
+    """Capture slow test task 17: the paper's constant (0.1, 3 s) captures with 97 % of the tolerance used (the
+    certificate allows 50 %) and scores 0.498; the task's certificate, the stiff (0.5, 1.5 s), captures cleanly but
+    chatters (0.0136). The plain objective prefers the first, the screened one the second."""
+    from ffsr_gym.optim import best_known as search
+    from ffsr_gym.tasks.certificate import Margins
+
+    benchmark = score_rule(spec_for_version("capture-v0")).benchmark
+    task = pool("slow", "test", version="capture-v0")[17]
+    box = benchmark.action
+    paper = Schedule("parameters", ((float(np.float32(2 * (0.1 - box.m_bounds[0]) / np.ptp(box.m_bounds) - 1)),
+                                     float(np.float32(2 * (3.0 - box.T_c_bounds_s[0]) / np.ptp(box.T_c_bounds_s) - 1))),))
+    certificate, _ = search.start(task, "parameters", benchmark)
+    population = search.Population("parameters", "slow", "test", 2, "capture-v0")
+    try:
+        played = population.episodes(17, [paper, certificate])
+        screened = search.screened_scores(population, 17, [paper, certificate], benchmark)
+    finally:
+        population.close()
+    assert all(r.success for r in played) and played[0].score > 10 * played[1].score
+    assert played[0].capture_ratio > benchmark.tasks.ensemble.error_margin >= played[1].capture_ratio
+    assert Margins.worst([played[0]]).short(benchmark) == "capture margin"
+    assert screened[0] == pytest.approx(played[0].score - 1.0) and screened[0] < 0.0
+    assert screened[1] == played[1].score > 0.0
+
+
+@pytest.mark.slow
+def test_the_screened_search_raises_a_family_whose_best_candidates_failed_the_certificate(tmp_path, monkeypatch):
+    from ffsr_gym.optim import best_known_screen
+
+    monkeypatch.setattr(best_known_screen, "candidates", lambda tier, split, version: [(17, "parameters")])
+    before = best_known.records("slow", "test", "capture-v0")[17]["families"]["parameters"]["score"]
+    assert best_known_screen.rescreen("slow", "test", tmp_path, version="capture-v0", progress=False) == 1
+    [line] = [json.loads(x) for x in (tmp_path / "absorbed_slow_test.jsonl").read_text().splitlines()]
+    assert line["index"] == 17 and line["score"] > 10 * before and line["result"]["origin"] == "screened CMA-ES"
+    assert line["result"]["margins"]["capture_ratio"] <= 0.5
+    schedule = Schedule.from_dict(line["result"]["schedule"])
+    env = gym.make("FFSR-Capture-v0", task="slow", split="test")  # the stored schedule is an episode of the env
+    env.reset(seed=0, options={"task_index": 17})
+    for action in schedule.actions(env.unwrapped.scenario):
+        _, _, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            break
+    assert info["success"] and info["score"] == line["score"]
+    assert best_known_screen.rescreen("slow", "test", tmp_path, version="capture-v0", progress=False) == 0  # resumed

@@ -72,6 +72,9 @@ def add_study_commands(sub: Any) -> None:
     bk.add_argument("--doubled", type=positive_int, default=None, metavar="N",
                     help="instead: re-run N random stored tasks of these pools with twice the generations and store "
                          "the gap in the file")
+    bk.add_argument("--screened", action="store_true",
+                    help="instead: search again, on the screened objective, every stored task family whose best "
+                         "candidates failed the certificate test; what beats the stored score and passes it is kept")
     bk.add_argument("--write-shipped", action="store_true",
                     help="write the package's own best-known files (a build of each whole file, from a source "
                          "checkout); default: their copies inside --work")
@@ -163,8 +166,10 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
     if wrong:
         raise InvalidInputError(f"--tiers {wrong} with --version {args.version}; allowed: "
                                 f"{list(version_tiers(args.version))}")
-    if args.scheduler is not None and args.doubled:
-        raise InvalidInputError("--scheduler with --doubled; allowed: --scheduler for the search alone")
+    if args.scheduler is not None and (args.doubled or args.screened):
+        raise InvalidInputError("--scheduler with --doubled or --screened; allowed: --scheduler for the search alone")
+    if args.doubled and args.screened:
+        raise InvalidInputError("--doubled with --screened; allowed: one of them")
     if args.doubled:
         rng = np.random.default_rng(0)
         stored = [(t, s, r["index"]) for t in args.tiers for s in args.splits for r in records(t, s, args.version)]
@@ -176,13 +181,21 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
         print(f"doubled budget on {len(sample)} tasks: mean gap {summary['mean_gap']:.4f}, median relative gap "
               f"{summary['median_relative_gap']:.4f}, max {summary['max_relative_gap']:.4f}")
         return
-    with _executor(args) as (executor, _):
+    if args.screened:
+        from ffsr_gym.optim.best_known_screen import rescreen
+
         for tier in args.tiers:
             for split in args.splits:
-                build.run(tier, split, work, version=args.version, progress=not args.no_progress,
-                          executor=executor)
+                raised = rescreen(tier, split, work, version=args.version, progress=not args.no_progress)
+                print(f"{tier}/{split}: the screened search raised {raised} task families")
+    else:
+        with _executor(args) as (executor, _):
+            for tier in args.tiers:
+                for split in args.splits:
+                    build.run(tier, split, work, version=args.version, progress=not args.no_progress,
+                              executor=executor)
     command = shlex.join(["ffsr-gym", "tasks", "best-known", "--version", args.version, "--tiers", *args.tiers,
-                          "--splits", *args.splits]
+                          "--splits", *args.splits] + (["--screened"] if args.screened else [])
                          + (["--write-shipped"] if args.write_shipped else []))
     for path in build.assemble(work, version=args.version, command=command, splits=args.splits,
                                shipped=args.write_shipped):

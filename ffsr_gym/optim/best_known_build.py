@@ -301,10 +301,11 @@ def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, or
 
 
 def offer(schedule: Schedule, tier: str, split: str, index: int, work: str | Path, origin: str, *,
-          version: str = "v2", score: float | None = None) -> dict[str, Any] | None:
+          version: str = "v2", score: float | None = None, evaluations: int = 1) -> dict[str, Any] | None:
     """Keep ``schedule`` as its family's result for pool task ``index`` when its episode (the kernel's replay) beats
     the stored score of that family and passes the certificate test (ensemble with margins, and Pinocchio); with
-    ``score``, only when the replay scores exactly that (the episode the schedule claims to be). The kept line goes to
+    ``score``, only when the replay scores exactly that (the episode the schedule claims to be); ``evaluations``: the
+    episodes it took to find it. The kept line goes to
     ``<work>/absorbed_<tier>_<split>.jsonl`` (:func:`assemble` merges it) and is returned; otherwise None."""
     benchmark = score_rule(spec_for_version(version)).benchmark
     stored = {r["index"]: r for r in records(tier, split, version)}[index]
@@ -318,7 +319,7 @@ def offer(schedule: Schedule, tier: str, split: str, index: int, work: str | Pat
     if margins is None:
         return None
     result = {"family": schedule.family, "schedule": schedule.as_dict(), "score": played.score,
-              "margins": margins.as_dict(), "origin": origin, "evaluations": 1}
+              "margins": margins.as_dict(), "origin": origin, "evaluations": evaluations}
     line = {"index": index, "family": schedule.family, "score": played.score, "result": result}
     _append(_absorbed_path(work, tier, split), line)
     return line
