@@ -42,14 +42,13 @@ from ffsr_gym.tasks.splits import pool, task_scenario
 
 
 @cache
-def compiled(rules, spread: int, shapes) -> tuple:
-    """(play, value_and_grad) of the episode of a residual schedule, jitted once per (rules, spread): the model and
-    the task are arguments, so every task of a tier reuses one compilation."""
-    def play(model, task, knots):
+def compiled(rules, spread: int) -> tuple:
+    """(play, value_and_grad) of the episode of a residual schedule, jitted once per (rules, spread): the model, the
+    collision shapes and the task are arguments, so every task of a tier reuses one compilation."""
+    def play(model, shapes, task, knots):
         return episode(model, shapes, rules, task, knots, spread)
 
-    return jax.jit(play), jax.jit(jax.value_and_grad(lambda model, task, knots: play(model, task, knots).cost,
-                                                     argnums=2))
+    return jax.jit(play), jax.jit(jax.value_and_grad(lambda *args: play(*args).cost, argnums=3))
 
 
 def search_task(tier: str, index: int, benchmark, shapes, best_known_work: str) -> dict:
@@ -69,10 +68,10 @@ def search_task(tier: str, index: int, benchmark, shapes, best_known_work: str) 
                 and float(played.min_self) >= ensemble.clearance_margin_m
                 and float(played.final_error) <= ensemble.error_margin * tolerance)
 
-    play, value_and_grad = compiled(rules, spread, shapes)
+    play, value_and_grad = compiled(rules, spread)
 
     def cost_and_grad(knots):
-        return play(model, task, knots), value_and_grad(model, task, knots)[1]
+        return play(model, shapes, task, knots), value_and_grad(model, shapes, task, knots)[1]
 
     knots = jnp.asarray(np.asarray(start_schedule.knots, dtype=np.float64))
     clock = time.perf_counter()
