@@ -80,9 +80,9 @@ def search_task(tier: str, index: int, benchmark, shapes, best_known_work: str) 
     budget_s, clock, steps = float(record["wall_time_s"]), time.perf_counter(), 0
     best, history = knots, []
     while time.perf_counter() - clock < budget_s:
-        best, part = descend(cost_and_grad, best, steps=5, rate=0.05 if not history else history[-1][1], accept=accept)
+        best, part = descend(cost_and_grad, best, steps=1, rate=0.05 if not history else history[-1][1], accept=accept)
         history += part if not history else part[1:]
-        steps += 5
+        steps += 1  # the clock is read after every step: the budget is overrun by one step at most
         if history[-1][1] < 1e-6:  # the step size collapsed: no accepted descent left
             break
     spent = time.perf_counter() - clock
