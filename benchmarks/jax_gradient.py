@@ -77,14 +77,11 @@ def search_task(tier: str, index: int, benchmark, shapes, best_known_work: str) 
     clock = time.perf_counter()
     jax.block_until_ready(cost_and_grad(knots))  # the first task of a tier compiles here: timed apart
     compile_s = time.perf_counter() - clock
-    budget_s, clock, steps = float(record["wall_time_s"]), time.perf_counter(), 0
-    best, history = knots, []
-    while time.perf_counter() - clock < budget_s:
-        best, part = descend(cost_and_grad, best, steps=1, rate=0.05 if not history else history[-1][1], accept=accept)
-        history += part if not history else part[1:]
-        steps += 1  # the clock is read after every step: the budget is overrun by one step at most
-        if history[-1][1] < 1e-6:  # the step size collapsed: no accepted descent left
-            break
+    budget_s, clock = float(record["wall_time_s"]), time.perf_counter()
+    # one step past the budget at most: the clock is read after every step, and a collapsed step size ends it
+    best, history = descend(cost_and_grad, knots, steps=10_000, rate=0.05, accept=accept,
+                            stop=lambda: time.perf_counter() - clock >= budget_s, min_rate=1e-6)
+    steps = len(history) - 1
     spent = time.perf_counter() - clock
     found = Schedule.from_vector("residual", np.asarray(best).ravel())
     kernel = replay_schedule(scenario, found, benchmark, backend="kernel")

@@ -62,13 +62,17 @@ def episode(model: Any, shapes: Any, rules: Any, task: EpisodeTask, knots: jnp.n
     return Played(state.cost, success, score, jnp.max(state.peak), state.min_clear, state.min_self, error)
 
 
-def descend(cost_and_grad, knots: jnp.ndarray, *, steps: int, rate: float, accept) -> tuple[jnp.ndarray, list]:
+def descend(cost_and_grad, knots: jnp.ndarray, *, steps: int, rate: float, accept, stop=None,
+            min_rate: float = 0.0) -> tuple[jnp.ndarray, list]:
     """A projected gradient descent on C over the knots, kept in [-1, 1]: a step is taken only when the episode it
     leads to still succeeds with margins (``accept(played)``) and lowers C; otherwise the step size halves.
-    ``cost_and_grad(knots) -> (played, gradient)``. Returns the best knots and the history of (C, step size)."""
+    ``cost_and_grad(knots) -> (played, gradient)``; at most ``steps`` steps, fewer when ``stop()`` turns true (read
+    after each) or the step size falls below ``min_rate``. Returns the best knots and the history of (C, step size)."""
     played, gradient = cost_and_grad(knots)
     history = [(float(played.cost), rate)]
     for _ in range(steps):
+        if (stop is not None and stop()) or rate < min_rate:
+            break
         trial = jnp.clip(knots - rate * gradient, -1.0, 1.0)
         trial_played, trial_gradient = cost_and_grad(trial)
         if bool(accept(trial_played)) and float(trial_played.cost) < float(played.cost):
