@@ -90,3 +90,34 @@ def test_the_episode_cost_gradient_matches_central_differences():
         fd = (float(up.cost) - float(down.cost)) / 2e-4
         assert fd == pytest.approx(gradient[i, j], rel=1e-3)
 
+
+
+def test_the_projected_descent_keeps_the_box_refuses_what_fails_and_stops_on_its_clock():
+    """On C(k) = |k - t|² with t partly outside [-1, 1]: the descent ends at the box's closest point (the projection
+    of t); a refused step is never taken; ``stop`` and ``min_rate`` end it."""
+    from typing import NamedTuple
+
+    from ffsr_gym.jax.gradient import descend
+
+    class Played(NamedTuple):
+        cost: float
+        ok: bool
+
+    target = jnp.array([[0.3, 1.7], [-2.0, -0.4]])
+
+    def cost_and_grad(knots):
+        return Played(float(jnp.sum((knots - target) ** 2)), True), 2.0 * (knots - target)
+
+    knots, history = descend(cost_and_grad, jnp.zeros((2, 2)), steps=200, rate=0.05, accept=lambda p: p.ok)
+    np.testing.assert_allclose(knots, jnp.clip(target, -1.0, 1.0), atol=1e-6)
+    assert all(b[0] <= a[0] for a, b in zip(history, history[1:]))  # C never rises
+    start = jnp.zeros((2, 2))
+    refused, history = descend(cost_and_grad, start, steps=5, rate=0.05, accept=lambda p: False)
+    np.testing.assert_array_equal(refused, start)
+    assert [rate for _, rate in history] == [0.05 * 0.5 ** k for k in range(6)]  # every refusal halves the step
+    calls = iter(range(100))
+    _, history = descend(cost_and_grad, start, steps=50, rate=0.05, accept=lambda p: p.ok,
+                         stop=lambda: next(calls) >= 3)
+    assert len(history) == 4
+    _, history = descend(cost_and_grad, start, steps=50, rate=0.05, accept=lambda p: False, min_rate=0.01)
+    assert history[-1][1] < 0.01 <= history[-2][1]
