@@ -30,6 +30,7 @@ from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.model.spec import GENERATED_PAGES, BenchmarkSpec, all_specs, ranked_spec, spec_for_env_id
 from ffsr_gym.provenance import splice_generated, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
+from ffsr_gym.tasks.reference import reference_sha256
 from ffsr_gym.user_files import parse_json, read_text
 
 
@@ -235,7 +236,11 @@ def render_readme(root: str | Path, loaded: dict[str, dict[str, list[dict[str, A
         start, end = spec.leaderboard.markers()
         if start in text and end in text:
             entries = loaded[spec.version] if loaded else load_entries(root, spec)
-            text = splice_generated(text, start, end, render_tables(spec, entries), where=str(path))
+            body = render_tables(spec, entries)
+            if spec.version != ranked_spec().version and reference_sha256(spec.version):
+                ranked = {group: [e for e in items if not e.get("_problems")] for group, items in entries.items()}
+                body += "\n" + tables.headroom(spec, ranked) + "\n"  # the ranked version's is in its summary page
+            text = splice_generated(text, start, end, body, where=str(path))
     return text
 
 
