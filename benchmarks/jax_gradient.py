@@ -45,10 +45,11 @@ END = "<!-- jax-gradient:end -->"
 
 
 @cache
-def compiled(rules, spread: int) -> tuple:
-    """(play, value_and_grad) of the episode of a residual schedule, jitted once per (rules, spread): the model, the
-    collision shapes and the task are arguments, so every task of a tier reuses one compilation."""
-    def play(model, shapes, task, knots):
+def compiled(rules) -> tuple:
+    """(play, value_and_grad) of the episode of a residual schedule, jitted once per rules: the model, the collision
+    shapes, the task and the knots' spread are arguments (the spread as an array: it varies from task to task), so
+    every task of a tier reuses one compilation."""
+    def play(model, shapes, task, knots, spread):
         return episode(model, shapes, rules, task, knots, spread)
 
     return jax.jit(play), jax.jit(jax.value_and_grad(lambda *args: play(*args).cost, argnums=3))
@@ -71,10 +72,11 @@ def search_task(tier: str, index: int, benchmark, shapes, best_known_work: str) 
                 and float(played.min_self) >= ensemble.clearance_margin_m
                 and float(played.final_error) <= ensemble.error_margin * tolerance)
 
-    play, value_and_grad = compiled(rules, spread)
+    play, value_and_grad = compiled(rules)
+    spread = jnp.asarray(spread, dtype=jnp.int64)
 
     def cost_and_grad(knots):
-        return play(model, shapes, task, knots), value_and_grad(model, shapes, task, knots)[1]
+        return play(model, shapes, task, knots, spread), value_and_grad(model, shapes, task, knots, spread)[1]
 
     knots = jnp.asarray(np.asarray(start_schedule.knots, dtype=np.float64))
     clock = time.perf_counter()

@@ -122,3 +122,24 @@ def test_the_projected_descent_keeps_the_box_refuses_what_fails_and_stops_on_its
     assert len(history) == 4
     _, history = descend(cost_and_grad, start, steps=50, rate=0.05, accept=lambda p: False, min_rate=0.01)
     assert history[-1][1] < 0.01 <= history[-2][1]
+
+
+def test_schedule_actions_with_a_traced_spread_are_the_schedules_actions():
+    """One compilation for every spread: under ``jit`` with the spread as an argument, the knots' actions are
+    :meth:`Schedule.actions` (which rounds to float32) for spreads shorter and longer than the knots."""
+    from ffsr_gym.jax.gradient import schedule_actions
+    from ffsr_gym.tasks.schedule import Schedule
+
+    scenario = task_scenario("easy", pool("easy", "test")[0].seed, load_benchmark("v2"))
+    decisions = round(scenario.simulation.duration_s / scenario.env.decision_interval_s)
+    knots = np.random.default_rng(3).uniform(-1.0, 1.0, (4, 12)).astype(np.float32).astype(float)
+    schedule = Schedule("residual", tuple(map(tuple, knots)))
+    actions = jax.jit(schedule_actions, static_argnums=1)
+    for spread in (3, schedule.span(scenario), decisions):
+        got = np.asarray(actions(jnp.asarray(knots), decisions, jnp.asarray(spread)))
+        at = np.minimum(np.arange(decisions), spread - 1)
+        where = np.linspace(0.0, spread - 1.0, 4)
+        want = np.stack([np.interp(at, where, knots[:, j]) for j in range(12)], axis=1)
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
+        if spread == schedule.span(scenario):
+            np.testing.assert_allclose(got, schedule.actions(scenario), rtol=0, atol=6e-8)  # float32 rounding

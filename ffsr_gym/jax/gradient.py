@@ -36,9 +36,9 @@ def span(task: EpisodeTask, decision_interval_s: float, motion_time_s: float) ->
     return min(decisions, math.ceil(motion_time_s / decision_interval_s - 1e-9))
 
 
-def schedule_actions(knots: jnp.ndarray, decisions: int, spread: int) -> jnp.ndarray:
+def schedule_actions(knots: jnp.ndarray, decisions: int, spread: int | jnp.ndarray) -> jnp.ndarray:
     """(decisions, width) actions of (K, width) ``knots``: linear in the decision index over the first ``spread``
-    decisions, held after, clipped to [-1, 1]."""
+    decisions, held after, clipped to [-1, 1]. ``spread`` may be traced (one compilation for every spread)."""
     at = jnp.minimum(jnp.arange(decisions), spread - 1).astype(jnp.float64)
     k = knots.shape[0]
     where = jnp.linspace(0.0, spread - 1.0, k) if k > 1 else jnp.zeros(1)
