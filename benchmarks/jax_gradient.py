@@ -33,6 +33,7 @@ from ffsr_gym.jax.gradient import descend, episode, span
 from ffsr_gym.jax.physics import jax, jnp
 from ffsr_gym.jax.scenario import episode_task
 from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.model.obstacles import obstacle_field
 from ffsr_gym.optim import best_known_build as build
 from ffsr_gym.provenance import provenance, save_result, splice_file
 from ffsr_gym.sim.setup import robot_assets
@@ -47,12 +48,18 @@ END = "<!-- jax-gradient:end -->"
 @cache
 def compiled(rules) -> tuple:
     """(play, value_and_grad) of the episode of a residual schedule, jitted once per rules: the model, the collision
-    shapes, the task and the knots' spread are arguments (the spread as an array: it varies from task to task), so
-    every task of a tier reuses one compilation."""
+    shapes, the task (padded to its tier's most obstacles) and the knots' spread are arguments (the spread as an
+    array: it varies from task to task), so every task of a tier reuses one compilation."""
     def play(model, shapes, task, knots, spread):
         return episode(model, shapes, rules, task, knots, spread)
 
     return jax.jit(play), jax.jit(jax.value_and_grad(lambda *args: play(*args).cost, argnums=3))
+
+
+@cache
+def most_obstacles(tier: str, benchmark) -> int:
+    """The most obstacles of a test task of ``tier``: every task is padded to it, so that all share one shape."""
+    return max(len(obstacle_field(task_scenario(tier, t.seed, benchmark))) for t in pool(tier, "test"))
 
 
 def search_task(tier: str, index: int, benchmark, shapes, best_known_work: str) -> dict:
@@ -60,7 +67,7 @@ def search_task(tier: str, index: int, benchmark, shapes, best_known_work: str) 
     record = records(tier, "test", "v2")[index]
     start_schedule = Schedule.from_dict(record["families"]["residual"]["schedule"])
     scenario = task_scenario(tier, pool(tier, "test")[index].seed, benchmark)
-    model, rules, task = episode_task(scenario)
+    model, rules, task = episode_task(scenario, obstacles=most_obstacles(tier, benchmark))
     spread = span(task, scenario.env.decision_interval_s, scenario.desired_path.motion_time_s)
     ensemble = benchmark.tasks.ensemble
     limit, keep_out = benchmark.score.max_rate_deg_s, benchmark.score.keep_out_m
