@@ -36,17 +36,18 @@ def test_brax_wrappers_step_the_env_without_retracing():
 
 @pytest.mark.parametrize("decisions", [pytest.param(200, marks=pytest.mark.slow), 25])
 def test_the_vector_env_plays_what_the_kernel_env_plays(decisions):
-    """Its spaces, info contract and rewards against ``FFSR-Residual-v2`` on the same tasks: the first 25 decisions'
-    rewards; with ``-m slow`` whole episodes, whose rewards sum to the score minus 1."""
+    """Its spaces, info contract, observations and rewards against ``FFSR-Residual-v2`` on the same tasks: the first
+    25 decisions; with ``-m slow`` whole episodes, whose rewards sum to the score minus 1."""
     env = FFSRJaxVectorEnv(2, task="easy", split="test")
     obs, info = env.reset(seed=3)
     assert env.observation_space.contains(obs)
     assert {k for k in info if not k.startswith("_")} == set(info_dtypes(env.rule))
-    indices, returns, scores, rewards = info["task_index"].copy(), np.zeros(2), None, []
+    indices, returns, scores, rewards, seen = info["task_index"].copy(), np.zeros(2), None, [], [obs.copy()]
     for _ in range(decisions):
         obs, reward, terminated, truncated, info = env.step(np.zeros((2, 12), np.float32))
         returns += reward
         rewards.append(reward)
+        seen.append(obs.copy())
         assert all(np.asarray(info[key]).dtype == dtype for key, dtype in info_dtypes(env.rule).items())
         if np.any(terminated | truncated):
             assert np.all(truncated) and not np.any(terminated)
@@ -54,11 +55,13 @@ def test_the_vector_env_plays_what_the_kernel_env_plays(decisions):
             break
     for copy, index in enumerate(indices):
         with gymnasium.make("FFSR-Residual-v2", task="easy", split="test") as kernel_env:
-            kernel_env.reset(options={"task_index": int(index)})
+            kernel_obs, _ = kernel_env.reset(options={"task_index": int(index)})
+            np.testing.assert_allclose(seen[0][copy], kernel_obs, rtol=0, atol=2e-6)
             for k in range(decisions):
-                _, kernel_reward, terminated, truncated, kernel_info = kernel_env.step(np.zeros(12, np.float32))
+                kernel_obs, kernel_reward, _, _, kernel_info = kernel_env.step(np.zeros(12, np.float32))
                 if k < 25:  # before the end's chatter: the same numbers
                     assert rewards[k][copy] == pytest.approx(kernel_reward, rel=1e-9, abs=1e-13)
+                    np.testing.assert_allclose(seen[k + 1][copy], kernel_obs, rtol=0, atol=2e-6)
         if scores is not None:
             assert kernel_info["success"] and scores[copy] == pytest.approx(kernel_info["score"], rel=2e-3)
             assert returns[copy] == pytest.approx(scores[copy] - 1.0, abs=1e-12)

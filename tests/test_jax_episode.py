@@ -29,6 +29,7 @@ from ffsr_gym.tasks.splits import pool, task_scenario  # noqa: E402
 SHAPES = shapes_of(robot_assets("ffsr_dual_arm").kernel)
 
 
+@pytest.mark.slow  # about a minute; in CI the vector env's test compares 25 decisions' observations and rewards
 @pytest.mark.parametrize("tier", ["debris"])
 def test_decisions_match_the_environment_step_by_step(tier):
     """The first 40 decisions (4 s) of a residual certificate, side by side with ``FFSR-Residual-v2`` (debris: two
