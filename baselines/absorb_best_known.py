@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ffsr_gym.bench.policies import load_model
-from ffsr_gym.model.spec import spec_for_version
+from ffsr_gym.model.spec import all_specs, spec_for_version
 from ffsr_gym.optim import best_known_build as build
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.best_known import records
@@ -93,7 +93,8 @@ def policies(leaderboard: Path, models: Path | None, tier: str, version: str = "
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--leaderboard", required=True, help="leaderboard root (<root>/<version>/<tier>/)")
-    parser.add_argument("--version", default="v2", help="the benchmark version (default: v2)")
+    parser.add_argument("--version", default="v2", choices=[v for v in sorted(all_specs()) if v != "v0"],
+                        help="the benchmark version (default: v2)")
     parser.add_argument("--models", default=None, help="the RL study's work folder with its models (default: none)")
     parser.add_argument("--tiers", nargs="+", default=None, help="default: every tier of the version")
     parser.add_argument("--splits", nargs="+", default=["test", "validation"])
