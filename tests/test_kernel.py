@@ -176,8 +176,6 @@ def test_cache_guard_covers_every_compiled_module():
     assert compiled | intrinsics == {module.__name__ for module in kernel_cache.SOURCES}
 
 
-
-
 def _pinocchio_q(rollout, x):
     q = np.empty(19)
     q[:7], q[rollout.model.q_index] = x[:7], x[7:]

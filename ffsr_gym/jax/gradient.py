@@ -11,6 +11,7 @@ smoothness cost C, the success and the margins of the success test.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 from ffsr_gym.jax.episode import EpisodeTask, reset, step
@@ -46,7 +47,8 @@ def schedule_actions(knots: jnp.ndarray, decisions: int, spread: int | jnp.ndarr
     return jnp.clip(jnp.stack(columns, axis=1), -1.0, 1.0)
 
 
-def episode(model: Any, shapes: Any, rules: Any, task: EpisodeTask, knots: jnp.ndarray, spread: int) -> Played:
+def episode(model: Any, shapes: Any, rules: Any, task: EpisodeTask, knots: jnp.ndarray,
+            spread: int | jnp.ndarray) -> Played:
     """Play the residual schedule ``knots`` on ``task`` to the episode's end."""
     decisions = -(-task.n_steps // task.steps_per_decision)
     actions = schedule_actions(knots, decisions, spread)
@@ -62,7 +64,8 @@ def episode(model: Any, shapes: Any, rules: Any, task: EpisodeTask, knots: jnp.n
     return Played(state.cost, success, score, jnp.max(state.peak), state.min_clear, state.min_self, error)
 
 
-def descend(cost_and_grad, knots: jnp.ndarray, *, steps: int, rate: float, accept, stop=None,
+def descend(cost_and_grad: Callable[[jnp.ndarray], tuple[Any, jnp.ndarray]], knots: jnp.ndarray, *, steps: int,
+            rate: float, accept: Callable[[Any], bool], stop: Callable[[], bool] | None = None,
             min_rate: float = 0.0) -> tuple[jnp.ndarray, list]:
     """A projected gradient descent on C over the knots, kept in [-1, 1]: a step is taken only when the episode it
     leads to still succeeds with margins (``accept(played)``) and lowers C; otherwise the step size halves.

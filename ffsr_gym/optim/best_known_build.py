@@ -119,12 +119,17 @@ def run(tier: str, split: str, work: str | Path, *, version: str = "v2", generat
     return path
 
 
+def family_env_ids(version: str = "v2") -> dict[str, str]:
+    """The registered env id whose actions each schedule family is, in ``version``."""
+    ids = spec_for_version(version).ids
+    return {"residual": ids.residual, "parameters": ids.parameters}
+
+
 def budget(version: str = "v2") -> dict[str, Any]:
     """The search budget per task, as the file records it (the env ids: ``version``'s)."""
-    ids = spec_for_version(version).ids
     return {"knots": search.KNOTS, "sigma0": search.SIGMA0, "generations": search.GENERATIONS,
             "popsize": {family: popsize(family) for family in FAMILIES}, "cma_seed": search.CMA_SEED,
-            "tried_in_ensemble": search.TRIED, "env_ids": {"residual": ids.residual, "parameters": ids.parameters}}
+            "tried_in_ensemble": search.TRIED, "env_ids": family_env_ids(version)}
 
 
 def target_file(work: str | Path, version: str, split: str, *, shipped: bool = False) -> Path:
@@ -268,8 +273,7 @@ def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, or
 
     from ffsr_gym.bench.entry import actor
 
-    spec = spec_for_version(version)
-    families = {spec.ids.residual: "residual", spec.ids.parameters: "parameters"}
+    families = {env: family for family, env in family_env_ids(version).items()}
     if env_id not in families:
         raise InvalidInputError(f"env id {env_id!r} is not one of {version}'s; allowed: {sorted(families)}")
     family = families[env_id]
