@@ -1,11 +1,12 @@
 """Physics steps per second of the JAX loop against the compiled (numba) batched environment, measured in one run.
 
-For each batch size: the JAX episode's decision (``ffsr_gym.jax.episode.step`` under ``jit`` and ``vmap``, 10
-physics steps each) on the first tasks of a tier's training pool, with zero residual actions, and
-``gymnasium.make_vec("FFSR-Residual-v2", ...)`` with the same actions. The JAX figure is steady state: its compile
-time is reported apart, and the cost of a batched reset is added once per 200 decisions (one per episode), as the
-numba env's autoresets are counted in its own time (after one whole episode of warm-up, which loads the compiled
-kernel and sets up the tasks it draws: a task's first draw costs its setup once per process). Runs unchanged on an accelerator (``JAX_PLATFORMS=cuda``) and
+For each batch size: the JAX episode's decision (``ffsr_gym.jax.episode.step`` under ``jit`` and
+``ffsr_gym.jax.copies.over_copies``: one ``vmap`` per slice of at most 512 copies; 10 physics steps each) on the
+first tasks of a tier's training pool, with zero residual actions, and ``gymnasium.make_vec("FFSR-Residual-v2",
+...)`` with the same actions. The JAX figure is steady state: its compile time is reported apart, and the cost of a
+batched reset is added once per 200 decisions (one per episode), as the numba env's autoresets are counted in its
+own time (after one whole episode of warm-up, which loads the compiled kernel and sets up the tasks it draws: a
+task's first draw costs its setup once per process). Runs unchanged on an accelerator (``JAX_PLATFORMS=cuda``) and
 prints the device it used.
 
     python benchmarks/jax_throughput.py [--tier easy] [--batches 1 4 16 64 256 1024 4096] [--numba-max 1024]
@@ -25,6 +26,7 @@ import numpy as np
 
 import ffsr_gym  # noqa: F401  (registers the ids)
 from ffsr_gym.jax.collision import shapes_of
+from ffsr_gym.jax.copies import COPIES_PER_CALL, over_copies
 from ffsr_gym.jax.episode import pick, reset, step
 from ffsr_gym.jax.physics import jax, jnp
 from ffsr_gym.jax.replay import pool_tasks
@@ -40,8 +42,8 @@ def jax_rate(batch: int, tier: str, seconds: float) -> dict:
     model, rules, tasks, _ = pool_tasks(tier, "train", indices=list(range(min(batch, 16))))
     shapes = shapes_of(robot_assets("ffsr_dual_arm").kernel)
     chosen = jax.vmap(lambda i: pick(tasks, i))(jnp.arange(batch) % min(batch, 16))
-    start = jax.jit(jax.vmap(lambda t: reset(model, shapes, rules, t)[0]))
-    decide = jax.jit(jax.vmap(lambda s, t: step(model, shapes, rules, t, s, jnp.zeros(12))[0]))
+    start = jax.jit(over_copies(lambda t: reset(model, shapes, rules, t)[0]))
+    decide = jax.jit(over_copies(lambda s, t: step(model, shapes, rules, t, s, jnp.zeros(12))[0]))
     clock = time.perf_counter()
     state = jax.block_until_ready(decide(jax.block_until_ready(start(chosen)), chosen))
     compile_s = time.perf_counter() - clock
@@ -78,8 +80,9 @@ def docs_text(result: dict) -> str:
     """The docs' table of a measurement."""
     lines = [f"Measured by `benchmarks/jax_throughput.py` (`benchmarks/jax_throughput.json`, made at "
              f"{(result['provenance'].get('git_commit') or 'none')[:8]} on {result['provenance']['platform']}, JAX "
-             f"device `{result['device']}`), {result['tier']} training tasks, zero residual actions, physics steps "
-             "per second (10 per decision; resets included):", "",
+             f"device `{result['device']}`), {result['tier']} training tasks, zero residual actions, JAX copies in "
+             f"slices of at most {result.get('copies_per_call', 'all')} per `vmap`, physics steps per second (10 per "
+             "decision; resets included):", "",
              "| copies | JAX steps/s | JAX compile [s] | numba steps/s | JAX / numba |", "|---|---|---|---|---|"]
     for row in result["rows"]:
         numba = row.get("numba")
@@ -114,6 +117,7 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(row)
             print(json.dumps(row), flush=True)
         result = {"tier": args.tier, "device": f"{device.platform} ({device.device_kind})", "rows": rows,
+                  "copies_per_call": COPIES_PER_CALL,
                   "provenance": provenance(command=" ".join(["python", *sys.argv]))}
         result = save_result(args.summary, result)
     if args.docs:

@@ -18,6 +18,7 @@ from ffsr_gym.environments.actions import observation_bounds
 from ffsr_gym.environments.info import blank, failure_code, with_masks
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.jax.brax_env import FFSRBraxEnv
+from ffsr_gym.jax.copies import over_copies
 from ffsr_gym.jax.episode import STATUS_COLLISION, STATUS_RATE
 from ffsr_gym.jax.physics import jax, jnp
 from ffsr_gym.model.spec import spec_for_version
@@ -48,8 +49,8 @@ class FFSRJaxVectorEnv(gymnasium.vector.VectorEnv):
         self.single_action_space = gymnasium.spaces.Box(-1.0, 1.0, (size,), dtype=np.float32)
         self.observation_space = gymnasium.vector.utils.batch_space(self.single_observation_space, self.num_envs)
         self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, self.num_envs)
-        self._reset = jax.jit(jax.vmap(self.env.reset))
-        self._step = jax.jit(jax.vmap(self.env.step))
+        self._reset = jax.jit(over_copies(self.env.reset))  # slices of at most 512 copies: ffsr_gym.jax.copies
+        self._step = jax.jit(over_copies(self.env.step))
         self._key, self._state, self._ended = jax.random.PRNGKey(0), None, np.zeros(self.num_envs, bool)
         self._clipped = np.zeros(self.num_envs, np.int64)
 
