@@ -4,7 +4,7 @@ Why not one ``vmap`` over every copy: on the CPU, jaxlib 0.10's LAPACK kernels (
 ``jnp.linalg.solve`` and the SVD of the planner) split a large enough batch over XLA's intra-op thread pool and
 block until its pieces are done. In the closed loop's step, with several such calls in one program, this machine's
 two-thread pool wedges: every thread waits on a piece that no thread is free to run (a native stack shows both in
-``ParallelBatchMap``; no CPU is used from then on). One step of 1,024 copies hangs on every try; 512 never did. A
+``ParallelBatchMap``; no CPU is used from then on). One step of 1,024 copies hung on every try here; 512 never did. A
 ``lax.map`` over slices of ``COPIES_PER_CALL`` copies, each slice one ``vmap``, keeps every LAPACK call's batch at
 that size and gives the same numbers as one ``vmap`` (``tests/test_jax_copies.py``). docs/jax.md has the
 measurements.
