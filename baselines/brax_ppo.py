@@ -28,6 +28,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from tqdm.auto import tqdm
 
 from ffsr_gym.bench.entry import EvalReport
 from ffsr_gym.bench.evaluation import evaluate
@@ -70,8 +71,10 @@ def train_seed(tier: str, seed: int, timesteps: int, points: int, folder: Path) 
 
     model, rules, validation, _ = pool_tasks(tier, "validation")
     curve, kept, act = [], {}, {}
+    bar = tqdm(total=timesteps, desc=f"Brax PPO {tier} seed {seed}", unit="step")
 
     def on_checkpoint(steps, make_policy, params):
+        bar.update(int(steps) - bar.n)
         if "fn" not in act:  # one object: the validation play compiles once
             act["fn"] = lambda p, obs: make_policy(p, deterministic=True)(obs, jax.random.PRNGKey(0))[0]
         mean = float(play_policy(model, rules, validation, params, act["fn"]).mean())
@@ -85,6 +88,7 @@ def train_seed(tier: str, seed: int, timesteps: int, points: int, folder: Path) 
     ppo.train(environment=FFSRBraxEnv(tier, "train"), num_timesteps=timesteps, num_evals=points + 1, seed=seed,
               network_factory=network, policy_params_fn=on_checkpoint, run_evals=False, **HYPERPARAMS)
     wall = time.perf_counter() - start
+    bar.close()
     best = max(curve, key=lambda point: point["validation_mean"])
     for name, (_, params) in kept.items():
         brax_model.save_params(str(folder / f"{name}.msgpack"), params)
