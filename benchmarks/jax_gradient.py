@@ -180,9 +180,9 @@ def docs_text(summary: dict) -> str:
     if any(two_pass.values()):
         lines += ["", "The descent's first rows ("
                   + ", ".join(f"{count} {tier} tasks" for tier, count in two_pass.items() if count)
-                  + ") ran with the episode played twice per step (once for the verdict, once for the gradient); "
-                  "the rest with one pass (`value_and_grad` with the episode as auxiliary output), so they took "
-                  "about twice the descent steps in the same wall time."]
+                  + ") played the episode twice per descent step (once for its margins, once inside the gradient); "
+                  "the rest once (`value_and_grad` with the episode as auxiliary output), a forward pass fewer per "
+                  "step in the same wall time."]
     doubled = summary.get("cma_doubled")
     if doubled:
         median = float(np.median([t["median_gain"] for t in summary["tiers"].values()]))
