@@ -40,6 +40,7 @@ from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.optim.rl_study import merged_traces
 from ffsr_gym.provenance import provenance, splice_file, write_json_atomic
 from ffsr_gym.scoring.rules import score_rule
+from ffsr_gym.tasks.splits import pool
 
 ENV_ID = "FFSR-Residual-v2"
 HYPERPARAMS = {"num_envs": 16, "unroll_length": 16, "batch_size": 16, "num_minibatches": 16,
@@ -111,6 +112,7 @@ def main() -> None:
     spec, runs, rows = spec_for_version("v2"), [], {"last": [], "best_on_validation": []}
     traces: dict[str, list] = {"last": [], "best_on_validation": []}
     pools: dict[str, dict] = {}  # pool file, step and reference each checkpoint was scored on: one for all seeds
+    validation_indices = list(range(len(pool(args.tier, "validation"))))  # the whole pool scores each checkpoint
     library = f"brax {__import__('brax').__version__}, jax {jax.__version__}"
     for seed in args.seeds:
         folder = Path(args.work) / f"{args.tier}_seed{seed}"
@@ -124,7 +126,9 @@ def main() -> None:
                 write_json_atomic(files[checkpoint], report.to_json())
             write_json_atomic(folder / "train_record.json", record)
         record = json.loads((folder / "train_record.json").read_text())
-        runs.append(record)
+        # the validation curve as the other RL entries hold it (their points also keep each task's score)
+        runs.append(record | {"curve": {"split": "validation", "indices": validation_indices, "points": [
+            {"env_steps": p["steps"], "validation_mean": p["validation_mean"]} for p in record["curve"]]}})
         for checkpoint, path in files.items():
             scored = json.loads(path.read_text())
             rows[checkpoint] += [row | {"train_seed": seed} for row in scored["episodes"]]

@@ -115,7 +115,8 @@ def plot_learning_curves(root: str | Path, entries: dict[str, list[dict]] | None
             method = e["name"].removesuffix(f"_{tier}")
             curves = [run["curve"]["points"] for run in e["extra"]["runs"]]
             steps = [p["env_steps"] for p in curves[0]]
-            per_seed = np.array([[np.mean(p["scores"]) for p in c[:len(steps)]] for c in curves])  # (seeds, points)
+            per_seed = np.array([[np.mean(p["scores"]) if "scores" in p else p["validation_mean"]  # a mean only
+                                  for p in c[:len(steps)]] for c in curves])  # (seeds, points)
             centre = [iqm(per_seed[:, k]) for k in range(len(steps))]
             seeds, points = per_seed.shape
             draws = rng.integers(0, seeds, (2000, points, seeds))  # the draws of a resample of the seeds per point
