@@ -32,12 +32,11 @@ from tqdm.auto import tqdm
 
 from ffsr_gym.bench.entry import EvalReport
 from ffsr_gym.bench.evaluation import evaluate
-from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.jax.brax_env import FFSRBraxEnv
 from ffsr_gym.jax.physics import jax, jnp
 from ffsr_gym.jax.replay import play_policy, pool_tasks
 from ffsr_gym.model.spec import spec_for_version
-from ffsr_gym.optim.rl_study import merged_traces
+from ffsr_gym.optim.rl_study import merged_traces, same_scoring
 from ffsr_gym.provenance import provenance, splice_file, write_json_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.splits import pool
@@ -133,10 +132,7 @@ def main() -> None:
             scored = json.loads(path.read_text())
             rows[checkpoint] += [row | {"train_seed": seed} for row in scored["episodes"]]
             traces[checkpoint].append(scored["extra"].get("trace"))
-            on = {key: scored["extra"].get(key) for key in ("pool_file_sha256", "dt_s", "reference_sha256")}
-            if pools.setdefault(checkpoint, on) != on:
-                raise InvalidInputError(f"{path}: scored on another pool file or step than seed {args.seeds[0]} "
-                                        f"({on} vs {pools[checkpoint]}); delete its evaluation files to rescore")
+            same_scoring(pools, checkpoint, scored, path, args.seeds[0])
     cores = sorted({r.get("cpu_cores") for r in runs}, key=str)  # as each seed was trained (None: not recorded)
     compute = {"env_steps": sum(r["trained_steps"] for r in runs), "wall_time_s": sum(r["wall_time_s"] for r in runs),
                "hardware": f"{' or '.join(map(str, cores))} CPU core(s) per seed, one seed at a time"}

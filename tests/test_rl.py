@@ -161,3 +161,20 @@ def test_a_seed_being_trained_elsewhere_is_refused_by_name(tmp_path):
     train("ppo", "FFSR-v2", seed=0, out=folder, task="easy", timesteps=256, n_envs=2, curve_every=10_000,
           curve_tasks=1, progress=False)
     assert (folder / "model.zip").is_file() and not (folder / ".training").exists()
+
+
+def test_seeds_scored_on_another_step_or_pool_are_refused_by_folder():
+    from ffsr_gym.exceptions import InvalidInputError
+    from ffsr_gym.optim.rl_study import same_scoring
+
+    def scored(dt, pool="a" * 64):
+        return {"extra": {"pool_file_sha256": pool, "dt_s": dt, "reference_sha256": None}}
+
+    recorded = {}
+    same_scoring(recorded, "last", scored(0.01), "seed0", 0)
+    same_scoring(recorded, "last", scored(0.01), "seed1", 0)  # the same: accepted
+    same_scoring(recorded, "best_on_validation", scored(0.02), "seed1", 0)  # each checkpoint apart
+    for other in (scored(0.005), scored(0.01, pool="b" * 64)):
+        with pytest.raises(InvalidInputError, match="seed2: scored on another pool file or step than seed 0"):
+            same_scoring(recorded, "last", other, "seed2", 0)
+    assert recorded["last"]["dt_s"] == 0.01  # a refused seed does not replace the record

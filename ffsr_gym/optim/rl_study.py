@@ -65,11 +65,7 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
             else:
                 traces[checkpoint] = None  # a seed scored before traces were recorded: the entry has none
             run.setdefault("metrics", {})[checkpoint] = evaluations[checkpoint]["metrics"]
-            scored = {key: evaluations[checkpoint]["extra"].get(key)
-                      for key in ("pool_file_sha256", "dt_s", "reference_sha256")}
-            if recorded.setdefault(checkpoint, scored) != scored:
-                raise InvalidInputError(f"{folder}: scored on another pool file or step than seed {seeds[0]} "
-                                        f"({scored} vs {recorded[checkpoint]}); delete its evaluation files to rescore")
+            same_scoring(recorded, checkpoint, evaluations[checkpoint], folder, seeds[0])
         runs.append(run)
     # the steps trained (PPO rounds the budget up to whole rollouts), not the budget
     compute = {"env_steps": sum(run.get("trained_steps", run["timesteps"]) for run in runs),
@@ -99,6 +95,15 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
         reports[checkpoint] = EvalReport(env_id, env_kwargs, score_rule(spec).aggregate(rows[checkpoint]),
                                          rows[checkpoint], prov, name=name, extra=extra, score_rule=spec.score.text)
     return reports
+
+
+def same_scoring(recorded: dict[str, dict], checkpoint: str, evaluation: dict, where, first_seed: int) -> None:
+    """Record what ``evaluation`` (an ``EvalReport`` as JSON) was scored on (pool file, step, reference) for
+    ``checkpoint``, refusing one scored on other ones than the seeds before it: the seeds of one entry share them."""
+    scored = {key: evaluation["extra"].get(key) for key in ("pool_file_sha256", "dt_s", "reference_sha256")}
+    if recorded.setdefault(checkpoint, scored) != scored:
+        raise InvalidInputError(f"{where}: scored on another pool file or step than seed {first_seed} "
+                                f"({scored} vs {recorded[checkpoint]}); delete its evaluation files to rescore")
 
 
 def seed_folder(out: str | Path, algo: str, env_id: str, task: str, seed: int) -> Path:
