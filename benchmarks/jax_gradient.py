@@ -156,6 +156,8 @@ def tier_summary(rows: list[dict]) -> dict:
             "max_gain": float(np.max(gains)) if gains else 0.0,
             "raised_residual_family": sum(r["raised_residual"] for r in rows),
             "cost_lowered": sum(r["end_cost"] < r["start_cost"] for r in rows),
+            # tasks where no descent step was taken: every trial step left the margins or raised C
+            "no_step_taken": [r["index"] for r in rows if r["end_cost"] == r["start_cost"]],
             "descent_steps_median": float(np.median([r["descent_steps"] for r in rows])),
             "wall_time_s": sum(r["wall_time_s"] for r in rows),
             "cma_wall_time_s": sum(r["cma_wall_time_s"] for r in rows),
@@ -176,6 +178,12 @@ def docs_text(summary: dict) -> str:
         lines.append(f"| {tier} | {t['tasks']} | {t['improved']} ({t['median_gain']:.1%} / {t['max_gain']:.1%}) | "
                      f"{t['raised_residual_family']} | {t['cost_lowered']} | {t['descent_steps_median']:.0f} | "
                      f"{t['wall_time_s']:.0f} / {t['cma_wall_time_s']:.0f} | {t['compile_s']:.0f} |")
+    stuck = {tier: t["no_step_taken"] for tier, t in summary["tiers"].items() if t.get("no_step_taken")}
+    if stuck:
+        lines += ["", "Where C was not lowered, no descent step was taken: every trial step, halved each time, led to "
+                  "an episode outside the certificate's margins or with a higher C, within the task's time ("
+                  + "; ".join(f"{tier} task{'s' * (len(ix) > 1)} {', '.join(map(str, ix))}" for tier, ix in
+                              stuck.items()) + ")."]
     two_pass = {tier: t.get("two_pass_tasks", 0) for tier, t in summary["tiers"].items()}
     if any(two_pass.values()):
         lines += ["", "The descent's first rows ("
