@@ -97,7 +97,8 @@ def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | P
     return reports
 
 
-def same_scoring(recorded: dict[str, dict], checkpoint: str, evaluation: dict, where, first_seed: int) -> None:
+def same_scoring(recorded: dict[str, dict], checkpoint: str, evaluation: dict, where: str | Path,
+                 first_seed: int) -> None:
     """Record what ``evaluation`` (an ``EvalReport`` as JSON) was scored on (pool file, step, reference) for
     ``checkpoint``, refusing one scored on other ones than the seeds before it: the seeds of one entry share them."""
     scored = {key: evaluation["extra"].get(key) for key in ("pool_file_sha256", "dt_s", "reference_sha256")}
