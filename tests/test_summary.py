@@ -110,5 +110,9 @@ def test_the_rl_study_table_compares_the_selected_rl_entry_with_the_classical_on
     assert easy_row[5].startswith("`cmaes_residual` 0.330") and easy_row[6] == "below"  # 0.31 < 0.32
     assert easy_row[7] == "`ppo` +0.210"  # PPO falls 0.26 - 0.05, SAC only 0.10
     assert easy_row[8] == "2 of 4 |"
+    brax = [_ranked("brax_ppo_easy_valbest", "FFSR-Residual-v2", 0.29, 0.28, 0.30, 0.95, "best_on_validation"),
+            _ranked("brax_ppo_easy", "FFSR-Residual-v2", 0.27, 0.26, 0.28, 0.96, "last")]
+    with_brax = rl_comparison.table(SPEC, {"easy": easy + brax}).splitlines()[2]
+    assert with_brax.endswith("| 2 of 4 (+1 other) |")  # another library's pair is not one of the study's four
     assert rows["debris"][4] == rows["debris"][6] == "CIs overlap"  # [0.17, 0.21] against [0.15, 0.23]
     assert rl_comparison.table(SPEC, {"easy": easy[:3]}) == "No RL entries yet.\n"

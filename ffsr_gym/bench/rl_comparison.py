@@ -6,7 +6,8 @@ untrained entry not on the residual env id), the best entry that is not trained 
 selected RL entry stands against each: above or below with the 95 % CIs of the IQM apart, or the
 CIs overlapping (the leaderboard's ``ci_separation`` rule). It also gives the largest drop from an
 RL entry's selected checkpoints to its last ones, and how many of the study's RL entry pairs
-(2 algorithms x 2 env ids) the tier has. Every cell is read from the entries; nothing is typed.
+(2 algorithms x 2 env ids) the tier has, other trained pairs (Brax's PPO) counted apart. Every cell
+is read from the entries; nothing is typed.
 """
 
 from __future__ import annotations
@@ -18,7 +19,22 @@ from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.model.spec import BenchmarkSpec
 
 #: The study's grid per tier: PPO and SAC on each of the version's two env ids.
+STUDY_ALGOS = ("ppo", "sac")
 PAIRS_PER_TIER = 4
+
+
+def entry_name(algo: str, spec: BenchmarkSpec, env_id: str, task: str) -> str:
+    """The leaderboard entry name of a training study (``ppo_residual_easy``)."""
+    return f"{algo}_{'residual_' if spec.is_residual(env_id) else ''}{task}"
+
+
+def _pairs(spec: BenchmarkSpec, tier: str, selected: list[dict[str, Any]]) -> str:
+    """How many of the study's entry pairs the tier has, and how many other trained pairs."""
+    suffix = CHECKPOINTS["best_on_validation"]
+    study = {entry_name(algo, spec, env_id, tier) + suffix for algo in STUDY_ALGOS for env_id in spec.env_ids}
+    mine = sum(e["name"] in study for e in selected)
+    others = len(selected) - mine
+    return f"{mine} of {PAIRS_PER_TIER}" + (f" (+{others} other{'s' * (others > 1)})" if others else "")
 
 
 def is_trained(entry: dict[str, Any]) -> bool:
@@ -74,7 +90,7 @@ def table(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> str:
             f"| {tier} | {_cell(spec, best, tier)} | {_cell(spec, pair[best['name']], tier)} | "
             f"{_cell(spec, planner, tier)} | {'-' if planner is None else verdict(spec, best, planner)} | "
             f"{_cell(spec, untrained, tier)} | {'-' if untrained is None else verdict(spec, best, untrained)} | "
-            f"{'-' if drop is None else f'`{safe(dropped)}` {drop:+.3f}'} | {len(selected)} of {PAIRS_PER_TIER} |")
+            f"{'-' if drop is None else f'`{safe(dropped)}` {drop:+.3f}'} | {_pairs(spec, tier, selected)} |")
     if len(lines) == 2:
         return "No RL entries yet.\n"
     return "\n".join(lines) + "\n"

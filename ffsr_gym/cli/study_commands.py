@@ -105,8 +105,8 @@ def add_study_commands(sub: Any) -> None:
 def _train(args: argparse.Namespace) -> None:
     from ffsr_gym.bench.evaluation import spec_of
     from ffsr_gym.bench.options import free_entry, unique_seeds
+    from ffsr_gym.bench.rl_comparison import entry_name
     from ffsr_gym.bench.verify import CHECKPOINTS
-    from ffsr_gym.optim.rl import entry_name
     from ffsr_gym.optim.rl_study import train_and_evaluate
 
     spec = spec_of(args.env_id)

@@ -162,11 +162,6 @@ def best_point(points: list[dict[str, Any]]) -> dict[str, Any]:
     return {"env_steps": points[k]["env_steps"], "validation_mean": means[k]}
 
 
-def entry_name(algo: str, spec: BenchmarkSpec, env_id: str, task: str) -> str:
-    """The leaderboard entry name of a training study (``ppo_residual_easy``)."""
-    return f"{algo}_{'residual_' if spec.is_residual(env_id) else ''}{task}"
-
-
 def training_kwargs(spec: BenchmarkSpec, task: str) -> dict[str, Any]:
     """The env kwargs agents train on: the scenario, or the tier's training pool."""
     if spec.evaluation.protocol == "pool":

@@ -16,11 +16,12 @@ from typing import Any
 from ffsr_gym.bench.entry import EvalReport
 from ffsr_gym.bench.evaluation import evaluate, spec_of
 from ffsr_gym.bench.policies import SB3_CLASSES, sb3_modules
+from ffsr_gym.bench.rl_comparison import entry_name
 from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.model.spec import BenchmarkSpec
-from ffsr_gym.optim.rl import BEST_MODEL, curve_split, entry_name, train
+from ffsr_gym.optim.rl import BEST_MODEL, curve_split, train
 from ffsr_gym.provenance import provenance, write_json_atomic, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
 
