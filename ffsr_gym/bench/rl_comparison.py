@@ -18,9 +18,8 @@ from ffsr_gym.bench.tables import method_name, safe
 from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.model.spec import BenchmarkSpec
 
-#: The study's grid per tier: PPO and SAC on each of the version's two env ids.
+#: The study's algorithms: its grid per tier is each of them on each of the version's two env ids.
 STUDY_ALGOS = ("ppo", "sac")
-PAIRS_PER_TIER = 4
 
 
 def entry_name(algo: str, spec: BenchmarkSpec, env_id: str, task: str) -> str:
@@ -34,7 +33,7 @@ def _pairs(spec: BenchmarkSpec, tier: str, selected: list[dict[str, Any]]) -> st
     study = {entry_name(algo, spec, env_id, tier) + suffix for algo in STUDY_ALGOS for env_id in spec.env_ids}
     mine = sum(e["name"] in study for e in selected)
     others = len(selected) - mine
-    return f"{mine} of {PAIRS_PER_TIER}" + (f" (+{others} other{'s' * (others > 1)})" if others else "")
+    return f"{mine} of {len(study)}" + (f" (+{others} other{'s' * (others > 1)})" if others else "")
 
 
 def is_trained(entry: dict[str, Any]) -> bool:
