@@ -158,3 +158,22 @@ def test_batched_step_with_parameters_equals_single_envs():
         if all(done):
             break
     assert all(done)
+
+
+def test_the_closed_loop_single_and_batched_envs_share_one_compiled_step():
+    """The step function and the decision each have one compiled body, whichever path calls them: a flag
+    passed as a constant by one caller and at run time by another would compile (and cache) a second copy."""
+    from ffsr_gym.kernel import batch, loop
+
+    actions = [np.zeros(gym.make("FFSR-Residual-v2", task="easy").action_space.shape, np.float32)] * 2
+    episode("FFSR-Residual-v2", "easy", actions, compiled=True)
+    episode("FFSR-Residual-v2", "easy", actions, compiled=False)  # the closed loop, through kernel.loop.run
+    venv = gym.make_vec("FFSR-Residual-v2", num_envs=2, task="easy", vectorization_mode="vector_entry_point")
+    venv.reset(seed=0)
+    venv.step(np.zeros((2, *actions[0].shape), np.float32))
+    assert batch.decide_batch.signatures and loop.run.signatures  # every path was taken
+    for function in (loop.run_into, decision.decide):
+        # what numba compiled for it, in this process or any earlier one (a callee loaded with its caller from the
+        # cache is not registered in its own dispatcher, so the cache's index is the record)
+        compiled = function._cache._cache_file._load_index()
+        assert len(compiled) == 1, [signature for signature, _ in compiled]

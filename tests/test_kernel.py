@@ -172,7 +172,7 @@ def test_cache_guard_covers_every_compiled_module():
         if any(isinstance(obj, _Intrinsic) and obj._defn.__module__ == module.__name__ for obj in vars(module).values()):
             intrinsics.add(module.__name__)
     assert compiled == {module.__name__ for module in kernel_cache.MODULES}
-    assert intrinsics == {"ffsr_gym.kernel.borrow"}
+    assert intrinsics == {"ffsr_gym.kernel.borrow", "ffsr_gym.kernel.flags"}
     assert compiled | intrinsics == {module.__name__ for module in kernel_cache.SOURCES}
 
 

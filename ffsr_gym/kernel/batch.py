@@ -14,6 +14,7 @@ from numba import njit, prange
 from numba.typed import List
 
 from ffsr_gym.kernel.decision import decide
+from ffsr_gym.kernel.flags import runtime_flag
 from ffsr_gym.kernel.physics import workspace
 
 
@@ -52,9 +53,10 @@ def decide_batch(mdl, plants, WS, X, K, active, n_total, n_max, FP, IP, DS, acti
                 continue
             k = K[e]
             rows, status, clipped, increment, cost, clearance, ee_error = decide(
-                mdl, (PM[e], PL[e], PI[e], PD[e]), WS[e], X[e], k, n_total, n_max, FP[e], IP[e], DS[e], actions[e], mode, True,
+                mdl, (PM[e], PL[e], PI[e], PD[e]), WS[e], X[e], k, n_total, n_max, FP[e], IP[e], DS[e], actions[e],
+                mode, runtime_flag(True),
                 (LX[e], LV[e], LDQ[e], LERR[e], LCLEAR[e], LSELF[e], LMU[e], LCDF[e], LSMIN[e], LTAU[e]), k, LAST[e],
-                SCRATCH[e], OBS[e], True)
+                SCRATCH[e], OBS[e], runtime_flag(True))
             K[e] = k + rows
             out[e, 0], out[e, 1], out[e, 2], out[e, 3] = rows, status, clipped, increment
             out[e, 4], out[e, 5], out[e, 6] = cost, clearance, ee_error

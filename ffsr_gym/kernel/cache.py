@@ -20,6 +20,7 @@ from ffsr_gym.kernel import (
     decision,
     dynamics,
     field,
+    flags,
     inverse,
     linalg,
     loop,
@@ -35,7 +36,7 @@ from ffsr_gym.kernel import (
 MODULES = (linalg, physics, dynamics, servo, collision, settings, field, inverse, planner, loop, score_terms, decision, batch,
            tumbling)
 #: Everything compiled into those functions: the modules and the intrinsics they use.
-SOURCES = (borrow, *MODULES)
+SOURCES = (borrow, flags, *MODULES)
 
 
 def sources_digest() -> str:

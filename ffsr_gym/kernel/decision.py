@@ -28,6 +28,7 @@ from numba import njit, types
 from numba.experimental import structref
 
 from ffsr_gym.kernel.borrow import borrowed
+from ffsr_gym.kernel.flags import runtime_flag
 from ffsr_gym.kernel.loop import STATUS_NONFINITE, observe_into, run_into
 from ffsr_gym.kernel.physics import workspace
 from ffsr_gym.kernel.score_terms import N_SCORE, smoothness_cost, smoothness_into
@@ -145,7 +146,8 @@ def decide(mdl_owner, plant_owner, ws_owner, x, k, n_total, n_max, fp, ip, ds, a
                and scratch[_PLANNED + 2] == fp[F_M] and scratch[_PLANNED + 3] == fp[F_TC])
     scratch[_PLANNED] = 0.0
     LX, LV, LDQ, LERR, LCLEAR, LSELF, LMU, LCDF, LSMIN, LTAU = logs
-    _, rows, status = run_into(mdl, plant_owner, ws, x, k, n_total, n_max, fp, ip, residual, stop, False, planned,
+    _, rows, status = run_into(mdl, plant_owner, ws, x, k, n_total, n_max, fp, ip, residual, runtime_flag(stop),
+                               runtime_flag(False), runtime_flag(planned),
                                LX[row0:],
                                LV[row0:], LDQ[row0:], LERR[row0:], LCLEAR[row0:], LSELF[row0:], LMU[row0:],
                                LCDF[row0:], LSMIN[row0:], LTAU[row0:])
@@ -198,7 +200,8 @@ structref.define_proxy(Episode, EpisodeType, ["mdl", "plant", "ws", "x", "fp", "
 def step_episode(episode, action, mode, stop, k, row0, n_total, n_max, obs):
     """:func:`decide` on an :class:`Episode` (same returns)."""
     return decide(episode.mdl, episode.plant, episode.ws, episode.x, k, n_total, n_max, episode.fp, episode.ip,
-                  episode.ds, action, mode, stop, episode.logs, row0, episode.last_rates, episode.scratch, obs, True)
+                  episode.ds, action, mode, runtime_flag(stop), episode.logs, row0, episode.last_rates,
+                  episode.scratch, obs, runtime_flag(True))
 
 
 @njit(cache=True, error_model="numpy")

@@ -10,6 +10,7 @@ from numba import njit
 from ffsr_gym.kernel.arrays import ModelArrays
 from ffsr_gym.kernel.borrow import borrowed
 from ffsr_gym.kernel.collision import body_clearance, capsule_ends_into, obstacle_clearance, self_clearance
+from ffsr_gym.kernel.flags import runtime_flag
 from ffsr_gym.kernel.physics import midpoint_into, momentum_into, velocity_into, workspace
 from ffsr_gym.kernel.planner import plan, true_error_into
 from ffsr_gym.kernel.servo import X_V, servo_period_into
@@ -104,8 +105,8 @@ def run(mdl, plant, x_start, k0, n_total, n_max, fp, ip, residual, stop_on_viola
     ``(x_next, rows, status)``: status 0 ok, 1 rate-limit violation, 2 collision, 3 non-finite rates.
     """
     return run_into(mdl, plant, workspace(len(mdl.cap_radius)), x_start.copy(), k0, n_total, n_max, fp, ip, residual,
-                    stop_on_violation, record_only, False, out_x, out_v, out_dq, out_err, out_clear, out_self, out_mu, out_cdf,
-                    out_smin, out_tau)
+                    runtime_flag(stop_on_violation), runtime_flag(record_only), runtime_flag(False), out_x, out_v,
+                    out_dq, out_err, out_clear, out_self, out_mu, out_cdf, out_smin, out_tau)
 
 
 @njit(cache=True, error_model="numpy")
