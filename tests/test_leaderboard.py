@@ -45,6 +45,24 @@ def test_committed_tables_are_up_to_date():
         assert splice_summary(text, ROOT) == text, "run: ffsr-gym leaderboard render --readme README.md docs/baselines.md"
 
 
+def test_the_capture_rl_study_block_reads_the_capture_entries():
+    """The ``rl-study-capture-v0`` block has a row per capture tier with RL entries, and its best selected entry is
+    the tier's best-on-validation entry by IQM, read here from the entry files."""
+    from ffsr_gym.bench.leaderboard import _page_markers, splice_summary
+
+    start, end = _page_markers("rl-study-capture-v0")
+    text = splice_summary(f"{start}\n{end}\n", ROOT)
+    rows = [line.split(" | ") for line in text.splitlines() if line.startswith("| slow") or line.startswith("| fast")]
+    assert rows and not any(line.startswith(("| easy", "| medium")) for line in text.splitlines())
+    for row in rows:
+        tier = row[0].removeprefix("| ")
+        selected = [json.loads(p.read_text()) for p in (ROOT / "capture-v0" / tier).glob("*_valbest.json")]
+        selected = [e for e in selected if e.get("extra", {}).get("training_seeds")]
+        best = max(selected, key=lambda e: e["metrics"]["score_iqm"])
+        assert row[1].startswith(f"`{best['name'].replace('_' + tier, '')}` ")
+        assert f"{best['metrics']['score_iqm']:.3f}" in row[1]
+
+
 @pytest.fixture()
 def board(tmp_path):
     root = tmp_path / "leaderboards"
@@ -151,9 +169,9 @@ def test_pareto_points_are_the_env_episodes_and_the_front_is_non_dominated(tmp_p
     import gymnasium as gym
 
     from ffsr_gym.bench.pareto import task_pareto
-    from ffsr_gym.tasks.splits import pool
     from ffsr_gym.report.leaderboard_plots import PARETO_FILE, _front, plot_pareto
     from ffsr_gym.scoring.score import score_episode
+    from ffsr_gym.tasks.splits import pool
 
     assert plot_pareto(tmp_path) is None
     (tmp_path / "v2" / "easy").mkdir(parents=True)

@@ -270,12 +270,14 @@ def write_readme(root: str | Path) -> bool:
 
 
 def splice_summary(text: str, root: str | Path, spec: BenchmarkSpec | None = None,
-                   entries: dict[str, list[dict[str, Any]]] | None = None, *, where: str = "the page") -> str:
+                   entries: dict[str, list[dict[str, Any]]] | None = None, *, where: str = "the page",
+                   loaded: dict[str, dict[str, list[dict[str, Any]]]] | None = None) -> str:
     """``text`` (the README or a docs page) with each generated leaderboard block it has regenerated: the live
     version's summary across tiers (with the aggregates across tiers under it, when
     ``<root>/<version>/aggregates.json`` exists), the top three per tier, the RL hyperparameter searches
     (``rl-search``) and the RL study against the classical entries (``rl-study``,
-    :mod:`ffsr_gym.bench.rl_comparison`).
+    :mod:`ffsr_gym.bench.rl_comparison`), and the same study on each other version (``rl-study-<version>``,
+    its entries from ``loaded`` when given, else read).
 
     Raises:
         FFSRError: ``text`` has none of these blocks; the message names ``where``.
@@ -288,6 +290,10 @@ def splice_summary(text: str, root: str | Path, spec: BenchmarkSpec | None = Non
                   tier: ordered(spec, items) for tier, items in ranked_entries.items()}),
               _page_markers("rl-search"): tables.search_table,
               _page_markers("rl-study"): lambda: rl_comparison.table(spec, ranked_entries)}
+    for version, other in all_specs().items():
+        if version != spec.version:
+            blocks[_page_markers(f"rl-study-{version}")] = lambda other=other: rl_comparison.table(other, verified(
+                loaded[other.version] if loaded and other.version in loaded else load_entries(root, other)))
     present = [(markers, body) for markers, body in blocks.items() if markers[0] in text and markers[1] in text]
     if not present:
         raise FFSRError(f"{where} has none of the generated leaderboard blocks (markers such as "
@@ -333,6 +339,6 @@ def check(root: str | Path, readme: str | Path | list[str | Path] | None = None,
             problems.append(f"out of date: {aggregated} (the entries changed); run ffsr-gym leaderboard aggregates")
     for page in [] if readme is None else [readme] if isinstance(readme, (str, Path)) else readme:
         text = Path(page).read_text(encoding="utf-8")
-        if splice_summary(text, root, ranked, loaded[ranked.version], where=str(page)) != text:
+        if splice_summary(text, root, ranked, loaded[ranked.version], where=str(page), loaded=loaded) != text:
             problems.append(f"out of date: {page}; run ffsr-gym leaderboard render --readme {page}")
     return problems
