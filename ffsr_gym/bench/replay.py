@@ -29,7 +29,8 @@ from ffsr_gym.bench.planner_scores import evaluate_planner
 from ffsr_gym.bench.policies import BUILTIN_POLICIES, load_policy, resolve_recorded
 from ffsr_gym.bench.trace import clipped_counts, decode, trace_episodes
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
-from ffsr_gym.model.spec import BenchmarkSpec
+from ffsr_gym.bench.replay_tolerance import bias_problem, differing_keys
+from ffsr_gym.model.spec import BenchmarkSpec, ReplaySpec
 from ffsr_gym.user_files import load_json
 
 #: The most training seeds an entry's rows may repeat each task for (a bound on what ``verify`` plays).
@@ -85,7 +86,7 @@ def replay_entry(path: str | Path, *, run_code: str | None = None) -> Verdict:
         report = evaluate_planner(planner["method"], task=kwargs.get(spec.tasks.keyword), split=kwargs.get("split"),
                                   m=planner["m"], T_c=planner["T_c_s"], gain_per_s=planner["gain_per_s"],
                                   version=spec.version)
-        return _compare(rows, report.to_json()["episodes"], "the planner variant")
+        return _compare(rows, report.to_json()["episodes"], "the planner variant", spec)
     if "trace" in extra:
         verdict = _replay_trace(entry, spec, path)
         if verdict.status != "reproduced" or named is None or run_code is None:
@@ -99,7 +100,7 @@ def replay_entry(path: str | Path, *, run_code: str | None = None) -> Verdict:
                                   f"consent: verify again with --run-code {named!r} if you trust it")
     policy = _policy(policy_record, path)
     return _compare(rows, _play(policy, entry, spec, path).to_json()["episodes"],
-                    "the fixed parameters" if named is None else f"{named!r}")
+                    "the fixed parameters" if named is None else f"{named!r}", spec)
 
 
 def _read_entry(path: Path) -> tuple[dict[str, Any], BenchmarkSpec]:
@@ -259,7 +260,7 @@ def _replay_trace(entry: dict[str, Any], spec: BenchmarkSpec, path: Path) -> Ver
         return Verdict("differs", "the rows count clipped actions but the trace lists no clipped decisions")
     if counts is not None:
         replayed = [row | {"clipped_actions": count} for row, count in zip(replayed, counts)]
-    return _compare(rows, replayed, "the stored trace of applied actions")
+    return _compare(rows, replayed, "the stored trace of applied actions", spec)
 
 
 def _custom_scenario(record: Any, path: Path) -> Any:
@@ -282,18 +283,33 @@ def _custom_scenario(record: Any, path: Path) -> Any:
     return scenario
 
 
-def _compare(stored: list[dict], rerun: list[dict], what: str) -> Verdict:
-    """Rows compared exactly (an RL study's rows also name their training seed, which a replay keeps; a row written
-    before rows counted clipped actions is compared without that count)."""
+def _compare(stored: list[dict], rerun: list[dict], what: str, spec: BenchmarkSpec) -> Verdict:
+    """Rows compared under the version's ``[replay]`` tolerances (:mod:`ffsr_gym.bench.replay_tolerance`: exactly for
+    v0 and v2); an RL study's rows also name their training seed, which a replay keeps; a row written before rows
+    counted clipped actions is compared without that count."""
     if len(stored) != len(rerun):
         return Verdict("differs", f"{len(rerun)} rows replayed, {len(stored)} stored")
     rerun = [b | {"train_seed": a["train_seed"]} if "train_seed" in a else b for a, b in zip(stored, rerun)]
     # rows written before the clipped-action count have none to compare
     rerun = [b if "clipped_actions" in a else {k: v for k, v in b.items() if k != "clipped_actions"}
              for a, b in zip(stored, rerun)]
+    tolerance = spec.replay
     for k, (a, b) in enumerate(zip(stored, rerun)):
-        if a != b:
-            keys = sorted(key for key in set(a) | set(b) if a.get(key) != b.get(key))
+        keys = differing_keys(a, b, tolerance)
+        if keys:
             return Verdict("differs", f"row {k} differs in {keys}: stored {[a.get(x) for x in keys]}, "
-                                      f"replayed {[b.get(x) for x in keys]}")
-    return Verdict("reproduced", f"all {len(stored)} rows reproduce exactly ({what})")
+                                      f"replayed {[b.get(x) for x in keys]}{_within(tolerance)}")
+    biased = bias_problem(stored, rerun, tolerance)
+    if biased is not None:
+        return Verdict("differs", f"{biased}{_within(tolerance)}")
+    exact = all(a == b for a, b in zip(stored, rerun))
+    how = "exactly" if exact else f"with the same verdicts{_within(tolerance)}"
+    return Verdict("reproduced", f"all {len(stored)} rows reproduce {how} ({what})")
+
+
+def _within(tolerance: ReplaySpec) -> str:
+    """The tolerance a comparison allowed, as text ('' when exact)."""
+    if tolerance.score_rel_tol == 0.0 and tolerance.margin_rel_tol == 0.0:
+        return ""
+    return (f" (allowed: the score and its terms within a relative {tolerance.score_rel_tol:g}, other numbers within "
+            f"{tolerance.margin_rel_tol:g}, verdicts exactly; this version's [replay])")

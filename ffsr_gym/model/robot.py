@@ -154,9 +154,12 @@ class Robot:
     def ee_twist(self, v: Array, arm: int) -> Array:
         """World-aligned twist [v; ω] (6,) of the end-effector of ``arm`` at the generalized velocity ``v`` (18,).
 
-        Requires :meth:`update_kinematics` for the current ``q``.
+        Requires :meth:`update_kinematics` for the current ``q``. Each entry is summed left to right
+        (:func:`ffsr_gym.model.portable.matvec_rows`: the capture rule reads it, and ``@`` would leave the order
+        to the CPU's BLAS kernel).
         """
-        return pin.getFrameJacobian(self.model, self.data, int(self.ee_frame_ids[arm]), LWA) @ v
+        jacobian = pin.getFrameJacobian(self.model, self.data, int(self.ee_frame_ids[arm]), LWA)
+        return portable.matvec_rows(jacobian[None], v)[0]
 
     def joint_points(self, arm: int) -> tuple[Array, Array]:
         """Joint origins p_0..p_5 plus the end-effector p_6 [m] and joint axes z_0..z_5.

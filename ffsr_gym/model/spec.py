@@ -19,7 +19,7 @@ from pathlib import Path
 from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model.benchmark import Benchmark, load_rules
 from ffsr_gym.model.resources import envs_dir
-from ffsr_gym.model.schema import BOOL, TEXT, TEXTS, choice, integer, load_table, natural, rows, section
+from ffsr_gym.model.schema import BOOL, TEXT, TEXTS, choice, integer, load_table, natural, number, rows, section
 
 #: Score rules the engine knows (``ffsr_gym.scoring.rules``): the paper's objective B (lower is
 #: better, +inf when infeasible), the bounded episode score 1 / (1 + C) (higher is better) and the same
@@ -100,6 +100,17 @@ class EvaluationSpec:
 
 
 @dataclass(frozen=True)
+class ReplaySpec:
+    """How a replayed episode must agree with the row stored for it (the tests, ``leaderboard verify``;
+    :mod:`ffsr_gym.bench.replay_tolerance`): seeds, indices, counts, success and failure always exactly; the score and
+    its terms within ``score_rel_tol`` (relative; 0: bit for bit); every other number (margins, times) within
+    ``margin_rel_tol`` of its stored value (relative)."""
+
+    score_rel_tol: float = field(default=0.0, metadata=number(0.0, 0.05))
+    margin_rel_tol: float = field(default=0.0, metadata=number(0.0, 1.0))
+
+
+@dataclass(frozen=True)
 class LeaderboardSpec:
     """Where entries live (``{env_id}``, ``{task}``, ``{version}`` are filled in), metric names, ranking."""
 
@@ -136,6 +147,7 @@ class BenchmarkSpec:
     evaluation: EvaluationSpec = field(metadata=section(EvaluationSpec))
     leaderboard: LeaderboardSpec = field(metadata=section(LeaderboardSpec))
     observation: ObservationSpec | None = field(default=None, metadata=section(ObservationSpec))
+    replay: ReplaySpec = field(default=ReplaySpec(), metadata=section(ReplaySpec))
     source: str = field(default="", compare=False)
 
     @property

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ffsr_gym.model import portable
 from ffsr_gym.model.quaternion import multiply, to_rotation, to_rotations
 from ffsr_gym.types import Array
 
@@ -57,7 +58,7 @@ class TargetMotion:
 
     def omega_world_rad_s(self) -> Array:
         """(N+1, 3) angular velocity in the world frame, R(q) ω [rad/s]."""
-        return np.einsum("nij,nj->ni", rotations(self.quaternion), self.omega_body_rad_s)
+        return portable.matvec_rows(rotations(self.quaternion), self.omega_body_rad_s)
 
 
 def euler_rates(omega_body: Array, inertia: Array) -> Array:
@@ -83,7 +84,7 @@ def rk4_step(quaternion: Array, omega_body: Array, inertia: Array, h: float) -> 
     k4q, k4w = rates(quaternion + h * k3q, omega_body + h * k3w)
     q = quaternion + h / 6.0 * (k1q + 2.0 * k2q + 2.0 * k3q + k4q)
     w = omega_body + h / 6.0 * (k1w + 2.0 * k2w + 2.0 * k3w + k4w)
-    return q / np.linalg.norm(q), w
+    return q / portable.norm(q), w
 
 
 def propagate(*, position_m: Array, velocity_m_s: Array, quaternion: Array, omega_body_rad_s: Array,
@@ -101,7 +102,7 @@ def propagate(*, position_m: Array, velocity_m_s: Array, quaternion: Array, omeg
         substeps: RK4 steps per physics step.
     """
     inertia = np.asarray(inertia_kg_m2, dtype=float)
-    q = np.asarray(quaternion, dtype=float) / np.linalg.norm(quaternion)
+    q = np.asarray(quaternion, dtype=float) / portable.norm(quaternion)
     w = np.asarray(omega_body_rad_s, dtype=float)
     quats, omegas = np.empty((steps + 1, 4)), np.empty((steps + 1, 3))
     quats[0], omegas[0] = q, w
@@ -121,7 +122,7 @@ def rotations(quaternions: Array) -> Array:
 def angular_momentum_world(motion: TargetMotion, inertia_kg_m2: Array) -> Array:
     """(N+1, 3) angular momentum about the centre of mass in the world frame, R I ω [kg m²/s]."""
     body = np.asarray(inertia_kg_m2)[None, :] * motion.omega_body_rad_s
-    return np.einsum("nij,nj->ni", rotations(motion.quaternion), body)
+    return portable.matvec_rows(rotations(motion.quaternion), body)
 
 
 def kinetic_energy(motion: TargetMotion, inertia_kg_m2: Array) -> Array:
@@ -133,8 +134,8 @@ def point_motion(motion: TargetMotion, offset_body_m: Array) -> tuple[Array, Arr
     """Position [m] and velocity [m/s] in the world frame, (N+1, 3) each, of a point fixed on the body at
     ``offset_body_m`` (3,) from the centre of mass in the body frame: p + R r and v + ω_world × R r."""
     turn = rotations(motion.quaternion)
-    arm = np.einsum("nij,j->ni", turn, np.asarray(offset_body_m, dtype=float))
-    omega_world = np.einsum("nij,nj->ni", turn, motion.omega_body_rad_s)
+    arm = portable.matvec_rows(turn, offset_body_m)
+    omega_world = portable.matvec_rows(turn, motion.omega_body_rad_s)
     return motion.position_m + arm, motion.velocity_m_s[None, :] + np.cross(omega_world, arm)
 
 
@@ -143,7 +144,7 @@ def grasp_pose(position_m: Array, quaternion: Array, handle_position_m: Array,
     """World position [m] and attitude (scalar first, normalised) of a grasp frame fixed on the body at
     ``handle_position_m`` with attitude ``handle_quaternion`` (body frame), for the body's pose (p, q):
     p + R(q) h and q ⊗ q_h."""
-    q = np.asarray(quaternion, dtype=float) / np.linalg.norm(quaternion)
-    q_h = np.asarray(handle_quaternion, dtype=float) / np.linalg.norm(handle_quaternion)
-    position = np.asarray(position_m, dtype=float) + to_rotation(q) @ np.asarray(handle_position_m, dtype=float)
+    q = np.asarray(quaternion, dtype=float) / portable.norm(quaternion)
+    q_h = np.asarray(handle_quaternion, dtype=float) / portable.norm(handle_quaternion)
+    position = np.asarray(position_m, dtype=float) + portable.matvec(to_rotation(q), handle_position_m)
     return position, multiply(q, q_h)

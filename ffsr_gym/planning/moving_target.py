@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.model import portable
 from ffsr_gym.model import quaternion as quat
 from ffsr_gym.model.scenario_sections import TumblingTarget
 from ffsr_gym.model.tumbling import TargetMotion, point_motion, rotations
@@ -105,13 +106,13 @@ class MovingTargetPath:
         turned_rows = quat.multiply_rows(grasp.quaternion[moving], quat.conjugate(first))
         turn = np.zeros((len(t), 3))  # δ: the frame's turn since t = 0 (needed before arrival only)
         turn[moving] = [quat.rotation_vector(q) for q in turned_rows]
-        turned = float(np.linalg.norm(turn[t < motion_time], axis=1).max(initial=0.0))
+        turned = max((portable.norm(row) for row in turn[t < motion_time]), default=0.0)
         if turned > math.pi - 0.05:
             raise InvalidInputError(f"the grasp frame turns by {math.degrees(turned):.0f} deg before the end of the "
                                     f"motion ({motion_time:g} s); allowed: less than 177 deg (a slower spin or a "
                                     "shorter trajectory.motion_time_s)")
         attitude, omega = grasp.quaternion.copy(), grasp.omega_rad_s.copy()  # arrived (s = 1): the frame itself
-        R_first = quat.to_rotation(first)
+        offset_world = portable.matvec(quat.to_rotation(first), offset)  # R(σ_h(0)) a
         for k in moving:
             sk, sdk = float(s[k, 0]), float(s_dot[k, 0])
             if sk == 1.0:
@@ -119,9 +120,10 @@ class MovingTargetPath:
             synced = quat.from_rotation_vector(sk * turn[k])  # exp(s δ): the frame's turn since t = 0, s of it
             still = quat.multiply(first, quat.from_rotation_vector((1.0 - sk) * offset))
             attitude[k] = quat.multiply(synced, still)
-            turn_rate = np.linalg.solve(left_jacobian(turn[k]), grasp.omega_rad_s[k])
-            omega[k] = (left_jacobian(sk * turn[k]) @ (sdk * turn[k] + sk * turn_rate)
-                        - sdk * quat.to_rotation(synced) @ R_first @ offset)
+            turn_rate = left_jacobian_inverse_times(turn[k], grasp.omega_rad_s[k])  # δ̇ = J_l(δ)⁻¹ ω_h
+            feed = [sdk * float(d) + sk * r for d, r in zip(turn[k], turn_rate)]
+            carried = portable.matvec(quat.to_rotation(synced), offset_world)
+            omega[k] = [a - sdk * b for a, b in zip(left_jacobian_times(sk * turn[k], feed), carried)]
         return cls(p0, q0, grasp, motion_time, accel_time, position, attitude, np.hstack((velocity, omega)))
 
     def at(self, t: float) -> tuple[Array, Array, Array]:
@@ -131,15 +133,37 @@ class MovingTargetPath:
         return self.position_m[k], self.attitude[k], self.twist[k]
 
 
-def left_jacobian(rotation: Array) -> Array:
-    """The left Jacobian J_l(φ) of SO(3) at the rotation vector φ: the world angular velocity of exp(φ(t)) is
-    J_l(φ) φ̇. J_l = I + (1 − cos θ)/θ² [φ]× + (θ − sin θ)/θ³ [φ]×², θ = |φ| (series below 1e-6)."""
-    theta = float(np.linalg.norm(rotation))
-    S = quat.skew(rotation)
-    if theta < 1e-6:
-        return np.eye(3) + 0.5 * S + S @ S / 6.0
-    return (np.eye(3) + (1.0 - math.cos(theta)) / theta**2 * S
-            + (theta - math.sin(theta)) / theta**3 * S @ S)
+def left_jacobian_times(rotation: Array, vector: Array) -> list[float]:
+    """J_l(φ) x for the left Jacobian of SO(3) at the rotation vector φ (the world angular velocity of exp(φ(t)) is
+    J_l(φ) φ̇): x + (1 − cos θ)/θ² φ × x + (θ − sin θ)/θ³ φ × (φ × x), θ = |φ| (their series to θ⁶ below
+    θ = 0.1, where they are the more accurate). Scalar arithmetic in a fixed order (``ffsr_gym.model.portable``): no BLAS."""
+    theta = portable.norm(rotation)
+    if theta < 0.1:
+        t2 = theta * theta
+        a = 0.5 - t2 / 24.0 + t2 * t2 / 720.0 - t2 * t2 * t2 / 40320.0
+        b = 1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0 - t2 * t2 * t2 / 362880.0
+    else:
+        a, b = (1.0 - math.cos(theta)) / (theta * theta), (theta - math.sin(theta)) / (theta * theta * theta)
+    return _plus_crosses(rotation, vector, a, b)
+
+
+def left_jacobian_inverse_times(rotation: Array, vector: Array) -> list[float]:
+    """J_l(φ)⁻¹ x in closed form: x − ½ φ × x + (1/θ² − (1 + cos θ)/(2 θ sin θ)) φ × (φ × x), θ = |φ| < π (its
+    series to θ⁶ below θ = 0.1); no linear solve, so no LAPACK kernel the CPU chooses."""
+    theta = portable.norm(rotation)
+    if theta < 0.1:
+        t2 = theta * theta
+        c = 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0 + t2 * t2 * t2 / 1209600.0
+    else:
+        c = 1.0 / (theta * theta) - (1.0 + math.cos(theta)) / (2.0 * theta * math.sin(theta))
+    return _plus_crosses(rotation, vector, -0.5, c)
+
+
+def _plus_crosses(rotation: Array, vector: Array, a: float, b: float) -> list[float]:
+    """x + a φ × x + b φ × (φ × x), in Python floats."""
+    once = portable.cross(rotation, vector)
+    twice = portable.cross(rotation, once)
+    return [float(x) + a * y + b * z for x, y, z in zip(vector, once, twice)]
 
 
 def pre_grasp(grasp: GraspFrameMotion, *, standoff_m: float, insert_start_s: float, insert_time_s: float,
@@ -165,7 +189,7 @@ def pre_grasp(grasp: GraspFrameMotion, *, standoff_m: float, insert_start_s: flo
 def grasp_motion(body: TumblingTarget, motion: TargetMotion) -> GraspFrameMotion:
     """The grasp frame of a ``[tumbling_target]`` along its body's ``motion`` (``ffsr_gym.sim.setup``)."""
     position, velocity = point_motion(motion, np.array(body.handle_position_m))
-    handle = np.array(body.handle_quaternion_wxyz) / np.linalg.norm(body.handle_quaternion_wxyz)
+    handle = np.array(body.handle_quaternion_wxyz) / portable.norm(body.handle_quaternion_wxyz)
     attitude = quat.multiply_rows(motion.quaternion, handle)
     dt_s = float(motion.time_s[1] - motion.time_s[0]) if len(motion.time_s) > 1 else 1.0
     return GraspFrameMotion(dt_s, position, attitude, velocity, motion.omega_world_rad_s())
@@ -199,7 +223,7 @@ class BodyField:
         """The field of a ``[tumbling_target]`` moving as ``motion`` (None when its ``danger_radius_m`` is 0)."""
         if body.danger_radius_m <= 0.0:
             return None
-        return cls(motion.position_m, dt_s, 0.5 * float(np.linalg.norm(body.size_m)), body.danger_radius_m)
+        return cls(motion.position_m, dt_s, 0.5 * portable.norm(body.size_m), body.danger_radius_m)
 
     def centre(self, t: float) -> Array:
         """The centre [m] at ``t`` [s] (the sample of the step ``t`` falls on)."""

@@ -11,6 +11,7 @@ from ffsr_gym.kernel import cache as kernel_cache
 from ffsr_gym.kernel import first_use, servo
 from ffsr_gym.kernel import loop as kernel_loop
 from ffsr_gym.kernel import settings as ks
+from ffsr_gym.model import portable
 from ffsr_gym.model.robot import check_state
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.model.tumbling import rotations
@@ -60,7 +61,7 @@ def settings_vectors(setup: ScenarioSetup, *, method: str, m: float, T_c: float)
              scenario.physics_substeps, frames, body is not None)
     if body is not None:
         fp[ks.F_BODY_HALF:ks.F_BODY_HALF + 3] = np.array(body.size_m) / 2.0
-        fp[ks.F_BODY_RB], fp[ks.F_BODY_DANGER] = 0.5 * np.linalg.norm(body.size_m), body.danger_radius_m
+        fp[ks.F_BODY_RB], fp[ks.F_BODY_DANGER] = 0.5 * portable.norm(body.size_m), body.danger_radius_m
     return fp, ip
 
 

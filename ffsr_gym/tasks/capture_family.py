@@ -30,6 +30,7 @@ from functools import lru_cache
 import numpy as np
 
 from ffsr_gym.exceptions import InvalidInputError, ScenarioError
+from ffsr_gym.model import portable
 from ffsr_gym.model.benchmark import Benchmark, CaptureDraw
 from ffsr_gym.model.collision import BoxObstacle
 from ffsr_gym.model.quaternion import from_rotation, to_rotation
@@ -69,7 +70,7 @@ def _spin(draw: CaptureDraw, tier: str, rng: np.random.Generator) -> tuple[float
 
 def _drift(draw: CaptureDraw, rng: np.random.Generator) -> tuple[float, float, float]:
     direction = rng.normal(size=3)
-    return tuple(float(x) for x in rng.uniform(*draw.drift_m_s) * direction / np.linalg.norm(direction))
+    return tuple(float(x) for x in rng.uniform(*draw.drift_m_s) * direction / portable.norm(direction))
 
 
 def sample_capture(family: Scenario, spec: Randomization, draw: CaptureDraw, tier: str,
