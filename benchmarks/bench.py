@@ -4,12 +4,18 @@ Run: ``python benchmarks/bench.py`` (``pip install -e ".[bench]"`` adds MuJoCo f
 reference; ``--quick`` projects the GA instead of running it). Prints one line per measurement,
 writes ``benchmarks/results.json`` (with provenance) and, with ``--readme docs/speed.md``, the speed page's
 speed table (``--runs 3`` gives the ranges it shows; a test checks the table against the JSON).
+
+Before it overwrites them, each row is compared with the committed results (``--against``), scaled by a yardstick
+measured in both runs (``benchmarks/speed_guard.py``): a row slower by more than ``speed_guard.TOLERANCE`` is printed
+as ``SLOWER`` and kept in the results (``slower_than_committed``). A change to ``ffsr_gym/kernel/`` is followed by
+a run of this script (a test fails when the committed results predate the newest kernel change).
 """
 
 from __future__ import annotations
 
 import argparse
 import gc
+import json
 import math
 import os
 import platform
@@ -31,6 +37,7 @@ from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic,
 
 sys.path.insert(0, str(Path(__file__).parent))
 import kernel_parts  # noqa: E402  (benchmarks/kernel_parts.py, next to this script)
+import speed_guard  # noqa: E402  (benchmarks/speed_guard.py)
 
 
 @contextmanager
@@ -507,7 +514,10 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="project the GA from 16 evaluations instead of running it")
     parser.add_argument("--out", default="benchmarks/results.json", help="results with provenance (default: %(default)s)")
     parser.add_argument("--readme", default=None, help="splice the speed table between its markers in this file")
+    parser.add_argument("--against", default="benchmarks/results.json",
+                        help="committed results each row is compared with (default: %(default)s)")
     args = parser.parse_args()
+    committed = json.loads(Path(args.against).read_text()) if Path(args.against).is_file() else None
     workers = os.cpu_count() or 1
     machine = (f"{platform.processor() or platform.machine()}, {workers} CPUs, Python {platform.python_version()}, "
                f"numba {numba.__version__}")
@@ -521,10 +531,15 @@ def main() -> None:
         parts.append(kernel_parts.measure_parts())
     results = {"machine": machine, "workers": workers, "quick": args.quick, "runs": runs, "budgets": budgets,
                "kernel_parts": parts, "operations": kernel_parts.operation_counts(), "clock_ghz": clock_ghz(),
+               "yardstick_s": speed_guard.yardstick_s(),
                "provenance": provenance(command="python benchmarks/bench.py " + " ".join(sys.argv[1:]),
                                         wall_time_s=time.perf_counter() - start)}
+    results["slower_than_committed"] = [] if committed is None else speed_guard.regressions(results, committed)
     write_json_atomic(args.out, results)
     print(speed_table(results))
+    print(f"against {args.against}: " + ("\n".join(["", *results["slower_than_committed"]])
+                                         if results["slower_than_committed"] else "no row slower than "
+                                         f"{speed_guard.TOLERANCE:g}x" if committed else "nothing to compare"))
     print(budget_table(results))
     print(kernel_table(results))
     if args.readme:

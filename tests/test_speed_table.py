@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
 from conftest import benchmark_script
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -41,3 +42,39 @@ def test_floor_line_shares():
     assert "could run 1,000,000 steps/s, and 8,000,000 at the AVX2 peak" in line
     assert "250,000-300,000 steps/s: 25-30 % of the scalar floor, 3.1-3.8 % of the vector one." in line
     assert bench.floor_line(results | {"clock_ghz": None}).endswith("`operation_counts`).")
+
+
+def test_a_slower_row_is_flagged_against_the_committed_results():
+    """Rates and times, raw and yardstick-scaled: a 6x slower batched rate is flagged, a machine twice as slow is
+    not a regression once scaled, and a row within the tolerance is not flagged."""
+    guard = benchmark_script("speed_guard")
+
+    def results(rate: float, time_us: float, yardstick: float | None) -> dict:
+        rows = [{"key": "batched", "what": "batched", "value": rate, "unit": "physics steps/s"},
+                {"key": "step", "what": "one step", "value": time_us, "unit": "us"}]
+        return {"runs": [rows], "yardstick_s": yardstick, "provenance": {"git_commit": "abcdef0123"}}
+
+    committed = results(410_000.0, 50.0, 0.1)
+    flagged = guard.regressions(results(69_000.0, 52.0, 0.1), committed)
+    assert len(flagged) == 1 and flagged[0].startswith("SLOWER 5.94x: batched") and "abcdef0" in flagged[0]
+    assert guard.regressions(results(205_000.0, 100.0, 0.2), committed) == []  # the same code, a machine half as fast
+    assert len(guard.regressions(results(205_000.0, 100.0, 0.1), committed)) == 2
+    assert guard.regressions(results(330_000.0, 60.0, None), committed) == []  # raw: within 1.3x
+    assert guard.yardstick_s(repeats=1) > 0.0
+
+
+def test_the_speed_page_was_measured_on_the_newest_kernel():
+    """The results the speed page is rendered from were measured at a commit that holds the newest change to
+    ``ffsr_gym/kernel/`` (rerun ``python benchmarks/bench.py --runs 3 --readme docs/speed.md`` after a kernel change)."""
+    import subprocess
+
+    def git(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True)
+
+    newest = git("log", "-1", "--format=%H", "--", "ffsr_gym/kernel").stdout.strip()
+    if not newest or git("rev-parse", "--is-shallow-repository").stdout.strip() == "true":
+        pytest.skip("not a full git checkout: the history of ffsr_gym/kernel is not here")
+    measured = json.loads((ROOT / "benchmarks" / "results.json").read_text())["provenance"]["git_commit"]
+    assert git("merge-base", "--is-ancestor", newest, measured).returncode == 0, (
+        f"docs/speed.md was measured at {measured[:7]}, before the kernel change {newest[:7]}: rerun "
+        "python benchmarks/bench.py --runs 3 --readme docs/speed.md")

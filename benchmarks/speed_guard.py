@@ -1,0 +1,78 @@
+"""Speed regressions made visible: a new ``bench.py`` run against the committed ``benchmarks/results.json``.
+
+Every row of a run is compared with the same row of the committed results. Raw times and rates move with the
+machine and its load, so both sides are first divided by a **yardstick** measured in the same run: a fixed piece of
+numpy and Python work that shares no code with ffsr-gym (:func:`yardstick_s`). A row is flagged when its
+yardstick-scaled figure is worse than the committed one by more than :data:`TOLERANCE` (a factor: 1.3 means 30 %
+slower); the best of the runs is compared on each side (the fastest run is the one least disturbed by other work).
+Committed results without a yardstick are compared raw, which is meaningful on the same machine only.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+#: A row is flagged when it is slower than the committed one by more than this factor (run-to-run spread on an idle
+#: 2-core machine is about 1.2x on the batched rows, docs/speed.md).
+TOLERANCE = 1.3
+#: Units where more is faster; every other unit is a time (less is faster).
+RATE_UNITS = ("physics steps/s", "env steps/s")
+
+
+def yardstick_s(repeats: int = 5) -> float:
+    """Seconds (best of ``repeats``) of a fixed workload that shares no code with ffsr-gym: small numpy solves and
+    a Python loop, the mix the package's own Python spends its time on."""
+    rng = np.random.default_rng(0)
+    matrices, vectors = rng.normal(size=(200, 6, 6)) + 6.0 * np.eye(6), rng.normal(size=(200, 6))
+    best = float("inf")
+    for _ in range(repeats):
+        start = time.perf_counter()
+        total = 0.0
+        for a, b in zip(matrices, vectors):
+            total += float(np.linalg.solve(a, b)[0])
+        for k in range(200_000):
+            total += (k % 7) * 0.5
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def best_values(results: dict) -> dict[str, tuple[float, str, str]]:
+    """Per row key: the best value over the runs, its unit and its description."""
+    out: dict[str, tuple[float, str, str]] = {}
+    for run in results.get("runs", []):
+        for row in run:
+            value, unit = float(row["value"]), row["unit"]
+            if row["key"] in out:
+                old = out[row["key"]][0]
+                value = max(old, value) if unit in RATE_UNITS else min(old, value)
+            out[row["key"]] = (value, unit, row["what"])
+    return out
+
+
+def slowdown(new: float, old: float, unit: str, scale: float) -> float:
+    """How many times slower ``new`` is than ``old`` (< 1: faster), the old figure scaled by ``scale`` (the new
+    yardstick over the old one: a machine twice as slow makes times twice as long and rates half as high)."""
+    if unit in RATE_UNITS:
+        return (old / scale) / new if new > 0.0 else float("inf")
+    return new / (old * scale) if old > 0.0 else float("inf")
+
+
+def regressions(results: dict, committed: dict, tolerance: float = TOLERANCE) -> list[str]:
+    """One line per row of ``results`` slower than in ``committed`` by more than ``tolerance`` (empty: none)."""
+    ours, theirs = best_values(results), best_values(committed)
+    scale, scaled = 1.0, "raw (the committed results hold no yardstick)"
+    if results.get("yardstick_s") and committed.get("yardstick_s"):
+        scale = results["yardstick_s"] / committed["yardstick_s"]
+        scaled = f"yardstick-scaled (this machine {scale:.2f}x the committed run's time)"
+    commit = str(committed.get("provenance", {}).get("git_commit") or "?")[:7]
+    lines = []
+    for key, (value, unit, what) in ours.items():
+        if key not in theirs or theirs[key][1] != unit:
+            continue
+        factor = slowdown(value, theirs[key][0], unit, scale)
+        if factor > tolerance:
+            lines.append(f"SLOWER {factor:.2f}x: {what}: {value:,.4g} {unit} against {theirs[key][0]:,.4g} at {commit}, "
+                         f"{scaled}; tolerance {tolerance:g}x")
+    return lines
