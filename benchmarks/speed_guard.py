@@ -5,7 +5,8 @@ machine and its load, so both sides are first divided by a **yardstick** measure
 numpy and Python work that shares no code with ffsr-gym (:func:`yardstick_s`). A row is flagged when its
 yardstick-scaled figure is worse than the committed one by more than :data:`TOLERANCE` (a factor: 1.3 means 30 %
 slower); the best of the runs is compared on each side (the fastest run is the one least disturbed by other work).
-Committed results without a yardstick are compared raw, which is meaningful on the same machine only.
+Committed results without that yardstick are scaled by the Pinocchio rollout every results file times (the
+reference of the ``rollout`` row); raw comparison is the last resort, meaningful on the same machine only.
 """
 
 from __future__ import annotations
@@ -59,13 +60,31 @@ def slowdown(new: float, old: float, unit: str, scale: float) -> float:
     return new / (old * scale) if old > 0.0 else float("inf")
 
 
+def pinocchio_rollout_s(results: dict) -> float | None:
+    """The fastest run's Pinocchio rollout of the ``rollout`` row [s] (its value times its ratio), a yardstick that
+    every results file holds: numpy, Pinocchio and Python, none of the compiled kernel."""
+    times = [row["value"] * row["ratio"] / 1e3 for run in results.get("runs", []) for row in run
+             if row.get("key") == "rollout" and row.get("ratio")]
+    return min(times) if times else None
+
+
+def machine_scale(results: dict, committed: dict) -> tuple[float, str]:
+    """This run's yardstick over the committed run's, and how it was taken: the dedicated yardstick when both hold
+    one, else the Pinocchio rollout, else 1 (raw)."""
+    if results.get("yardstick_s") and committed.get("yardstick_s"):
+        return results["yardstick_s"] / committed["yardstick_s"], "yardstick"
+    ours, theirs = pinocchio_rollout_s(results), pinocchio_rollout_s(committed)
+    if ours and theirs:
+        return ours / theirs, "Pinocchio rollout"
+    return 1.0, "raw"
+
+
 def regressions(results: dict, committed: dict, tolerance: float = TOLERANCE) -> list[str]:
     """One line per row of ``results`` slower than in ``committed`` by more than ``tolerance`` (empty: none)."""
     ours, theirs = best_values(results), best_values(committed)
-    scale, scaled = 1.0, "raw (the committed results hold no yardstick)"
-    if results.get("yardstick_s") and committed.get("yardstick_s"):
-        scale = results["yardstick_s"] / committed["yardstick_s"]
-        scaled = f"yardstick-scaled (this machine {scale:.2f}x the committed run's time)"
+    scale, how = machine_scale(results, committed)
+    scaled = ("raw (neither results file holds a yardstick)" if how == "raw"
+              else f"scaled by the {how} (this machine {scale:.2f}x the committed run's time)")
     commit = str(committed.get("provenance", {}).get("git_commit") or "?")[:7]
     lines = []
     for key, (value, unit, what) in ours.items():

@@ -59,7 +59,13 @@ def test_a_slower_row_is_flagged_against_the_committed_results():
     assert len(flagged) == 1 and flagged[0].startswith("SLOWER 5.94x: batched") and "abcdef0" in flagged[0]
     assert guard.regressions(results(205_000.0, 100.0, 0.2), committed) == []  # the same code, a machine half as fast
     assert len(guard.regressions(results(205_000.0, 100.0, 0.1), committed)) == 2
-    assert guard.regressions(results(330_000.0, 60.0, None), committed) == []  # raw: within 1.3x
+    assert guard.regressions(results(330_000.0, 60.0, None), committed | {"yardstick_s": None}) == []  # raw: < 1.3x
+    rollout = {"key": "rollout", "what": "rollout", "value": 7.0, "unit": "ms", "ratio": 280.0}  # Pinocchio 1.96 s
+    old, slow_machine = committed | {"yardstick_s": None}, results(205_000.0, 100.0, None)
+    old["runs"][0].append(rollout)
+    slow_machine["runs"][0].append(rollout | {"value": 14.0})  # the machine twice as slow: Pinocchio 3.92 s
+    assert guard.machine_scale(slow_machine, old) == (2.0, "Pinocchio rollout")
+    assert guard.regressions(slow_machine, old) == []
     assert guard.yardstick_s(repeats=1) > 0.0
 
 
