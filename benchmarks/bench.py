@@ -14,7 +14,6 @@ a run of this script (a test fails when the committed results predate the newest
 from __future__ import annotations
 
 import argparse
-import gc
 import json
 import math
 import os
@@ -38,34 +37,22 @@ from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic,
 sys.path.insert(0, str(Path(__file__).parent))
 import kernel_parts  # noqa: E402  (benchmarks/kernel_parts.py, next to this script)
 import speed_guard  # noqa: E402  (benchmarks/speed_guard.py)
-
-
-@contextmanager
-def _no_gc() -> Iterator[None]:
-    """A timed section without Python's cycle collector (collected first), as ``timeit`` times.
-
-    Late in a bench process, full collections landed inside single timed passes and doubled them
-    in some runs. The environments leave no cyclic garbage (a test), so the collector's time is the
-    whole process's heap, not theirs.
-    """
-    gc.collect()
-    gc.disable()
-    try:
-        yield
-    finally:
-        gc.enable()
-
-
-def best_of(fn, repeats: int) -> float:
-    """Smallest wall time [s] of ``repeats`` calls (after one warm-up call)."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        with _no_gc():
-            start = time.perf_counter()
-            fn()
-            times.append(time.perf_counter() - start)
-    return min(times)
+from servo_bench import servo_mjcf, servo_speed  # noqa: E402,F401  (re-exported: tests and servo_plant.py use them)
+from timing import _no_gc, best_of  # noqa: E402
+from speed_tables import (  # noqa: E402,F401  (benchmarks/speed_tables.py: the page's tables, re-exported for the tests)
+    BUDGET_END,
+    BUDGET_PARTS,
+    BUDGET_START,
+    KERNEL_END,
+    KERNEL_START,
+    README_END,
+    README_START,
+    budget_table,
+    clock_ghz,
+    floor_line,
+    kernel_table,
+    speed_table,
+)
 
 
 def per_step(env, steps: int) -> float:
@@ -280,92 +267,6 @@ def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
     return rows, budget
 
 
-def servo_mjcf(model, drive: np.ndarray, h: float) -> str:
-    """A MuJoCo model of the robot's servo plant: the same bodies (from the kernel's arrays), a free joint, 12
-    velocity servos with the drives' gains and torque limits, armature and damping; ``implicitfast`` at step ``h``."""
-    import mujoco
-
-    def quat(R: np.ndarray) -> str:
-        q = np.zeros(4)
-        mujoco.mju_mat2Quat(q, np.ascontiguousarray(R).ravel())
-        return " ".join(f"{v:.17g}" for v in q)
-
-    def inertial(b: int) -> str:
-        I = model.inertia[b]
-        full = " ".join(f"{v:.17g}" for v in (I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]))
-        pos = " ".join(f"{v:.17g}" for v in model.lever[b])
-        return f'<inertial pos="{pos}" mass="{model.mass[b]:.17g}" fullinertia="{full}"/>'
-
-    def body(k: int) -> str:
-        pos = " ".join(f"{v:.17g}" for v in model.placement_p[k])
-        axis = " ".join(f"{v:.17g}" for v in model.axis[k])
-        children = "".join(body(c) for c in range(12) if model.parent[c] == k)
-        return (f'<body name="link{k}" pos="{pos}" quat="{quat(model.placement_R[k])}">'
-                f'<joint name="j{k}" type="hinge" axis="{axis}" armature="{drive[k, 2]:.17g}" damping="{drive[k, 3]:.17g}"/>'
-                f'{inertial(k + 1)}{children}</body>')
-
-    roots = "".join(body(k) for k in range(12) if model.parent[k] < 0)
-    servos = "".join(f'<velocity joint="j{k}" kv="{drive[k, 0]:.17g}" forcelimited="true" '
-                     f'forcerange="{-drive[k, 1]:.17g} {drive[k, 1]:.17g}"/>' for k in range(12))
-    return (f'<mujoco><option timestep="{h}" integrator="implicitfast" gravity="0 0 0"/><worldbody>'
-            f'<body name="base"><freejoint/>{inertial(0)}{roots}</body></worldbody>'
-            f'<actuator>{servos}</actuator></mujoco>')
-
-
-def servo_speed(repeats: int, h: float = 0.001, seconds: float = 1.0) -> tuple[float, float | None, dict]:
-    """Wall time per simulated second [s/s] of the kernel's servo plant and of MuJoCo on a model of the same
-    robot and drives (None without MuJoCo), the same commands at the same step; and their final joint rates'
-    largest difference [rad/s] (the two are different integrators of the same dynamics)."""
-    from ffsr_gym.kernel import servo
-    from ffsr_gym.model.scenario import load_scenario
-    from ffsr_gym.sim.setup import prepare
-
-    setup = prepare(load_scenario("paper"))
-    kernel, mdl, drive = setup.assets.kernel, setup.assets.kernel_arrays, setup.plant_arrays[3]
-    if not drive.any():
-        from ffsr_gym.model.drives import drive_array, drives_path, load_drives
-        from ffsr_gym.model.resources import robot_dir
-
-        drive = drive_array(load_drives(drives_path(robot_dir("ffsr_dual_arm"))))
-    n = int(round(seconds / h))
-    cmds = np.sin(3.0 * np.arange(n)[:, None] * h + np.arange(12)[None, :])  # [rad/s]
-    start = np.zeros(servo.N_STATE)
-    start[:7], start[7:19] = setup.q0[:7], setup.q0[kernel.q_index]
-    states, torques = np.zeros((n + 1, servo.N_STATE)), np.zeros((n, 12))
-    ours = best_of(lambda: servo.drive_open_loop(start.copy(), mdl, cmds, drive, h, np.zeros(6), 10, states, torques),
-                   repeats) / seconds
-    try:
-        import mujoco
-    except ImportError:
-        return ours, None, {}
-    mj = mujoco.MjModel.from_xml_string(servo_mjcf(kernel, drive, h))
-    data = mujoco.MjData(mj)
-
-    def run_mujoco() -> None:
-        mujoco.mj_resetData(mj, data)
-        data.qpos[:3], data.qpos[3] = setup.q0[:3], setup.q0[6]  # MuJoCo's quaternion is (w, x, y, z)
-        data.qpos[4:7], data.qpos[7:] = setup.q0[3:6], setup.q0[kernel.q_index]
-        for k in range(n):
-            data.ctrl[:] = cmds[k]
-            mujoco.mj_step(mj, data)
-
-    run_mujoco()
-    gap = float(np.abs(data.qvel[6:] - states[-1, servo.X_V + 6:servo.X_V + 18]).max())
-    try:  # MuJoCo's own C loop over the steps (no Python per step), where this MuJoCo has it
-        from mujoco import rollout
-    except ImportError:
-        return ours, best_of(run_mujoco, repeats) / seconds, {"final_joint_rate_gap_rad_s": gap, "mujoco_loop": "python"}
-    mujoco.mj_resetData(mj, data)
-    data.qpos[:3], data.qpos[3], data.qpos[4:7], data.qpos[7:] = (setup.q0[:3], setup.q0[6], setup.q0[3:6],
-                                                                  setup.q0[kernel.q_index])
-    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    initial = np.zeros(mujoco.mj_stateSize(mj, spec))
-    mujoco.mj_getState(mj, data, initial, spec)
-    out = np.zeros((1, n, initial.size))
-    theirs = best_of(lambda: rollout.rollout(mj, data, initial[None], cmds[None], state=out), repeats) / seconds
-    return ours, theirs, {"final_joint_rate_gap_rad_s": gap, "mujoco_loop": "mujoco.rollout"}
-
-
 def training_throughput(env_id: str, n_envs: int, steps: int) -> tuple[float, float] | None:
     """Env steps per second of the same PPO training (shipped hyperparameters, ``n_envs`` copies, ``steps`` steps,
     seed 0) on the batched adapter and on SB3's ``make_vec_env``: the same episodes, so the same work (None
@@ -418,95 +319,6 @@ def dask_scaling(workers: int) -> tuple[float, float] | None:
     return times[0], times[1]
 
 
-README_START = "<!-- speed:start (generated by `python benchmarks/bench.py --runs 3 --readme docs/speed.md`) -->"
-README_END = "<!-- speed:end -->"
-KERNEL_START = "<!-- speed-kernel:start (generated by `python benchmarks/bench.py --runs 3 --readme docs/speed.md`) -->"
-KERNEL_END = "<!-- speed-kernel:end -->"
-BUDGET_START = "<!-- speed-budget:start (generated by `python benchmarks/bench.py --runs 3 --readme docs/speed.md`) -->"
-BUDGET_END = "<!-- speed-budget:end -->"
-#: The parts of :func:`step_budget`, in the order the speed page lists them.
-BUDGET_PARTS = {"compiled": "compiled decision: 10 physics steps, score terms, observation",
-                "python": "Python in the env: action fast path, reward, info dict, observation copy",
-                "episode_end": "episode ends (final sample, trajectory, score), spread over all steps",
-                "wrappers": "Gymnasium wrappers (TimeLimit, OrderEnforcing, PassiveEnvChecker)"}
-
-
-def _span(values: list[float], spec: str) -> str:
-    lo, hi = min(values), max(values)
-    return format(lo, spec) if format(lo, spec) == format(hi, spec) else f"{format(lo, spec)}-{format(hi, spec)}"
-
-
-def speed_table(results: dict) -> str:
-    """The speed table: each measurement's range over the runs, its in-run reference ratio, the target."""
-    runs = results["runs"]
-    lines = [f"{len(runs)} runs on {results['machine']}; ranges are over the runs, ratios against the reference "
-             "measured in the same run.", "",
-             "| measurement | value | reference (same run) | ratio | target | met |", "|---|---|---|---|---|---|"]
-    for k, first in enumerate(runs[0]):
-        rows = [run[k] for run in runs]
-        values, ratios = [r["value"] for r in rows], [r["ratio"] for r in rows if r["ratio"] is not None]
-        met = {r["met"] for r in rows}
-        spec = ",.0f" if first["unit"] == "physics steps/s" else ".3g"
-        lines.append(f"| {first['what']} | {_span(values, spec)} {first['unit']} | {first['reference']} (last run) | "
-                     f"{_span(ratios, '.2f') if ratios else 'n/a'} | {first['target']} | "
-                     f"{'n/a' if met == {None} else 'yes' if met == {True} else 'no' if met == {False} else 'in some runs'} |")
-    return "\n".join(lines) + "\n"
-
-
-def budget_table(results: dict) -> str:
-    """The README table of where one ``FFSR-Residual-v2`` step's microseconds go (ranges over the runs)."""
-    budgets = results["budgets"]
-    totals = [b["total"] for b in budgets]
-    lines = [f"One `FFSR-Residual-v2` step on `easy` with random actions: {_span([t * 1e6 for t in totals], '.0f')} us "
-             f"over {len(budgets)} runs.", "", "| part | us per step | share |", "|---|---|---|"]
-    for key, name in BUDGET_PARTS.items():
-        values = [b[key] * 1e6 for b in budgets]
-        shares = [100 * b[key] / b["total"] for b in budgets]
-        lines.append(f"| {name} | {_span(values, '.1f')} | {_span(shares, '.0f')} % |")
-    return "\n".join(lines) + "\n"
-
-
-def clock_ghz() -> float | None:
-    """The processor's clock [GHz] as the kernel reports it (None where /proc/cpuinfo does not say)."""
-    try:
-        text = Path("/proc/cpuinfo").read_text(encoding="utf-8")
-    except OSError:
-        return None
-    mhz = [float(line.split(":")[1]) for line in text.splitlines() if line.startswith("cpu MHz")]
-    return max(mhz) / 1000.0 if mhz else None
-
-
-def floor_line(results: dict) -> str:
-    """Operations per physics step and the share of the cores' arithmetic floor the batched v2 row reaches."""
-    ops, ghz, workers = results["operations"]["step"], results.get("clock_ghz"), results["workers"]
-    batched = [row["value"] for run in results["runs"] for row in run if row["key"] == "batched"]
-    line = (f"About {ops:,} floating-point operations per physics step on `paper` (counted from the kernel's loops, "
-            "`benchmarks/kernel_parts.py` `operation_counts`)")
-    if ghz is None or not batched:
-        return line + "."
-    scalar, vector = workers * ghz * 1e9 * 2 / ops, workers * ghz * 1e9 * 16 / ops
-    return (line + f". At {ghz:.2f} GHz, {workers} cores doing two scalar operations per cycle (the kernel's IEEE "
-            f"scalar code, no fused multiply-add: docs/model.md §17) could run {scalar:,.0f} steps/s, and "
-            f"{vector:,.0f} at the AVX2 peak (16 per cycle); batched `FFSR-Residual-v2` reaches "
-            f"{_span(batched, ',.0f')} steps/s: {_span([100 * b / scalar for b in batched], '.0f')} % of the scalar "
-            f"floor, {_span([100 * b / vector for b in batched], '.1f')} % of the vector one.")
-
-
-def kernel_table(results: dict) -> str:
-    """The README table of one kernel physics step's parts (ranges over the runs, us per call)."""
-    parts = results["kernel_parts"]
-    steps = [p["step"] * 1e6 for p in parts]
-    lines = [f"One physics step of the 20 s `paper` rollout: {_span(steps, '.2f')} us over {len(parts)} runs "
-             f"(1,000,000 steps/s on {results['workers']} threads needs {results['workers']:.2f} us per step "
-             "and thread, everything included).", "", floor_line(results), "",
-             "| part | us per call | share of a step |", "|---|---|---|"]
-    for key, name in kernel_parts.PARTS.items():
-        values = [p[key] * 1e6 for p in parts]
-        shares = [100 * p[key] / p["step"] for p in parts]
-        lines.append(f"| {name} | {_span(values, '.2f')} | {_span(shares, '.0f')} % |")
-    return "\n".join(lines) + "\n"
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--repeats", type=int, default=3, help="timed repeats of the rollout (best of; default: 3)")
@@ -534,12 +346,11 @@ def main() -> None:
                "yardstick_s": speed_guard.yardstick_s(),
                "provenance": provenance(command="python benchmarks/bench.py " + " ".join(sys.argv[1:]),
                                         wall_time_s=time.perf_counter() - start)}
-    results["slower_than_committed"] = [] if committed is None else speed_guard.regressions(results, committed)
+    if committed is not None:
+        results = speed_guard.compare_into(results, committed)
     write_json_atomic(args.out, results)
     print(speed_table(results))
-    print(f"against {args.against}: " + ("\n".join(["", *results["slower_than_committed"]])
-                                         if results["slower_than_committed"] else "no row slower than "
-                                         f"{speed_guard.TOLERANCE:g}x" if committed else "nothing to compare"))
+    print(speed_guard.guard_block(results))
     print(budget_table(results))
     print(kernel_table(results))
     if args.readme:
@@ -547,6 +358,8 @@ def main() -> None:
         text = splice_generated(text, README_START, README_END, speed_table(results), where=args.readme)
         text = splice_generated(text, BUDGET_START, BUDGET_END, budget_table(results), where=args.readme)
         text = splice_generated(text, KERNEL_START, KERNEL_END, kernel_table(results), where=args.readme)
+        text = splice_generated(text, speed_guard.START, speed_guard.END, speed_guard.guard_block(results),
+                                where=args.readme)
         write_text_atomic(args.readme, text)
 
 

@@ -21,6 +21,9 @@ def test_the_speed_tables_are_rendered_from_the_results():
     assert budget == bench.budget_table(results), "rerun: python benchmarks/bench.py --runs 3 --readme docs/speed.md"
     kernel = text.split(bench.KERNEL_START + "\n")[1].split(bench.KERNEL_END)[0]
     assert kernel == bench.kernel_table(results), "rerun: python benchmarks/bench.py --runs 3 --readme docs/speed.md"
+    guard = benchmark_script("speed_guard")
+    block = text.split(guard.START + "\n")[1].split(guard.END)[0]
+    assert block == guard.guard_block(results), "rerun: python benchmarks/bench.py --runs 3 --readme docs/speed.md"
     assert results["provenance"]["git_commit"] and len(results["runs"]) == 3
 
 
