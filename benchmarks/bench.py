@@ -328,7 +328,12 @@ def main() -> None:
     parser.add_argument("--readme", default=None, help="splice the speed table between its markers in this file")
     parser.add_argument("--against", default="benchmarks/results.json",
                         help="committed results each row is compared with (default: %(default)s)")
+    parser.add_argument("--render-only", action="store_true",
+                        help="measure nothing: render the page's blocks from the results file (--out) again")
     args = parser.parse_args()
+    if args.render_only:
+        splice_page(json.loads(Path(args.out).read_text()), args.readme)
+        return
     committed = json.loads(Path(args.against).read_text()) if Path(args.against).is_file() else None
     workers = os.cpu_count() or 1
     machine = (f"{platform.processor() or platform.machine()}, {workers} CPUs, Python {platform.python_version()}, "
@@ -354,13 +359,19 @@ def main() -> None:
     print(budget_table(results))
     print(kernel_table(results))
     if args.readme:
-        text = Path(args.readme).read_text(encoding="utf-8")
-        text = splice_generated(text, README_START, README_END, speed_table(results), where=args.readme)
-        text = splice_generated(text, BUDGET_START, BUDGET_END, budget_table(results), where=args.readme)
-        text = splice_generated(text, KERNEL_START, KERNEL_END, kernel_table(results), where=args.readme)
+        splice_page(results, args.readme)
+
+
+def splice_page(results: dict, page: str | None) -> None:
+    """Write the speed page's generated blocks into ``page`` (nothing without one)."""
+    if page:
+        text = Path(page).read_text(encoding="utf-8")
+        text = splice_generated(text, README_START, README_END, speed_table(results), where=page)
+        text = splice_generated(text, BUDGET_START, BUDGET_END, budget_table(results), where=page)
+        text = splice_generated(text, KERNEL_START, KERNEL_END, kernel_table(results), where=page)
         text = splice_generated(text, speed_guard.START, speed_guard.END, speed_guard.guard_block(results),
-                                where=args.readme)
-        write_text_atomic(args.readme, text)
+                                where=page)
+        write_text_atomic(page, text)
 
 
 def _evaluate(params: tuple[float, float]) -> float:

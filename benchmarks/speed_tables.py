@@ -39,7 +39,7 @@ def speed_table(results: dict) -> str:
         values, ratios = [r["value"] for r in rows], [r["ratio"] for r in rows if r["ratio"] is not None]
         met = {r["met"] for r in rows}
         spec = ",.0f" if first["unit"] == "physics steps/s" else ".3g"
-        lines.append(f"| {first['what']} | {_span(values, spec)} {first['unit']} | {first['reference']} (last run) | "
+        lines.append(f"| {first['what']} | {_span(values, spec)} {first['unit']} | {rows[-1]['reference']} (last run) | "
                      f"{_span(ratios, '.2f') if ratios else 'n/a'} | {first['target']} | "
                      f"{'n/a' if met == {None} else 'yes' if met == {True} else 'no' if met == {False} else 'in some runs'} |")
     return "\n".join(lines) + "\n"
