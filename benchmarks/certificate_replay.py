@@ -82,8 +82,10 @@ def summary(rows: list[dict]) -> list[dict]:
 
 def docs_text(data: dict) -> str:
     """The summary table (markdown), with the machine and the commit it was measured at."""
+    made = data["provenance"]
+    commit = f"{made['git_commit'][:7]}{' with uncommitted changes' if made.get('git_dirty') else ''}"
     lines = [f"Pool certificates replayed once at dt by `python benchmarks/certificate_replay.py` (commit "
-             f"{data['provenance']['git_commit'][:7]}, {data['cpu']}), against the scores their pool files store. "
+             f"{commit}, {data['cpu']}), against the scores their pool files store. "
              "`host`: this machine as it is; `no-fma-libm`: glibc's libm without its FMA variants, as on an x86-64 "
              "CPU without FMA. Tolerance: the version's `[replay] score_rel_tol` (0: bit for bit).", "",
              "| version | condition | tier | replays | verdicts kept | bit-identical | median rel. difference | "
@@ -92,7 +94,7 @@ def docs_text(data: dict) -> str:
         lines.append(f"| {row['version']} | `{row['condition']}` | {row['tier']} | {row['replays']} | "
                      f"{row['verdicts_kept']} | {row['bit_identical']} | {row['median']:.1e} | {row['max']:.1e} | "
                      f"{row['tolerance']:g} |")
-    return "\n".join(lines + condition_lines(data["rows"]))
+    return "\n".join(lines + condition_lines(data["rows"])) + "\n"
 
 
 def condition_lines(rows: list[dict]) -> list[str]:
@@ -124,8 +126,9 @@ def run(version: str, condition: str, splits: tuple[str, ...], per_pool: int | N
         rows.append({**replay_row(version, *case), "condition": condition})
         if k % 25 == 24:
             write_json_atomic(OUT, {"cpu": cpu, "rows": rows})
-    write_json_atomic(OUT, {"provenance": provenance(command=" ".join(["python", *sys.argv])), "cpu": cpu,
-                            "summary": summary(rows), "rows": rows})
+    made = done.get("provenance") if not todo and "provenance" in done else None  # nothing replayed: keep the
+    write_json_atomic(OUT, {"provenance": made or provenance(command=" ".join(["python", *sys.argv])),  # replays'
+                            "cpu": cpu, "summary": summary(rows), "rows": rows})
 
 
 def main() -> None:

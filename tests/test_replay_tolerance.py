@@ -73,3 +73,23 @@ def test_a_capture_entry_verifies_within_its_tolerance_and_an_inflated_copy_does
     copy_path = tmp_path / path.name
     copy_path.write_text(json.dumps(forged))
     assert replay_entry(copy_path).status == "differs"
+
+
+def test_the_tolerance_covers_the_measured_replays_and_the_docs_hold_them():
+    """Every capture-v0 certificate replayed by benchmarks/certificate_replay.py kept its verdict and stayed inside
+    the stated per-row tolerance, their mean signed difference inside the entry-level one; docs/model.md holds the
+    study's generated table."""
+    from conftest import benchmark_script
+
+    study = benchmark_script("certificate_replay")
+    data = json.loads(study.OUT.read_text())
+    tolerance = tolerance_for("capture-v0")
+    rows = [r for r in data["rows"] if r["version"] == "capture-v0"]
+    assert len({(r["tier"], r["split"], r["index"]) for r in rows}) == 700 and all(r["success"] for r in rows)
+    assert max(r["rel_difference"] for r in rows) <= tolerance.score_rel_tol / 1.5  # a margin over the largest move
+    host = [r for r in rows if r["condition"] == "host"]
+    assert bias_problem([{"score": r["stored_score"]} for r in host], [{"score": r["score"]} for r in host],
+                        tolerance) is None
+    text = (ROOT / "docs" / "model.md").read_text(encoding="utf-8")
+    block = text[text.index(study.START) + len(study.START):text.index(study.END)]
+    assert block.strip() == study.docs_text(data).strip()

@@ -8,10 +8,41 @@ from typing import Any
 import gymnasium
 from gymnasium.wrappers import TimeLimit
 
+from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import BenchmarkSpec, add_spec, all_specs, read_spec, remove_spec
 
 SINGLE = "ffsr_gym.environments.registration:make_single"
-BATCHED = "ffsr_gym.environments.vector_env:FFSRVectorEnv"
+BATCHED = "ffsr_gym.environments.registration:make_batched"
+#: The key of an id's registered kwargs that records what the id fixes (its version and action mode); Gymnasium
+#: merges a caller's kwargs over the registered ones, so only this record can tell that a ``version=`` or
+#: ``residual=`` argument contradicts the id.
+FIXED = "id_fixes"
+
+
+def _checked(kwargs: dict[str, Any]) -> dict[str, Any]:
+    """``kwargs`` without :data:`FIXED`, after checking that ``version`` and ``residual`` are the id's.
+
+    Raises:
+        InvalidInputError: a ``version`` or ``residual`` argument other than the id's.
+    """
+    kwargs = dict(kwargs)
+    fixed = kwargs.pop(FIXED, None)
+    if fixed is not None:
+        version, residual = fixed
+        for key, value in (("version", version), ("residual", residual)):
+            if key in kwargs and type(kwargs[key]) is type(value) and kwargs[key] != value:  # else its own check
+                raise InvalidInputError(f"{key}={kwargs[key]!r}: this id is {key} {value!r}; an id fixes its version "
+                                        "and action mode (make the id of the version you want, e.g. "
+                                        "gymnasium.make('FFSR-v0'))")
+    return kwargs
+
+
+def make_batched(num_envs: int, **kwargs: Any) -> gymnasium.vector.VectorEnv:
+    """The batched env of an id (:class:`~ffsr_gym.environments.vector_env.FFSRVectorEnv`), its version and mode
+    checked against the id's."""
+    from ffsr_gym.environments.vector_env import FFSRVectorEnv
+
+    return FFSRVectorEnv(num_envs, **_checked(kwargs))
 
 
 def make_single(**kwargs: Any) -> gymnasium.Env:
@@ -24,7 +55,7 @@ def make_single(**kwargs: Any) -> gymnasium.Env:
     """
     from ffsr_gym.environments.env import FFSREnv
 
-    env = FFSREnv(**kwargs)
+    env = FFSREnv(**_checked(kwargs))
     return TimeLimit(env, env.decisions)
 
 
@@ -32,7 +63,7 @@ def register_version(spec: BenchmarkSpec) -> None:
     """Register both ids of ``spec`` (single and batched entry points, the version and mode as kwargs)."""
     for residual, env_id in ((False, spec.ids.parameters), (True, spec.ids.residual)):
         gymnasium.register(id=env_id, entry_point=SINGLE, vector_entry_point=BATCHED,
-                           kwargs={"version": spec.version, "residual": residual})
+                           kwargs={"version": spec.version, "residual": residual, FIXED: (spec.version, residual)})
 
 
 def register_all() -> None:

@@ -24,6 +24,7 @@ from ffsr_gym.exceptions import InvalidInputError, ScenarioError
 from ffsr_gym.model.scenario import Scenario, load_scenario
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.scoring.rules import ScoreRule
+from ffsr_gym.sim.setup import check_start, prepare
 from ffsr_gym.tasks.random_family import sample_scenario
 from ffsr_gym.tasks.splits import PoolTask, pool, task_scenario
 
@@ -54,6 +55,8 @@ class TaskSource:
         if dt_s is not None:
             self.family = self.family.at_step(dt_s)
         self.randomised = self.family.randomization is not None and self.pool is None
+        if self.pool is None:  # a pool's tasks are certified; a scenario or family is checked before it is played
+            check_start(prepare(self.family))
 
     def _check_split(self, split: str | None) -> str | None:
         splits = self.spec.tasks.splits
@@ -73,14 +76,20 @@ class TaskSource:
         """The scenario of a task that is not a tier (the spec decides what names it accepts)."""
         return scenario_task(self.spec, task)
 
+    def reset_options(self) -> tuple[str, ...]:
+        """The ``reset(options=...)`` keys one episode takes: ``task_index`` on a pool, none otherwise."""
+        return () if self.pool is None else ("task_index",)
+
     def draw(self, rng: np.random.Generator, options: dict | None) -> tuple[Scenario, dict[str, int]]:
         """The next episode's scenario (drawn from ``rng``) and what ``reset``'s info says about it.
 
         Raises:
-            InvalidInputError: ``options`` not a dict, or a ``task_index`` outside the pool.
+            InvalidInputError: ``options`` not a dict, a key it does not take (:meth:`reset_options`), or a
+                ``task_index`` outside the pool.
         """
         if options is not None and not isinstance(options, dict):
             raise InvalidInputError(f"options must be a dict or None, got {type(options).__name__}")
+        check_reset_options(options, self.reset_options(), self.spec)
         if self.pool is None:
             return (sample_scenario(self.family, rng) if self.randomised else self.family), {}
         index = (options or {}).get("task_index")
@@ -93,6 +102,18 @@ class TaskSource:
         if self.dt_s is not None:
             task = task.at_step(self.dt_s)
         return task, {"task_index": int(index), "task_seed": seed}
+
+
+def check_reset_options(options: dict | None, allowed: tuple[str, ...], spec: BenchmarkSpec) -> None:
+    """Refuse a ``reset`` option that this environment does not know or cannot honour, by name.
+
+    Raises:
+        InvalidInputError: a key of ``options`` outside ``allowed``.
+    """
+    unknown = sorted(str(key) for key in (options or {}) if key not in allowed)
+    if unknown:
+        where = "" if allowed else f" ({spec.ids.parameters} plays a scenario, not a task pool)"
+        raise InvalidInputError(f"reset option {unknown[0]!r}; allowed here: {list(allowed)}{where}")
 
 
 def is_custom(spec: BenchmarkSpec, task: Any) -> bool:

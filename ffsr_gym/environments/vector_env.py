@@ -22,7 +22,7 @@ from ffsr_gym.environments import info as info_contract
 from ffsr_gym.environments.actions import check_action, observation_bounds, physical_parameters
 from ffsr_gym.environments.engine import EpisodeEngine
 from ffsr_gym.environments.env import task_options
-from ffsr_gym.environments.task_source import TaskSource
+from ffsr_gym.environments.task_source import TaskSource, check_reset_options
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.rules import score_rule
@@ -117,6 +117,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         """Reset every copy (see the class docstring for ``seed`` and ``options``)."""
         if options is not None and not isinstance(options, dict):
             raise InvalidInputError(f"options must be a dict or None, got {type(options).__name__}")
+        check_reset_options(options, ("reset_mask", *self.source.reset_options()), self.source.spec)
         mask = self._reset_mask(options)
         forced = self._task_indices(options)
         seeds = self._copy_seeds(seed)

@@ -23,6 +23,7 @@ from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.scenario import Randomization, Scenario, load_scenario
 from ffsr_gym.model.schema import (
     BOOL,
+    MAX_DRAW_ATTEMPTS,
     TEXT,
     Vec,
     check_action_bounds,
@@ -141,7 +142,7 @@ class CaptureDraw:
     danger_radius_m: float = field(metadata=number(0.0, 1.0))
     min_start_clearance_m: float = field(metadata=number(0.0, 10.0))
     min_target_clearance_m: float = field(metadata=number(0.0, 10.0))
-    max_attempts: float = field(default=500, metadata=number(1, 1e6))
+    max_attempts: float = field(default=500, metadata=number(1, MAX_DRAW_ATTEMPTS))
 
 
 @dataclass(frozen=True)

@@ -10,6 +10,7 @@ import numpy as np
 
 from ffsr_gym.model.schema import (
     BOOL,
+    MAX_DRAW_ATTEMPTS,
     Vec,
     choice,
     natural,
@@ -220,7 +221,7 @@ class Randomization:
     lateral_offset_m: float = field(default=0.02, metadata=number(0.0, 1.0))
     min_final_distance_m: float = field(default=0.1, metadata=number(0.0, 10.0))
     min_self_clearance_m: float = field(default=0.02, metadata=number(0.0, 10.0))
-    max_attempts: float = field(default=1000, metadata=number(1, 1e6))
+    max_attempts: float = field(default=1000, metadata=number(1, MAX_DRAW_ATTEMPTS))
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,9 @@ Vec = tuple[float, ...]
 BOOL = {"kind": "bool"}
 TEXT = {"kind": "text"}
 TEXTS = {"kind": "texts"}
+#: The most draws a randomised family or a capture draw may try (a draw costs 0.1-0.3 ms: at most a few seconds
+#: before a family whose ranges admit nothing is refused by name).
+MAX_DRAW_ATTEMPTS = 10_000
 
 
 def number(lo: float, hi: float, *, lo_open: bool = False, hi_open: bool = False) -> dict:

@@ -104,9 +104,23 @@ class BatchedVecEnv(VecEnv):
         frame = self.venv.render() if self.venv.render_mode else None
         return [frame[0] if frame else None] + [None] * (self.num_envs - 1)
 
+    def _copies(self, indices: Any) -> list[int]:
+        """SB3's ``indices`` (None, an int or an iterable of ints) as a list of copies, each in [0, num_envs).
+
+        Raises:
+            InvalidInputError: an index that is not an integer, or one outside the copies.
+        """
+        chosen = list(self._get_indices(indices))
+        bad = [i for i in chosen if isinstance(i, bool) or not isinstance(i, (int, np.integer))
+               or not 0 <= i < self.num_envs]
+        if bad:
+            raise InvalidInputError(f"indices {bad[0]!r}; allowed: integers in [0, {self.num_envs - 1}] "
+                                    f"(this adapter has {self.num_envs} copies)")
+        return [int(i) for i in chosen]
+
     def get_attr(self, attr_name: str, indices: Any = None) -> list[Any]:
         """An attribute of the batched env, once per selected copy (the copies share one env)."""
-        return [getattr(self.venv, attr_name)] * len(self._get_indices(indices))
+        return [getattr(self.venv, attr_name)] * len(self._copies(indices))
 
     def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
         raise InvalidInputError(f"set_attr({attr_name!r}): the copies share one batched env; create a new one instead")
@@ -117,4 +131,4 @@ class BatchedVecEnv(VecEnv):
 
     def env_is_wrapped(self, wrapper_class: type, indices: Any = None) -> list[bool]:
         """No copy is wrapped (SB3's evaluation helpers then count episodes themselves)."""
-        return [False] * len(self._get_indices(indices))
+        return [False] * len(self._copies(indices))

@@ -13,6 +13,7 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 
+from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.kernel import first_use
 from ffsr_gym.kernel.arrays import KernelModel, ModelArrays, extract
 from ffsr_gym.kernel.tumbling import propagate_into
@@ -178,11 +179,41 @@ def _prepare(scenario: Scenario, stamp: tuple) -> ScenarioSetup:
         plant = assets.robot.with_inertial_changes(changes.mass_scale, changes.inertia_scale,
                                                    changes.com_offset_m or np.zeros((12, 3)))
         kernel = extract(plant, assets.collision)
-    return ScenarioSetup(scenario=scenario, assets=assets, q0=q0, obstacles=obstacle_field(scenario), plant=plant,
-                         plant_arrays=(kernel.mass, kernel.lever, kernel.inertia, _drive(scenario)),
-                         path=path, estimates=estimated_paths(scenario, path),
-                         estimate_interval_s=0.0 if scenario.target_noise is None else scenario.target_noise.interval_s,
-                         base_target=base_target, target_motion=target, grasp=grasp, body_field=field)
+    setup = ScenarioSetup(scenario=scenario, assets=assets, q0=q0, obstacles=obstacle_field(scenario), plant=plant,
+                          plant_arrays=(kernel.mass, kernel.lever, kernel.inertia, _drive(scenario)),
+                          path=path, estimates=estimated_paths(scenario, path),
+                          estimate_interval_s=0.0 if scenario.target_noise is None else scenario.target_noise.interval_s,
+                          base_target=base_target, target_motion=target, grasp=grasp, body_field=field)
+    return setup
+
+
+def check_start(setup: ScenarioSetup) -> None:
+    """Refuse a scenario whose start state already breaks the rules an episode is judged by (``_violation`` in the
+    kernel's loop): two of the robot's parts overlapping (self clearance below 0), or an obstacle (a tumbling
+    target's body included) closer than the keep-out distance at t = 0. A randomised family's own obstacle is a
+    placeholder that every draw replaces, so only its robot is checked. The environments call it before they play a
+    scenario; ``simulate`` does not (the paper reproduction runs the paper's printed obstacle, inside the base, to
+    show that it is).
+
+    Raises:
+        ScenarioError: naming the two bodies, the clearance [mm] and what is allowed.
+    """
+    scenario, collision, q0 = setup.scenario, setup.assets.collision, setup.q0
+    where = f"scenario {scenario.name!r} with robot {scenario.robot!r}"
+    own = collision.self_proximity(q0)
+    if own.distance_m < 0.0:
+        raise ScenarioError(f"{where}: at the start pose {own.pair[0]!r} and {own.pair[1]!r} overlap (clearance "
+                            f"{own.distance_m * 1e3:.1f} mm); allowed: a start whose parts are apart (clearance >= 0), "
+                            "else the episode fails at its first step (the robot's collision radii, or its start "
+                            "joint angles)")
+    if scenario.randomization is not None:
+        return
+    keep_out, obstacles = scenario.objective.keep_out_m, setup.obstacles_at(0)
+    near = collision.obstacle_proximity(q0, obstacles) if obstacles else None
+    if near is not None and near.distance_m < keep_out:
+        raise ScenarioError(f"{where}: at t = 0 {near.pair[1]!r} is {near.distance_m * 1e3:.1f} mm from {near.pair[0]!r}; "
+                            f"allowed: at least the keep-out distance, {keep_out * 1e3:g} mm, else the episode "
+                            "fails at its first step (move the obstacle or the robot's start)")
 
 
 def compiled_body_motion(body: TumblingTarget, *, dt_s: float, steps: int) -> TargetMotion:

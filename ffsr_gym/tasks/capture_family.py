@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections import Counter
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -85,17 +86,20 @@ def sample_capture(family: Scenario, spec: Randomization, draw: CaptureDraw, tie
     robot, collision, q_start = setup.robot, setup.assets.collision, setup.q0
     dt = family.simulation.dt_s
     capture_steps = int(round((family.desired_path.motion_time_s + draw.insertion_time_s) / dt))
+    rejected = Counter()
     for _ in range(int(draw.max_attempts)):
         drawn = target_attempt(robot, q_start, spec, rng)
         size = rng.uniform(*draw.size_m, 3)
         mass, spin, drift = rng.uniform(*draw.mass_kg), _spin(draw, tier, rng), _drift(draw, rng)
         if drawn is None:
+            rejected["min_travel_m / min_sigma_target (the grasp pose draw)"] += 1
             continue
         q_target, grasp = drawn  # where the grasp frame is when the insertion ends
         depth = size[2] / 2.0 + draw.handle_standoff_m  # the grasp point's distance from the centre
         centre = grasp.translation + grasp.rotation[:, 2] * depth
         box = BoxObstacle(centre, size, grasp.rotation, name="target body")
         if collision.obstacle_proximity(q_target, [box]).distance_m < draw.min_target_clearance_m:
+            rejected["min_target_clearance_m (the body at the grasp)"] += 1
             continue
         inertia = box_inertia(mass, size)
         back = propagate(position_m=centre, velocity_m_s=np.array(drift), quaternion=from_rotation(grasp.rotation),
@@ -104,6 +108,7 @@ def sample_capture(family: Scenario, spec: Randomization, draw: CaptureDraw, tie
         start_centre, start_attitude = back.position_m[-1], back.quaternion[-1]
         start_box = BoxObstacle(start_centre, size, to_rotation(start_attitude), name="target body")
         if collision.obstacle_proximity(q_start, [start_box]).distance_m < draw.min_start_clearance_m:
+            rejected["min_start_clearance_m (the body at the start)"] += 1
             continue
         position, attitude = grasp_pose(start_centre, start_attitude, (0.0, 0.0, -depth), (1.0, 0.0, 0.0, 0.0))
         body = TumblingTarget(size_m=tuple(float(x) for x in size), mass_kg=float(mass), inertia_kg_m2=inertia,
@@ -116,8 +121,9 @@ def sample_capture(family: Scenario, spec: Randomization, draw: CaptureDraw, tie
         target = dataclasses.replace(family.target, position_m=tuple(float(x) for x in position),
                                      quaternion_wxyz=tuple(float(x) for x in attitude))
         return family.replace(target=target, tumbling_target=body)
-    raise ScenarioError(f"scenario {family.name!r}: no admissible capture draw in {int(draw.max_attempts)} attempts; "
-                        "widen [tasks.capture_draw]")
+    causes = ", ".join(f"{cause}: {count}" for cause, count in rejected.most_common())
+    raise ScenarioError(f"scenario {family.name!r}: no admissible capture draw in {int(draw.max_attempts)} attempts "
+                        f"(rejected by {causes}); widen [tasks.capture_draw] or relax that constraint")
 
 
 def draw_capture_task(tier: str, seed: int, benchmark: Benchmark) -> Scenario | None:

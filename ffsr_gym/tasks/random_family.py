@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from collections import Counter
 
 import numpy as np
 import pinocchio as pin
@@ -47,26 +48,34 @@ def sample_scenario(family: Scenario, rng: np.random.Generator) -> Scenario:
     def clearance(q: np.ndarray, point: np.ndarray) -> float:
         return collision.obstacle_proximity(q, [SphereObstacle(point, radius)]).distance_m
 
+    rejected = Counter()
     for _ in range(int(spec.max_attempts)):
         drawn = target_attempt(robot, q_start, spec, rng)
         if drawn is None:
+            rejected["min_travel_m / min_sigma_target (the target draw)"] += 1
             continue
         q_target, target = drawn
         path = DesiredPath.between(start.translation, from_rotation(start.rotation), target.translation,
                                    from_rotation(target.rotation), motion_time=1.0, accel_time=0.25)
         lateral = rng.normal(size=3)
         obstacle = path.at(rng.uniform(*spec.path_fraction))[0] + spec.lateral_offset_m * rng.uniform() * lateral / portable.norm(lateral)
-        if clearance(q_target, obstacle) < spec.min_final_distance_m or clearance(q_start, obstacle) < danger:
+        if clearance(q_target, obstacle) < spec.min_final_distance_m:
+            rejected["min_final_distance_m (the obstacle at the target configuration)"] += 1
+            continue
+        if clearance(q_start, obstacle) < danger:
+            rejected["obstacle.danger_radius_m (the obstacle at the start configuration)"] += 1
             continue
         if collision.self_proximity(q_target).distance_m < spec.min_self_clearance_m:
+            rejected["min_self_clearance_m (the target configuration's own parts)"] += 1
             continue
         return family.replace(
             target=dataclasses.replace(family.target, position_m=tuple(target.translation),
                                        quaternion_wxyz=tuple(from_rotation(target.rotation))),
             obstacle=dataclasses.replace(family.obstacle, position_m=tuple(obstacle)),
         )
-    raise ScenarioError(f"scenario {family.name!r}: no admissible target/obstacle in {int(spec.max_attempts)} draws; "
-                        "widen the 'randomization' ranges")
+    causes = ", ".join(f"{cause}: {count}" for cause, count in rejected.most_common())
+    raise ScenarioError(f"scenario {family.name!r}: no admissible target/obstacle in {int(spec.max_attempts)} draws "
+                        f"(rejected by {causes}); widen the 'randomization' ranges or relax that constraint")
 
 
 def target_attempt(robot: Robot, q_start: Array, spec: Randomization, rng: np.random.Generator
