@@ -16,8 +16,8 @@ median and largest relative score difference, beside the version's ``[replay]`` 
     python benchmarks/certificate_replay.py --version capture-v0 [--condition host|no-fma-libm] [--split S]
         [--per-pool N] [--docs docs/model.md]
 
-Writes ``benchmarks/certificate_replay.json`` (with provenance; a rerun resumes from the replays it holds on the
-same machine) and, with ``--docs``, the summary between the ``certificate-replay`` markers.
+Writes ``benchmarks/certificate_replay.json`` (the provenance of each run that replayed something; a rerun resumes
+from the replays it holds on the same machine) and, with ``--docs``, the summary between the ``certificate-replay`` markers.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from tqdm.auto import tqdm
 from ffsr_gym.bench.replay_tolerance import tolerance_for
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.spec import spec_for_version
-from ffsr_gym.provenance import cpu_description, provenance, splice_file, write_json_atomic
+from ffsr_gym.provenance import cpu_description, provenance, splice_file, write_text_atomic
 from ffsr_gym.tasks.certificate import Member, replay_members
 from ffsr_gym.tasks.splits import pool, task_scenario
 
@@ -82,10 +82,12 @@ def summary(rows: list[dict]) -> list[dict]:
 
 def docs_text(data: dict) -> str:
     """The summary table (markdown), with the machine and the commit it was measured at."""
-    made = data["provenance"]
-    commit = f"{made['git_commit'][:7]}{' with uncommitted changes' if made.get('git_dirty') else ''}"
-    lines = [f"Pool certificates replayed once at dt by `python benchmarks/certificate_replay.py` (commit "
-             f"{commit}, {data['cpu']}), against the scores their pool files store. "
+    made = sorted({(r["version"], r["provenance"]["git_commit"][:7] + (" with uncommitted changes"
+                                                                    if r["provenance"].get("git_dirty") else ""))
+                   for r in data["runs"]})
+    commits = "; ".join(f"{version} at {commit}" for version, commit in made)
+    lines = [f"Pool certificates replayed once at dt by `python benchmarks/certificate_replay.py` ({commits}; "
+             f"{data['cpu']}), against the scores their pool files store. "
              "`host`: this machine as it is; `no-fma-libm`: glibc's libm without its FMA variants, as on an x86-64 "
              "CPU without FMA. Tolerance: the version's `[replay] score_rel_tol` (0: bit for bit).", "",
              "| version | condition | tier | replays | verdicts kept | bit-identical | median rel. difference | "
@@ -125,10 +127,19 @@ def run(version: str, condition: str, splits: tuple[str, ...], per_pool: int | N
     for k, case in enumerate(tqdm(todo, desc=f"{version} certificates ({condition})")):
         rows.append({**replay_row(version, *case), "condition": condition})
         if k % 25 == 24:
-            write_json_atomic(OUT, {"cpu": cpu, "rows": rows})
-    made = done.get("provenance") if not todo and "provenance" in done else None  # nothing replayed: keep the
-    write_json_atomic(OUT, {"provenance": made or provenance(command=" ".join(["python", *sys.argv])),  # replays'
-                            "cpu": cpu, "summary": summary(rows), "rows": rows})
+            save({"cpu": cpu, "runs": done.get("runs", []), "rows": rows})
+    runs = done.get("runs", []) if done.get("cpu") == cpu else []
+    if todo:  # each run that replayed something keeps its own provenance
+        runs.append({"version": version, "condition": condition, "replays": len(todo),
+                     "provenance": provenance(command=" ".join(["python", *sys.argv]))})
+    save({"cpu": cpu, "runs": runs, "summary": summary(rows), "rows": rows})
+
+
+def save(data: dict) -> None:
+    """Write the study atomically, one replay per line (compact and diff-friendly)."""
+    head = json.dumps({k: v for k, v in data.items() if k != "rows"}, indent=1, allow_nan=False)[:-2]
+    rows = ",\n".join(json.dumps(row, separators=(",", ":"), allow_nan=False) for row in data["rows"])
+    write_text_atomic(OUT, f'{head},\n "rows": [\n{rows}\n]}}\n')
 
 
 def main() -> None:
