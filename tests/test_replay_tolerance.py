@@ -62,14 +62,15 @@ def test_rows_inflated_one_way_within_the_row_tolerance_are_refused():
 @pytest.mark.slow
 def test_a_capture_entry_verifies_within_its_tolerance_and_an_inflated_copy_does_not(tmp_path):
     """A capture-v0 planner entry replays with its verdicts and within the tolerance on any x86-64 machine with FMA;
-    the same rows with every positive score raised 0.5 % (inside the per-row tolerance) are refused."""
+    the same rows with every positive score raised 1 % (inside the per-row tolerance, beyond the 0.5 % an entry's
+    rows may drift one way) are refused."""
     path = ROOT / "leaderboards" / "capture-v0" / "fast" / "reference_capture-v0_default.json"
     verdict = replay_entry(path)
     assert verdict.status == "reproduced", verdict.text
     entry = json.loads(path.read_text())
     forged = copy.deepcopy(entry)
     for row in forged["episodes"]:
-        row["score"] = row["score"] * 1.005 if row["score"] > 0.0 else row["score"]
+        row["score"] = row["score"] * 1.01 if row["score"] > 0.0 else row["score"]
     copy_path = tmp_path / path.name
     copy_path.write_text(json.dumps(forged))
     assert replay_entry(copy_path).status == "differs"
