@@ -27,9 +27,9 @@ from ffsr_gym.bench.evaluation import NEUTRAL_KWARGS, plan_evaluation, run_plan
 from ffsr_gym.bench.leaderboard import spec_of_entry
 from ffsr_gym.bench.planner_scores import evaluate_planner
 from ffsr_gym.bench.policies import BUILTIN_POLICIES, load_policy, resolve_recorded
+from ffsr_gym.bench.replay_tolerance import bias_problem, differing_keys
 from ffsr_gym.bench.trace import clipped_counts, decode, trace_episodes
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
-from ffsr_gym.bench.replay_tolerance import bias_problem, differing_keys
 from ffsr_gym.model.spec import BenchmarkSpec, ReplaySpec
 from ffsr_gym.user_files import load_json
 
