@@ -15,8 +15,9 @@ import time
 
 import numpy as np
 
-#: A row is flagged when it is slower than the committed one by more than this factor (run-to-run spread on an idle
-#: 2-core machine is about 1.2x on the batched rows, docs/speed.md).
+#: A row is flagged when it is slower than the committed one by more than this factor (on the 2-core VM of the
+#: committed results the batched rows spread 1.13-1.15x over three runs; the single rows and the pool rows spread
+#: more, up to 1.5x, so a flag on them wants a second run before it is believed).
 TOLERANCE = 1.3
 #: Units where more is faster; every other unit is a time (less is faster).
 RATE_UNITS = ("physics steps/s", "env steps/s")

@@ -151,15 +151,21 @@ class Robot:
         J = pin.getFrameJacobian(self.model, self.data, int(self.ee_frame_ids[arm]), LWA)
         return J[:, self.arm_v_index[arm]]
 
+    def ee_jacobian(self, arm: int) -> Array:
+        """World-aligned (6, 18) Jacobian of the end-effector of ``arm``: its twist [v; ω] per generalized velocity.
+
+        Requires :meth:`update_kinematics` for the current ``q``.
+        """
+        return pin.getFrameJacobian(self.model, self.data, int(self.ee_frame_ids[arm]), LWA)
+
     def ee_twist(self, v: Array, arm: int) -> Array:
         """World-aligned twist [v; ω] (6,) of the end-effector of ``arm`` at the generalized velocity ``v`` (18,).
 
         Requires :meth:`update_kinematics` for the current ``q``. Each entry is summed left to right
         (:func:`ffsr_gym.model.portable.matvec_rows`: the capture rule reads it, and ``@`` would leave the order
-        to the CPU's BLAS kernel).
+        to the CPU's BLAS kernel); many samples' twists are one ``matvec_rows`` over their :meth:`ee_jacobian`.
         """
-        jacobian = pin.getFrameJacobian(self.model, self.data, int(self.ee_frame_ids[arm]), LWA)
-        return portable.matvec_rows(jacobian[None], v)[0]
+        return portable.matvec_rows(self.ee_jacobian(arm)[None], v)[0]
 
     def joint_points(self, arm: int) -> tuple[Array, Array]:
         """Joint origins p_0..p_5 plus the end-effector p_6 [m] and joint axes z_0..z_5.

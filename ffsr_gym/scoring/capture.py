@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.model import portable
 from ffsr_gym.model.benchmark import CaptureRule
 from ffsr_gym.model.quaternion import from_rotation
 from ffsr_gym.sim.setup import ScenarioSetup
@@ -96,11 +97,12 @@ def episode_relative_motion(setup: ScenarioSetup, trajectory: Trajectory) -> Arr
         raise InvalidInputError(f"a trajectory of {n} samples at dt = {trajectory.info.get('dt_s')} s; allowed: at most "
                                 f"{len(grasp.position_m)} samples at dt = {grasp.dt_s} s (the scenario's)")
     robot, frame = setup.robot, int(setup.robot.ee_frame_ids[0])
-    position, attitude, twist = np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 6))
+    position, attitude, jacobian = np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 6, trajectory.v.shape[1]))
     for k in range(n):
         robot.update_kinematics(trajectory.q[k])
         placement = robot.data.oMf[frame]
         position[k], attitude[k] = placement.translation, from_rotation(placement.rotation)
-        twist[k] = robot.ee_twist(trajectory.v[k], 0)
+        jacobian[k] = robot.ee_jacobian(0)
+    twist = portable.matvec_rows(jacobian, trajectory.v[:n])  # Robot.ee_twist of every sample, in one pass
     grasp_twist = np.hstack((grasp.velocity_m_s[:n], grasp.omega_rad_s[:n]))
     return relative_motion(position, attitude, twist, grasp.position_m[:n], grasp.quaternion[:n], grasp_twist)
