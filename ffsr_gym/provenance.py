@@ -60,6 +60,11 @@ def is_source_checkout() -> bool:
     return (_SOURCE / ".git").exists()
 
 
+def source_folder() -> Path:
+    """The folder this package's source tree sits in (its checkout's root, in a checkout)."""
+    return _SOURCE
+
+
 def source_commit() -> str | None:
     """The commit of the ffsr-gym checkout this package runs from, or None (an installed wheel or sdist)."""
     return _git("rev-parse", "HEAD", cwd=_SOURCE) if is_source_checkout() else None

@@ -109,14 +109,38 @@ def _parsed_depth(text: str) -> int:
 def parse_json(text: str, where: str) -> Any:
     """The JSON document ``text`` (read from ``where``), its depth bounded before the parser sees it.
 
+    Strict where Python's parser is lenient: a key given twice in one object (which of the two would count is a
+    matter of parser, so a forged value can hide before a genuine one) and ``NaN`` / ``Infinity`` (not JSON) are
+    refused.
+
     Raises:
-        UserFileError: as :func:`check_depth`, or not JSON (named with the position).
+        UserFileError: as :func:`check_depth`, not JSON (named with the position), a repeated key or a non-finite
+            constant (named).
     """
     check_depth(text, where)
     try:
-        return json.loads(text)
+        return json.loads(text, object_pairs_hook=_unique_keys, parse_constant=_no_constant)
+    except _StrictJSONError as exc:
+        raise UserFileError(f"{where}: {exc}") from None
     except (ValueError, RecursionError) as exc:
         raise UserFileError(f"{where}: not JSON ({exc})") from None
+
+
+class _StrictJSONError(Exception):
+    """A document JSON's grammar allows and this package refuses (raised inside the parser's hooks)."""
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    out = dict(pairs)
+    if len(out) != len(pairs):
+        seen: set[str] = set()
+        twice = next(key for key, _ in pairs if key in seen or seen.add(key))
+        raise _StrictJSONError(f"key {twice[:60]!r} appears twice in one object; allowed: each key once")
+    return out
+
+
+def _no_constant(name: str) -> Any:
+    raise _StrictJSONError(f"{name} is not a JSON number; allowed: finite numbers (or null)")
 
 
 def load_json(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> Any:

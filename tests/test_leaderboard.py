@@ -13,6 +13,7 @@ import pytest
 
 import ffsr_gym
 from ffsr_gym.bench import leaderboard
+from ffsr_gym.exceptions import InvalidInputError
 
 ROOT = Path(__file__).resolve().parent.parent / "leaderboards"
 ENTRIES = sorted(p for p in ROOT.glob("*/*.json") if p.parent.name != "v2")  # v0 entries
@@ -175,12 +176,15 @@ def test_pareto_points_are_the_env_episodes_and_the_front_is_non_dominated(tmp_p
 
     assert plot_pareto(tmp_path) is None
     (tmp_path / "v2" / "easy").mkdir(parents=True)
-    for name in ("reference_v2_default.json",):
+    for name in ("reference_v2_default.json", "sac_residual_easy.json"):
         shutil.copy(ROOT / "v2" / "easy" / name, tmp_path / "v2" / "easy" / name)
-    rl = {"name": "sac_residual_easy", "env_id": "FFSR-Residual-v2", "extra": {"runs": [{"seed": 0}]}}
-    (tmp_path / "v2" / "easy" / "sac_residual_easy.json").write_text(json.dumps(rl))
+    forged = {"name": "forged", "env_id": "../../x", "extra": {"runs": [{"seed": 0}]}}  # refused: never a point
+    (tmp_path / "v2" / "easy" / "forged.json").write_text(json.dumps(forged))
+    (tmp_path / "no-models").mkdir()
+    with pytest.raises(InvalidInputError, match="--trust-model"):  # unpickling runs code: only with consent
+        task_pareto(tmp_path, tmp_path / "v2" / PARETO_FILE, tmp_path / "no-models", load_model=lambda a, p: None)
     data = json.loads(task_pareto(tmp_path, tmp_path / "v2" / PARETO_FILE, tmp_path / "no-models",
-                                  load_model=lambda algo, path: None, progress=False).read_text())
+                                  load_model=lambda algo, path: None, progress=False, trust_model=True).read_text())
     assert (tmp_path / "v2" / PARETO_FILE).is_file() and len(data["grid"]["points"]) == 120
     assert data["task"] == "easy/test[0]" and data["task_name"] == f"v2-{pool('easy', 'test')[0].seed}"
     env = gym.make("FFSR-v2", task="easy", split="test")  # the same setting through the env, scored independently

@@ -72,3 +72,53 @@ def test_the_workflow_passes_an_honest_change_and_fails_a_forged_score(pull_requ
     path.write_text(json.dumps(entry), encoding="utf-8")
     done = _run(pull_request, verify)
     assert done.returncode != 0 and "differs" in done.stderr
+
+
+def test_the_workflow_runs_for_every_pull_request():
+    """A table changes through an entry, a page's generated block, the frozen reference, a pool or the code: the
+    workflow has no path filter that a pull request could fall outside."""
+    triggers = yaml.safe_load(WORKFLOW.read_text(encoding="utf-8"))
+    pull_request = triggers.get("on", triggers.get(True))["pull_request"]  # YAML 1.1 reads the key `on` as true
+    assert not (pull_request or {}).get("paths") and not (pull_request or {}).get("paths-ignore")
+
+
+def _forge(path: Path, name: str | None = None) -> dict:
+    """The entry at ``path`` with one row's score raised (and renamed, when ``name`` is given)."""
+    entry = json.loads(path.read_text(encoding="utf-8"))
+    entry["episodes"][3]["score"] = min(1.0, entry["episodes"][3]["score"] + 0.01)
+    if name is not None:
+        entry["name"] = name
+    return entry
+
+
+def test_a_forged_entry_named_like_a_generated_file_is_replayed_and_refused(pull_request):
+    verify, _ = _steps()
+    _git(pull_request, "stash")
+    forged = pull_request / ENTRY.parent / "aggregates.json"  # a table reads it: the workflow must replay it
+    forged.write_text(json.dumps(_forge(pull_request / ENTRY, "aggregates")), encoding="utf-8")
+    _git(pull_request, "add", "-A")
+    _git(pull_request, "commit", "-q", "-m", "forged")
+    done = _run(pull_request, verify)
+    assert done.returncode == 1 and "aggregates.json: differs" in done.stderr, done.stderr[-2000:]
+
+
+def test_a_renamed_and_edited_entry_is_replayed_and_refused(pull_request):
+    verify, _ = _steps()
+    _git(pull_request, "stash")
+    new = pull_request / ENTRY.parent / "cmaes_v2_again.json"
+    _git(pull_request, "mv", str(pull_request / ENTRY), str(new))
+    new.write_text(json.dumps(_forge(new, "cmaes_v2_again")), encoding="utf-8")
+    _git(pull_request, "commit", "-q", "-a", "-m", "renamed and edited")
+    done = _run(pull_request, verify)
+    assert done.returncode == 1 and "cmaes_v2_again.json: differs" in done.stderr, done.stderr[-2000:]
+
+
+def test_a_pull_request_that_edits_only_a_generated_block_fails_the_check(pull_request):
+    _, check = _steps()
+    _git(pull_request, "stash")
+    readme = pull_request / "README.md"
+    text = readme.read_text(encoding="utf-8")
+    start = text.index("<!-- leaderboard-v2-top3:start")
+    readme.write_text(text[:start] + text[start:].replace("0.", "0.9", 1), encoding="utf-8")
+    done = _run(pull_request, check)
+    assert done.returncode != 0, done.stdout[-2000:]

@@ -217,7 +217,8 @@ def render_tables(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]])
         out.append("")
         for e in items:
             if e.get("_problems"):
-                out.append(f"* refused, not ranked: `{tables.safe(e['_file'])}`: {tables.safe('; '.join(e['_problems']))}")
+                reasons = tables.free_text("; ".join(e["_problems"]), limit=400)
+                out.append(f"* refused, not ranked: `{tables.safe(e['_file'])}`: {reasons}")
         if len(ranked) < len(items):
             out.append("")
     return "\n".join(out)

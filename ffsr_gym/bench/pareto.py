@@ -23,14 +23,16 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.evaluation import evaluate
+from ffsr_gym.bench.leaderboard import load_entries, verified
+from ffsr_gym.bench.policies import SB3_CLASSES
 from ffsr_gym.bench.tables import method_name
+from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import ranked_spec
 from ffsr_gym.provenance import provenance, write_json_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.scoring.score import EpisodeScore
 from ffsr_gym.tasks.certificate import planner_episode, planner_task
 from ffsr_gym.tasks.splits import pool, task_scenario
-from ffsr_gym.user_files import load_json
 
 #: The task of the study: index 0 of this tier's test pool.
 PARETO_TIER = "easy"
@@ -46,13 +48,22 @@ def _point(result: EpisodeScore | dict[str, Any], **where: Any) -> dict[str, Any
 
 def _rl_points(entry: dict[str, Any], tier: str, models: Path | None,
                load_model: Callable[[str, Path], Any] | None) -> tuple[list[dict], str | None]:
-    """One point per training seed whose model is found; or why there are none."""
+    """One point per training seed whose model is found; or why there are none. The model's path is made from
+    the entry's algorithm, env id and seeds only when each has the form a study writes, and must stay inside
+    ``models``: an entry does not choose which files are unpickled."""
     if models is None or load_model is None:
         return [], "no model folder given"
-    algo = entry["name"].split("_")[0]
+    algo = str(entry["name"]).split("_")[0]
+    if algo not in SB3_CLASSES or entry.get("env_id") not in ranked_spec().env_ids:
+        return [], f"not an RL study's entry (algorithm {algo[:20]!r}, env id {str(entry.get('env_id'))[:40]!r})"
     points = []
     for run in entry["extra"]["runs"]:
-        path = models / f"{algo}_{entry['env_id']}_{tier}_seed{run['seed']}" / "model.zip"
+        seed = run.get("seed") if isinstance(run, dict) else None
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            return [], f"a run's seed {str(seed)[:20]!r} is not an integer >= 0"
+        path = (models / f"{algo}_{entry['env_id']}_{tier}_seed{seed}" / "model.zip").resolve()
+        if not path.is_relative_to(models.resolve()):
+            return [], f"model path leaves {models}"
         if not path.is_file():
             return [], f"model missing: {path}"
         row = evaluate(load_model(algo, path), entry["env_id"], task=PARETO_TIER, indices=[0]).episodes[0]
@@ -62,13 +73,23 @@ def _rl_points(entry: dict[str, Any], tier: str, models: Path | None,
 
 def task_pareto(root: str | Path, out: str | Path, models: str | Path | None = None, *,
                 load_model: Callable[[str, Path], Any] | None = None, progress: bool = True,
-                command: str | None = None) -> Path:
-    """Compute the grid and the points of the baselines under ``<root>/<version>/`` on the study's task; write
-    them to ``out``.
+                command: str | None = None, trust_model: bool = False) -> Path:
+    """Compute the grid and the points of the verified baselines under ``<root>/<version>/`` on the study's task;
+    write them to ``out``.
 
     ``load_model(algo, path)`` loads an RL entry's model (``ffsr_gym.optim.rl.load_model``); without
-    it or ``models``, RL entries are listed as not run.
+    it or ``models``, RL entries are listed as not run. Loading an SB3 model unpickles it, which runs code of its
+    maker's choosing: ``models`` is refused unless ``trust_model`` (``--trust-model``) says its source is trusted.
+
+    Raises:
+        InvalidInputError: ``models`` without ``trust_model``, or not a folder.
     """
+    if models is not None:
+        if not trust_model:
+            raise InvalidInputError(f"--models {str(models)!r}: loading its SB3 models unpickles them, which can run "
+                                    "any code their maker chose; pass --trust-model if you trust their source")
+        if not Path(models).is_dir():
+            raise InvalidInputError(f"--models {str(models)!r}: not a folder; allowed: the RL study's model folder")
     root, start = Path(root), time.perf_counter()
     benchmark = score_rule(ranked_spec()).benchmark
     first = pool(PARETO_TIER, "test", version=benchmark.version)[0]
@@ -78,9 +99,8 @@ def task_pareto(root: str | Path, out: str | Path, models: str | Path | None = N
             for m, T_c in tqdm(settings, desc=f"{label} grid", disable=not progress)]
     baselines: list[dict[str, Any]] = []
     fixed: dict[str, dict[str, Any]] = {}  # a planner setting that several tiers' entries share: one point
-    for path in tqdm(sorted((root / ranked_spec().version).glob("*/*.json")), desc=f"baselines on {label}",
-                     disable=not progress):
-        entry, tier = load_json(path), path.parent.name
+    entries = [(tier, entry) for tier, items in verified(load_entries(root, ranked_spec())).items() for entry in items]
+    for tier, entry in tqdm(entries, desc=f"baselines on {label}", disable=not progress):
         planner = entry.get("extra", {}).get("planner")
         if planner is not None:
             key = entry["name"] + json.dumps(planner, sort_keys=True)

@@ -17,7 +17,7 @@ the text the entry names; otherwise the verdict is ``skipped``, naming what was 
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +31,7 @@ from ffsr_gym.bench.replay_tolerance import bias_problem, differing_keys
 from ffsr_gym.bench.trace import clipped_counts, decode, trace_episodes
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.model.spec import BenchmarkSpec, ReplaySpec
-from ffsr_gym.user_files import load_json
+from ffsr_gym.user_files import parse_json, read_text
 
 #: The most training seeds an entry's rows may repeat each task for (a bound on what ``verify`` plays).
 MAX_TRAINING_SEEDS = 20
@@ -45,6 +45,8 @@ class Verdict:
 
     status: str
     text: str
+    #: The exact text of the entry file that was replayed (what a stamp may bind), or empty.
+    entry_text: str = field(default="", repr=False)
 
     @property
     def exit_code(self) -> int:
@@ -63,12 +65,23 @@ def replay_entry(path: str | Path, *, run_code: str | None = None) -> Verdict:
             from the working folder, then beside the entry. Loading a model unpickles it and
             importing a file runs it.
 
+    The file is read once: the verdict's ``entry_text`` is the text that was replayed, whatever the file
+    holds by the time the replay ends.
+
     Raises:
         InvalidInputError: an unreadable or malformed entry (named), or ``run_code`` that is not what
             the entry names.
     """
     path = Path(path)
-    entry, spec = _read_entry(path)
+    try:
+        text = read_text(path)
+    except FFSRError as exc:
+        raise InvalidInputError(f"{path}: not a readable leaderboard entry ({exc})") from None
+    return replace(_replay(path, text, run_code), entry_text=text)
+
+
+def _replay(path: Path, text: str, run_code: str | None) -> Verdict:
+    entry, spec = _read_entry(path, text)
     extra, rows = entry["extra"], entry["episodes"]
     named = _named_code(extra.get("policy"), path)
     if run_code is not None and run_code != named:
@@ -103,10 +116,10 @@ def replay_entry(path: str | Path, *, run_code: str | None = None) -> Verdict:
                     "the fixed parameters" if named is None else f"{named!r}", spec)
 
 
-def _read_entry(path: Path) -> tuple[dict[str, Any], BenchmarkSpec]:
-    """The entry and its version, checked for what a replay reads."""
+def _read_entry(path: Path, text: str) -> tuple[dict[str, Any], BenchmarkSpec]:
+    """The entry ``text`` (read from ``path``) and its version, checked for what a replay reads."""
     try:
-        entry = load_json(path)
+        entry = parse_json(text, str(path))
     except FFSRError as exc:
         raise InvalidInputError(f"{path}: not a readable leaderboard entry ({exc})") from None
     if not isinstance(entry, dict):

@@ -2,10 +2,13 @@
 check that a stamp still describes the entry it sits in.
 
 A stamp (``extra.verified``) names the verifier (the package version and the commit it ran from), the pool file and
-frozen reference the entry was replayed against, and the sha256 of the rows it reproduced. It proves nothing by
-itself (anyone can type one); what it states is checked: a stamp whose rows, pool or reference differ from the
-entry's and the shipped files' gets the entry refused, and the pull-request workflow replays every added or changed
-entry itself. The tables show a valid stamp beside the entry's commit.
+frozen reference the entry was replayed against, the sha256 of the rows it reproduced and of the whole entry it
+replayed (:func:`entry_digest`: every field but the stamp, its name included). It proves nothing by itself (anyone
+can type one); what it states is checked: a stamp whose entry, rows, pool or reference differ from the entry's and
+the shipped files' (a stamp copied with the rows under another name, or typed by hand) gets the entry refused, as
+does a commit that is not one of this repository's when the check runs in a checkout; and the pull-request workflow
+replays every added, changed or renamed entry itself. Only versions that rank by the rules carry a stamp (v0 does
+not: a stamp on a v0 entry is refused). The tables show a valid stamp beside the entry's commit.
 """
 
 from __future__ import annotations
@@ -13,17 +16,49 @@ from __future__ import annotations
 import hashlib
 import json
 import re
+import subprocess
 from datetime import datetime, timezone
+from functools import lru_cache
 from importlib import metadata
 from typing import Any
 
-KEYS = ("status", "verifier", "commit", "pool_file_sha256", "reference_sha256", "rows_sha256", "created_utc")
+KEYS = ("status", "verifier", "commit", "pool_file_sha256", "reference_sha256", "rows_sha256", "entry_sha256",
+        "created_utc")
 _HEX = re.compile(r"[0-9a-f]{40}|[0-9a-f]{64}")
+_VERIFIER = re.compile(r"ffsr-gym [0-9A-Za-z.+-]{1,40}")
+_CREATED = re.compile(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\+00:00")
 
 
 def rows_digest(rows: list[dict[str, Any]]) -> str:
     """sha256 of an entry's episode rows, as JSON with sorted keys."""
     return hashlib.sha256(json.dumps(rows, sort_keys=True, allow_nan=False).encode()).hexdigest()
+
+
+def entry_digest(entry: dict[str, Any]) -> str:
+    """sha256 of an entry as JSON with sorted keys, without its stamp and the loader's ``_`` keys: what a stamp binds."""
+    extra = {key: value for key, value in (entry.get("extra") or {}).items() if key != "verified"}
+    body = {key: value for key, value in entry.items() if not key.startswith("_")} | {"extra": extra}
+    return hashlib.sha256(json.dumps(body, sort_keys=True, allow_nan=False).encode()).hexdigest()
+
+
+@lru_cache(maxsize=256)
+def _known_commit(commit: str) -> bool | None:
+    """Whether ``commit`` is a commit of this package's checkout; None when that cannot be told (no checkout, no git,
+    a shallow clone)."""
+    from ffsr_gym.provenance import is_source_checkout, source_folder
+
+    if not is_source_checkout():
+        return None
+    try:
+        shallow = subprocess.run(["git", "-C", str(source_folder()), "rev-parse", "--is-shallow-repository"],
+                                 capture_output=True, text=True, timeout=10, check=False)
+        if shallow.returncode != 0 or shallow.stdout.strip() != "false":
+            return None
+        found = subprocess.run(["git", "-C", str(source_folder()), "cat-file", "-e", f"{commit}^{{commit}}"],
+                               capture_output=True, timeout=10, check=False)
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    return found.returncode == 0
 
 
 def _reference_sha(entry: dict[str, Any], version: str) -> str | None:
@@ -48,23 +83,36 @@ def make_stamp(entry: dict[str, Any], version: str) -> dict[str, Any]:
             "commit": prov["git_commit"] if clean else None,
             "pool_file_sha256": entry["extra"].get("pool_file_sha256"),
             "reference_sha256": _reference_sha(entry, version),
-            "rows_sha256": rows_digest(entry["episodes"]),
+            "rows_sha256": rows_digest(entry["episodes"]), "entry_sha256": entry_digest(entry),
             "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds")}
 
 
-def stamp_problems(entry: dict[str, Any], version: str) -> list[str]:
-    """Why an entry's stamp does not describe it (empty: no stamp, or a stamp that does)."""
+def stamp_problems(entry: dict[str, Any], version: str | None) -> list[str]:
+    """Why an entry's stamp does not describe it (empty: no stamp, or a stamp that does). ``version`` None: a version
+    that carries no stamp (v0)."""
     stamp = (entry.get("extra") or {}).get("verified")
     if stamp is None:
         return []
+    if version is None:
+        return ["extra.verified: this version's entries carry no stamp (only versions ranked by the rules do)"]
     if not isinstance(stamp, dict) or set(stamp) != set(KEYS):
         return [f"extra.verified: allowed a stamp with exactly the keys {list(KEYS)} (written by ffsr-gym leaderboard "
                 "verify --stamp)"]
     problems = []
     if stamp["status"] != "reproduced":
         problems.append(f"extra.verified.status {str(stamp['status'])[:20]!r}; allowed: 'reproduced'")
-    if stamp["commit"] is not None and not (isinstance(stamp["commit"], str) and _HEX.fullmatch(stamp["commit"])):
+    if not (isinstance(stamp["verifier"], str) and _VERIFIER.fullmatch(stamp["verifier"])):
+        problems.append("extra.verified.verifier: allowed 'ffsr-gym <version>' (at most 40 characters)")
+    if not (isinstance(stamp["created_utc"], str) and _CREATED.fullmatch(stamp["created_utc"])):
+        problems.append("extra.verified.created_utc: allowed a UTC time YYYY-MM-DDTHH:MM:SS+00:00")
+    if stamp["commit"] is not None and not (isinstance(stamp["commit"], str) and len(stamp["commit"]) == 40
+                                            and _HEX.fullmatch(stamp["commit"])):
         problems.append("extra.verified.commit: allowed a 40-digit hexadecimal commit or null")
+    elif stamp["commit"] is not None and _known_commit(stamp["commit"]) is False:
+        problems.append(f"extra.verified.commit {stamp['commit'][:12]}...: not a commit of this repository")
+    if stamp["entry_sha256"] != entry_digest(entry):
+        problems.append("extra.verified: the entry changed after it was verified, or the stamp is another entry's "
+                        "(entry_sha256 differs)")
     if stamp["rows_sha256"] != rows_digest(entry["episodes"]):
         problems.append("extra.verified: the rows changed after they were verified (rows_sha256 differs)")
     if stamp["pool_file_sha256"] != entry["extra"].get("pool_file_sha256"):

@@ -36,6 +36,20 @@ def safe(text: Any) -> str:
     return " ".join(text.split()).replace("|", "/").replace("`", "'").replace("<", "&lt;").replace(">", "&gt;")
 
 
+#: The most characters of one free-text field a table shows (longer text ends in an ellipsis).
+FREE_TEXT_CHARS = 60
+
+
+def free_text(text: Any, limit: int = FREE_TEXT_CHARS) -> str:
+    """Text an entry's author typed (``compute.hardware``, ``training_pool``'s note, v0's ``extra.method``) as an
+    inert cell: :func:`safe`, at most ``limit`` characters, inside a code span, where Markdown renders no link,
+    image, emphasis or bare URL. ``<`` and ``>`` become ``‹`` and ``›`` (a code span shows entities as typed)."""
+    text = safe(text).replace("&lt;", "\u2039").replace("&gt;", "\u203a")
+    if len(text) > limit:
+        text = text[:limit - 1].rstrip() + "\u2026"
+    return f"`{text}`" if text else ""
+
+
 def header(spec: BenchmarkSpec, group: str) -> list[str]:
     """The title and column lines of one table."""
     if spec.leaderboard.ranking == "feasible_then_iqm":
@@ -83,7 +97,7 @@ def compute_text(compute: dict[str, Any]) -> str:
     if compute.get("wall_time_s") is not None:
         parts.append(f"{compute['wall_time_s']:.0f} s")
     if compute.get("hardware"):
-        parts.append(safe(compute["hardware"]))
+        parts.append(free_text(compute["hardware"]))
     return ", ".join(parts) or "none (fixed)"
 
 
@@ -98,7 +112,7 @@ def row(spec: BenchmarkSpec, label: str, e: dict[str, Any]) -> str:
     m, names = e["metrics"], spec.leaderboard
     lo, hi = m[names.ci]
     if names.ranking == "feasible_then_iqm":
-        method = safe(e.get("extra", {}).get("method", ""))
+        method = free_text(e.get("extra", {}).get("method", ""))
         runs = " (single run)" if m["episodes"] == 1 else ""
         return (f"| {label} | {entry_cell(e)} | {method} | {m[names.rate]:.2f} | "
                 f"{_g4(m[names.iqm])} [{_g4(lo)}, {_g4(hi)}] | "
@@ -108,7 +122,7 @@ def row(spec: BenchmarkSpec, label: str, e: dict[str, Any]) -> str:
             f"{_fmt(normalised_mean(e, spec.rules.version), '.3f')} | {_fmt(_median(rows, 'paper_B'))} | {_fmt(_median(rows, 'peak_rate_deg_s', 0), '.0f')} / "
             f"{_fmt(_median(rows, 'peak_rate_deg_s', 1), '.0f')} | "
             f"{_ending(spec, rows)} | {compute_text(extra.get('compute', {}))} | "
-            f"{safe(extra.get('training_pool') or '-')} | {commit(e)} |")
+            f"{free_text(extra['training_pool']) if extra.get('training_pool') else '-'} | {commit(e)} |")
 
 
 def _ending(spec: BenchmarkSpec, rows: list[dict[str, Any]]) -> str:
@@ -248,7 +262,7 @@ def rl_compute_table(entries: dict[str, list[dict[str, Any]]]) -> list[str]:
             seeds = len(extra.get("runs", [])) or 1
             cells.setdefault(method_name(e, tier), {})[tier] = (
                 f"{seeds} x {extra.get('timesteps_per_seed', compute['env_steps'] // seeds):,} steps, "
-                f"{compute['wall_time_s'] / 3600:.1f} h, {safe(compute.get('hardware', '-'))}")
+                f"{compute['wall_time_s'] / 3600:.1f} h, {free_text(compute.get('hardware') or '-')}")
     if not cells:
         return []
     tiers = [t for t in entries if any(t in c for c in cells.values())]

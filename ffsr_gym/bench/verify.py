@@ -49,8 +49,7 @@ def entry_problems(entry: Any, spec: BenchmarkSpec, group: str) -> list[str]:
     try:
         problems += _row_problems(rows, spec) + _metric_problems(entry, rows, spec)
         problems += _coverage_problems(entry, rows, spec, group)
-        if spec.rules is not None:
-            problems += stamp_problems(entry, spec.rules.version)
+        problems += stamp_problems(entry, None if spec.rules is None else spec.rules.version)
     except (KeyError, TypeError, ValueError) as exc:
         problems.append(f"malformed rows or metrics ({type(exc).__name__}: {exc})")
     return problems

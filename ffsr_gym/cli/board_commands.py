@@ -7,10 +7,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ffsr_gym.exceptions import InvalidInputError
+
 
 def _leaderboard(args: argparse.Namespace) -> int:
     from ffsr_gym.bench.leaderboard import splice_summary, write_readme
-    from ffsr_gym.exceptions import InvalidInputError
     from ffsr_gym.provenance import write_text_atomic
 
     pages = [Path(page) for page in args.readme or ()]
@@ -99,27 +100,45 @@ def _leaderboard_pareto(args: argparse.Namespace) -> None:
 
     out = Path(args.root) / ranked_spec().version / PARETO_FILE
     print("wrote", task_pareto(args.root, out, args.models, load_model=load_model, progress=not args.no_progress,
-                               command=" ".join(["ffsr-gym", *args.argv])))
+                               command=" ".join(["ffsr-gym", *args.argv]), trust_model=args.trust_model))
 
 
 def _verify(args: argparse.Namespace) -> int:
+    from ffsr_gym.bench.changes import changed_entries
     from ffsr_gym.bench.replay import replay_entry
 
-    verdict = replay_entry(args.entry, run_code=args.run_code)
-    print(f"{args.entry}: {verdict.status}: {verdict.text}", file=sys.stdout if verdict.exit_code == 0 else sys.stderr)
-    if args.stamp and verdict.status == "reproduced":
-        _stamp(args.entry)
-    return verdict.exit_code
+    if args.changed_since is not None:
+        if args.entry:
+            raise InvalidInputError("verify: give entry files or --changed-since, not both")
+        paths = [str(path) for path in changed_entries(args.root, args.changed_since)]
+        print(f"{len(paths)} entries added, changed or renamed since {args.changed_since}", file=sys.stderr)
+    elif not args.entry:
+        raise InvalidInputError("verify: no entry; allowed: one or more entry files, or --changed-since REF")
+    else:
+        paths = args.entry
+    codes = {0}
+    for path in paths:
+        verdict = replay_entry(path, run_code=args.run_code)
+        print(f"{path}: {verdict.status}: {verdict.text}", file=sys.stdout if verdict.exit_code == 0 else sys.stderr)
+        if args.stamp and verdict.status == "reproduced":
+            _stamp(path, verdict.entry_text)
+        codes.add(verdict.exit_code)
+    return 1 if 1 in codes else max(codes)  # one that differs outweighs one skipped
 
 
-def _stamp(path: str) -> None:
-    """Write the verification stamp into the entry just reproduced (atomically; the rest of the file as it was)."""
+def _stamp(path: str, replayed: str) -> None:
+    """Write the verification stamp into the entry just reproduced: into the text that was replayed, and only if the
+    file still holds exactly that text (atomically; the rest of the file as it was)."""
     from ffsr_gym.bench.leaderboard import spec_of_entry
     from ffsr_gym.bench.stamp import make_stamp
     from ffsr_gym.provenance import write_json_atomic
     from ffsr_gym.user_files import parse_json, read_text
 
-    entry = parse_json(read_text(path), path)
+    if Path(path).is_symlink():
+        raise InvalidInputError(f"{path}: a symbolic link; allowed: stamp the entry file itself (nothing stamped)")
+    if read_text(path) != replayed:
+        raise InvalidInputError(f"{path}: the file changed while it was replayed; nothing stamped (verify it again)")
+    entry = parse_json(replayed, path)
     spec = spec_of_entry(entry)
     if spec.rules is None:
         print(f"{path}: {spec.version} entries carry no stamp", file=sys.stderr)
@@ -149,11 +168,20 @@ def add_board_commands(sub: Any) -> None:
     pareto.add_argument("--models", default=None,
                         help="folder of the RL study's models (<algo>_<env id>_<tier>_seed<s>/model.zip); "
                              "without it RL entries are listed as not run (default: none)")
+    pareto.add_argument("--trust-model", action="store_true",
+                        help="consent to unpickle the SB3 models under --models (unpickling runs code of their "
+                             "maker's choosing)")
     pareto.add_argument("--no-progress", action="store_true", help="hide the progress bars")
     pareto.set_defaults(func=_leaderboard_pareto)
     verify = board_sub.add_parser("verify", help="replay an entry's trace (or planner, fixed parameters) and compare "
-                                                 "its rows exactly (exit 0: reproduced, 1: differ, 3: skipped code)")
-    verify.add_argument("entry", help="the entry's JSON file")
+                                                 "its rows exactly (exit 0: reproduced, 1: differ, 3: skipped code; the "
+                                                 "largest over several)")
+    verify.add_argument("entry", nargs="*", help="the entries' JSON files")
+    verify.add_argument("--changed-since", default=None, metavar="REF",
+                        help="replay every entry the tables read that was added, changed, renamed or copied since the "
+                             "git commit REF (what the pull-request workflow replays), whatever its name")
+    verify.add_argument("--root", default="leaderboards",
+                        help="leaderboard root, for --changed-since (default: leaderboards)")
     verify.add_argument("--run-code", default=None, metavar="TEXT",
                         help="consent to run the code the entry names: exactly its extra.policy callable or SB3 .zip "
                              "(importing a file or unpickling a model runs code of its maker's choosing)")
