@@ -451,3 +451,71 @@ def test_the_screened_search_raises_a_family_whose_best_candidates_failed_the_ce
             break
     assert info["success"] and info["score"] == line["score"]
     assert best_known_screen.rescreen("slow", "test", tmp_path, version="capture-v0", progress=False) == 0  # resumed
+
+
+@pytest.mark.parametrize("forge, words", [
+    (lambda r: r["best"].update(score=1.5), r"best.score 1.5; allowed: a score in \[0, 1\]"),
+    (lambda r: r["families"]["residual"].update(score=float("nan")), r"families.residual.score nan"),
+    (lambda r: r.update(index=-1), r"index -1; allowed: 0 to 199"),
+    (lambda r: r.update(index=10_000), r"index 10000; allowed: 0 to 199"),
+    (lambda r: r.update(tier="hard"), r"a hard/train record in the easy/train work file"),
+    (lambda r: r["families"].update(telepathy=r["families"]["residual"]), r"families \['telepathy'\]"),
+    (lambda r: r["best"].update(family="oracle"), r"best.family 'oracle'"),
+    (lambda r: r.update(task_seed=r["task_seed"] + 1), r"task_seed"),
+])
+def test_a_forged_search_record_is_refused_before_anything_is_written(small, tmp_path, forge, words):
+    """A work folder is text anyone can edit, and the assembled file normalises every entry: a record of another
+    pool, out of range, or of an unknown family is refused by name, and nothing is written."""
+    work, _ = small
+    record = json.loads(json.dumps(build.read_lines(work / "easy_train.jsonl")[0]))
+    forge(record)
+    mine = tmp_path / "work"
+    mine.mkdir()
+    (mine / "easy_train.jsonl").write_text(json.dumps(record) + "\n")
+    with pytest.raises(InvalidInputError, match=words):
+        build.assemble(mine, out=tmp_path / "bk.json", generations=1)
+    assert not (tmp_path / "bk.json").exists()
+
+
+def test_a_best_score_its_schedule_does_not_replay_to_is_refused(small, tmp_path):
+    """In range and of the right pool, but not what its schedule scores: the replay refuses it."""
+    work, _ = small
+    record = json.loads(json.dumps(build.read_lines(work / "easy_train.jsonl")[0]))
+    family = record["best"]["family"]
+    raised = min(1.0, record["best"]["score"] + 0.05)
+    record["best"]["score"] = record["families"][family]["score"] = raised
+    mine = tmp_path / "work"
+    mine.mkdir()
+    (mine / "easy_train.jsonl").write_text(json.dumps(record) + "\n")
+    with pytest.raises(InvalidInputError, match="its schedule replays to"):
+        build.assemble(mine, out=tmp_path / "bk.json", generations=1)
+    line = {"index": record["index"], "family": family, "score": 0.99,
+            "result": {**record["families"][family], "score": 0.99}}  # an absorbed line claiming more
+    record = build.read_lines(work / "easy_train.jsonl")[0]
+    (mine / "easy_train.jsonl").write_text(json.dumps(record) + "\n")
+    (mine / "absorbed_easy_train.jsonl").write_text(json.dumps(line) + "\n")
+    with pytest.raises(InvalidInputError, match="its schedule replays to"):
+        build.assemble(mine, out=tmp_path / "bk.json", generations=1)
+    (mine / "absorbed_easy_train.jsonl").write_text(json.dumps(line | {"index": -3}) + "\n")
+    with pytest.raises(InvalidInputError, match="index -3"):
+        build.assemble(mine, out=tmp_path / "bk.json", generations=1)
+
+
+def test_a_work_folder_that_is_a_file_is_refused_before_any_work(tmp_path):
+    (tmp_path / "file").write_text("")
+    with pytest.raises(InvalidInputError, match="not a folder"):
+        build.assemble(tmp_path / "file", out=tmp_path / "bk.json")
+
+
+def test_a_done_file_that_is_not_text_or_not_a_file_gets_a_named_error(tmp_path):
+    import os
+
+    (tmp_path / "absorbed_easy_train.done").write_bytes(b"\xff\xfe not utf-8")
+    with pytest.raises(InvalidInputError, match="not UTF-8 text"):
+        build.is_absorbed(tmp_path, "easy", "train", "k")
+    os.mkfifo(tmp_path / "absorbed_easy_test.done")  # reading it would wait for a writer forever
+    with pytest.raises(InvalidInputError, match="not a regular file"):
+        build.is_absorbed(tmp_path, "easy", "test", "k")
+    (tmp_path / "file").write_text("")
+    with pytest.raises(InvalidInputError, match="not a folder"):
+        build.run("easy", "train", tmp_path / "file", generations=1, indices=[0], progress=False)

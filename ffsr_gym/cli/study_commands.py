@@ -161,6 +161,8 @@ def _tasks_best_known(args: argparse.Namespace) -> None:
     from ffsr_gym.tasks.splits import version_tiers
 
     work = Path(args.work)
+    if work.exists() and not work.is_dir():  # before any search, not after the first task's
+        raise InvalidInputError(f"--work {args.work!r}: not a folder; allowed: a folder (made when missing)")
     args.tiers = args.tiers or list(version_tiers(args.version))
     wrong = sorted(set(args.tiers) - set(version_tiers(args.version)))
     if wrong:

@@ -27,6 +27,7 @@ from tqdm.auto import tqdm
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.optim import best_known as search
+from ffsr_gym.optim import best_known_check as check
 from ffsr_gym.provenance import provenance, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.best_known import best_known_path, load_best_known, records
@@ -95,6 +96,8 @@ def run(tier: str, split: str, work: str | Path, *, version: str = "v2", generat
     """Search every task of ``tier``'s ``split`` pool (or ``indices`` of it) not yet in the pool's work file
     (:func:`work_file`). With ``executor`` (a cluster's, :func:`ffsr_gym.cluster.cluster_executor`), each task is a
     piece of its own, and this process appends the records as they arrive."""
+    if Path(work).exists() and not Path(work).is_dir():
+        raise InvalidInputError(f"--work {str(work)!r}: not a folder; allowed: a folder (made when missing)")
     benchmark = score_rule(spec_for_version(version)).benchmark
     path = work_file(work, tier, split)
     tasks = pool(tier, split, version=version)
@@ -160,12 +163,16 @@ def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = 
                                                              for s in splits}
     files: dict[Path, dict[str, dict[str, list]]] = {}
     cost: dict[Path, list[float]] = {}  # per file: the search's objective evaluations and wall time [s]
+    if not Path(work).is_dir():
+        raise InvalidInputError(f"--work {str(work)!r}: not a folder; allowed: a best-known work folder")
     for path in sorted(Path(work).glob("*.jsonl")):
         if path.name.startswith(ABSORBED):
             continue
+        file_tier, _, file_split = path.name.split(".")[0].rpartition("_")  # <tier>_<split>[.shard<k>of<n>].jsonl
         for record in read_lines(path):
             if record.get("generations") != generations:
                 continue
+            check.refuse(path, record.get("index"), check.record_problem(record, version, file_tier, file_split))
             target = Path(out) if out is not None else target_file(work, version, record["split"], shipped=shipped)
             if wanted is not None and target not in wanted:
                 continue
@@ -186,9 +193,13 @@ def assemble(work: str | Path, *, version: str = "v2", out: str | Path | None = 
         for tier, splits in tasks.items():
             for split, slot in splits.items():
                 slot.sort(key=lambda r: r["index"])
-                lines = read_lines(_absorbed_path(work, tier, split), ABSORBED_KEYS)
+                absorbed_path = _absorbed_path(work, tier, split)
+                lines = read_lines(absorbed_path, ABSORBED_KEYS)
+                for line in lines:
+                    check.refuse(absorbed_path, line["index"], check.absorbed_problem(line, version, tier, split))
                 absorbed += sum(_merge_absorbed(record, [a for a in lines if a["index"] == record["index"]])
                                 for record in slot)
+        check.replay_all(tasks, version, target)
         tiers = sorted(tasks)
         old = load_best_known(version, target) or {}
         data = {"version": version, "budget": budget(version) | {"generations": generations},
@@ -252,7 +263,12 @@ def is_absorbed(work: str | Path, tier: str, split: str, key: str) -> bool:
     """Whether a policy with this ``key`` (its origin and a hash of its content) was already played on every stored
     task of the pool: playing it again cannot raise a stored score, since the stored scores only rise."""
     path = _done_path(work, tier, split)
-    return path.is_file() and key in path.read_text(encoding="utf-8").splitlines()
+    if not path.exists() and not path.is_symlink():
+        return False
+    try:
+        return key in read_text(path).splitlines()
+    except FFSRError as exc:
+        raise InvalidInputError(f"work file {exc}") from None
 
 
 def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, origin: str, *,
