@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import re
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -242,6 +243,16 @@ def cluster_executor(scheduler: str, *, threads: int = 1, say=print) -> Iterator
             cluster.close()
 
 
+def machine_workers(asked: int, *, say: Callable[[str], Any] | None = None) -> int:
+    """``asked`` worker processes, at most this machine's cores (one process per core is the most that helps; a
+    hundred thousand would exhaust the machine before any work): a larger number is capped, and said so."""
+    cores = os.cpu_count() or 1
+    if asked <= cores:
+        return asked
+    (say or (lambda text: print(text, file=sys.stderr)))(f"--workers {asked:,}: capped at this machine's {cores} cores")
+    return cores
+
+
 @contextmanager
 def study_executor(scheduler: str | None, local_workers: int = 1,
                    initializer: Callable[[], None] | None = None) -> Iterator[tuple[Executor | None, int]]:
@@ -252,6 +263,7 @@ def study_executor(scheduler: str | None, local_workers: int = 1,
         with cluster_executor(scheduler) as pair:
             yield pair
         return
+    local_workers = machine_workers(local_workers)
     if local_workers <= 1:
         yield None, 1
         return

@@ -130,6 +130,26 @@ def record_episode(env: gym.Env, record: dict[str, Any], schedule: Schedule, epi
                          terminations=np.asarray(terminations), truncations=np.asarray(truncations), infos=infos)
 
 
+#: The most characters of a dataset's author or e-mail (Minari stores them in the dataset's metadata).
+MAX_AUTHOR_CHARS = 200
+
+
+def _person(value: Any, name: str) -> str | None:
+    """``value`` as a dataset's author field: None, or one line of printable text of at most
+    :data:`MAX_AUTHOR_CHARS` characters (checked before the pool is played, not after).
+
+    Raises:
+        InvalidInputError: anything else (named).
+    """
+    if value is None:
+        return None
+    if not isinstance(value, str) or not value.strip() or len(value) > MAX_AUTHOR_CHARS \
+            or not value.isprintable():
+        raise InvalidInputError(f"{name} {str(value)[:40]!r}; allowed: one line of printable text, 1 to "
+                                f"{MAX_AUTHOR_CHARS} characters")
+    return value
+
+
 def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "train", root: str | Path | None = None,
                   best_known_file: str | Path | None = None, version: str = "v2", author: str | None = None,
                   author_email: str | None = None) -> Any:
@@ -139,7 +159,8 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
     none).
 
     Raises:
-        InvalidInputError: the test split, an env id without schedules, or no stored best-known record for the pool.
+        InvalidInputError: the test split, an env id without schedules, no stored best-known record for the pool, or
+            an author that is not one line of text (each named).
     """
     if split not in ("train", "validation"):
         raise InvalidInputError(f"split {split!r}; allowed: 'train' or 'validation' (the test pool's best trajectories "
@@ -147,8 +168,8 @@ def write_dataset(tier: str, env_id: str = "FFSR-Residual-v2", *, split: str = "
     minari = require("minari", "dataset", "minari, h5py", "datasets need")
     from ffsr_gym.provenance import git_config
 
-    author = author if author is not None else git_config("user.name")
-    author_email = author_email if author_email is not None else git_config("user.email")
+    author = _person(author if author is not None else git_config("user.name"), "author")
+    author_email = _person(author_email if author_email is not None else git_config("user.email"), "author_email")
     if env_id not in FAMILY_OF:
         raise InvalidInputError(f"env_id {env_id!r}; allowed: {sorted(FAMILY_OF)}")
     family = FAMILY_OF[env_id]

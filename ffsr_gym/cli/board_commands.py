@@ -13,6 +13,7 @@ from ffsr_gym.exceptions import InvalidInputError
 def _leaderboard(args: argparse.Namespace) -> int:
     from ffsr_gym.bench.leaderboard import splice_summary, write_readme
     from ffsr_gym.provenance import write_text_atomic
+    from ffsr_gym.user_files import read_text
 
     pages = [Path(page) for page in args.readme or ()]
     for page in pages:
@@ -22,7 +23,7 @@ def _leaderboard(args: argparse.Namespace) -> int:
         return _check_leaderboard(args.root, pages)
     print("updated" if write_readme(args.root) else "already up to date", f"{args.root}/README.md")
     for page in pages:
-        write_text_atomic(page, splice_summary(page.read_text(encoding="utf-8"), args.root, where=str(page)))
+        write_text_atomic(page, splice_summary(read_text(page), args.root, where=str(page)))
         print("updated the generated leaderboard blocks in", page)
     return 0
 

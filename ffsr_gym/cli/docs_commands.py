@@ -14,6 +14,7 @@ def _pages(args: argparse.Namespace) -> int:
     from ffsr_gym.bench import doc_pages
     from ffsr_gym.exceptions import InvalidInputError
     from ffsr_gym.provenance import splice_generated, write_text_atomic
+    from ffsr_gym.user_files import read_text
 
     docs = Path(args.docs)
     if not docs.is_dir():
@@ -23,10 +24,10 @@ def _pages(args: argparse.Namespace) -> int:
         readme = Path(args.readme)
         if not readme.is_file():
             raise InvalidInputError(f"--readme {args.readme!r} is not a file")
-        text = readme.read_text(encoding="utf-8")
+        text = read_text(readme)
         wanted[readme] = splice_generated(text, *IDS_MARKERS, doc_pages.ids_table(), where=str(readme))
     stale = [path for path, text in wanted.items()
-             if not path.is_file() or path.read_text(encoding="utf-8") != text]
+             if not path.is_file() or read_text(path) != text]
     if args.check:
         for path in stale:
             print(f"out of date: {path}; run ffsr-gym docs pages --readme README.md", file=sys.stderr)

@@ -28,6 +28,10 @@ def _list(args: argparse.Namespace) -> None:
 def _reproduce(args: argparse.Namespace) -> None:
     from ffsr_gym.report.reproduction import reproduce
 
+    from ffsr_gym.user_files import read_text
+
+    if args.readme:
+        read_text(args.readme)  # a page that cannot be updated is named before the run, not after it
     command = " ".join(["ffsr-gym", *args.argv])
     result = reproduce(args.out, duration_s=args.duration, progress=not args.no_progress, command=command)
     width = max(len(c["claim"]) for c in result["claims"])
@@ -39,7 +43,7 @@ def _reproduce(args: argparse.Namespace) -> None:
         from ffsr_gym.report.reproduction import splice_readme
 
         readme = Path(args.readme)
-        write_text_atomic(readme, splice_readme(readme.read_text(encoding="utf-8"), result))
+        write_text_atomic(readme, splice_readme(read_text(readme), result))
         print(f"updated the generated tables in {readme}")
 
 

@@ -214,9 +214,10 @@ def _tasks_tables(args: argparse.Namespace) -> None:
         return
     from ffsr_gym.environments.info import docs_section
     from ffsr_gym.provenance import splice_generated
+    from ffsr_gym.user_files import read_text
 
     path = Path(args.docs)
-    text = splice_docs_tables(path.read_text(encoding="utf-8"), args.version, where=str(path))
+    text = splice_docs_tables(read_text(path), args.version, where=str(path))
     text = splice_generated(text, "<!-- info-keys:begin -->", "<!-- info-keys:end -->", docs_section(), where=str(path))
     write_text_atomic(path, text)
     print("wrote the tier tables and the info keys into", path)

@@ -115,6 +115,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
 
     def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         """Reset every copy (see the class docstring for ``seed`` and ``options``)."""
+        self._check_open()
         if options is not None and not isinstance(options, dict):
             raise InvalidInputError(f"options must be a dict or None, got {type(options).__name__}")
         check_reset_options(options, ("reset_mask", *self.source.reset_options()), self.source.spec)
@@ -198,6 +199,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         """
         if self.residual:
             raise InvalidInputError("play_out_with_parameters is for the (m, T_c) envs (FFSR-v0, FFSR-v2), not a residual env")
+        self._check_open()
         if not self._started:
             raise InvalidInputError("call reset() before play_out_with_parameters()")
         active = ~self._needs_reset
@@ -206,7 +208,12 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         self._needs_reset |= terminated | truncated
         return terminated, truncated, info
 
+    def _check_open(self) -> None:
+        if self.closed:
+            raise InvalidInputError("this vector env is closed; allowed: make a new one (gymnasium.make_vec)")
+
     def _step(self, actions: Any, parameters: tuple[float, float] | None):
+        self._check_open()
         if not self._started:
             raise InvalidInputError("call reset() before step()")
         a, was_clipped = check_action(actions, self.action_space.shape)

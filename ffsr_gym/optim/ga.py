@@ -17,7 +17,6 @@ amount of wrapping and its parallelism is its own.
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections.abc import Callable
@@ -31,10 +30,14 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.evaluation import objective_for_params
-from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.provenance import write_json_atomic
+from ffsr_gym.user_files import load_json
 
 BITS = 16
+#: The largest population and run a GA takes (the paper's: 100 individuals, 100 generations).
+MAX_POPULATION = 100_000
+MAX_GENERATIONS = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -53,8 +56,9 @@ class GAConfig:
     scenario: str = "paper"
 
     def __post_init__(self) -> None:
-        if self.population < 2 or self.generations < 1:
-            raise InvalidInputError(f"population >= 2 and generations >= 1 required, got {self.population}, {self.generations}")
+        if not (2 <= self.population <= MAX_POPULATION and 1 <= self.generations <= MAX_GENERATIONS):
+            raise InvalidInputError(f"population {self.population}, generations {self.generations}; allowed: population "
+                                    f"in [2, {MAX_POPULATION:,}], generations in [1, {MAX_GENERATIONS:,}]")
         if self.selection not in ("inverse", "literal"):
             raise InvalidInputError(f"selection {self.selection!r}; allowed: ['inverse', 'literal']")
         for name in ("crossover_probability", "mutation_probability"):
@@ -156,6 +160,21 @@ def start(config: GAConfig) -> GAState:
     return GAState(config, 0, population, rng.bit_generator.state)
 
 
+def _resumed(path: Path) -> GAState:
+    """The state a checkpoint holds, or a named error (a torn, foreign or edited file is not resumed from)."""
+    try:
+        state = GAState.from_json(load_json(path))
+        if state.population.shape != (state.config.population, BITS * state.config.genes) \
+                or not np.isin(state.population, (0, 1)).all() or not 0 <= state.generation <= state.config.generations:
+            raise ValueError("its population or generation does not fit its settings")
+        return state
+    except FFSRError as exc:
+        raise InvalidInputError(f"--checkpoint {exc}; move it away to start afresh") from None
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
+        raise InvalidInputError(f"--checkpoint {path}: not a GA checkpoint ({type(exc).__name__}: {str(exc)[:120]}); "
+                                "move it away to start afresh") from None
+
+
 def run(config: GAConfig | None = None, *, executor: Executor | None = None, checkpoint: str | Path | None = None,
         fitness: Callable[[float, float], float] | None = None, progress: bool = True,
         stop_after: int | None = None) -> GAState:
@@ -171,7 +190,7 @@ def run(config: GAConfig | None = None, *, executor: Executor | None = None, che
         stop_after: stop after this many generations of this call (to test resuming).
     """
     path = Path(checkpoint) if checkpoint else None
-    state = GAState.from_json(json.loads(path.read_text())) if path and path.is_file() else start(config or GAConfig())
+    state = _resumed(path) if path and path.exists() else start(config or GAConfig())
     fitness = fitness or partial(_scenario_fitness, scenario=state.config.scenario)
     rng = np.random.default_rng()
     rng.bit_generator.state = state.rng_state
