@@ -55,6 +55,10 @@ class TaskSource:
         if dt_s is not None:
             self.family = self.family.at_step(dt_s)
         self.randomised = self.family.randomization is not None and self.pool is None
+        if spec.rules is not None and spec.rules.capture is not None and self.family.tumbling_target is None:
+            raise InvalidInputError(f"task {self.name!r}: {spec.ids.parameters} scores a capture, and this scenario has "
+                                    "no [tumbling_target] to capture; allowed: a tier of "
+                                    f"{list(spec.tasks.tiers)} or a scenario with a [tumbling_target] section")
         if self.pool is None:  # a pool's tasks are certified; a scenario or family is checked before it is played
             check_start(prepare(self.family))
 

@@ -28,7 +28,9 @@ from ffsr_gym.model.schema import (
     Vec,
     check_action_bounds,
     choice,
+    count,
     integer,
+    interval,
     load_table,
     natural,
     number,
@@ -130,19 +132,19 @@ class CaptureDraw:
     ``min_target_clearance_m``.
     """
 
-    size_m: Vec = field(metadata=vector(2, 0.05, 5.0))
-    mass_kg: Vec = field(metadata=vector(2, 1.0, 1e5))
+    size_m: Vec = field(metadata=interval(0.05, 5.0))
+    mass_kg: Vec = field(metadata=interval(1.0, 1e5))
     handle_standoff_m: float = field(metadata=number(0.0, 1.0, lo_open=True))
-    slow_spin_deg_s: Vec = field(metadata=vector(2, 0.0, 90.0))
-    fast_spin_deg_s: Vec = field(metadata=vector(2, 0.0, 90.0))
-    spin_tilt_deg: Vec = field(metadata=vector(2, 0.0, 180.0))
-    drift_m_s: Vec = field(metadata=vector(2, 0.0, 1.0))
+    slow_spin_deg_s: Vec = field(metadata=interval(0.0, 90.0))
+    fast_spin_deg_s: Vec = field(metadata=interval(0.0, 90.0))
+    spin_tilt_deg: Vec = field(metadata=interval(0.0, 180.0))
+    drift_m_s: Vec = field(metadata=interval(0.0, 1.0))
     standoff_m: float = field(metadata=number(0.0, 1.0))
     insertion_time_s: float = field(metadata=number(0.5, 60.0))
     danger_radius_m: float = field(metadata=number(0.0, 1.0))
     min_start_clearance_m: float = field(metadata=number(0.0, 10.0))
     min_target_clearance_m: float = field(metadata=number(0.0, 10.0))
-    max_attempts: float = field(default=500, metadata=number(1, MAX_DRAW_ATTEMPTS))
+    max_attempts: float = field(default=500, metadata=count(1, MAX_DRAW_ATTEMPTS))
 
 
 @dataclass(frozen=True)

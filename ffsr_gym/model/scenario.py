@@ -48,6 +48,7 @@ from ffsr_gym.model.schema import (
     build_table,
     check_action_bounds,
     check_number,
+    episode_steps_problem,
     file_key,
     integer,
     section,
@@ -98,12 +99,11 @@ class Scenario:
     def at_step(self, dt_s: Any) -> Scenario:
         """This scenario with the physics step ``dt_s`` [s]; every other value is kept bit for bit.
 
-        The decision interval and the duration stay as they are, so each must be a whole number of
-        the new steps (a sensitivity study runs the same task, with the same decisions, at dt/2, dt/4).
+        The decision interval and the duration stay, so each must be a whole number of the new steps (a
+        sensitivity study runs the same task, with the same decisions, at dt/2, dt/4).
 
         Raises:
-            InvalidInputError: ``dt_s`` not a number in [1e-5, 0.1] s, or not dividing the decision
-                interval and the duration into whole steps.
+            InvalidInputError: ``dt_s`` not in [1e-5, 0.1] s, not dividing the interval and duration, or too many steps.
         """
         meta = next(f.metadata for f in dataclasses.fields(Simulation) if f.name == "dt_s")
         try:
@@ -117,6 +117,8 @@ class Scenario:
                 raise InvalidInputError(f"dt_s = {dt_s!r} does not divide {name} = {span} s into whole steps; allowed: "
                                         f"{span} / n for a whole n, at most 0.1 s (the benchmark's own: "
                                         f"{self.simulation.dt_s} s)")
+        if episode_steps_problem(self.simulation.duration_s, dt):
+            raise InvalidInputError(f"dt_s = {dt_s!r}: {episode_steps_problem(self.simulation.duration_s, dt)}")
         return dataclasses.replace(self, simulation=dataclasses.replace(self.simulation, dt_s=dt))
 
     @property
@@ -325,6 +327,9 @@ def _check_cross_fields(s: Scenario, where: str) -> None:
                 "quaternion [w, x, y, z] within 1e-2 of norm 1 (it is normalised on load)"
             )
     check_action_bounds(s.env.m_bounds, s.env.T_c_bounds_s, section="env", where=where)
+    if episode_steps_problem(s.simulation.duration_s, s.simulation.dt_s):
+        raise ScenarioError(f"{where}keys 'simulation.duration_s' / 'simulation.dt_s': "
+                            f"{episode_steps_problem(s.simulation.duration_s, s.simulation.dt_s)}")
     if s.debris is not None:
         if s.obstacle is None:
             raise ScenarioError(f"{where}section 'debris' needs an 'obstacle' section (its danger radius is shared)")

@@ -13,6 +13,8 @@ from ffsr_gym.model.schema import (
     MAX_DRAW_ATTEMPTS,
     Vec,
     choice,
+    count,
+    interval,
     natural,
     number,
     rows,
@@ -217,11 +219,11 @@ class Randomization:
     mission_joint_offsets_deg: Vec = field(metadata=vector(6, 0.0, 180.0))
     min_travel_m: float = field(default=0.2, metadata=number(0.0, 10.0))
     min_sigma_target: float = field(default=0.05, metadata=number(0.0, 10.0))
-    path_fraction: Vec = field(default=(0.4, 0.7), metadata=vector(2, 0.0, 1.0))
+    path_fraction: Vec = field(default=(0.4, 0.7), metadata=interval(0.0, 1.0))
     lateral_offset_m: float = field(default=0.02, metadata=number(0.0, 1.0))
     min_final_distance_m: float = field(default=0.1, metadata=number(0.0, 10.0))
     min_self_clearance_m: float = field(default=0.02, metadata=number(0.0, 10.0))
-    max_attempts: float = field(default=1000, metadata=number(1, MAX_DRAW_ATTEMPTS))
+    max_attempts: float = field(default=1000, metadata=count(1, MAX_DRAW_ATTEMPTS))
 
 
 @dataclass(frozen=True)
@@ -257,8 +259,8 @@ class TumblingTarget:
 
 
 def tumbling_problems(body: TumblingTarget, target: Target) -> list[str]:
-    """What makes a ``[tumbling_target]`` section impossible, key by key (empty when nothing): moments no body has,
-    a handle inside the box, a ``[target]`` that is not the grasp frame at t = 0 (its quaternions' norms are checked
+    """What makes a ``[tumbling_target]`` section impossible, key by key (empty when nothing): moments no body has
+    (beyond the triangle inequality, or beyond what its mass can have inside its box), a handle inside the box, a ``[target]`` that is not the grasp frame at t = 0 (its quaternions' norms are checked
     with the scenario's others)."""
     problems = []
     i1, i2, i3 = body.inertia_kg_m2
@@ -267,6 +269,14 @@ def tumbling_problems(body: TumblingTarget, target: Target) -> list[str]:
             problems.append(f"key 'tumbling_target.inertia_kg_m2' = {list(body.inertia_kg_m2)}: moment {k + 1} exceeds "
                             "the sum of the other two; allowed: principal moments of a real body (each at most the "
                             "sum of the others)")
+    a, b, c = body.size_m
+    for k, (moment, (u, v)) in enumerate(zip(body.inertia_kg_m2, ((b, c), (a, c), (a, b)))):
+        most = body.mass_kg * (u * u + v * v) / 4.0  # all the mass in the corners of the box
+        if moment > most * (1.0 + 1e-12):
+            problems.append(f"key 'tumbling_target.inertia_kg_m2' = {list(body.inertia_kg_m2)}: moment {k + 1} exceeds "
+                            f"{most:.6g} kg m², the most {body.mass_kg:g} kg inside a box of edges {list(body.size_m)} m "
+                            "can have about its centre (all of it in the corners); allowed: at most that (a uniform box "
+                            "has a third of it)")
     if all(abs(h) <= e / 2.0 for h, e in zip(body.handle_position_m, body.size_m)):
         problems.append(f"key 'tumbling_target.handle_position_m' = {list(body.handle_position_m)} lies inside the "
                         f"body (edges {list(body.size_m)} m, centred on the body frame); allowed: a point outside it")

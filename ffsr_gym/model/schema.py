@@ -32,6 +32,20 @@ TEXTS = {"kind": "texts"}
 MAX_DRAW_ATTEMPTS = 10_000
 
 
+#: The most steps an episode may take: its logs (and a tumbling target's motion) are held in memory for the whole
+#: episode, so a longer one is refused at load, not by a MemoryError at reset.
+MAX_EPISODE_STEPS = 200_000
+
+
+def episode_steps_problem(duration_s: float, dt_s: float) -> str | None:
+    """Why an episode of ``duration_s`` at steps of ``dt_s`` is too long to hold (None: it is not)."""
+    steps = duration_s / dt_s
+    if steps <= MAX_EPISODE_STEPS + 0.5:
+        return None
+    return (f"{duration_s} s / {dt_s} s = {round(steps):,} steps; allowed: at most {MAX_EPISODE_STEPS:,} steps in an "
+            "episode (a longer step, or a shorter episode)")
+
+
 def number(lo: float, hi: float, *, lo_open: bool = False, hi_open: bool = False) -> dict:
     """A real number in [lo, hi] (an open end excludes its bound)."""
     return {"kind": "number", "lo": lo, "hi": hi, "lo_open": lo_open, "hi_open": hi_open}
@@ -40,6 +54,17 @@ def number(lo: float, hi: float, *, lo_open: bool = False, hi_open: bool = False
 def vector(size: int, lo: float = -math.inf, hi: float = math.inf) -> dict:
     """A list of ``size`` numbers, each within [lo, hi]."""
     return {"kind": "vector", "size": size, "lo": lo, "hi": hi}
+
+
+def interval(lo: float = -math.inf, hi: float = math.inf) -> dict:
+    """A range ``[low, high]`` drawn from: two numbers within [lo, hi], low <= high."""
+    return {"kind": "interval", "size": 2, "lo": lo, "hi": hi}
+
+
+def count(lo: int, hi: int) -> dict:
+    """A whole number in [lo, hi] (attempts), written as an integer; kept as a float, as the numbers it replaced
+    were (the hashes of the files that hold one do not change)."""
+    return {"kind": "count", "lo": lo, "hi": hi}
 
 
 def rows(size: int, lo: float, hi: float, max_rows: int) -> dict:
@@ -147,6 +172,17 @@ def convert(key: str, value: Any, meta: Any) -> Any:
         return check_number(key, value, meta)
     if kind == "rows":
         return _convert_rows(key, value, meta)
+    if kind == "count":
+        whole = isinstance(value, int) or (isinstance(value, float) and value.is_integer())
+        if isinstance(value, bool) or not whole or not meta["lo"] <= value <= meta["hi"]:
+            raise ScenarioError(f"key {key!r} is {value!r}; allowed: an integer in [{meta['lo']}, {meta['hi']}]")
+        return float(value)
+    if kind == "interval":
+        low, high = convert(key, value, {**meta, "kind": "vector"})
+        if low > high:
+            raise ScenarioError(f"key {key!r} = {[low, high]} is reversed; allowed: [low, high] with low <= high, "
+                                f"each in [{meta['lo']}, {meta['hi']}]")
+        return low, high
     if kind == "natural":
         if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= meta["hi"]:
             raise ScenarioError(f"key {key!r} is {value!r}; allowed: an integer in [0, {meta['hi']}]")

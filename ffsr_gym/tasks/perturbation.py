@@ -34,7 +34,7 @@ from ffsr_gym.model.benchmark import Benchmark
 from ffsr_gym.model.collision import SphereObstacle
 from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.scenario import Debris, Plant, Scenario, ServoSettings, TargetNoise
-from ffsr_gym.model.schema import load_table, number, section, vector
+from ffsr_gym.model.schema import count, interval, load_table, number, section, vector
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.tasks.certificate import Member
 from ffsr_gym.tasks.generator import draw_task
@@ -53,13 +53,13 @@ class DebrisDraw:
     """Ranges of the ``debris`` tier (see ``<version>_perturbed.toml``)."""
 
     extra_obstacles: tuple[float, ...] = field(metadata=vector(2, 0, 7))
-    radius_m: tuple[float, ...] = field(metadata=vector(2, 0.0, 0.5))
-    obstacle_speed_m_s: tuple[float, ...] = field(metadata=vector(2, 0.0, 0.5))
-    debris_speed_m_s: tuple[float, ...] = field(metadata=vector(2, 0.0, 0.5))
-    crossing_time_fraction: tuple[float, ...] = field(metadata=vector(2, 0.0, 1.0))
-    lateral_offset_m: tuple[float, ...] = field(metadata=vector(2, 0.0, 1.0))
+    radius_m: tuple[float, ...] = field(metadata=interval(0.0, 0.5))
+    obstacle_speed_m_s: tuple[float, ...] = field(metadata=interval(0.0, 0.5))
+    debris_speed_m_s: tuple[float, ...] = field(metadata=interval(0.0, 0.5))
+    crossing_time_fraction: tuple[float, ...] = field(metadata=interval(0.0, 1.0))
+    lateral_offset_m: tuple[float, ...] = field(metadata=interval(0.0, 1.0))
     min_final_distance_m: float = field(metadata=number(0.0, 2.0))
-    max_attempts: float = field(metadata=number(1, 1e5))
+    max_attempts: float = field(metadata=count(1, 100_000))
 
 
 @dataclass(frozen=True)
