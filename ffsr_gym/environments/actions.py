@@ -65,9 +65,10 @@ def check_action(action: Any, shape: tuple[int, ...]) -> tuple[np.ndarray, Any]:
         raw = np.asarray(action)
     except (TypeError, ValueError) as exc:
         raise InvalidInputError(f"action must be an array of real numbers of shape {shape} ({exc})") from None
-    if raw.dtype.kind not in "biuf":
-        raise InvalidInputError(f"action must hold real numbers (bool, int or float) of shape {shape}, got dtype "
-                                f"{raw.dtype} ({'complex' if raw.dtype.kind == 'c' else 'not numeric'})")
+    if raw.dtype.kind not in "iuf":
+        kind = {"c": "complex", "b": "bool"}.get(raw.dtype.kind, "not numeric")
+        raise InvalidInputError(f"action must hold real numbers (int or float) of shape {shape}, got dtype "
+                                f"{raw.dtype} ({kind})")
     a = raw.astype(np.float64)
     if a.shape != shape:
         raise InvalidInputError(f"action must have shape {shape}, got {a.shape}")

@@ -23,6 +23,7 @@ from ffsr_gym.environments.actions import check_action, observation_bounds, phys
 from ffsr_gym.environments.engine import EpisodeEngine
 from ffsr_gym.environments.env import task_options
 from ffsr_gym.environments.task_source import TaskSource, check_reset_options
+from ffsr_gym.environments.vector_inputs import copy_seeds, reset_mask, task_indices
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.rules import score_rule
@@ -119,9 +120,9 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         if options is not None and not isinstance(options, dict):
             raise InvalidInputError(f"options must be a dict or None, got {type(options).__name__}")
         check_reset_options(options, ("reset_mask", *self.source.reset_options()), self.source.spec)
-        mask = self._reset_mask(options)
-        forced = self._task_indices(options)
-        seeds = self._copy_seeds(seed)
+        mask = reset_mask(options, self.num_envs, self._started)
+        forced = task_indices(options, self.num_envs, self.source.pool is not None)
+        seeds = copy_seeds(seed, self.num_envs)
         super().reset(seed=seeds[0] if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) else None)
         for i, s in enumerate(seeds):
             if not mask[i]:
@@ -136,48 +137,6 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
     def autoreset_mode(self) -> AutoresetMode:
         """How ended copies are reset (Gymnasium's ``AutoresetMode``; also ``metadata["autoreset_mode"]``)."""
         return self.metadata["autoreset_mode"]
-
-    def _reset_mask(self, options: dict | None) -> np.ndarray:
-        """The copies a reset resets: ``options["reset_mask"]`` (a bool array, one per copy, at least one True; after
-        the first reset), else all. Only the masked copies' infos are given (their ``_key`` masks)."""
-        mask = (options or {}).get("reset_mask")
-        if mask is None:
-            return np.ones(self.num_envs, dtype=bool)
-        if (not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (self.num_envs,)
-                or not mask.any()):
-            raise InvalidInputError(f"options['reset_mask'] = {mask!r}; allowed: a numpy bool array of shape "
-                                    f"({self.num_envs},) with at least one True")
-        if not self._started and not mask.all():
-            raise InvalidInputError("options['reset_mask']: the first reset resets every copy")
-        return mask.copy()
-
-    def _task_indices(self, options: dict | None) -> list[Any] | None:
-        indices = (options or {}).get("task_index")
-        if indices is None:
-            return None
-        if self.source.pool is None or np.ndim(indices) != 1 or len(indices) != self.num_envs:
-            raise InvalidInputError(f"options['task_index'] = {indices!r}; allowed: a list of {self.num_envs} pool "
-                                    "indices, one per copy, on a tier's pool")
-        return [int(i) if isinstance(i, (int, np.integer)) and not isinstance(i, bool) else i for i in indices]
-
-    def _copy_seeds(self, seed: Any) -> list[int | None]:
-        """Per-copy seeds of ``reset(seed=...)``: an int s gives s, s + 1, ...; a list gives one per copy.
-
-        Raises:
-            InvalidInputError: anything else, naming what is allowed.
-        """
-        def is_seed(x: Any) -> bool:
-            return isinstance(x, (int, np.integer)) and not isinstance(x, bool) and int(x) >= 0
-
-        if seed is None:
-            return [None] * self.num_envs
-        if is_seed(seed):
-            return [int(seed) + i for i in range(self.num_envs)]
-        if isinstance(seed, (list, tuple, np.ndarray)) and len(seed) == self.num_envs \
-                and all(s is None or is_seed(s) for s in seed):
-            return [None if s is None else int(s) for s in seed]
-        raise InvalidInputError(f"seed = {seed!r}; allowed: None, a non-negative integer, or a list of {self.num_envs} "
-                                "such integers (or None), one per copy")
 
     # ----------------------------------------------------------------------------- steps
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:

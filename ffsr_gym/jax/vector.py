@@ -4,6 +4,11 @@ The same spaces, rewards and info keys as ``gymnasium.make_vec("FFSR-Residual-v2
 ``residual=False``), with Gymnasium's next-step autoreset. What differs: tasks are drawn from a JAX key (the reset
 seed), so the sequence of tasks is not the kernel environments'; the episode-end ``paper_B`` is not computed by the
 JAX loop (NaN); a copy runs to its end inside the compiled step, so nothing of the trajectory is kept.
+
+Its inputs meet the kernel vector env's contract, checked by the same functions
+(:mod:`ffsr_gym.environments.vector_inputs`, ``check_action``): seeds (an integer >= 0 or one per copy),
+``options`` (``task_index``, one pool index per copy; ``reset_mask``; nothing else), actions (finite numbers of the
+action's shape, clipped into [-1, 1] and counted), ``residual`` a bool; a closed env refuses to reset or step.
 """
 
 from __future__ import annotations
@@ -14,13 +19,15 @@ import gymnasium
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
-from ffsr_gym.environments.actions import observation_bounds
+from ffsr_gym.environments.actions import check_action, observation_bounds
 from ffsr_gym.environments.info import blank, failure_code, with_masks
+from ffsr_gym.environments.task_source import check_reset_options
+from ffsr_gym.environments.vector_inputs import copy_seeds, reset_mask, task_indices
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.jax.brax_env import FFSRBraxEnv
 from ffsr_gym.jax.copies import over_copies
 from ffsr_gym.jax.episode import STATUS_COLLISION, STATUS_RATE
 from ffsr_gym.jax.physics import jax, jnp
+from ffsr_gym.jax.pool_env import PoolEnv
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.rules import score_rule
 
@@ -41,8 +48,9 @@ class FFSRJaxVectorEnv(gymnasium.vector.VectorEnv):
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise InvalidInputError(f"num_envs = {num_envs!r}; allowed: an integer >= 1")
         self.num_envs = int(num_envs)
-        self.env = FFSRBraxEnv(task, split, residual=residual)
-        self.rule = score_rule(spec_for_version("v2"))
+        self.env = PoolEnv(task, split, residual=residual)
+        self.spec_v2 = spec_for_version("v2")
+        self.rule = score_rule(self.spec_v2)
         low, high = observation_bounds()
         self.single_observation_space = gymnasium.spaces.Box(low, high, dtype=np.float32)
         size = self.env.action_size
@@ -50,38 +58,63 @@ class FFSRJaxVectorEnv(gymnasium.vector.VectorEnv):
         self.observation_space = gymnasium.vector.utils.batch_space(self.single_observation_space, self.num_envs)
         self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, self.num_envs)
         self._reset = jax.jit(over_copies(self.env.reset))  # slices of at most 512 copies: ffsr_gym.jax.copies
+        self._reset_task = jax.jit(over_copies(self.env.reset_task))
         self._step = jax.jit(over_copies(self.env.step))
         self._key, self._state, self._ended = jax.random.PRNGKey(0), None, np.zeros(self.num_envs, bool)
         self._clipped = np.zeros(self.num_envs, np.int64)
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
-        if seed is not None:
-            self._key = jax.random.PRNGKey(int(seed))
+    def _check_open(self) -> None:
+        if self.closed:
+            raise InvalidInputError("this vector env is closed; allowed: make a new one")
+
+    def _fresh(self, seed: Any, forced: list[Any] | None) -> Any:
+        """New states of every copy: from the seed's keys (an integer: the key stream it starts; a list: one key per
+        copy), and at the forced tasks when ``task_index`` names them."""
+        seeds = copy_seeds(seed, self.num_envs)
+        if seed is not None and not isinstance(seed, (list, tuple, np.ndarray)):
+            self._key = jax.random.PRNGKey(seeds[0])
         self._key, sub = jax.random.split(self._key)
-        self._state = self._reset(jax.random.split(sub, self.num_envs))
-        self._ended[:], self._clipped[:] = False, 0
+        keys = jax.random.split(sub, self.num_envs)
+        if isinstance(seed, (list, tuple, np.ndarray)):
+            keys = jnp.stack([keys[i] if s is None else jax.random.PRNGKey(s) for i, s in enumerate(seeds)])
+        if forced is None:
+            return self._reset(keys)
+        bad = [i for i in forced if not (isinstance(i, int) and 0 <= i < self.env.n_tasks)]
+        if bad:
+            raise InvalidInputError(f"options['task_index'] = {str(bad[0])[:40]}; allowed: integers in "
+                                    f"[0, {self.env.n_tasks - 1}] ({self.env.tier}/{self.env.split} holds "
+                                    f"{self.env.n_tasks} tasks)")
+        return self._reset_task(jnp.asarray(forced))
+
+    @staticmethod
+    def _merge(mask: np.ndarray, new: Any, old: Any) -> Any:
+        where = jnp.asarray(mask)
+        return jax.tree.map(lambda a, b: jnp.where(where.reshape((-1,) + (1,) * (b.ndim - 1)), a, b), new, old)
+
+    def reset(self, *, seed: Any = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        self._check_open()
+        if options is not None and not isinstance(options, dict):
+            raise InvalidInputError(f"options must be a dict or None, got {type(options).__name__}")
+        check_reset_options(options, ("reset_mask", "task_index"), self.spec_v2)
+        mask = reset_mask(options, self.num_envs, self._state is not None)
+        fresh = self._fresh(seed, task_indices(options, self.num_envs, pooled=True))
+        self._state = fresh if self._state is None else self._merge(mask, fresh, self._state)
+        self._ended[mask], self._clipped[mask] = False, 0
         arrays = self._info(self._state, np.zeros(self.num_envs, bool))
-        return np.asarray(self._state.obs), with_masks(arrays, np.ones(self.num_envs, bool))
+        return np.asarray(self._state.obs), with_masks(arrays, mask)
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+        self._check_open()
         if self._state is None:
-            raise InvalidInputError("step before reset; call reset() first")
-        actions = np.asarray(actions, dtype=np.float64)
-        if actions.shape != self.action_space.shape or not np.all(np.isfinite(actions)):
-            raise InvalidInputError(f"actions must be finite, of shape {self.action_space.shape}; allowed range "
-                                    f"[-1, 1] per entry, got shape {actions.shape}")
-        clipped = np.any(np.abs(actions) > 1.0, axis=1)
+            raise InvalidInputError("call reset() before step()")
+        actions, clipped = check_action(actions, self.action_space.shape)
+        actions = actions.astype(np.float64)
         if np.any(self._ended):  # Gymnasium's next-step autoreset: those copies start anew, ignoring the action
             self._key, sub = jax.random.split(self._key)
-            fresh = self._reset(jax.random.split(sub, self.num_envs))
-            mask = jnp.asarray(self._ended)
-            self._state = jax.tree.map(lambda new, old: jnp.where(mask.reshape((-1,) + (1,) * (old.ndim - 1)), new,
-                                                                  old), fresh, self._state)
+            self._state = self._merge(self._ended, self._reset(jax.random.split(sub, self.num_envs)), self._state)
             self._clipped[self._ended] = 0
         was_reset = self._ended.copy()
-        stepped = self._step(self._state, jnp.asarray(actions))
-        self._state = jax.tree.map(lambda new, old: jnp.where(
-            jnp.asarray(was_reset).reshape((-1,) + (1,) * (old.ndim - 1)), old, new), stepped, self._state)
+        self._state = self._merge(was_reset, self._state, self._step(self._state, jnp.asarray(actions)))
         self._clipped += np.where(was_reset, 0, clipped)
         done = np.asarray(self._state.done) > 0.5
         terminated = done & (np.asarray(self._state.pipeline_state.status) != 0) & ~was_reset
