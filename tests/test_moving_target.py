@@ -30,7 +30,7 @@ def _grasp(spin_deg_s: float, drift_m_s=(0.0, 0.0, 0.0)) -> GraspFrameMotion:
     centre = np.array(SCENARIO.target.position_m) - quat.to_rotation(start) @ HANDLE_BODY_M
     motion = propagate(position_m=centre, velocity_m_s=np.array(drift_m_s), quaternion=start,
                        omega_body_rad_s=np.deg2rad(spin_deg_s) * np.array([0.0, 0.0, 1.0]),
-                       inertia_kg_m2=np.array([150.0, 150.0, 150.0]), dt_s=DT, steps=STEPS)
+                       inertia_kg_m2=np.array([2.25, 2.25, 2.25]), dt_s=DT, steps=STEPS)
     position, velocity = point_motion(motion, HANDLE_BODY_M)
     return GraspFrameMotion(DT, position, motion.quaternion, velocity, motion.omega_world_rad_s())
 
@@ -94,7 +94,7 @@ def _tumbling_toml(tmp_path, **changes) -> str:
 
     start = np.array(SCENARIO.target.quaternion_wxyz)
     centre = np.array(SCENARIO.target.position_m) - quat.to_rotation(start) @ HANDLE_BODY_M
-    values = {"size_m": [0.3, 0.3, 0.3], "mass_kg": 150.0, "inertia_kg_m2": [150.0, 150.0, 150.0],
+    values = {"size_m": [0.3, 0.3, 0.3], "mass_kg": 150.0, "inertia_kg_m2": [2.25, 2.25, 2.25],
               "position_m": centre.tolist(), "quaternion_wxyz": start.tolist(),
               "handle_position_m": HANDLE_BODY_M.tolist(), "velocity_m_s": [0.003, -0.002, 0.001],
               "omega_body_deg_s": [0.0, 0.0, -3.0], **changes}

@@ -58,7 +58,7 @@ def test_compute_per_rl_entry_counts_each_training_once():
                         _entry("ppo_easy_valbest", "easy", [0.1], checkpoint="best_on_validation", **common),
                         _entry("reference_v2_default", "easy", [0.1])]}
     lines = tables.rl_compute_table(entries)
-    assert lines[2:] == ["| `ppo` | 5 x 1,000,000 steps, 2.0 h, 1 CPU core per training seed |"]
+    assert lines[2:] == ["| `ppo` | 5 x 1,000,000 steps, 2.0 h, `1 CPU core per training seed` |"]  # typed: inert
     rl = [e for e in entries["easy"] if e["extra"].get("checkpoint") == "last"]
     assert tables._rl_compute(rl).startswith("RL entries: 5 trained agents, 5,000,000 environment steps, 2.0 h")
 

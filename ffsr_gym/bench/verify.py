@@ -85,8 +85,8 @@ def _text_problems(entry: dict) -> list[str]:
             stack += [(f"{where}.{key}" if where else str(key), item) for key, item in value.items()
                       if not (where == "extra" and key == "trace")]  # the trace is checked as a trace
             stack += [(f"{where} key", key) for key in value]
-        elif isinstance(value, list):
-            stack += [(f"{where}[{k}]", item) for k, item in enumerate(value)]
+        elif isinstance(value, list):  # numbers hold no text: only the other items are looked into
+            stack += [(f"{where}[{k}]", item) for k, item in enumerate(value) if type(item) not in (int, float)]
         elif isinstance(value, str) and not value.isprintable() and any(  # printable text has none of them
                 unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp") for c in value):
             problems.append(f"{where}: a control character or line break in {value[:40]!r}; allowed: one line of text")

@@ -180,8 +180,8 @@ def convert(key: str, value: Any, meta: Any) -> Any:
     if kind == "interval":
         low, high = convert(key, value, {**meta, "kind": "vector"})
         if low > high:
-            raise ScenarioError(f"key {key!r} = {[low, high]} is reversed; allowed: [low, high] with low <= high, "
-                                f"each in [{meta['lo']}, {meta['hi']}]")
+            raise ScenarioError(f"key {key!r} = {[low, high]}; allowed: [low, high] with low <= high (this range is "
+                                f"reversed), each in [{meta['lo']}, {meta['hi']}]")
         return low, high
     if kind == "natural":
         if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= meta["hi"]:
