@@ -70,12 +70,13 @@ def _watch(what: str, finished: threading.Event) -> None:
     if finished.wait(QUIET_S) or os.environ.get(QUIET_ENV) == "1":
         return
     estimate = ESTIMATES_S[what]
-    sys.stderr.write(f"ffsr-gym: compiling the {what} kernel (its first use on this install; about "
-                     f"{_minutes(estimate)} on 2 cores); it is cached for later runs\n")
+    sys.stderr.write(f"ffsr-gym: compiling the {what} kernel (its first use on this install; it took "
+                     f"{_minutes(estimate)} on an idle 2-core machine, and can take several times that on a busy "
+                     "or slower one); it is cached for later runs\n")
     from tqdm.auto import tqdm
 
     with tqdm(total=round(estimate), unit="s", desc=f"compiling the {what} kernel", file=sys.stderr, leave=False,
-              bar_format=f"{{desc}}: {{bar}} {{n:.0f}} s of about {estimate:.0f} s") as bar:
+              bar_format=f"{{desc}}: {{bar}} {{n:.0f}} s (idle 2-core machine: {estimate:.0f} s)") as bar:
         while not finished.wait(1.0):
             bar.n = time.perf_counter() - start
             bar.total = max(bar.total, bar.n + 5)  # past the estimate the bar stays nearly full; the seconds go on
