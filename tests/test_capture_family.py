@@ -122,6 +122,7 @@ def test_the_capture_tier_rule_labels_candidates():
     assert type(admitted).from_dict(admitted.as_dict()) == admitted
 
 
+@pytest.mark.slow  # half a minute or more: with -m slow (CI stays under 20 minutes)
 def test_a_capture_pool_builds_resumes_and_replays_on_pinocchio(tmp_path, monkeypatch):
     """A two-task test pool of the slow tier through the pool build: chunks of consecutive seeds, the Pinocchio
     member replayed on the pool tasks, and a second build that only reads what the first wrote."""

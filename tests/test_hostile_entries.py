@@ -289,6 +289,7 @@ def test_clipped_actions_are_counted_in_the_rows_verified_and_shown_in_the_table
     assert replay_entry(_write(tmp_path, forged)).status == "differs"
 
 
+@pytest.mark.slow  # half a minute or more: with -m slow (CI stays under 20 minutes)
 def test_a_stamp_describes_the_rows_it_verified_and_the_table_shows_it(tmp_path):
     from ffsr_gym.bench import leaderboard
     from ffsr_gym.cli.main import main

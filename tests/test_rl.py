@@ -84,6 +84,7 @@ def test_v2_hyperparameters_are_the_searched_best():
         assert record["training_pool"].endswith("/train") and record["selection_pool"].endswith("/validation")
 
 
+@pytest.mark.slow  # half a minute or more: with -m slow (CI stays under 20 minutes)
 def test_pool_training_selects_on_validation_scores_both_checkpoints_on_test_and_resumes(tmp_path):
     import torch
 

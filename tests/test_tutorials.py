@@ -49,7 +49,12 @@ def test_every_tutorial_is_a_page_of_the_site():
     assert TUTORIALS and all(f"tutorials/{path.stem}" in index for path in TUTORIALS)
 
 
-@pytest.mark.parametrize("path", TUTORIALS, ids=lambda p: p.stem)
+#: Tutorials of half a minute or more: run with ``-m slow`` (the CI's 20 minutes keep the shorter ones).
+LONG_TUTORIALS = {"evaluate", "robot", "sensitivity"}
+
+
+@pytest.mark.parametrize("path", [pytest.param(p, marks=pytest.mark.slow) if p.stem in LONG_TUTORIALS else p
+                                  for p in TUTORIALS], ids=lambda p: p.stem)
 def test_the_tutorial_runs_as_written(path, tmp_path):
     code = script(path.read_text(encoding="utf-8"))
     (tmp_path / "tutorial.py").write_text(code)
