@@ -15,33 +15,6 @@ import pytest
 # the kernel's first-use notices (a compilation's progress bar) stay out of tests that read stderr
 os.environ.setdefault("FFSR_GYM_QUIET_COMPILE", "1")
 
-#: One use of each compiled entry point (the closed loop, the single env, the batched env), each its own process.
-_WARM_UPS = (
-    "import ffsr_gym; ffsr_gym.simulate('paper', backend='kernel')",
-    "import gymnasium as gym, numpy as np, ffsr_gym; env = gym.make('FFSR-v2', task='easy'); env.reset(seed=0); "
-    "env.step(np.zeros(2, np.float32))",
-    "import gymnasium as gym, numpy as np, ffsr_gym; envs = gym.make_vec('FFSR-v2', num_envs=2, "
-    "vectorization_mode='vector_entry_point', task='easy'); envs.reset(seed=0); envs.step(np.zeros((2, 2), np.float32))",
-)
-
-
-def pytest_sessionstart(session: pytest.Session) -> None:
-    """Before the test workers start (in the controller, or a run without workers): fill numba's on-disk cache with
-    every kernel entry point, each compiled by a process of its own, side by side. Without it, each worker compiles
-    every entry point it meets, the same ones twice over; with a warm cache this takes seconds."""
-    if hasattr(session.config, "workerinput") or os.environ.get("FFSR_GYM_NO_WARM_UP") == "1":
-        return
-    import subprocess
-    import sys
-
-    env = {**os.environ, "FFSR_GYM_QUIET_COMPILE": "1"}
-    running = [subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.DEVNULL,
-                                stderr=subprocess.PIPE, text=True) for code in _WARM_UPS]
-    for process, code in zip(running, _WARM_UPS):
-        _, err = process.communicate()
-        if process.returncode != 0:  # the tests that use it will fail with the same error, named there
-            sys.stderr.write(f"kernel warm-up failed ({code[:60]}...):\n{err[-2000:]}\n")
-
 from ffsr_gym.model.collision import CollisionModel  # noqa: E402
 from ffsr_gym.model.robot import Robot, load_robot  # noqa: E402
 from ffsr_gym.model.scenario import Scenario, load_scenario  # noqa: E402
