@@ -127,6 +127,14 @@ def _connect(scheduler: str, target: Any) -> Any:
     return client
 
 
+def _worker_threads(client: Any, seconds: float) -> int:
+    """The threads of the cluster's workers now (0: no worker, or no answer from the scheduler within ``seconds``)."""
+    finished, info = _bounded(lambda: client.scheduler_info(n_workers=-1), seconds)
+    if not finished or not isinstance(info, dict):
+        return 0
+    return sum(worker["nthreads"] for worker in info.get("workers", {}).values())
+
+
 class GuardedExecutor(Executor):
     """Calls on a cluster, each through :func:`pinned`, whose futures never wait forever: while they run, the client
     looks at the cluster every :data:`WATCH_INTERVAL_S`; once it has had no worker (none joined, or the last one
@@ -156,19 +164,16 @@ class GuardedExecutor(Executor):
             self._open.discard(outer)
         error = CancelledError() if inner.cancelled() else inner.exception()
         if isinstance(error, CancelledError):
-            error = InvalidInputError(f"--scheduler {self.scheduler!r}: the scheduler cancelled a piece (it was stopped "
-                                      "or killed, or the client lost it); run the command again: it resumes from what "
-                                      "it had written")
+            error = InvalidInputError(f"--scheduler {self.scheduler!r}: the scheduler cancelled a piece (it was "
+                                      "stopped or killed, or the client lost it); run the command again: it resumes "
+                                      "from what it had written")
         try:
             outer.set_exception(error) if error is not None else outer.set_result(inner.result())
         except InvalidStateError:  # already failed by the watch
             pass
 
     def _healthy(self) -> bool:
-        if self.client.status != "running":
-            return False
-        finished, info = _bounded(lambda: self.client.scheduler_info(n_workers=-1), 10.0)
-        return finished and isinstance(info, dict) and len(info.get("workers", {})) > 0
+        return self.client.status == "running" and _worker_threads(self.client, 10.0) > 0
 
     def _watch_loop(self) -> None:
         unhealthy_since = None
@@ -225,11 +230,11 @@ def cluster_executor(scheduler: str, *, threads: int = 1, say=print) -> Iterator
         try:
             finished, _ = _bounded(lambda: client.wait_for_workers(1, timeout=NO_WORKER_TIMEOUT_S),
                                    NO_WORKER_TIMEOUT_S + 10)
-            info = _bounded(lambda: client.scheduler_info(n_workers=-1), 30.0)[1]
-            slots = sum(w["nthreads"] for w in info["workers"].values()) if isinstance(info, dict) else 0
+            slots = _worker_threads(client, 30.0)
             if not finished or slots == 0:
                 raise InvalidInputError(f"--scheduler {scheduler!r}: no worker joined the scheduler within "
-                                        f"{NO_WORKER_TIMEOUT_S:.0f} s; start one with `dask worker {spec.address}`")
+                                        f"{NO_WORKER_TIMEOUT_S:.0f} s; start one with "
+                                        f"`dask worker {spec.address or scheduler}`")
             if client.dashboard_link:
                 say(f"Dask dashboard: {client.dashboard_link}")
             executor = GuardedExecutor(client, threads, scheduler)

@@ -60,9 +60,12 @@ def is_source_checkout() -> bool:
     return (_SOURCE / ".git").exists()
 
 
-def source_folder() -> Path:
-    """The folder this package's source tree sits in (its checkout's root, in a checkout)."""
-    return _SOURCE
+def is_checkout_commit(commit: str) -> bool | None:
+    """Whether ``commit`` is a commit of the ffsr-gym checkout this package runs from; None when that cannot be told
+    (an installed wheel, no git, or a shallow clone, whose history is partial)."""
+    if not is_source_checkout() or _git("rev-parse", "--is-shallow-repository") != "false":
+        return None
+    return _git("cat-file", "-e", f"{commit}^{{commit}}") is not None
 
 
 def source_commit() -> str | None:

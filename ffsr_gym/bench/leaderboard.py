@@ -69,8 +69,13 @@ def load_entries(root: str | Path, spec: BenchmarkSpec) -> dict[str, list[dict[s
         folder = folder_of(spec, root, group)
         if "{task}" not in spec.leaderboard.folder and not folder.is_dir():
             continue  # an env id's table is shown once its folder exists
-        out[group] = _refuse_duplicates([_load(path, spec, group) for path in sorted(folder.glob("*.json"))], group)
+        out[group] = _refuse_duplicates([_load(path, spec, group) for path in table_files(folder)], group)
     return out
+
+
+def table_files(folder: Path) -> list[Path]:
+    """The files a table reads as its entries: every ``*.json`` in its folder, whatever its name (sorted)."""
+    return sorted(folder.glob("*.json"))
 
 
 #: Within :func:`checks_once`: each entry's problems by (content digest, version, table).

@@ -16,7 +16,6 @@ from __future__ import annotations
 import hashlib
 import json
 import re
-import subprocess
 from datetime import datetime, timezone
 from functools import lru_cache
 from importlib import metadata
@@ -35,7 +34,8 @@ def rows_digest(rows: list[dict[str, Any]]) -> str:
 
 
 def entry_digest(entry: dict[str, Any]) -> str:
-    """sha256 of an entry as JSON with sorted keys, without its stamp and the loader's ``_`` keys: what a stamp binds."""
+    """sha256 of an entry as JSON with sorted keys, without its stamp and the loader's ``_`` keys: what a stamp
+    binds."""
     extra = {key: value for key, value in (entry.get("extra") or {}).items() if key != "verified"}
     body = {key: value for key, value in entry.items() if not key.startswith("_")} | {"extra": extra}
     return hashlib.sha256(json.dumps(body, sort_keys=True, allow_nan=False).encode()).hexdigest()
@@ -43,22 +43,10 @@ def entry_digest(entry: dict[str, Any]) -> str:
 
 @lru_cache(maxsize=256)
 def _known_commit(commit: str) -> bool | None:
-    """Whether ``commit`` is a commit of this package's checkout; None when that cannot be told (no checkout, no git,
-    a shallow clone)."""
-    from ffsr_gym.provenance import is_source_checkout, source_folder
+    """:func:`ffsr_gym.provenance.is_checkout_commit`, once per commit in a process (the tables check every stamp)."""
+    from ffsr_gym.provenance import is_checkout_commit
 
-    if not is_source_checkout():
-        return None
-    try:
-        shallow = subprocess.run(["git", "-C", str(source_folder()), "rev-parse", "--is-shallow-repository"],
-                                 capture_output=True, text=True, timeout=10, check=False)
-        if shallow.returncode != 0 or shallow.stdout.strip() != "false":
-            return None
-        found = subprocess.run(["git", "-C", str(source_folder()), "cat-file", "-e", f"{commit}^{{commit}}"],
-                               capture_output=True, timeout=10, check=False)
-    except (OSError, subprocess.TimeoutExpired):
-        return None
-    return found.returncode == 0
+    return is_checkout_commit(commit)
 
 
 def _reference_sha(entry: dict[str, Any], version: str) -> str | None:

@@ -63,9 +63,8 @@ def _leaderboard_plot(args: argparse.Namespace) -> None:
 
 def _leaderboard_update(args: argparse.Namespace) -> int:
     """Everything a submission changes, in order: aggregates, tables (and the pages' generated blocks), figures."""
-    from ffsr_gym.exceptions import require
-
     from ffsr_gym.bench.leaderboard import check, checks_once
+    from ffsr_gym.exceptions import require
 
     require("rliable", "analysis", "rliable, pandas", "the aggregates across tiers need")  # before anything is written
     with checks_once():  # each entry file is checked once, though the steps load the board several times
@@ -176,8 +175,8 @@ def add_board_commands(sub: Any) -> None:
     pareto.add_argument("--no-progress", action="store_true", help="hide the progress bars")
     pareto.set_defaults(func=_leaderboard_pareto)
     verify = board_sub.add_parser("verify", help="replay an entry's trace (or planner, fixed parameters) and compare "
-                                                 "its rows exactly (exit 0: reproduced, 1: differ, 3: skipped code; the "
-                                                 "largest over several)")
+                                                 "its rows exactly (exit 0: reproduced, 1: differ, 3: skipped code; "
+                                                 "over several: 1 if any differs)")
     verify.add_argument("entry", nargs="*", help="the entries' JSON files")
     verify.add_argument("--changed-since", default=None, metavar="REF",
                         help="replay every entry the tables read that was added, changed, renamed or copied since the "

@@ -22,8 +22,8 @@ from ffsr_gym.environments import info as info_contract
 from ffsr_gym.environments.actions import check_action, observation_bounds, physical_parameters
 from ffsr_gym.environments.engine import EpisodeEngine
 from ffsr_gym.environments.env import task_options
-from ffsr_gym.environments.task_source import TaskSource, check_reset_options
-from ffsr_gym.environments.vector_inputs import copy_seeds, reset_mask, task_indices
+from ffsr_gym.environments.task_source import TaskSource
+from ffsr_gym.environments.vector_inputs import check_open, check_options, copy_seeds, reset_mask, task_indices
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.rules import score_rule
@@ -116,10 +116,8 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
 
     def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         """Reset every copy (see the class docstring for ``seed`` and ``options``)."""
-        self._check_open()
-        if options is not None and not isinstance(options, dict):
-            raise InvalidInputError(f"options must be a dict or None, got {type(options).__name__}")
-        check_reset_options(options, ("reset_mask", *self.source.reset_options()), self.source.spec)
+        check_open(self)
+        check_options(options, ("reset_mask", *self.source.reset_options()), self.source.spec)
         mask = reset_mask(options, self.num_envs, self._started)
         forced = task_indices(options, self.num_envs, self.source.pool is not None)
         seeds = copy_seeds(seed, self.num_envs)
@@ -158,7 +156,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         """
         if self.residual:
             raise InvalidInputError("play_out_with_parameters is for the (m, T_c) envs (FFSR-v0, FFSR-v2), not a residual env")
-        self._check_open()
+        check_open(self)
         if not self._started:
             raise InvalidInputError("call reset() before play_out_with_parameters()")
         active = ~self._needs_reset
@@ -167,12 +165,8 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         self._needs_reset |= terminated | truncated
         return terminated, truncated, info
 
-    def _check_open(self) -> None:
-        if self.closed:
-            raise InvalidInputError("this vector env is closed; allowed: make a new one (gymnasium.make_vec)")
-
     def _step(self, actions: Any, parameters: tuple[float, float] | None):
-        self._check_open()
+        check_open(self)
         if not self._started:
             raise InvalidInputError("call reset() before step()")
         a, was_clipped = check_action(actions, self.action_space.shape)

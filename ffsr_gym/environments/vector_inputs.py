@@ -7,7 +7,30 @@ from typing import Any
 
 import numpy as np
 
+from ffsr_gym.environments.task_source import check_reset_options
 from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.model.spec import BenchmarkSpec
+
+
+def check_open(envs: Any) -> None:
+    """Refuse to use a vector env after its ``close()``.
+
+    Raises:
+        InvalidInputError: ``envs`` is closed.
+    """
+    if envs.closed:
+        raise InvalidInputError("this vector env is closed; allowed: make a new one (gymnasium.make_vec)")
+
+
+def check_options(options: Any, allowed: tuple[str, ...], spec: BenchmarkSpec) -> None:
+    """``reset``'s ``options``: None, or a dict of the ``allowed`` keys only.
+
+    Raises:
+        InvalidInputError: not a dict, or a key outside ``allowed`` (named).
+    """
+    if options is not None and not isinstance(options, dict):
+        raise InvalidInputError(f"options must be a dict or None, got {type(options).__name__}")
+    check_reset_options(options, allowed, spec)
 
 
 def _is_seed(x: Any) -> bool:

@@ -19,9 +19,8 @@ from ffsr_gym.jax.collision import shapes_of
 from ffsr_gym.jax.episode import RESIDUAL, pick, reset, step
 from ffsr_gym.jax.physics import jax, jnp
 from ffsr_gym.jax.replay import pool_tasks
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.sim.setup import robot_assets
-from ffsr_gym.tasks.splits import pool
+from ffsr_gym.tasks.splits import check_tier_split, pool
 
 #: The tiers the JAX loop plays (kinematic plant, exact target, nominal inertials: robust and servo are the kernel's).
 JAX_TIERS = ("easy", "medium", "hard", "debris")
@@ -48,9 +47,7 @@ def check_pool_inputs(tier: Any, split: Any, residual: Any, indices: Any) -> lis
     """
     if not isinstance(tier, str) or tier not in JAX_TIERS:
         raise InvalidInputError(f"task {str(tier)[:40]!r}; allowed on the JAX loop: {list(JAX_TIERS)}")
-    splits = spec_for_version("v2").tasks.splits
-    if not isinstance(split, str) or split not in splits:
-        raise InvalidInputError(f"split {str(split)[:40]!r}; allowed: {list(splits)}")
+    check_tier_split(tier, split, "v2")  # any split that is not one of v2's names, a string or not, is named
     if not isinstance(residual, bool):
         raise InvalidInputError(f"residual = {str(residual)[:40]!r}; allowed: True or False")
     if indices is None:

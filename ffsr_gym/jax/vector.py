@@ -21,8 +21,7 @@ from gymnasium.vector import AutoresetMode
 
 from ffsr_gym.environments.actions import check_action, observation_bounds
 from ffsr_gym.environments.info import blank, failure_code, with_masks
-from ffsr_gym.environments.task_source import check_reset_options
-from ffsr_gym.environments.vector_inputs import copy_seeds, reset_mask, task_indices
+from ffsr_gym.environments.vector_inputs import check_open, check_options, copy_seeds, reset_mask, task_indices
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.jax.copies import over_copies
 from ffsr_gym.jax.episode import STATUS_COLLISION, STATUS_RATE
@@ -63,28 +62,28 @@ class FFSRJaxVectorEnv(gymnasium.vector.VectorEnv):
         self._key, self._state, self._ended = jax.random.PRNGKey(0), None, np.zeros(self.num_envs, bool)
         self._clipped = np.zeros(self.num_envs, np.int64)
 
-    def _check_open(self) -> None:
-        if self.closed:
-            raise InvalidInputError("this vector env is closed; allowed: make a new one")
-
-    def _fresh(self, seed: Any, forced: list[Any] | None) -> Any:
-        """New states of every copy: from the seed's keys (an integer: the key stream it starts; a list: one key per
-        copy), and at the forced tasks when ``task_index`` names them."""
-        seeds = copy_seeds(seed, self.num_envs)
-        if seed is not None and not isinstance(seed, (list, tuple, np.ndarray)):
-            self._key = jax.random.PRNGKey(seeds[0])
-        self._key, sub = jax.random.split(self._key)
-        keys = jax.random.split(sub, self.num_envs)
-        if isinstance(seed, (list, tuple, np.ndarray)):
-            keys = jnp.stack([keys[i] if s is None else jax.random.PRNGKey(s) for i, s in enumerate(seeds)])
-        if forced is None:
-            return self._reset(keys)
-        bad = [i for i in forced if not (isinstance(i, int) and 0 <= i < self.env.n_tasks)]
+    def _forced(self, options: dict | None) -> list[int] | None:
+        """``options["task_index"]``, each inside the pool, or None."""
+        forced = task_indices(options, self.num_envs, pooled=True)
+        bad = [i for i in forced or () if not (isinstance(i, int) and 0 <= i < self.env.n_tasks)]
         if bad:
             raise InvalidInputError(f"options['task_index'] = {str(bad[0])[:40]}; allowed: integers in "
                                     f"[0, {self.env.n_tasks - 1}] ({self.env.tier}/{self.env.split} holds "
                                     f"{self.env.n_tasks} tasks)")
-        return self._reset_task(jnp.asarray(forced))
+        return forced
+
+    def _fresh(self, seeds: list[int | None], per_copy: bool, forced: list[int] | None) -> Any:
+        """New states of every copy: at the forced tasks when ``task_index`` names them, else drawn from keys: an
+        integer seed starts the key stream, a list (``per_copy``) gives each copy its own key."""
+        if not per_copy and seeds[0] is not None:
+            self._key = jax.random.PRNGKey(seeds[0])
+        self._key, sub = jax.random.split(self._key)
+        if forced is not None:
+            return self._reset_task(jnp.asarray(forced))
+        keys = jax.random.split(sub, self.num_envs)
+        if per_copy:
+            keys = jnp.stack([keys[i] if s is None else jax.random.PRNGKey(s) for i, s in enumerate(seeds)])
+        return self._reset(keys)
 
     @staticmethod
     def _merge(mask: np.ndarray, new: Any, old: Any) -> Any:
@@ -92,19 +91,18 @@ class FFSRJaxVectorEnv(gymnasium.vector.VectorEnv):
         return jax.tree.map(lambda a, b: jnp.where(where.reshape((-1,) + (1,) * (b.ndim - 1)), a, b), new, old)
 
     def reset(self, *, seed: Any = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
-        self._check_open()
-        if options is not None and not isinstance(options, dict):
-            raise InvalidInputError(f"options must be a dict or None, got {type(options).__name__}")
-        check_reset_options(options, ("reset_mask", "task_index"), self.spec_v2)
+        check_open(self)
+        check_options(options, ("reset_mask", "task_index"), self.spec_v2)
         mask = reset_mask(options, self.num_envs, self._state is not None)
-        fresh = self._fresh(seed, task_indices(options, self.num_envs, pooled=True))
+        forced, seeds = self._forced(options), copy_seeds(seed, self.num_envs)  # every input checked before any state
+        fresh = self._fresh(seeds, isinstance(seed, (list, tuple, np.ndarray)), forced)
         self._state = fresh if self._state is None else self._merge(mask, fresh, self._state)
         self._ended[mask], self._clipped[mask] = False, 0
         arrays = self._info(self._state, np.zeros(self.num_envs, bool))
         return np.asarray(self._state.obs), with_masks(arrays, mask)
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
-        self._check_open()
+        check_open(self)
         if self._state is None:
             raise InvalidInputError("call reset() before step()")
         actions, clipped = check_action(actions, self.action_space.shape)

@@ -11,6 +11,7 @@ best is the task's certificate, compares it with the pool's certified score.
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +26,12 @@ from ffsr_gym.tasks.splits import SPLITS, PoolTask, pool, task_scenario
 
 #: A record's best may be a searched family's schedule or the task's own certificate.
 BEST_FAMILIES = (*FAMILIES, "certificate")
+
+
+@lru_cache(maxsize=64)
+def _pool(tier: str, split: str, version: str) -> tuple[PoolTask, ...]:
+    """A pool's tasks, read once per assembly's many records (``pool`` rebuilds them from the file's data)."""
+    return pool(tier, split, version=version)
 
 
 def _score_problem(value: Any, where: str) -> str | None:
@@ -42,7 +49,7 @@ def _task(tier: Any, split: Any, index: Any, version: str, file_tier: str, file_
                       "allowed: records of the file's own pool")
     if tier not in spec_for_version(version).tasks.tiers or split not in SPLITS:
         return None, f"pool {str(tier)[:20]}/{str(split)[:20]}; allowed: a tier of {version} and a split in {SPLITS}"
-    tasks = pool(tier, split, version=version)
+    tasks = _pool(tier, split, version)
     if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < len(tasks):
         return None, f"index {str(index)[:20]}; allowed: 0 to {len(tasks) - 1} ({tier}/{split} holds {len(tasks)})"
     return tasks[index], None
@@ -105,7 +112,7 @@ def absorbed_problem(line: dict[str, Any], version: str, tier: str, split: str) 
 
 def replay_problem(record: dict[str, Any], version: str, benchmark: Benchmark) -> str | None:
     """Why the record's best score is not what its best replays to (None: it is, to the last bit)."""
-    task = pool(record["tier"], record["split"], version=version)[record["index"]]
+    task = _pool(record["tier"], record["split"], version)[record["index"]]
     best = record["best"]
     if best["family"] == "certificate":
         if best["score"] != task.certificate_score:
@@ -114,8 +121,8 @@ def replay_problem(record: dict[str, Any], version: str, benchmark: Benchmark) -
     result = record["families"][best["family"]]
     if result["score"] != best["score"]:
         return f"best.score {best['score']!r}: its family's result scores {result['score']!r}"
-    played = replay_schedule(task_scenario(record["tier"], task.seed, benchmark), Schedule.from_dict(result["schedule"]),
-                             benchmark)
+    scenario = task_scenario(record["tier"], task.seed, benchmark)
+    played = replay_schedule(scenario, Schedule.from_dict(result["schedule"]), benchmark)
     if played.score != best["score"]:
         return f"best.score {best['score']!r}: its schedule replays to {played.score!r}"
     return None
