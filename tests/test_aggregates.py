@@ -98,3 +98,22 @@ def test_tiers_without_reference_scores_are_left_out(monkeypatch):
     entries = {t: [_entry("reference_v2_default", t, [np.ones(10)]), _entry("b", t, [np.zeros(10)])]
                for t in ("easy", "hard")}
     assert aggregates.compute(entries, SPEC)["tiers"] == ["easy"]
+
+
+def test_a_methods_numbers_depend_on_its_own_scores_only(reference_two):
+    """Seeded per method: the same method's CIs with and without another method on the board, and a stored method
+    whose inputs are unchanged is kept as stored (a new entry costs its own bootstraps), a changed one recomputed."""
+    rng = np.random.default_rng(5)
+    reference = rng.uniform(0, 1, 100)
+    mine = [rng.uniform(0, 1, 100)]
+    alone = {"easy": [_entry("reference_v2_default", "easy", [reference]), _entry("mine", "easy", mine)]}
+    crowded = {"easy": alone["easy"] + [_entry("other", "easy", [rng.uniform(0, 1, 100)])]}
+    first, second = aggregates.compute(alone, SPEC), aggregates.compute(crowded, SPEC)
+    assert first["methods"]["mine"] == second["methods"]["mine"]
+    assert first["methods"]["reference_v2_default"] == second["methods"]["reference_v2_default"]
+    marked = {m: v | {"iqm": -1.0} for m, v in second["methods"].items()}  # what a kept method would show
+    changed = {"easy": [crowded["easy"][0], crowded["easy"][1], _entry("other", "easy", [rng.uniform(0, 1, 100)])]}
+    third = aggregates.compute(changed, SPEC, marked)
+    assert third["methods"]["mine"]["iqm"] == -1.0 and third["methods"]["reference_v2_default"]["iqm"] == -1.0
+    other = np.array([row["score"] for row in changed["easy"][2]["episodes"]]) / 2  # recomputed, from its new scores
+    assert third["methods"]["other"]["iqm"] == pytest.approx(iqm(other), rel=1e-12)

@@ -16,24 +16,31 @@ The bootstraps resample tasks as well as runs within each task (rliable's ``task
 test tasks are a sample of each tier's task distribution, and with runs alone a deterministic
 method's CI would have zero width.
 
-rliable's bootstrap draws from NumPy's global generator, which is seeded with :data:`SEED` first.
+rliable's bootstrap draws from NumPy's global generator, seeded per method (:func:`method_seed`) before each of
+the method's estimates: a method's numbers depend on its own scores (and the reference's) only, not on which other
+methods the board holds or in what order. So a method whose inputs are unchanged keeps its stored numbers
+(:func:`write` reuses them): a new entry costs its own bootstraps, not everyone's.
 The per-tier tables rank by the entries' own CIs (a bootstrap over episodes), not by these.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
+import zlib
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm.auto import tqdm
 
 from ffsr_gym.bench.normalise import normalised_scores
 from ffsr_gym.bench.tables import method_name, safe
-from ffsr_gym.exceptions import InvalidInputError, require
+from ffsr_gym.exceptions import FFSRError, InvalidInputError, require
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.provenance import package_versions, provenance, write_json_atomic
 from ffsr_gym.tasks.tiers import ALL_TIERS
+from ffsr_gym.user_files import parse_json, read_text
 
 #: The method every other is compared with (the reference planner at the version's default).
 REFERENCE = "reference_{version}_default"
@@ -91,57 +98,112 @@ def score_matrices(entries: dict[str, list[dict[str, Any]]], version: str) -> tu
 def inputs(entries: dict[str, list[dict[str, Any]]]) -> dict[str, str]:
     """``tier/name`` → SHA-256 of each entry's content: what an aggregates file was computed from (a stale file is
     one whose inputs differ from the entries now, :func:`ffsr_gym.bench.leaderboard.check`)."""
-    import hashlib
-
     return {f"{tier}/{e['name']}": hashlib.sha256(json.dumps({k: v for k, v in e.items() if not k.startswith("_")},
                                                              sort_keys=True).encode()).hexdigest()
             for tier, items in entries.items() for e in items}
 
 
-def compute(entries: dict[str, list[dict[str, Any]]], spec: BenchmarkSpec) -> dict[str, Any] | None:
-    """The aggregates as a JSON-ready dict (None without a tier that has best known scores)."""
+#: How the bootstraps are seeded: a stored method whose ``seeding`` differs is recomputed.
+SEEDING = "per method: NumPy's global generator seeded with (seed, crc32 of the method's name) before each estimate"
+
+
+def method_seed(method: str) -> list[int]:
+    """The seed of ``method``'s bootstraps: :data:`SEED` and the CRC-32 of its name."""
+    return [SEED, zlib.crc32(method.encode("utf-8"))]
+
+
+def method_inputs(values: np.ndarray, reference: np.ndarray | None) -> str:
+    """SHA-256 of what a method's aggregates are computed from: its runs x tasks matrix, the reference's (for the
+    probability of improvement; None for the reference itself), the bootstrap's settings."""
+    digest = hashlib.sha256(json.dumps([SEED, REPS, SEEDING, [float(t) for t in TAUS]]).encode())
+    for part in (values, reference):
+        if part is not None:
+            digest.update(repr(part.shape).encode() + np.ascontiguousarray(part, np.float64).tobytes())
+    return digest.hexdigest()
+
+
+def method_aggregates(method: str, values: np.ndarray, reference: np.ndarray | None) -> dict[str, Any]:
+    """One method's IQM, performance profile (with 95 % CIs) and, against ``reference`` (runs x tasks of one run),
+    its probability of improvement, each bootstrap seeded by :func:`method_seed`."""
     library, metrics = rliable_modules()
+    one = {method: values}
+    np.random.seed(method_seed(method))
+    iqm, iqm_ci = library.get_interval_estimates(one, lambda x: np.array([metrics.aggregate_iqm(x)]), reps=REPS,
+                                                 task_bootstrap=True)
+    np.random.seed(method_seed(method))
+    profiles, profile_ci = library.create_performance_profile(one, TAUS, reps=REPS, task_bootstrap=True)
+    out = {"runs": int(values.shape[0]), "tasks": int(values.shape[1]), "iqm": float(iqm[method][0]),
+           "iqm_ci95": [float(iqm_ci[method][0][0]), float(iqm_ci[method][1][0])], "mean": float(values.mean()),
+           "profile": [float(x) for x in profiles[method]],
+           "profile_ci95": [[float(x) for x in profile_ci[method][0]], [float(x) for x in profile_ci[method][1]]]}
+    if reference is not None:  # a deterministic Y repeated: P(X > Y) is unchanged
+        pair = {method: np.stack([values, np.repeat(reference, values.shape[0], axis=0)], axis=-1)}
+        np.random.seed(method_seed(method))
+        poi, poi_ci = library.get_interval_estimates(pair, lambda a: np.array([improvement(a[..., 0], a[..., 1])]),
+                                                     reps=REPS, task_bootstrap=True)
+        out |= {"probability_of_improvement": float(poi[method][0]),
+                "probability_of_improvement_ci95": [float(x) for x in np.ravel(poi_ci[method])]}
+    return out | {"inputs_sha256": method_inputs(values, reference)}
+
+
+def compute(entries: dict[str, list[dict[str, Any]]], spec: BenchmarkSpec,
+            stored: dict[str, Any] | None = None) -> dict[str, Any] | None:
+    """The aggregates as a JSON-ready dict (None without a tier that has best known scores). ``stored``: a previous
+    aggregates file's methods by name; a method whose ``inputs_sha256`` is unchanged keeps its numbers."""
+    rliable_modules()  # the install hint before any work
     version = spec.rules.version
     scores, tiers = score_matrices(entries, version)
     reference = REFERENCE.format(version=version)
     if not scores or reference not in scores:
         return None
-    np.random.seed(SEED)
-    iqm, iqm_ci = library.get_interval_estimates(scores, lambda x: np.array([metrics.aggregate_iqm(x)]), reps=REPS,
-                                                 task_bootstrap=True)
-    np.random.seed(SEED)
     if scores[reference].shape[0] != 1:
         raise InvalidInputError(f"{reference} has {scores[reference].shape[0]} runs; the comparison needs one "
                                 "(a deterministic planner)")
-    pairs = {m: np.stack([x, np.repeat(scores[reference], x.shape[0], axis=0)], axis=-1)
-             for m, x in scores.items() if m != reference}  # a deterministic Y repeated: P(X > Y) is unchanged
-    poi, poi_ci = library.get_interval_estimates(pairs, lambda a: np.array([improvement(a[..., 0], a[..., 1])]),
-                                                 reps=REPS, task_bootstrap=True)
-    np.random.seed(SEED)
-    profiles, profile_ci = library.create_performance_profile(scores, TAUS, reps=REPS, task_bootstrap=True)
-    methods = {}
-    for m, values in scores.items():
-        methods[m] = {"runs": int(values.shape[0]), "tasks": int(values.shape[1]), "iqm": float(iqm[m][0]),
-                      "iqm_ci95": [float(iqm_ci[m][0][0]), float(iqm_ci[m][1][0])], "mean": float(values.mean()),
-                      "profile": [float(x) for x in profiles[m]],
-                      "profile_ci95": [[float(x) for x in profile_ci[m][0]], [float(x) for x in profile_ci[m][1]]]}
-        if m in pairs:
-            methods[m] |= {"probability_of_improvement": float(poi[m][0]),
-                           "probability_of_improvement_ci95": [float(x) for x in np.ravel(poi_ci[m])]}
+    methods, stored = {}, stored or {}
+    for m, values in tqdm(sorted(scores.items()), desc="aggregates (bootstraps of changed methods)", unit="method",
+                          leave=False):
+        against = None if m == reference else scores[reference]
+        kept = stored.get(m)
+        if isinstance(kept, dict) and kept.get("inputs_sha256") == method_inputs(values, against):
+            methods[m] = kept
+        else:
+            methods[m] = method_aggregates(m, values, against)
     return {"version": version, "tiers": tiers, "score": "score / the task's best known score",
             "reference": reference, "taus": [float(t) for t in TAUS],
             "bootstrap": {"package": f"rliable {package_versions().get('rliable', '?')}", "method": "percentile",
-                          "reps": REPS, "seed": SEED,
+                          "reps": REPS, "seed": SEED, "seeding": SEEDING,
                           "resampled": "tasks, and runs within each task (rliable's task_bootstrap)"},
             "methods": methods, "inputs": inputs(entries), "provenance": provenance()}
 
 
+def stored_methods(path: Path) -> dict[str, Any]:
+    """The methods of an aggregates file already written (empty when there is none, or it cannot be read)."""
+    try:
+        data = parse_json(read_text(path), str(path))
+    except FFSRError:
+        return {}
+    methods = data.get("methods") if isinstance(data, dict) else None
+    return methods if isinstance(methods, dict) else {}
+
+
+def up_to_date(root: str | Path, spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> bool:
+    """Whether ``<root>/<version>/aggregates.json`` was computed from exactly ``entries``, seeded as now."""
+    path = Path(root) / spec.version / "aggregates.json"
+    try:
+        data = parse_json(read_text(path), str(path)) if path.is_file() else None
+    except FFSRError:
+        return False
+    return (isinstance(data, dict) and data.get("inputs") == inputs(entries)
+            and (data.get("bootstrap") or {}).get("seeding") == SEEDING)
+
+
 def write(root: str | Path, spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> Path | None:
-    """Write ``<root>/<version>/aggregates.json`` (None when there is nothing to aggregate)."""
-    data = compute(entries, spec)
+    """Write ``<root>/<version>/aggregates.json`` (None when there is nothing to aggregate), recomputing only the
+    methods whose inputs changed since the file there was written."""
+    path = Path(root) / spec.version / "aggregates.json"
+    data = compute(entries, spec, stored_methods(path) if path.is_file() else None)
     if data is None:
         return None
-    path = Path(root) / spec.version / "aggregates.json"
     write_json_atomic(path, data)
     return path
 

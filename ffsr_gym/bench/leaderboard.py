@@ -146,7 +146,8 @@ def spec_of_entry(entry: dict[str, Any]) -> BenchmarkSpec:
     spec = spec_for_env_id(str(entry.get("env_id", "")))
     if spec is not None:
         return spec
-    text = entry.get("protocol", {}).get("score")
+    protocol = entry.get("protocol")
+    text = protocol.get("score") if isinstance(protocol, dict) else None
     for candidate in all_specs().values():
         if candidate.score.text == text:
             return candidate

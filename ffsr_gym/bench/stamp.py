@@ -2,8 +2,9 @@
 check that a stamp still describes the entry it sits in.
 
 A stamp (``extra.verified``) names the verifier (the package version and the commit it ran from), the pool file and
-frozen reference the entry was replayed against, the sha256 of the rows it reproduced and of the whole entry it
-replayed (:func:`entry_digest`: every field but the stamp, its name included). It proves nothing by itself (anyone
+frozen reference the entry was replayed against, the sha256 of the rows it reproduced, of the whole entry it
+replayed (:func:`entry_digest`: every field but the stamp, its name included) and of the code the replay ran
+(:func:`code_digest`; ``leaderboard update`` replays an entry whose code changed since). It proves nothing by itself (anyone
 can type one); what it states is checked: a stamp whose entry, rows, pool or reference differ from the entry's and
 the shipped files' (a stamp copied with the rows under another name, or typed by hand) gets the entry refused, as
 does a commit that is not one of this repository's when the check runs in a checkout; and the pull-request workflow
@@ -22,7 +23,14 @@ from importlib import metadata
 from typing import Any
 
 KEYS = ("status", "verifier", "commit", "pool_file_sha256", "reference_sha256", "rows_sha256", "entry_sha256",
-        "created_utc")
+        "code_sha256", "created_utc")
+#: A stamp written before stamps recorded the replayed code's digest: still valid, its code cannot be compared.
+KEYS_WITHOUT_CODE = tuple(key for key in KEYS if key != "code_sha256")
+#: The package's modules a replay runs (the physics, the planner, the scoring, the tasks, the envs and the replay
+#: itself), relative to the package; with every file of the robot, scenario, rule and pool data (``envs``) they make
+#: :func:`code_digest`. A change elsewhere (the CLI, the tables, the docs) leaves a stamp's code standing.
+REPLAYED_CODE = ("kernel", "model", "planning", "sim", "scoring", "tasks", "environments", "bench/replay.py",
+                 "bench/replay_tolerance.py", "bench/policies.py", "bench/episodes.py", "bench/evaluation.py")
 _HEX = re.compile(r"[0-9a-f]{40}|[0-9a-f]{64}")
 _VERIFIER = re.compile(r"ffsr-gym [0-9A-Za-z.+-]{1,40}")
 _CREATED = re.compile(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\+00:00")
@@ -39,6 +47,25 @@ def entry_digest(entry: dict[str, Any]) -> str:
     extra = {key: value for key, value in (entry.get("extra") or {}).items() if key != "verified"}
     body = {key: value for key, value in entry.items() if not key.startswith("_")} | {"extra": extra}
     return hashlib.sha256(json.dumps(body, sort_keys=True, allow_nan=False).encode()).hexdigest()
+
+
+@lru_cache(maxsize=1)
+def code_digest() -> str:
+    """sha256 over the path and bytes of every file a replay runs (:data:`REPLAYED_CODE`, the ``envs`` data), caches
+    aside: the same for a checkout and a wheel of the same code."""
+    from pathlib import Path
+
+    from ffsr_gym.model.resources import envs_dir
+
+    package = Path(__file__).resolve().parents[1]
+    files = [(f"ffsr_gym/{path.relative_to(package).as_posix()}", path) for part in REPLAYED_CODE
+             for path in ([package / part] if (package / part).is_file() else (package / part).rglob("*"))]
+    files += [(f"envs/{path.relative_to(envs_dir()).as_posix()}", path) for path in envs_dir().rglob("*")]
+    digest = hashlib.sha256()
+    for name, path in sorted(files):
+        if path.is_file() and "__pycache__" not in path.parts:
+            digest.update(name.encode() + b"\0" + hashlib.sha256(path.read_bytes()).digest())
+    return digest.hexdigest()
 
 
 @lru_cache(maxsize=256)
@@ -72,7 +99,7 @@ def make_stamp(entry: dict[str, Any], version: str) -> dict[str, Any]:
             "pool_file_sha256": entry["extra"].get("pool_file_sha256"),
             "reference_sha256": _reference_sha(entry, version),
             "rows_sha256": rows_digest(entry["episodes"]), "entry_sha256": entry_digest(entry),
-            "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds")}
+            "code_sha256": code_digest(), "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds")}
 
 
 def stamp_problems(entry: dict[str, Any], version: str | None) -> list[str]:
@@ -83,10 +110,13 @@ def stamp_problems(entry: dict[str, Any], version: str | None) -> list[str]:
         return []
     if version is None:
         return ["extra.verified: this version's entries carry no stamp (only versions ranked by the rules do)"]
-    if not isinstance(stamp, dict) or set(stamp) != set(KEYS):
+    if not isinstance(stamp, dict) or set(stamp) not in (set(KEYS), set(KEYS_WITHOUT_CODE)):
         return [f"extra.verified: allowed a stamp with exactly the keys {list(KEYS)} (written by ffsr-gym leaderboard "
                 "verify --stamp)"]
     problems = []
+    if "code_sha256" in stamp and not (isinstance(stamp["code_sha256"], str) and len(stamp["code_sha256"]) == 64
+                                       and _HEX.fullmatch(stamp["code_sha256"])):
+        problems.append("extra.verified.code_sha256: allowed a 64-digit hexadecimal sha256")
     if stamp["status"] != "reproduced":
         problems.append(f"extra.verified.status {str(stamp['status'])[:20]!r}; allowed: 'reproduced'")
     if not (isinstance(stamp["verifier"], str) and _VERIFIER.fullmatch(stamp["verifier"])):

@@ -62,20 +62,58 @@ def _leaderboard_plot(args: argparse.Namespace) -> None:
 
 
 def _leaderboard_update(args: argparse.Namespace) -> int:
-    """Everything a submission changes, in order: aggregates, tables (and the pages' generated blocks), figures."""
+    """Everything a submission changes, in order: the replays of the entries changed since they were last verified
+    (each reproduced one stamped), aggregates, tables (and the pages' generated blocks), figures."""
     from ffsr_gym.bench.leaderboard import check, checks_once
     from ffsr_gym.exceptions import require
+    from ffsr_gym.report.leaderboard_plots import stale_figures
 
     require("rliable", "analysis", "rliable, pandas", "the aggregates across tiers need")  # before anything is written
+    replayed = _replay_changed(args.root, full=args.full)
     with checks_once():  # each entry file is checked once, though the steps load the board several times
         _leaderboard_aggregates(args)  # from the verified entries; the summary page shows them
         _leaderboard(argparse.Namespace(root=args.root, readme=args.readme, check=False))
-        _leaderboard_plot(args)
+        if stale_figures(args.root, _verified(args.root)):
+            _leaderboard_plot(args)
+        else:
+            print("figures already up to date (their inputs and PNGs unchanged)")
         problems = check(args.root, args.readme)  # the figures were just drawn
     for line in problems:
         print(line, file=sys.stderr)
+    if replayed == 1:
+        problems.append("a replayed entry differs from its file")
     print("updated; every entry verifies" if not problems else "updated, but the leaderboard cannot be published")
     return 1 if problems else 0
+
+
+def _replay_changed(root: str, *, full: bool) -> int:
+    """Replay the entries changed since their last verified state (:mod:`ffsr_gym.bench.update_plan`), stamp those
+    reproduced, say what was skipped and why; 1 if a replay differs, else 0."""
+    from collections import defaultdict
+
+    from tqdm.auto import tqdm
+
+    from ffsr_gym.bench.replay import replay_entry
+    from ffsr_gym.bench.update_plan import plan
+
+    steps = plan(root, full=full)
+    skipped = defaultdict(list)
+    for step in steps:
+        if not step.replay:
+            skipped[step.reason].append(step.path.name)
+    for reason, names in skipped.items():
+        print(f"skipped {len(names)} ({reason}): {', '.join(names[:3])}{' ...' if len(names) > 3 else ''}")
+    todo = [step for step in steps if step.replay]
+    print(f"replaying {len(todo)} of {len(steps)} entries (--full replays every one)")
+    worst = 0
+    for step in tqdm(todo, desc="replays", unit="entry", leave=False):
+        verdict = replay_entry(step.path)
+        print(f"{step.path}: {verdict.status} (replayed: {step.reason}): {verdict.text}",
+              file=sys.stdout if verdict.exit_code == 0 else sys.stderr)
+        if verdict.status == "reproduced":
+            _stamp(str(step.path), verdict.entry_text)
+        worst = max(worst, 1 if verdict.exit_code == 1 else 0)
+    return worst
 
 
 def _leaderboard_aggregates(args: argparse.Namespace) -> None:
@@ -85,6 +123,9 @@ def _leaderboard_aggregates(args: argparse.Namespace) -> None:
 
     spec = ranked_spec()
     entries = _verified(args.root)
+    if aggregates.up_to_date(args.root, spec, entries):
+        print(f"aggregates already up to date under {args.root} (their inputs unchanged)")
+        return
     path = aggregates.write(args.root, spec, entries)
     if path is None:
         print(f"nothing to aggregate under {args.root}: no tier whose test tasks all have best known scores, or no "
@@ -199,10 +240,14 @@ def add_board_commands(sub: Any) -> None:
                         help="also regenerate the generated leaderboard blocks between their markers in these "
                              "Markdown files (in a checkout: README.md docs/baselines.md)")
     render.set_defaults(func=_leaderboard)
-    update = board_sub.add_parser("update", help="regenerate everything a submission changes (tables, the pages' "
-                                                 "generated blocks, aggregates, figures), then check it all (needs the "
-                                                 "'analysis' extra)")
+    update = board_sub.add_parser("update", help="replay the entries changed since they were last verified (and "
+                                                 "stamp them), regenerate everything a submission changes (tables, the "
+                                                 "pages' generated blocks, aggregates, figures), then check it all "
+                                                 "(needs the 'analysis' extra)")
     update.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
     update.add_argument("--readme", nargs="+", default=None, metavar="PAGE",
                         help="also the generated leaderboard blocks between their markers in these Markdown files")
+    update.add_argument("--full", action="store_true",
+                        help="replay every entry, not only those changed since their stamp (entry, pool, reference or "
+                             "replayed code)")
     update.set_defaults(func=_leaderboard_update)

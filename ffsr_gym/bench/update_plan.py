@@ -1,0 +1,64 @@
+"""Which entries ``ffsr-gym leaderboard update`` replays: those that changed since the board's last verified state.
+
+An entry's last verified state is its stamp (:mod:`ffsr_gym.bench.stamp`): the hashes of the entry, its rows, its
+pool file, the frozen reference and the code the replay ran. An entry is replayed when
+
+* it has no stamp (added, or changed and so unstamped, since; a frozen v0 entry never carries one),
+* its stamp no longer describes it (:func:`~ffsr_gym.bench.stamp.stamp_problems`: the entry, its rows, its pool or
+  the reference changed),
+* the code a replay runs changed since (:func:`~ffsr_gym.bench.stamp.code_digest`), or the stamp predates the code's
+  digest.
+
+Every other entry is skipped, with the reason. ``--full`` replays them all.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from ffsr_gym.bench.changes import entry_files
+from ffsr_gym.bench.leaderboard import spec_of_entry
+from ffsr_gym.bench.stamp import code_digest, stamp_problems
+from ffsr_gym.exceptions import FFSRError
+from ffsr_gym.user_files import parse_json, read_text
+
+
+@dataclass(frozen=True)
+class Step:
+    """One entry file and what ``update`` does with it."""
+
+    path: Path
+    replay: bool
+    reason: str
+
+
+def plan(root: str | Path, *, full: bool = False) -> list[Step]:
+    """Every entry file under ``root`` (:func:`~ffsr_gym.bench.changes.entry_files`), replayed or skipped."""
+    root = Path(root)
+    paths = [root / resolved.relative_to(root.resolve()) for resolved in entry_files(root)]
+    return [Step(path, True, "--full") if full else _step(path) for path in paths]
+
+
+def _step(path: Path) -> Step:
+    try:
+        entry = parse_json(read_text(path), str(path))
+        if not isinstance(entry, dict):
+            return Step(path, True, "not a JSON object")
+        spec = spec_of_entry(entry)
+    except FFSRError as exc:
+        return Step(path, True, f"not an entry this version reads ({str(exc)[:80]})")
+    extra = entry.get("extra")
+    stamp = extra.get("verified") if isinstance(extra, dict) else None
+    if spec.rules is None:
+        return Step(path, True, f"{spec.version} is frozen and its entries carry no stamp")
+    if stamp is None:
+        return Step(path, True, "no stamp: added or changed since it was last verified")
+    problems = stamp_problems(entry, spec.rules.version)
+    if problems:
+        return Step(path, True, f"its stamp no longer describes it ({problems[0]})")
+    if "code_sha256" not in stamp:
+        return Step(path, True, "its stamp predates the code's digest: the code it ran cannot be compared")
+    if stamp["code_sha256"] != code_digest():
+        return Step(path, True, "the code a replay runs changed since it was verified (code_sha256 differs)")
+    return Step(path, False, "stamped; entry, pool, reference and the code a replay runs unchanged since")
