@@ -21,6 +21,7 @@ ALLOWED = {
     "model": set(),
     "planning": {"model"},
     "kernel": {"model"},
+    "native": {"model", "kernel"},  # kernel: the arrays it is built from (until it replaces the numba kernel)
     "sim": {"model", "planning", "kernel"},
     "scoring": {"model", "kernel", "sim"},  # kernel: the compiled score terms
     "tasks": {"model", "planning", "sim", "scoring"},
@@ -31,7 +32,7 @@ ALLOWED = {
     "jax": {"model", "planning", "kernel", "sim", "scoring", "tasks", "environments"},  # the loop in JAX
     "cli": {"model", "planning", "sim", "scoring", "tasks", "environments", "bench", "report", "optim"},  # the front
 }
-PHYSICS_STAGES = ("model", "planning", "kernel", "sim", "scoring", "tasks")
+PHYSICS_STAGES = ("model", "planning", "kernel", "native", "sim", "scoring", "tasks")
 FORBIDDEN_IN_PHYSICS = ("gymnasium", "stable_baselines3", "matplotlib", "torch")
 
 

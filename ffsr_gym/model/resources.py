@@ -8,7 +8,6 @@ the repository's folder is used instead.
 from __future__ import annotations
 
 from functools import lru_cache
-from importlib import resources
 from pathlib import Path
 
 from ffsr_gym.exceptions import RobotFileError, ScenarioError
@@ -22,7 +21,7 @@ def envs_dir() -> Path:
         The packaged ``ffsr_gym/envs`` folder when installed from a wheel, else the checkout's
         ``envs/`` folder.
     """
-    package = Path(str(resources.files("ffsr_gym")))
+    package = Path(__file__).resolve().parents[1]  # the ffsr_gym folder (an editable install's is the checkout's)
     packaged = package / "envs"
     if (packaged / "scenarios").is_dir():
         return packaged

@@ -1,0 +1,23 @@
+"""The native kernel's typed robot (C++17, ``ffsr_gym._native``, compiled at install), built from the arrays the
+numba kernel reads (:mod:`ffsr_gym.kernel.arrays`).
+
+The native routines keep the numba kernel's operation order and compile without floating-point contraction, so
+they give the same bits (``tests/test_native_physics.py``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ffsr_gym._native import Robot
+from ffsr_gym.kernel.arrays import KernelModel, ModelArrays
+
+#: The fields of :class:`~ffsr_gym.kernel.arrays.KernelModel` the native robot takes, with their dtypes.
+ROBOT_FIELDS = {"parent": np.int64, "placement_R": float, "placement_p": float, "axis": float, "axis_code": np.int64,
+                "mass": float, "lever": float, "inertia": float, "ee_parent": np.int64, "ee_R": float, "ee_p": float}
+
+
+def native_robot(model: KernelModel | ModelArrays) -> Robot:
+    """The native :class:`ffsr_gym._native.Robot` of a kernel model (a wrong shape: ``ValueError`` naming it)."""
+    return Robot.from_arrays(**{name: np.ascontiguousarray(getattr(model, name), dtype=dtype)
+                                        for name, dtype in ROBOT_FIELDS.items()})

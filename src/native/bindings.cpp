@@ -1,0 +1,195 @@
+// Python bindings of the native kernel (module ffsr_gym._native): the typed robot and its physics.
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/string.h>
+
+#include <algorithm>
+#include <cstring>
+#include <initializer_list>
+#include <string>
+#include <vector>
+
+#include "ffsr/linalg.hpp"
+#include "ffsr/physics.hpp"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+
+namespace {
+
+using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
+using InInt = nb::ndarray<const int64_t, nb::c_contig, nb::device::cpu>;
+using Out = nb::ndarray<nb::numpy, double>;
+
+std::string shape_text(const std::vector<size_t>& shape) {
+  std::string text = "(";
+  for (size_t k = 0; k < shape.size(); ++k) text += (k ? ", " : "") + std::to_string(shape[k]);
+  return text + (shape.size() == 1 ? ",)" : ")");
+}
+
+template <typename Array>
+void check_shape(const Array& a, const char* name, std::initializer_list<size_t> shape) {
+  std::vector<size_t> want(shape), got;
+  for (size_t k = 0; k < a.ndim(); ++k) got.push_back(a.shape(k));
+  if (got != want)
+    throw nb::value_error((std::string(name) + ": shape " + shape_text(got) + "; allowed: " + shape_text(want)).c_str());
+}
+
+template <typename Array>
+const typename std::remove_const<typename Array::Scalar>::type* data_of(const Array& a, const char* name,
+                                                                         std::initializer_list<size_t> shape) {
+  check_shape(a, name, shape);
+  return a.data();
+}
+
+// A new numpy array holding a copy of n doubles, of the given shape.
+Out copy_out(const double* data, std::initializer_list<size_t> shape) {
+  size_t n = 1;
+  for (size_t s : shape) n *= s;
+  double* owned = new double[n];
+  std::memcpy(owned, data, n * sizeof(double));
+  nb::capsule owner(owned, [](void* p) noexcept { delete[] static_cast<double*>(p); });
+  std::vector<size_t> dims(shape);
+  return Out(owned, dims.size(), dims.data(), owner);
+}
+
+ffsr::Robot make_robot(InInt parent, In placement_R, In placement_p, In axis, InInt axis_code, In mass, In lever,
+                       In inertia, InInt ee_parent, In ee_R, In ee_p) {
+  ffsr::Robot r{};
+  const int64_t* par = data_of(parent, "parent", {12});
+  const int64_t* code = data_of(axis_code, "axis_code", {12});
+  const int64_t* ee = data_of(ee_parent, "ee_parent", {2});
+  for (int k = 0; k < ffsr::kJoints; ++k) {
+    if (par[k] < -1 || par[k] >= k || (par[k] >= 0 && par[k] / 6 != k / 6))
+      throw nb::value_error(("parent[" + std::to_string(k) + "] = " + std::to_string(par[k]) +
+                             "; allowed: -1 (the base) or an earlier joint of the same arm")
+                                .c_str());
+    if (code[k] < -1 || code[k] > 2)
+      throw nb::value_error(("axis_code[" + std::to_string(k) + "] = " + std::to_string(code[k]) +
+                             "; allowed: -1, 0, 1 or 2")
+                                .c_str());
+    r.parent[k] = static_cast<int>(par[k]);
+    r.axis_code[k] = static_cast<int>(code[k]);
+  }
+  for (int a = 0; a < 2; ++a) {
+    if (ee[a] < 0 || ee[a] >= ffsr::kJoints)
+      throw nb::value_error(("ee_parent[" + std::to_string(a) + "] = " + std::to_string(ee[a]) +
+                             "; allowed: a joint, 0 to 11")
+                                .c_str());
+    r.ee_parent[a] = static_cast<int>(ee[a]);
+  }
+  std::memcpy(r.placement_R, data_of(placement_R, "placement_R", {12, 3, 3}), sizeof r.placement_R);
+  std::memcpy(r.placement_p, data_of(placement_p, "placement_p", {12, 3}), sizeof r.placement_p);
+  std::memcpy(r.axis, data_of(axis, "axis", {12, 3}), sizeof r.axis);
+  std::memcpy(r.mass, data_of(mass, "mass", {13}), sizeof r.mass);
+  std::memcpy(r.lever, data_of(lever, "lever", {13, 3}), sizeof r.lever);
+  std::memcpy(r.inertia, data_of(inertia, "inertia", {13, 3, 3}), sizeof r.inertia);
+  std::memcpy(r.ee_R, data_of(ee_R, "ee_R", {2, 3, 3}), sizeof r.ee_R);
+  std::memcpy(r.ee_p, data_of(ee_p, "ee_p", {2, 3}), sizeof r.ee_p);
+  for (double m : r.mass)
+    if (!(m > 0.0)) throw nb::value_error("mass: every body's mass must be > 0 kg");
+  return r;
+}
+
+const double* state_of(const In& x) { return data_of(x, "x", {19}); }
+
+nb::dict kinematics(const ffsr::Robot& robot, In x) {
+  ffsr::Frames f{};
+  ffsr::kinematics(robot, state_of(x), f);
+  nb::dict out;
+  out["Rj"] = copy_out(&f.Rj[0][0][0], {12, 3, 3});
+  out["pj"] = copy_out(&f.pj[0][0], {12, 3});
+  out["R_b"] = copy_out(&f.R_b[0][0], {3, 3});
+  out["Re"] = copy_out(&f.Re[0][0][0], {2, 3, 3});
+  out["pe"] = copy_out(&f.pe[0][0], {2, 3});
+  out["z"] = copy_out(&f.z[0][0], {12, 3});
+  return out;
+}
+
+nb::dict momentum(const ffsr::Robot& robot, In x) {
+  ffsr::Frames f{};
+  ffsr::Momentum m{};
+  ffsr::kinematics(robot, state_of(x), f);
+  ffsr::momentum(robot, state_of(x), f, m);
+  nb::dict out;
+  out["H_b"] = copy_out(&m.H_b[0][0], {6, 6});
+  out["H_bm"] = copy_out(&m.H_bm[0][0][0], {2, 6, 6});
+  out["rg"] = copy_out(m.rg, {3});
+  return out;
+}
+
+Out base_velocity(const ffsr::Robot& robot, In x, In dq, In h) {
+  ffsr::Frames f{};
+  ffsr::Momentum m{};
+  double v[6];
+  ffsr::kinematics(robot, state_of(x), f);
+  ffsr::momentum(robot, state_of(x), f, m);
+  ffsr::base_velocity(state_of(x), data_of(dq, "dq", {12}), data_of(h, "h", {6}), f, m, v);
+  return copy_out(v, {6});
+}
+
+Out midpoint_step(const ffsr::Robot& robot, In x, In v0, In dq, double dt, In h) {
+  if (!(dt > 0.0)) throw nb::value_error("dt: allowed > 0 s");
+  ffsr::Frames f{};
+  ffsr::Momentum m{};
+  double out[ffsr::kStateSize];
+  ffsr::kinematics(robot, state_of(x), f);  // keeps the cosines the half step turns on
+  ffsr::midpoint(robot, state_of(x), data_of(v0, "v0", {6}), data_of(dq, "dq", {12}), dt, data_of(h, "h", {6}), f,
+                 m, out);
+  return copy_out(out, {19});
+}
+
+void copy6(const In& a, const char* name, ffsr::Mat6& out) {
+  std::memcpy(out, data_of(a, name, {6, 6}), sizeof(ffsr::Mat6));
+}
+
+nb::tuple svd6(In A, bool vectors) {
+  ffsr::Mat6 a, Ut, Vt;
+  double s[6];
+  copy6(A, "A", a);
+  ffsr::svd6(a, Ut, s, Vt, vectors);
+  return nb::make_tuple(copy_out(&Ut[0][0], {6, 6}), copy_out(s, {6}), copy_out(&Vt[0][0], {6, 6}));
+}
+
+double smallest_singular_value(In A) {
+  ffsr::Mat6 a;
+  copy6(A, "A", a);
+  return ffsr::smallest_singular_value(a);
+}
+
+nb::tuple smallest_singular_values(In A, In B) {
+  ffsr::Mat6 a, b;
+  double out[2];
+  copy6(A, "A", a);
+  copy6(B, "B", b);
+  ffsr::smallest_singular_values(a, b, out);
+  return nb::make_tuple(out[0], out[1]);
+}
+
+}  // namespace
+
+NB_MODULE(_native, m) {
+  m.doc() = "The native kernel of ffsr-gym: the typed robot model and its physics, compiled at install.";
+  nb::class_<ffsr::Robot>(m, "Robot", "The robot as the kernel reads it (joints in the paper's order).")
+      .def(nb::init<>())
+      .def_static("from_arrays", &make_robot, "parent"_a, "placement_R"_a, "placement_p"_a, "axis"_a,
+                  "axis_code"_a, "mass"_a, "lever"_a, "inertia"_a, "ee_parent"_a, "ee_R"_a, "ee_p"_a,
+                  "A robot from the arrays of ffsr_gym.kernel.arrays.extract; a wrong shape or index is a "
+                  "ValueError naming the field.")
+      .def_prop_ro("total_mass", [](const ffsr::Robot& r) {
+        double total = 0.0;
+        for (double m : r.mass) total += m;
+        return total;
+      });
+  m.def("kinematics", &kinematics, "robot"_a, "x"_a, "Forward kinematics of the state x (19,), world frame.");
+  m.def("momentum", &momentum, "robot"_a, "x"_a, "H_b, H_bm about the base CoM and the system CoM rg at x.");
+  m.def("base_velocity", &base_velocity, "robot"_a, "x"_a, "dq"_a, "h"_a,
+        "The base velocity (base frame) that conserves h = [P; L_G] with joint rates dq.");
+  m.def("midpoint_step", &midpoint_step, "robot"_a, "x"_a, "v0"_a, "dq"_a, "dt"_a, "h"_a,
+        "The state after one explicit-midpoint step of dt from x (base velocity v0 at x).");
+  m.def("svd6", &svd6, "A"_a, "vectors"_a = true, "One-sided Jacobi SVD of a 6x6 matrix: (Uᵀ, s, Vᵀ), unsorted.");
+  m.def("smallest_singular_value", &smallest_singular_value, "A"_a,
+        "σ_min of a 6x6 matrix, or -1 when the fast path cannot certify it.");
+  m.def("smallest_singular_values", &smallest_singular_values, "A"_a, "B"_a,
+        "smallest_singular_value of two 6x6 matrices, interleaved.");
+}
