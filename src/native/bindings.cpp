@@ -11,6 +11,7 @@
 
 #include "ffsr/linalg.hpp"
 #include "ffsr/physics.hpp"
+#include "ffsr/planner.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -166,6 +167,70 @@ nb::tuple smallest_singular_values(In A, In B) {
   return nb::make_tuple(out[0], out[1]);
 }
 
+// A fixed-size array field of the settings, read and written as a numpy array of its shape.
+template <size_t N>
+void set_array(double (&field)[N], const In& value, const char* name) {
+  std::memcpy(field, data_of(value, name, {N}), sizeof field);
+}
+
+void set_obstacles(ffsr::PlannerSettings& s, In positions, In velocities, In radii) {
+  const size_t n = positions.ndim() == 2 ? positions.shape(0) : 0;
+  if (n > static_cast<size_t>(ffsr::kMaxObstacles))
+    throw nb::value_error(("obstacles: " + std::to_string(n) + "; allowed: at most " +
+                           std::to_string(ffsr::kMaxObstacles)).c_str());
+  const double* p = data_of(positions, "positions", {n, 3});
+  const double* v = data_of(velocities, "velocities", {n, 3});
+  const double* r = data_of(radii, "radii", {n});
+  s.obstacles.resize(n);
+  for (size_t k = 0; k < n; ++k) {
+    for (int a = 0; a < 3; ++a) s.obstacles[k].position[a] = p[3 * k + a], s.obstacles[k].velocity[a] = v[3 * k + a];
+    s.obstacles[k].radius = r[k];
+  }
+}
+
+ffsr::PathTarget path_target(const double* row) {
+  ffsr::PathTarget target;
+  for (int a = 0; a < 3; ++a) target.position[a] = row[a], target.axis[a] = row[3 + a];
+  target.angle = row[6];
+  return target;
+}
+
+// Targets as rows of (position (3), axis (3), angle).
+void set_estimates(ffsr::PlannerSettings& s, In rows) {
+  const size_t n = rows.ndim() == 2 ? rows.shape(0) : 0;
+  if (n == 0) throw nb::value_error("estimates: allowed at least one row of (position, axis, angle)");
+  const double* d = data_of(rows, "estimates", {n, 7});
+  s.estimates.clear();
+  for (size_t k = 0; k < n; ++k) s.estimates.push_back(path_target(d + 7 * k));
+}
+
+void set_truth(ffsr::PlannerSettings& s, In row) { s.truth = path_target(data_of(row, "truth", {7})); }
+
+// Frames as rows of (p_d (3), σ_d (4), V_ed (6), centre (3), R (9)).
+void set_frames(ffsr::PlannerSettings& s, In rows) {
+  const size_t n = rows.ndim() == 2 ? rows.shape(0) : 0;
+  const double* d = data_of(rows, "frames", {n, 25});
+  s.frames.resize(n);
+  for (size_t k = 0; k < n; ++k) std::memcpy(&s.frames[k], d + 25 * k, sizeof(ffsr::Frame));
+}
+
+nb::dict plan(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, double t) {
+  if (s.estimates.empty() && s.frames.empty())
+    throw nb::value_error("settings: no estimates and no frames; allowed: set_estimates or set_frames first");
+  ffsr::Frames f{};
+  ffsr::Momentum m{};
+  ffsr::Plan p{};
+  ffsr::plan(robot, s, state_of(x), t, f, m, p);
+  nb::dict out;
+  out["dq"] = copy_out(p.dq, {12});
+  out["e1"] = copy_out(p.e1, {6});
+  out["e0"] = copy_out(p.e0, {6});
+  out["mu"] = copy_out(p.mu, {2});
+  out["cdf"] = copy_out(p.cdf, {2});
+  out["smin"] = copy_out(p.smin, {2});
+  return out;
+}
+
 }  // namespace
 
 NB_MODULE(_native, m) {
@@ -181,6 +246,59 @@ NB_MODULE(_native, m) {
         for (double m : r.mass) total += m;
         return total;
       });
+  nb::enum_<ffsr::Method>(m, "Method", "The planner's method.")
+      .value("no_avoidance", ffsr::Method::kNoAvoidance)
+      .value("no_feedback", ffsr::Method::kNoFeedback)
+      .value("proportional", ffsr::Method::kProportional)
+      .value("predefined_time", ffsr::Method::kPredefinedTime);
+  nb::class_<ffsr::PlannerSettings> settings(m, "PlannerSettings", "The planner's settings, by name.");
+  settings.def(nb::init<>())
+      .def_rw("method", &ffsr::PlannerSettings::method)
+      .def_rw("phi_printed", &ffsr::PlannerSettings::phi_printed)
+      .def_rw("phi_split", &ffsr::PlannerSettings::phi_split)
+      .def_rw("body_attitude_error", &ffsr::PlannerSettings::body_attitude_error)
+      .def_rw("mu_distance", &ffsr::PlannerSettings::mu_distance)
+      .def_rw("balance_avoids", &ffsr::PlannerSettings::balance_avoids)
+      .def_rw("m", &ffsr::PlannerSettings::m)
+      .def_rw("T_c", &ffsr::PlannerSettings::T_c)
+      .def_rw("K", &ffsr::PlannerSettings::K)
+      .def_rw("lambda_mission", &ffsr::PlannerSettings::lambda_mission)
+      .def_rw("lambda_balance", &ffsr::PlannerSettings::lambda_balance)
+      .def_rw("eps_mission", &ffsr::PlannerSettings::eps_mission)
+      .def_rw("eps_balance", &ffsr::PlannerSettings::eps_balance)
+      .def_rw("xi", &ffsr::PlannerSettings::xi)
+      .def_rw("delta", &ffsr::PlannerSettings::delta)
+      .def_rw("k1", &ffsr::PlannerSettings::k1)
+      .def_rw("danger_radius", &ffsr::PlannerSettings::danger_radius)
+      .def_rw("motion_time", &ffsr::PlannerSettings::motion_time)
+      .def_rw("accel_time", &ffsr::PlannerSettings::accel_time)
+      .def_rw("estimate_interval", &ffsr::PlannerSettings::estimate_interval)
+      .def_rw("dt", &ffsr::PlannerSettings::dt)
+      .def_rw("rate_max_deg_s", &ffsr::PlannerSettings::rate_max_deg_s)
+      .def_rw("keep_out", &ffsr::PlannerSettings::keep_out)
+      .def_rw("body_radius", &ffsr::PlannerSettings::body_radius)
+      .def_rw("body_danger", &ffsr::PlannerSettings::body_danger)
+      .def("set_start", [](ffsr::PlannerSettings& s, In position, In attitude) {
+        set_array(s.start_position, position, "start_position");
+        set_array(s.start_attitude, attitude, "start_attitude");
+      }, "position"_a, "attitude"_a, "The path's start: position [m] and attitude (scalar first).")
+      .def("set_base_target", [](ffsr::PlannerSettings& s, In position, In attitude) {
+        set_array(s.base_position, position, "base_position");
+        set_array(s.base_attitude, attitude, "base_attitude");
+      }, "position"_a, "attitude"_a, "The base's desired pose: position [m] and attitude (scalar first).")
+      .def("set_momentum", [](ffsr::PlannerSettings& s, In h) { set_array(s.momentum, h, "momentum"); }, "h"_a,
+           "The conserved momentum [P; L about the system CoM].")
+      .def("set_body_half", [](ffsr::PlannerSettings& s, In half) { set_array(s.body_half, half, "body_half"); },
+           "half"_a, "The tumbling body's half extents [m].")
+      .def("set_truth", &set_truth, "row"_a, "The true target: (position (3), axis (3), angle).")
+      .def("set_estimates", &set_estimates, "rows"_a, "The planner's target estimates, rows like set_truth's.")
+      .def("set_obstacles", &set_obstacles, "positions"_a, "velocities"_a, "radii"_a,
+           "Obstacle points: start positions (n, 3) [m], drift velocities (n, 3) [m/s], radii (n,) [m].")
+      .def("set_frames", &set_frames, "rows"_a,
+           "A tumbling target's frames, one row per step: p_d (3), σ_d (4), V_ed (6), centre (3), R (9).");
+  m.def("plan", &plan, "robot"_a, "settings"_a, "x"_a, "t"_a,
+        "One planner step at (t, x): joint rates dq (mission first), pose errors e1 and e0, mu, cdf and the "
+        "arms' smallest singular values.");
   m.def("kinematics", &kinematics, "robot"_a, "x"_a, "Forward kinematics of the state x (19,), world frame.");
   m.def("momentum", &momentum, "robot"_a, "x"_a, "H_b, H_bm about the base CoM and the system CoM rg at x.");
   m.def("base_velocity", &base_velocity, "robot"_a, "x"_a, "dq"_a, "h"_a,

@@ -133,6 +133,38 @@ Climb newton_step(const double d[6], const double e[6], double lam) {
 
 }  // namespace
 
+void solve6(const Mat6& A, const double b[6], double x[6]) {
+  const int n = 6;
+  Mat6 M;
+  for (int r = 0; r < n; ++r) {
+    x[r] = b[r];
+    for (int c = 0; c < n; ++c) M[r][c] = A[r][c];
+  }
+  for (int c = 0; c < n; ++c) {
+    int piv = c;
+    double best = std::fabs(M[c][c]);
+    for (int r = c + 1; r < n; ++r) {
+      if (std::fabs(M[r][c]) > best) best = std::fabs(M[r][c]), piv = r;
+    }
+    if (piv != c) {
+      for (int j = c; j < n; ++j) std::swap(M[c][j], M[piv][j]);
+      std::swap(x[c], x[piv]);
+    }
+    const double inv = 1.0 / M[c][c];
+    M[c][c] = inv;
+    for (int r = c + 1; r < n; ++r) {
+      const double f = M[r][c] * inv;
+      for (int j = c + 1; j < n; ++j) M[r][j] -= f * M[c][j];
+      x[r] -= f * x[c];
+    }
+  }
+  for (int c = n - 1; c >= 0; --c) {
+    double s = x[c];
+    for (int j = c + 1; j < n; ++j) s -= M[c][j] * x[j];
+    x[c] = s * M[c][c];
+  }
+}
+
 void svd6(const Mat6& A, Mat6& Ut, double s[6], Mat6& Vt, bool vectors) {
   const int n = 6;
   for (int r = 0; r < n; ++r) {

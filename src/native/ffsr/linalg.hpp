@@ -24,6 +24,26 @@ inline void solve_sym3(double a00, double a01, double a02, double a11, double a1
   x[2] = (c02 * b0 + c12 * b1 + c22 * b2) * inv;
 }
 
+// x = A⁻¹ b for a well-conditioned 3x3 matrix (cofactors).
+inline void solve3(const Mat3& A, double b0, double b1, double b2, double x[3]) {
+  const double c00 = A[1][1] * A[2][2] - A[1][2] * A[2][1];
+  const double c01 = A[1][2] * A[2][0] - A[1][0] * A[2][2];
+  const double c02 = A[1][0] * A[2][1] - A[1][1] * A[2][0];
+  const double det = A[0][0] * c00 + A[0][1] * c01 + A[0][2] * c02;
+  const double c10 = A[0][2] * A[2][1] - A[0][1] * A[2][2];
+  const double c11 = A[0][0] * A[2][2] - A[0][2] * A[2][0];
+  const double c12 = A[0][1] * A[2][0] - A[0][0] * A[2][1];
+  const double c20 = A[0][1] * A[1][2] - A[0][2] * A[1][1];
+  const double c21 = A[0][2] * A[1][0] - A[0][0] * A[1][2];
+  const double c22 = A[0][0] * A[1][1] - A[0][1] * A[1][0];
+  x[0] = (c00 * b0 + c10 * b1 + c20 * b2) / det;
+  x[1] = (c01 * b0 + c11 * b1 + c21 * b2) / det;
+  x[2] = (c02 * b0 + c12 * b1 + c22 * b2) / det;
+}
+
+// x = A⁻¹ b (6x6) by Gaussian elimination with partial pivoting; A and b are not modified.
+void solve6(const Mat6& A, const double b[6], double x[6]);
+
 // One-sided Jacobi SVD of a 6x6 matrix, A = U diag(s) Vᵀ (unsorted, s >= 0). Writes Uᵀ and Vᵀ by rows
 // (zero rows of Uᵀ where s = 0). The sweep visits the pairs of a round-robin schedule. With
 // vectors = false only s is meaningful (the same values: the rotations are the same).
