@@ -56,4 +56,5 @@ def planner_settings(setup: Any, *, method: str, m: float, T_c: float) -> Planne
                                             rotations(motion.quaternion).reshape(-1, 9)), axis=1))
         settings.set_body_half(np.array(body.size_m, float) / 2.0)
         settings.body_radius, settings.body_danger = 0.5 * portable.norm(body.size_m), body.danger_radius_m
+        settings.body_collides = True
     return settings

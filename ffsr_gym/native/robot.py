@@ -14,7 +14,9 @@ from ffsr_gym.kernel.arrays import KernelModel, ModelArrays
 
 #: The fields of :class:`~ffsr_gym.kernel.arrays.KernelModel` the native robot takes, with their dtypes.
 ROBOT_FIELDS = {"parent": np.int64, "placement_R": float, "placement_p": float, "axis": float, "axis_code": np.int64,
-                "mass": float, "lever": float, "inertia": float, "ee_parent": np.int64, "ee_R": float, "ee_p": float}
+                "mass": float, "lever": float, "inertia": float, "ee_parent": np.int64, "ee_R": float, "ee_p": float,
+                "cap_parent": np.int64, "cap_a": float, "cap_b": float, "cap_radius": float, "cap_arm": np.int64,
+                "cap_vs_base": np.int64, "box_half": float}
 
 
 def native_robot(model: KernelModel | ModelArrays) -> Robot:

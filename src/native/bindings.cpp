@@ -9,7 +9,9 @@
 #include <string>
 #include <vector>
 
+#include "ffsr/collision.hpp"
 #include "ffsr/linalg.hpp"
+#include "ffsr/loop.hpp"
 #include "ffsr/physics.hpp"
 #include "ffsr/planner.hpp"
 
@@ -55,8 +57,30 @@ Out copy_out(const double* data, std::initializer_list<size_t> shape) {
 }
 
 ffsr::Robot make_robot(InInt parent, In placement_R, In placement_p, In axis, InInt axis_code, In mass, In lever,
-                       In inertia, InInt ee_parent, In ee_R, In ee_p) {
+                       In inertia, InInt ee_parent, In ee_R, In ee_p, InInt cap_parent, In cap_a, In cap_b,
+                       In cap_radius, InInt cap_arm, InInt cap_vs_base, In box_half) {
   ffsr::Robot r{};
+  const size_t n_caps = cap_parent.ndim() == 1 ? cap_parent.shape(0) : 0;
+  const int64_t* cp = data_of(cap_parent, "cap_parent", {n_caps});
+  const double* ca = data_of(cap_a, "cap_a", {n_caps, 3});
+  const double* cb = data_of(cap_b, "cap_b", {n_caps, 3});
+  const double* cr = data_of(cap_radius, "cap_radius", {n_caps});
+  const int64_t* arm = data_of(cap_arm, "cap_arm", {n_caps});
+  const int64_t* vs = data_of(cap_vs_base, "cap_vs_base", {n_caps});
+  for (size_t i = 0; i < n_caps; ++i) {
+    if (cp[i] < -1 || cp[i] >= ffsr::kJoints)
+      throw nb::value_error(("cap_parent[" + std::to_string(i) + "] = " + std::to_string(cp[i]) +
+                             "; allowed: -1 (the base) to 11").c_str());
+    if (arm[i] != 0 && arm[i] != 1)
+      throw nb::value_error(("cap_arm[" + std::to_string(i) + "] = " + std::to_string(arm[i]) +
+                             "; allowed: 0 (mission) or 1 (balance)").c_str());
+    if (!(cr[i] >= 0.0))
+      throw nb::value_error(("cap_radius[" + std::to_string(i) + "]: allowed >= 0 m").c_str());
+    ffsr::Capsule c{static_cast<int>(cp[i]), {ca[3 * i], ca[3 * i + 1], ca[3 * i + 2]},
+                    {cb[3 * i], cb[3 * i + 1], cb[3 * i + 2]}, cr[i], static_cast<int>(arm[i]), vs[i] != 0};
+    r.capsules.push_back(c);
+  }
+  std::memcpy(r.box_half, data_of(box_half, "box_half", {3}), sizeof r.box_half);
   const int64_t* par = data_of(parent, "parent", {12});
   const int64_t* code = data_of(axis_code, "axis_code", {12});
   const int64_t* ee = data_of(ee_parent, "ee_parent", {2});
@@ -231,6 +255,22 @@ nb::dict plan(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, do
   return out;
 }
 
+nb::tuple clearances(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, double t) {
+  ffsr::Frames f{};
+  ffsr::CapsuleAxes axes;
+  double clear, self_c, rel[3];
+  ffsr::kinematics(robot, state_of(x), f);
+  ffsr::clearances(robot, s, f, state_of(x), t, axes, clear, self_c, rel);
+  return nb::make_tuple(clear, self_c, copy_out(rel, {3}));
+}
+
+double segment_box(In a, In b, In R, In c, In half) {
+  ffsr::Mat3 rot;
+  std::memcpy(rot, data_of(R, "R", {3, 3}), sizeof rot);
+  return ffsr::segment_box(data_of(a, "a", {3}), data_of(b, "b", {3}), rot, data_of(c, "c", {3}),
+                           data_of(half, "half", {3}));
+}
+
 }  // namespace
 
 NB_MODULE(_native, m) {
@@ -239,6 +279,7 @@ NB_MODULE(_native, m) {
       .def(nb::init<>())
       .def_static("from_arrays", &make_robot, "parent"_a, "placement_R"_a, "placement_p"_a, "axis"_a,
                   "axis_code"_a, "mass"_a, "lever"_a, "inertia"_a, "ee_parent"_a, "ee_R"_a, "ee_p"_a,
+                  "cap_parent"_a, "cap_a"_a, "cap_b"_a, "cap_radius"_a, "cap_arm"_a, "cap_vs_base"_a, "box_half"_a,
                   "A robot from the arrays of ffsr_gym.kernel.arrays.extract; a wrong shape or index is a "
                   "ValueError naming the field.")
       .def_prop_ro("total_mass", [](const ffsr::Robot& r) {
@@ -278,6 +319,7 @@ NB_MODULE(_native, m) {
       .def_rw("keep_out", &ffsr::PlannerSettings::keep_out)
       .def_rw("body_radius", &ffsr::PlannerSettings::body_radius)
       .def_rw("body_danger", &ffsr::PlannerSettings::body_danger)
+      .def_rw("body_collides", &ffsr::PlannerSettings::body_collides)
       .def("set_start", [](ffsr::PlannerSettings& s, In position, In attitude) {
         set_array(s.start_position, position, "start_position");
         set_array(s.start_attitude, attitude, "start_attitude");
@@ -299,6 +341,10 @@ NB_MODULE(_native, m) {
   m.def("plan", &plan, "robot"_a, "settings"_a, "x"_a, "t"_a,
         "One planner step at (t, x): joint rates dq (mission first), pose errors e1 and e0, mu, cdf and the "
         "arms' smallest singular values.");
+  m.def("clearances", &clearances, "robot"_a, "settings"_a, "x"_a, "t"_a,
+        "(robot-obstacle clearance [m], self clearance [m], the vector robot → nearest obstacle) at (t, x).");
+  m.def("segment_box", &segment_box, "a"_a, "b"_a, "R"_a, "c"_a, "half"_a,
+        "Signed distance [m] of the segment a-b to the box of rotation R, centre c and half extents half.");
   m.def("kinematics", &kinematics, "robot"_a, "x"_a, "Forward kinematics of the state x (19,), world frame.");
   m.def("momentum", &momentum, "robot"_a, "x"_a, "H_b, H_bm about the base CoM and the system CoM rg at x.");
   m.def("base_velocity", &base_velocity, "robot"_a, "x"_a, "dq"_a, "h"_a,

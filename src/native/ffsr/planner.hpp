@@ -62,6 +62,7 @@ struct PlannerSettings {
   double body_half[3] = {0, 0, 0};          // the tumbling body's half extents [m]
   double body_radius = 0.0;                 // its bounding radius [m]
   double body_danger = 0.0;                 // its danger radius beyond that [m] (0: not in the field)
+  bool body_collides = false;               // the body is checked for collision
 };
 
 // What a planner step writes besides the frames and momentum matrices.

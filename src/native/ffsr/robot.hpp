@@ -2,6 +2,8 @@
 // every number taken from the URDF through Pinocchio (ffsr_gym.kernel.arrays.extract), none of its own.
 #pragma once
 
+#include <vector>
+
 #include "ffsr/linalg.hpp"
 
 namespace ffsr {
@@ -9,6 +11,17 @@ namespace ffsr {
 inline constexpr int kJoints = 12;
 inline constexpr int kBodies = kJoints + 1;  // body 0 is the base
 inline constexpr int kStateSize = 19;        // base position, quaternion (x, y, z, w), joint angles
+
+// A collision capsule: its axis's end points in its parent joint's frame (-1: the base) [m], its radius [m],
+// its arm (0 mission, 1 balance) and whether it is checked against the base box.
+struct Capsule {
+  int parent;
+  double a[3];
+  double b[3];
+  double radius;
+  int arm;
+  bool vs_base;
+};
 
 struct Robot {
   int parent[kJoints];               // parent joint, -1 for the base; a parent precedes its children on one arm
@@ -22,6 +35,8 @@ struct Robot {
   int ee_parent[2];                   // end-effector frames (mission, balance)
   double ee_R[2][3][3];
   double ee_p[2][3];
+  std::vector<Capsule> capsules;      // the arms' collision capsules
+  double box_half[3];                 // the base box's half extents [m], centred on the base frame
 };
 
 // Forward kinematics of one state (world frame).

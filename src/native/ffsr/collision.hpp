@@ -1,0 +1,35 @@
+// Collision distances in closed form: capsules against an obstacle sphere, a box (a tumbling target's body),
+// each other and the base box.
+#pragma once
+
+#include <vector>
+
+#include "ffsr/robot.hpp"
+
+namespace ffsr {
+
+// The capsules' axes in the world frame, at the state whose frames f holds.
+struct CapsuleAxes {
+  std::vector<double> A, B;  // (n, 3) end points, row by row
+};
+
+void capsule_axes(const Robot& robot, const Frames& f, const double p_b[3], CapsuleAxes& axes);
+
+// Signed distance of a point to a box (rotation R, centre c, half extents) [m], negative inside.
+double box_sdf(const double p[3], const Mat3& R, const double c[3], const double half[3]);
+
+// Signed distance segment a-b to a box [m], exact (the convex SDF minimised piece by piece).
+double segment_box(const double a[3], const double b[3], const Mat3& R, const double c[3], const double half[3]);
+
+// Signed distance robot-obstacle sphere [m]; rel gets the vector robot point → obstacle point.
+double obstacle_clearance(const Robot& robot, const Frames& f, const CapsuleAxes& axes, const double p_b[3],
+                          const double p_o[3], double r_o, double rel[3]);
+
+// Signed distance robot-box (rotation R_o, centre c_o, half extents half_o) [m].
+double body_clearance(const Robot& robot, const Frames& f, const CapsuleAxes& axes, const double p_b[3],
+                      const Mat3& R_o, const double c_o[3], const double half_o[3]);
+
+// Smallest signed distance arm-arm and arm-base (mounting links excluded) [m].
+double self_clearance(const Robot& robot, const Frames& f, const CapsuleAxes& axes, const double p_b[3]);
+
+}  // namespace ffsr
