@@ -2,9 +2,11 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/string.h>
+#include <nanobind/stl/unique_ptr.h>
 
 #include <algorithm>
 #include <cstring>
+#include <memory>
 #include <initializer_list>
 #include <string>
 #include <vector>
@@ -271,6 +273,49 @@ double segment_box(In a, In b, In R, In c, In half) {
                            data_of(half, "half", {3}));
 }
 
+// A new zeroed numpy array of the given shape, and its data.
+Out zeros(std::initializer_list<size_t> shape, double*& data) {
+  size_t n = 1;
+  for (size_t s : shape) n *= s;
+  data = new double[n]();
+  nb::capsule owner(data, [](void* p) noexcept { delete[] static_cast<double*>(p); });
+  std::vector<size_t> dims(shape);
+  return Out(data, dims.size(), dims.data(), owner);
+}
+
+nb::tuple run(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, long k0, long n_total, long n_max,
+              In residual, bool stop_on_violation, bool record_only, const ffsr::Robot* plant) {
+  if (s.estimates.empty() && s.frames.empty())
+    throw nb::value_error("settings: no estimates and no frames; allowed: set_estimates or set_frames first");
+  if (k0 < 0 || n_total < k0 || n_max < 0)
+    throw nb::value_error("steps: allowed 0 <= k0 <= n_total and n_max >= 0");
+  if (!s.frames.empty() && static_cast<long>(s.frames.size()) < n_total + 1)
+    throw nb::value_error("frames: allowed one per step, n_total + 1 of them");
+  auto st = std::make_unique<ffsr::LoopState>();
+  std::memcpy(st->x, state_of(x), sizeof st->x);
+  const size_t n = record_only ? 1 : static_cast<size_t>(std::max(0L, std::min(n_max, n_total - k0)));
+  ffsr::LogRows rows_out{};
+  nb::dict logs;
+  logs["x"] = zeros({n, 19}, rows_out.x);
+  logs["v"] = zeros({n, 18}, rows_out.v);
+  logs["dq"] = zeros({n, 12}, rows_out.dq);
+  logs["err"] = zeros({n, 4}, rows_out.err);
+  logs["clear"] = zeros({n}, rows_out.clear);
+  logs["self"] = zeros({n}, rows_out.self);
+  logs["mu"] = zeros({n, 2}, rows_out.mu);
+  logs["cdf"] = zeros({n, 2}, rows_out.cdf);
+  logs["smin"] = zeros({n, 2}, rows_out.smin);
+  logs["tau"] = zeros({n, 12}, rows_out.tau);
+  long rows = 0;
+  ffsr::Status status;
+  {
+    nb::gil_scoped_release release;
+    status = ffsr::run(robot, plant ? *plant : robot, s, *st, k0, n_total, n_max, data_of(residual, "residual", {12}),
+                       stop_on_violation, record_only, false, rows_out, rows);
+  }
+  return nb::make_tuple(copy_out(st->x, {19}), rows, static_cast<int>(status), logs);
+}
+
 }  // namespace
 
 NB_MODULE(_native, m) {
@@ -320,6 +365,7 @@ NB_MODULE(_native, m) {
       .def_rw("body_radius", &ffsr::PlannerSettings::body_radius)
       .def_rw("body_danger", &ffsr::PlannerSettings::body_danger)
       .def_rw("body_collides", &ffsr::PlannerSettings::body_collides)
+      .def_rw("rate_limit_balance_only", &ffsr::PlannerSettings::rate_limit_balance_only)
       .def("set_start", [](ffsr::PlannerSettings& s, In position, In attitude) {
         set_array(s.start_position, position, "start_position");
         set_array(s.start_attitude, attitude, "start_attitude");
@@ -345,6 +391,10 @@ NB_MODULE(_native, m) {
         "(robot-obstacle clearance [m], self clearance [m], the vector robot → nearest obstacle) at (t, x).");
   m.def("segment_box", &segment_box, "a"_a, "b"_a, "R"_a, "c"_a, "half"_a,
         "Signed distance [m] of the segment a-b to the box of rotation R, centre c and half extents half.");
+  m.def("run", &run, "robot"_a, "settings"_a, "x"_a, "k0"_a, "n_total"_a, "n_max"_a, "residual"_a,
+        "stop_on_violation"_a = true, "record_only"_a = false, "plant"_a = nb::none(),
+        "The closed loop on the kinematic plant from step k0: (x after, rows, status 0 ok / 1 rate / 2 collision / "
+        "3 non-finite, logs of one row per step). plant: the robot the physics integrates, if not robot itself.");
   m.def("kinematics", &kinematics, "robot"_a, "x"_a, "Forward kinematics of the state x (19,), world frame.");
   m.def("momentum", &momentum, "robot"_a, "x"_a, "H_b, H_bm about the base CoM and the system CoM rg at x.");
   m.def("base_velocity", &base_velocity, "robot"_a, "x"_a, "dq"_a, "h"_a,

@@ -2,6 +2,7 @@
 #include "ffsr/loop.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 
 #include "field.hpp"
@@ -25,6 +26,65 @@ void clearances(const Robot& robot, const PlannerSettings& s, const Frames& f, c
     clear = std::min(clear, body_clearance(robot, f, axes, x, R, frame.centre, s.body_half));
   }
   self_c = self_clearance(robot, f, axes, x);
+}
+
+namespace {
+
+Status violation(const PlannerSettings& s, const double dq[kJoints], double clear, double self_c) {
+  const double to_deg = 180.0 / M_PI;
+  for (int j = s.rate_limit_balance_only ? 6 : 0; j < kJoints; ++j)
+    if (std::fabs(dq[j]) * to_deg > s.rate_max_deg_s) return Status::kRate;
+  if (clear < s.keep_out || self_c < 0.0) return Status::kCollision;
+  return Status::kOk;
+}
+
+double norm3(const double* e) { return std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]); }
+
+}  // namespace
+
+Status run(const Robot& robot, const Robot& plant, const PlannerSettings& s, LoopState& st, long k0, long n_total,
+           long n_max, const double residual[kJoints], bool stop_on_violation, bool record_only, bool planned,
+           const LogRows& out, long& rows) {
+  const bool mismatch = &plant != &robot;
+  const double dt = s.dt;
+  double* x = st.x;
+  double* dq = st.p.dq;
+  rows = 0;
+  const long steps = record_only ? 1 : std::min(n_max, n_total - k0);
+  for (long i = 0; i < steps; ++i) {
+    const double t = static_cast<double>(k0 + i) * dt;
+    if (i > 0 || !planned) plan(robot, s, x, t, st.f, st.m, st.p);
+    const double* logged = st.p.e1;
+    if (s.estimates.size() > 1) {  // the planner followed a target estimate; log the error to the true target
+      true_error(s, st.f, t, st.p);
+      logged = st.p.e1t;
+    }
+    for (int j = 0; j < kJoints; ++j) {
+      dq[j] += residual[j];
+      if (!std::isfinite(dq[j])) return Status::kNonFinite;
+    }
+    double clear, self_c;
+    clearances(robot, s, st.f, x, t, st.axes, clear, self_c, st.rel);
+    if (mismatch) momentum(plant, x, st.f, st.m);  // the planner's momentum matrices were the model's
+    base_velocity(x, dq, s.momentum, st.f, st.m, st.v0);
+    double* v = out.v + 18 * i;
+    for (int j = 0; j < 6; ++j) v[j] = st.v0[j];
+    for (int j = 0; j < kJoints; ++j) v[6 + j] = dq[j], out.dq[12 * i + j] = dq[j], out.tau[12 * i + j] = 0.0;
+    for (int j = 0; j < kStateSize; ++j) out.x[19 * i + j] = x[j];
+    out.err[4 * i] = norm3(logged), out.err[4 * i + 1] = norm3(logged + 3);
+    out.err[4 * i + 2] = norm3(st.p.e0), out.err[4 * i + 3] = norm3(st.p.e0 + 3);
+    out.clear[i] = clear, out.self[i] = self_c;
+    for (int arm = 0; arm < 2; ++arm)
+      out.mu[2 * i + arm] = st.p.mu[arm], out.cdf[2 * i + arm] = st.p.cdf[arm], out.smin[2 * i + arm] = st.p.smin[arm];
+    ++rows;
+    if (record_only) return Status::kOk;
+    midpoint(plant, x, st.v0, dq, dt, s.momentum, st.f, st.m, x);
+    if (stop_on_violation) {
+      const Status status = violation(s, dq, clear, self_c);
+      if (status != Status::kOk) return status;
+    }
+  }
+  return Status::kOk;
 }
 
 }  // namespace ffsr

@@ -245,6 +245,13 @@ void R_to_quat_wxyz(const Mat3& R, double q[4]) {
   q[0] = w / norm, q[1] = x / norm, q[2] = y / norm, q[3] = z / norm;
 }
 
+void true_error(const PlannerSettings& s, const Frames& f, double t, Plan& p) {
+  desired(s, s.truth, t, p);
+  double sigma[4];
+  R_to_quat_wxyz(f.Re[0], sigma);
+  pose_error(f.pe[0], sigma, p.p_d, p.sigma_d, s.body_attitude_error, p.e1t, p.Jo, p.Jo_d);
+}
+
 void plan(const Robot& robot, const PlannerSettings& s, const double x[kStateSize], double t, Frames& f, Momentum& m,
           Plan& p) {
   kinematics(robot, x, f);

@@ -13,4 +13,37 @@ enum class Status { kOk = 0, kRate = 1, kCollision = 2, kNonFinite = 3 };
 void clearances(const Robot& robot, const PlannerSettings& s, const Frames& f, const double x[kStateSize], double t,
                 CapsuleAxes& axes, double& clear, double& self_c, double rel[3]);
 
+// Where a run writes one row per step (caller-owned, row-major; rows from 0).
+struct LogRows {
+  double* x;      // (n, 19) the state at the step's start
+  double* v;      // (n, 18) base velocity (base frame) and joint rates
+  double* dq;     // (n, 12) the rates the step applied
+  double* err;    // (n, 4) end-effector position and attitude errors, base position and attitude errors
+  double* clear;  // (n,) robot-obstacle clearance [m]
+  double* self;   // (n,) self clearance [m]
+  double* mu;     // (n, 2)
+  double* cdf;    // (n, 2)
+  double* smin;   // (n, 2)
+  double* tau;    // (n, 12) drive torques (zero for the kinematic plant)
+};
+
+// One copy's loop state: its configuration and the scratch a step fills.
+struct LoopState {
+  double x[kStateSize];
+  Frames f;
+  Momentum m;
+  Plan p;
+  CapsuleAxes axes;
+  double v0[6];
+  double rel[3];
+};
+
+// Advance up to n_max steps from step k0 of n_total on the kinematic plant (the planned rates applied exactly,
+// the base moved by the plant's momentum; plant: the robot the physics integrates, the planner's own unless its
+// inertias differ), or only record one row (record_only). residual: added to the planned rates (12). planned:
+// st.p already holds plan at (k0 dt, st.x). Writes rows from 0; rows: how many; returns the status of the last.
+Status run(const Robot& robot, const Robot& plant, const PlannerSettings& s, LoopState& st, long k0, long n_total,
+           long n_max, const double residual[kJoints], bool stop_on_violation, bool record_only, bool planned,
+           const LogRows& out, long& rows);
+
 }  // namespace ffsr

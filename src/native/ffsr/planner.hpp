@@ -63,6 +63,7 @@ struct PlannerSettings {
   double body_radius = 0.0;                 // its bounding radius [m]
   double body_danger = 0.0;                 // its danger radius beyond that [m] (0: not in the field)
   bool body_collides = false;               // the body is checked for collision
+  bool rate_limit_balance_only = false;     // the rate limit scores the balance arm only
 };
 
 // What a planner step writes besides the frames and momentum matrices.
@@ -70,6 +71,7 @@ struct Plan {
   double dq[kJoints];  // joint rates, mission arm first [rad/s]
   double e1[6];        // end-effector pose error to the desired pose
   double e0[6];        // base pose error
+  double e1t[6];       // end-effector pose error to the true target's desired pose (true_error)
   double mu[2], cdf[2], smin[2];
   double V0[6], x1[6], target[6], p_d[3], sigma_d[4], V_ed[6];
   double J[6][6], Jb[6][6], Jo[3][3], Jo_d[3][3];
@@ -81,6 +83,9 @@ struct Plan {
 // Joint rates and diagnostics at (t, x) (docs/model.md §8 steps 1-8); fills f and m at x.
 void plan(const Robot& robot, const PlannerSettings& s, const double x[kStateSize], double t, Frames& f, Momentum& m,
           Plan& p);
+
+// The end-effector pose error to the true target's desired pose into p.e1t (after plan at the same state).
+void true_error(const PlannerSettings& s, const Frames& f, double t, Plan& p);
 
 // Scalar-first unit quaternion (w ≥ 0) of a rotation matrix (Shepperd's method).
 void R_to_quat_wxyz(const Mat3& R, double q[4]);
