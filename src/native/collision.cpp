@@ -235,10 +235,18 @@ double body_clearance(const Robot& robot, const Frames& f, const CapsuleAxes& ax
   return std::min(best, edges_to_box(R_o, c_o, half_o, f.R_b, p_b, robot.box_half));
 }
 
-double self_clearance(const Robot& robot, const Frames& f, const CapsuleAxes& axes, const double p_b[3]) {
+double self_clearance(const Robot& robot, const Frames& f, CapsuleAxes& axes, const double p_b[3]) {
   const size_t n = robot.capsules.size();
-  std::vector<double> mid(3 * n), hl(n), bound;
-  std::vector<int> first, second;
+  std::vector<double>& mid = axes.mid;
+  std::vector<double>& hl = axes.half_length;
+  std::vector<double>& bound = axes.bound;
+  std::vector<int>& first = axes.first;
+  std::vector<int>& second = axes.second;
+  mid.resize(3 * n);
+  hl.resize(n);
+  bound.clear();
+  first.clear();
+  second.clear();
   for (size_t i = 0; i < n; ++i) {
     for (int a = 0; a < 3; ++a) mid[3 * i + a] = 0.5 * (axes.A[3 * i + a] + axes.B[3 * i + a]);
     const double dx = axes.B[3 * i] - axes.A[3 * i], dy = axes.B[3 * i + 1] - axes.A[3 * i + 1],

@@ -11,6 +11,9 @@ namespace ffsr {
 // The capsules' axes in the world frame, at the state whose frames f holds.
 struct CapsuleAxes {
   std::vector<double> A, B;  // (n, 3) end points, row by row
+  // the self-clearance pair search's scratch (sized once, at the first call)
+  std::vector<double> mid, half_length, bound;
+  std::vector<int> first, second;
 };
 
 void capsule_axes(const Robot& robot, const Frames& f, const double p_b[3], CapsuleAxes& axes);
@@ -30,6 +33,6 @@ double body_clearance(const Robot& robot, const Frames& f, const CapsuleAxes& ax
                       const Mat3& R_o, const double c_o[3], const double half_o[3]);
 
 // Smallest signed distance arm-arm and arm-base (mounting links excluded) [m].
-double self_clearance(const Robot& robot, const Frames& f, const CapsuleAxes& axes, const double p_b[3]);
+double self_clearance(const Robot& robot, const Frames& f, CapsuleAxes& axes, const double p_b[3]);
 
 }  // namespace ffsr
