@@ -50,7 +50,7 @@ def test_a_stamped_unchanged_entry_is_skipped_and_full_replays_it(tmp_path, same
     assert not step.replay and "unchanged since" in step.reason
     assert all(s.replay for s in update_plan.plan(board, full=True))
     frozen = [s for s in update_plan.plan(board) if s.path.parent.name == "FFSR-v0"]
-    assert len(frozen) == 7 and all(s.replay and "frozen" in s.reason for s in frozen)
+    assert len(frozen) == 7 and all(s.replay and "frozen" in s.reason and "git cannot tell" in s.reason for s in frozen)
 
 
 def test_a_change_of_code_entry_or_rows_since_the_stamp_is_replayed(tmp_path, same_code, monkeypatch):
@@ -108,3 +108,26 @@ def test_the_code_digest_follows_the_replayed_files_only(tmp_path, monkeypatch):
     (tmp_path / "envs" / "rule.toml").write_text("a = 2")
     assert digest() not in (first, second)
     stamp_module.code_digest.cache_clear()
+
+
+def test_an_unstamped_entry_is_replayed_when_git_reports_it_changed(tmp_path, same_code):
+    """In a repository: an unstamped entry the last commit holds as it is is skipped (the pull-request workflow
+    replayed it when it changed); one edited or added since is replayed; without git, every unstamped one is."""
+    import subprocess
+
+    board = _board(tmp_path)
+    def git(*args):
+        subprocess.run(["git", "-C", str(tmp_path), *args], check=True, capture_output=True)
+    git("init", "-q")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "add", "-A")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "board")
+    steps = update_plan.plan(board)
+    assert not _only(steps, "cmaes.json").replay and "unchanged since the last commit" in _only(steps, "cmaes.json").reason
+    (board / "FFSR-v0" / "cmaes.json").write_text((board / "FFSR-v0" / "cmaes.json").read_text() + "\n")
+    shutil.copy(board / "FFSR-v0" / "ga_full.json", board / "FFSR-v0" / "mine.json")
+    steps = update_plan.plan(board)
+    for name in ("cmaes.json", "mine.json"):
+        assert _only(steps, name).replay and "changed since the last commit" in _only(steps, name).reason
+    assert not _only(steps, "ga_full.json").replay
+    shutil.rmtree(tmp_path / ".git")
+    assert all(s.replay for s in update_plan.plan(board) if s.path.parent.name == "FFSR-v0")

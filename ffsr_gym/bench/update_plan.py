@@ -3,7 +3,10 @@
 An entry's last verified state is its stamp (:mod:`ffsr_gym.bench.stamp`): the hashes of the entry, its rows, its
 pool file, the frozen reference and the code the replay ran. An entry is replayed when
 
-* it has no stamp (added, or changed and so unstamped, since; a frozen v0 entry never carries one),
+* it has no stamp and git reports it added, changed or renamed since the last commit, or git cannot tell (a board
+  outside a repository); an unstamped entry the last commit holds as it is was replayed by the pull-request
+  workflow when it changed (or predates it: ``verify`` or ``--full`` replays it), and a frozen v0 entry never
+  carries a stamp,
 * its stamp no longer describes it (:func:`~ffsr_gym.bench.stamp.stamp_problems`: the entry, its rows, its pool or
   the reference changed),
 * the code a replay runs changed since (:func:`~ffsr_gym.bench.stamp.code_digest`), or the stamp predates the code's
@@ -17,10 +20,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from ffsr_gym.bench.changes import entry_files
+from ffsr_gym.bench.changes import changed_entries, entry_files
 from ffsr_gym.bench.leaderboard import spec_of_entry
 from ffsr_gym.bench.stamp import code_digest, stamp_problems
-from ffsr_gym.exceptions import FFSRError
+from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.user_files import parse_json, read_text
 
 
@@ -37,10 +40,24 @@ def plan(root: str | Path, *, full: bool = False) -> list[Step]:
     """Every entry file under ``root`` (:func:`~ffsr_gym.bench.changes.entry_files`), replayed or skipped."""
     root = Path(root)
     paths = [root / resolved.relative_to(root.resolve()) for resolved in entry_files(root)]
-    return [Step(path, True, "--full") if full else _step(path) for path in paths]
+    if full:
+        return [Step(path, True, "--full") for path in paths]
+    try:
+        changed: set[Path] | None = {path.resolve() for path in changed_entries(root, "HEAD")}
+    except InvalidInputError:
+        changed = None  # not in a git repository, or no commit yet
+    return [_step(path, changed) for path in paths]
 
 
-def _step(path: Path) -> Step:
+def _unstamped(path: Path, changed: set[Path] | None, why: str) -> Step:
+    if changed is None:
+        return Step(path, True, f"{why}; git cannot tell whether it changed")
+    if path.resolve() in changed:
+        return Step(path, True, f"{why}; added or changed since the last commit")
+    return Step(path, False, f"{why}; unchanged since the last commit (verify or --full replays it)")
+
+
+def _step(path: Path, changed: set[Path] | None) -> Step:
     try:
         entry = parse_json(read_text(path), str(path))
         if not isinstance(entry, dict):
@@ -51,9 +68,9 @@ def _step(path: Path) -> Step:
     extra = entry.get("extra")
     stamp = extra.get("verified") if isinstance(extra, dict) else None
     if spec.rules is None:
-        return Step(path, True, f"{spec.version} is frozen and its entries carry no stamp")
+        return _unstamped(path, changed, f"{spec.version} is frozen and its entries carry no stamp")
     if stamp is None:
-        return Step(path, True, "no stamp: added or changed since it was last verified")
+        return _unstamped(path, changed, "no stamp")
     problems = stamp_problems(entry, spec.rules.version)
     if problems:
         return Step(path, True, f"its stamp no longer describes it ({problems[0]})")
