@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "ffsr/collision.hpp"
+#include "ffsr/decision.hpp"
 #include "ffsr/linalg.hpp"
 #include "ffsr/loop.hpp"
 #include "ffsr/physics.hpp"
@@ -316,6 +317,70 @@ nb::tuple run(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, lo
   return nb::make_tuple(copy_out(st->x, {19}), rows, static_cast<int>(status), logs);
 }
 
+// One environment episode on the native kernel: the robot (and plant) it steps, its settings, its state and logs.
+struct NativeEpisode {
+  const ffsr::Robot* robot;
+  const ffsr::Robot* plant;
+  ffsr::PlannerSettings s;
+  ffsr::DecisionSettings d;
+  std::unique_ptr<ffsr::EpisodeState> e = std::make_unique<ffsr::EpisodeState>();
+  long n_total;
+  std::vector<double> x, v, dq, err, clear, self, mu, cdf, smin, tau;
+
+  NativeEpisode(const ffsr::Robot& robot_, const ffsr::PlannerSettings& s_, const ffsr::DecisionSettings& d_, In x0,
+                long n_total_, const ffsr::Robot* plant_)
+      : robot(&robot_), plant(plant_ ? plant_ : &robot_), s(s_), d(d_), n_total(n_total_) {
+    if (n_total < 1) throw nb::value_error("n_total: allowed >= 1 step");
+    if (s.estimates.empty() && s.frames.empty())
+      throw nb::value_error("settings: no estimates and no frames; allowed: set_estimates or set_frames first");
+    if (!s.frames.empty() && static_cast<long>(s.frames.size()) < n_total + 1)
+      throw nb::value_error("frames: allowed one per step, n_total + 1 of them");
+    std::memcpy(e->loop.x, state_of(x0), sizeof e->loop.x);
+    const size_t n = static_cast<size_t>(n_total);
+    x.assign(19 * n, 0.0), v.assign(18 * n, 0.0), dq.assign(12 * n, 0.0), err.assign(4 * n, 0.0);
+    clear.assign(n, 0.0), self.assign(n, 0.0), mu.assign(2 * n, 0.0), cdf.assign(2 * n, 0.0);
+    smin.assign(2 * n, 0.0), tau.assign(12 * n, 0.0);
+  }
+
+  nb::tuple decide(In action, int mode, bool stop, long k, long n_max,
+                   nb::ndarray<float, nb::c_contig, nb::device::cpu> obs) {
+    if (mode < 0 || mode > 2) throw nb::value_error("mode: allowed 0 (residual), 1 (parameters) or 2 (set)");
+    if (k < 0 || k > n_total || n_max < 0) throw nb::value_error("steps: allowed 0 <= k <= n_total and n_max >= 0");
+    if (action.ndim() != 1) throw nb::value_error("action: allowed a 1-d array");
+    const int n_action = static_cast<int>(action.shape(0));
+    const int n_obs = obs.ndim() == 1 ? static_cast<int>(obs.shape(0)) : 0;
+    if (n_obs != ffsr::kObservation && n_obs != ffsr::kObservationTwist)
+      throw nb::value_error("obs: allowed a float32 array of 53 or 59");
+    const size_t r = static_cast<size_t>(k);
+    ffsr::LogRows logs{x.data() + 19 * r, v.data() + 18 * r, dq.data() + 12 * r, err.data() + 4 * r,
+                       clear.data() + r, self.data() + r, mu.data() + 2 * r, cdf.data() + 2 * r,
+                       smin.data() + 2 * r, tau.data() + 12 * r};
+    ffsr::DecisionResult out;
+    {
+      nb::gil_scoped_release release;
+      out = ffsr::decide(*robot, *plant, s, d, *e, k, n_total, n_max, action.data(), n_action,
+                         static_cast<ffsr::ActionMode>(mode), stop, logs, obs.data(), n_obs);
+    }
+    return nb::make_tuple(out.rows, out.status, out.clipped, out.increment, out.cost, out.clearance, out.ee_error);
+  }
+
+  nb::dict logs() const {
+    const size_t n = static_cast<size_t>(n_total);
+    nb::dict out;
+    out["x"] = copy_out(x.data(), {n, 19});
+    out["v"] = copy_out(v.data(), {n, 18});
+    out["dq"] = copy_out(dq.data(), {n, 12});
+    out["err"] = copy_out(err.data(), {n, 4});
+    out["clear"] = copy_out(clear.data(), {n});
+    out["self"] = copy_out(self.data(), {n});
+    out["mu"] = copy_out(mu.data(), {n, 2});
+    out["cdf"] = copy_out(cdf.data(), {n, 2});
+    out["smin"] = copy_out(smin.data(), {n, 2});
+    out["tau"] = copy_out(tau.data(), {n, 12});
+    return out;
+  }
+};
+
 }  // namespace
 
 NB_MODULE(_native, m) {
@@ -395,6 +460,33 @@ NB_MODULE(_native, m) {
         "stop_on_violation"_a = true, "record_only"_a = false, "plant"_a = nb::none(),
         "The closed loop on the kinematic plant from step k0: (x after, rows, status 0 ok / 1 rate / 2 collision / "
         "3 non-finite, logs of one row per step). plant: the robot the physics integrates, if not robot itself.");
+  nb::class_<ffsr::DecisionSettings>(m, "DecisionSettings", "A decision's settings, by name.")
+      .def(nb::init<>())
+      .def_rw("rate_scale", &ffsr::DecisionSettings::rate_scale)
+      .def_rw("fade_s", &ffsr::DecisionSettings::fade_s)
+      .def_rw("motion_s", &ffsr::DecisionSettings::motion_s)
+      .def_rw("m_lo", &ffsr::DecisionSettings::m_lo)
+      .def_rw("m_hi", &ffsr::DecisionSettings::m_hi)
+      .def_rw("T_lo", &ffsr::DecisionSettings::T_lo)
+      .def_rw("T_hi", &ffsr::DecisionSettings::T_hi)
+      .def_rw("rate_limit_deg_s", &ffsr::DecisionSettings::rate_limit_deg_s)
+      .def_rw("clear_scale", &ffsr::DecisionSettings::clear_scale)
+      .def_rw("alpha", &ffsr::DecisionSettings::alpha)
+      .def_rw("beta", &ffsr::DecisionSettings::beta)
+      .def_rw("E_ref", &ffsr::DecisionSettings::E_ref)
+      .def_rw("V_ref", &ffsr::DecisionSettings::V_ref);
+  nb::class_<NativeEpisode>(m, "Episode", "One environment episode on the native kernel.")
+      .def(nb::init<const ffsr::Robot&, const ffsr::PlannerSettings&, const ffsr::DecisionSettings&, In, long,
+                    const ffsr::Robot*>(),
+           "robot"_a, "settings"_a, "decision"_a, "x"_a, "n_total"_a, "plant"_a = nb::none(), nb::keep_alive<1, 2>(),
+           nb::keep_alive<1, 7>())
+      .def("decide", &NativeEpisode::decide, "action"_a, "mode"_a, "stop"_a, "k"_a, "n_max"_a, "obs"_a,
+           "One decision from step k: (rows, status, clipped, increment, cost, clearance, EE error); the next "
+           "observation into obs (float32, 53 or 59).")
+      .def("logs", &NativeEpisode::logs, "The episode's logs, one row per step (copies).")
+      .def("state", [](const NativeEpisode& ep) { return copy_out(ep.e->loop.x, {19}); }, "The state x (a copy).")
+      .def_prop_ro("m", [](const NativeEpisode& ep) { return ep.s.m; })
+      .def_prop_ro("T_c", [](const NativeEpisode& ep) { return ep.s.T_c; });
   m.def("kinematics", &kinematics, "robot"_a, "x"_a, "Forward kinematics of the state x (19,), world frame.");
   m.def("momentum", &momentum, "robot"_a, "x"_a, "H_b, H_bm about the base CoM and the system CoM rg at x.");
   m.def("base_velocity", &base_velocity, "robot"_a, "x"_a, "dq"_a, "h"_a,

@@ -1,0 +1,142 @@
+// One decision of an environment step (decision.hpp).
+#include "ffsr/decision.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "field.hpp"
+
+namespace ffsr {
+namespace {
+
+constexpr double kObsRate = 20.0, kObsError = 10.0, kObsRelative = 10.0, kObsClearance = 10.0, kObsTwist = 10.0;
+
+double clip(double value, double bound) { return std::min(std::max(value, -bound), bound); }
+
+// The clearance the observation shows (robot-obstacle, or the tumbling body; inf without either) after a plan at
+// (t, x); rel: the vector to the nearest obstacle.
+double observe(const Robot& robot, const PlannerSettings& s, LoopState& st, double t, double rel[3]) {
+  plan(robot, s, st.x, t, st.f, st.m, st.p);
+  double clear = std::numeric_limits<double>::infinity();
+  if (!s.obstacles.empty() || s.body_collides) capsule_axes(robot, st.f, st.x, st.axes);
+  if (!s.obstacles.empty()) {
+    double r[3] = {0.0, 0.0, 0.0}, p_o[3], here[3];
+    for (size_t o = 0; o < s.obstacles.size(); ++o) {
+      obstacle_at(s.obstacles[o], t, p_o);
+      const double value = obstacle_clearance(robot, st.f, st.axes, st.x, p_o, s.obstacles[o].radius, here);
+      if (value < clear || o == 0) clear = value, r[0] = here[0], r[1] = here[1], r[2] = here[2];
+    }
+    rel[0] = r[0], rel[1] = r[1], rel[2] = r[2];
+  }
+  if (s.body_collides) {
+    const Frame& frame = frame_at(s, t);
+    const double(&R)[3][3] = *reinterpret_cast<const double(*)[3][3]>(frame.R);
+    clear = std::min(clear, body_clearance(robot, st.f, st.axes, st.x, R, frame.centre, s.body_half));
+  }
+  return clear;
+}
+
+}  // namespace
+
+double residual_fade(double t, double motion_s, double fade_s) {
+  const double start = motion_s - fade_s;
+  if (t <= start) return 1.0;
+  if (t >= motion_s) return 0.0;
+  return 0.5 * (1.0 + std::cos(M_PI * (t - start) / fade_s));
+}
+
+void smoothness_terms(const double* rates, long rows, double dt, const double previous[kJoints], double out[4]) {
+  for (int arm = 0; arm < 2; ++arm) {
+    double energy = 0.0, variation = 0.0;
+    for (long k = 0; k < rows; ++k) {
+      double square = 0.0, step = 0.0;
+      for (int j = 6 * arm; j < 6 * arm + 6; ++j) {
+        const double rate = rates[12 * k + j];
+        const double before = k == 0 ? previous[j] : rates[12 * (k - 1) + j];
+        square += rate * rate;
+        step += (rate - before) * (rate - before);
+      }
+      energy += square;
+      variation += std::sqrt(step);
+    }
+    out[arm] = energy * dt, out[2 + arm] = variation;
+  }
+}
+
+double smoothness_cost(const double terms[4], const DecisionSettings& d) {
+  const double mission = terms[0] / d.E_ref + terms[2] / d.V_ref;
+  const double balance = terms[1] / d.E_ref + terms[3] / d.V_ref;
+  return d.alpha * mission + d.beta * balance;
+}
+
+DecisionResult decide(const Robot& robot, const Robot& plant, PlannerSettings& s, const DecisionSettings& d,
+                      EpisodeState& e, long k, long n_total, long n_max, const double* action, int n_action,
+                      ActionMode mode, bool stop, const LogRows& logs, float* obs, int n_obs) {
+  DecisionResult result;
+  for (int j = 0; j < n_action; ++j) {
+    if (!std::isfinite(action[j])) {
+      result.status = 4;
+      return result;
+    }
+  }
+  const double dt = s.dt;
+  double residual[kJoints] = {};
+  for (int j = 0; j < n_action; ++j) {  // clip, map
+    const double raw = action[j];
+    const double value = std::min(std::max(raw, -1.0), 1.0);
+    result.clipped = result.clipped || value != raw;
+    if (mode == ActionMode::kResidual)
+      residual[j] = value;
+    else if (mode == ActionMode::kParameters && j == 0)
+      s.m = d.m_lo + 0.5 * (value + 1.0) * (d.m_hi - d.m_lo);
+    else if (mode == ActionMode::kParameters && j == 1)
+      s.T_c = d.T_lo + 0.5 * (value + 1.0) * (d.T_hi - d.T_lo);
+  }
+  if (mode == ActionMode::kResidual) {
+    const double fade = residual_fade(static_cast<double>(k) * dt, d.motion_s, d.fade_s);
+    for (int j = 0; j < kJoints; ++j) residual[j] = fade * (d.rate_scale * residual[j]);
+  } else {
+    for (double& r : residual) r = 0.0;
+  }
+  const bool planned = e.planned && e.planned_k == k && e.planned_m == s.m && e.planned_T_c == s.T_c;
+  e.planned = false;
+  long rows = 0;
+  const Status status = run(robot, plant, s, e.loop, k, n_total, n_max, residual, stop, false, planned, logs, rows);
+  result.rows = rows, result.status = static_cast<int>(status);
+  if (rows == 0 || status == Status::kNonFinite) return result;
+  double terms[4];
+  smoothness_terms(logs.dq, rows, dt, e.last_rates, terms);
+  result.increment = smoothness_cost(terms, d);
+  double peak = 0.0, depth = 0.0;
+  for (long i = 0; i < rows; ++i) {
+    for (int j = 0; j < kJoints; ++j) peak = std::max(peak, std::fabs(logs.dq[12 * i + j]));
+    depth = std::max({depth, s.keep_out - logs.clear[i], -logs.self[i]});
+  }
+  const double excess = std::max(0.0, peak * (180.0 / M_PI) / d.rate_limit_deg_s - 1.0);
+  result.cost = depth / d.clear_scale + excess;
+  for (int j = 0; j < kJoints; ++j) e.last_rates[j] = logs.dq[12 * (rows - 1) + j];
+  double rel[3] = {0.0, 0.0, 0.0};
+  const double t_next = static_cast<double>(k + rows) * dt;
+  result.clearance = observe(robot, s, e.loop, t_next, rel);
+  e.planned = true, e.planned_k = k + rows, e.planned_m = s.m, e.planned_T_c = s.T_c;
+  const Plan& p = e.loop.p;
+  if (n_obs > kObservation)
+    for (int j = 0; j < 6; ++j) obs[kObservation + j] = static_cast<float>(clip(p.V_ed[j], kObsTwist));
+  for (int j = 0; j < kJoints; ++j) {
+    obs[j] = static_cast<float>(std::sin(e.loop.x[7 + j]));
+    obs[12 + j] = static_cast<float>(std::cos(e.loop.x[7 + j]));
+    obs[24 + j] = static_cast<float>(clip(e.last_rates[j], kObsRate));
+  }
+  for (int j = 0; j < 6; ++j) {
+    obs[36 + j] = static_cast<float>(clip(p.e1[j], kObsError));
+    obs[42 + j] = static_cast<float>(clip(p.e0[j], kObsError));
+  }
+  for (int j = 0; j < 3; ++j) obs[48 + j] = static_cast<float>(clip(rel[j], kObsRelative));
+  obs[51] = static_cast<float>(clip(result.clearance, kObsClearance));
+  obs[52] = static_cast<float>(std::min(1.0, static_cast<double>(k + rows) / static_cast<double>(n_total)));
+  result.ee_error = std::sqrt(p.e1[0] * p.e1[0] + p.e1[1] * p.e1[1] + p.e1[2] * p.e1[2]);
+  return result;
+}
+
+}  // namespace ffsr
