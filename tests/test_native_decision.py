@@ -12,7 +12,7 @@ from test_native_planner import _scenario
 from ffsr_gym import _native
 from ffsr_gym.kernel import decision
 from ffsr_gym.native.planner import planner_settings
-from ffsr_gym.native.robot import native_robot
+from ffsr_gym.native.robot import native_plant, native_robot
 from ffsr_gym.sim.compiled import LOG_FIELDS, KernelRollout, settings_vectors
 from ffsr_gym.sim.setup import prepare
 
@@ -34,11 +34,11 @@ def _episodes(name: str):
         setattr(settings, field, value)
     robot = native_robot(mdl)
     native = _native.Episode(robot, planner_settings(setup, method="predefined_time", m=0.3, T_c=4.0), settings,
-                             rollout.x[:19].copy(), n)
+                             rollout.x.copy(), n, plant=native_plant(mdl, rollout.plant))
     return scenario, numba_episode, logs, native
 
 
-@pytest.mark.parametrize("name, mode", [("paper", 1), ("v2/debris", 1), ("paper", 0), ("capture-v0/fast", 0)])
+@pytest.mark.parametrize("name, mode", [("paper", 1), ("v2/debris", 1), ("paper", 0), ("v2/servo", 0), ("capture-v0/fast", 0)])
 def test_an_episode_of_decisions_is_the_numba_kernels_to_the_bit(name, mode):
     scenario, numba_episode, logs, native = _episodes(name)
     rng, n, width = np.random.default_rng(41), scenario.n_steps, 12 if mode == 0 else 2
@@ -67,4 +67,4 @@ def test_a_nan_action_does_nothing():
     bad = np.array([np.nan, 0.0], np.float32)
     assert native.decide(bad.astype(np.float64), 1, True, 0, 10, obs)[:2] == (0, 4)
     assert tuple(decision.step_episode(numba_episode, bad, 1, True, 0, 0, scenario.n_steps, 10, obs))[:2] == (0, 4)
-    assert np.array_equal(native.state(), KernelRollout(scenario).x[:19]) and not obs.any()  # nothing moved
+    assert np.array_equal(native.state(), KernelRollout(scenario).x) and not obs.any()  # nothing moved

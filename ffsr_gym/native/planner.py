@@ -39,6 +39,7 @@ def planner_settings(setup: Any, *, method: str, m: float, T_c: float) -> Planne
     settings.estimate_interval, settings.dt = setup.estimate_interval_s, scenario.simulation.dt_s
     settings.rate_max_deg_s = scenario.objective.max_rate_deg_s
     settings.rate_limit_balance_only = scenario.objective.rate_limit_scope == "balance_arm"
+    settings.substeps = scenario.physics_substeps
     settings.set_start(np.asarray(path.start_position, float), np.asarray(path.start_attitude, float))
     settings.set_base_target(*(np.asarray(part, float) for part in setup.base_target))
     settings.set_momentum(np.asarray(scenario.initial.momentum, float))

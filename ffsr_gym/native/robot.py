@@ -23,3 +23,13 @@ def native_robot(model: KernelModel | ModelArrays) -> Robot:
     """The native :class:`ffsr_gym._native.Robot` of a kernel model (a wrong shape: ``ValueError`` naming it)."""
     return Robot.from_arrays(**{name: np.ascontiguousarray(getattr(model, name), dtype=dtype)
                                         for name, dtype in ROBOT_FIELDS.items()})
+
+
+def native_plant(model: KernelModel | ModelArrays, plant: tuple) -> Robot:
+    """The robot the physics integrates: ``model``'s kinematics with the plant's (mass, lever, inertia, drive)
+    (``ffsr_gym.sim.setup.ScenarioSetup.plant_arrays``; drive zeros for the kinematic plant)."""
+    mass, lever, inertia, drive = plant
+    fields = {name: np.ascontiguousarray(getattr(model, name), dtype=dtype) for name, dtype in ROBOT_FIELDS.items()}
+    fields |= {"mass": np.ascontiguousarray(mass, float), "lever": np.ascontiguousarray(lever, float),
+               "inertia": np.ascontiguousarray(inertia, float)}
+    return Robot.from_arrays(**fields, drive=np.ascontiguousarray(drive, float))

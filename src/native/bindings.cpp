@@ -2,6 +2,7 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/string.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/unique_ptr.h>
 
 #include <algorithm>
@@ -61,8 +62,9 @@ Out copy_out(const double* data, std::initializer_list<size_t> shape) {
 
 ffsr::Robot make_robot(InInt parent, In placement_R, In placement_p, In axis, InInt axis_code, In mass, In lever,
                        In inertia, InInt ee_parent, In ee_R, In ee_p, InInt cap_parent, In cap_a, In cap_b,
-                       In cap_radius, InInt cap_arm, InInt cap_vs_base, In box_half) {
+                       In cap_radius, InInt cap_arm, InInt cap_vs_base, In box_half, std::optional<In> drive) {
   ffsr::Robot r{};
+  if (drive) std::memcpy(r.drive, data_of(*drive, "drive", {12, 4}), sizeof r.drive);
   const size_t n_caps = cap_parent.ndim() == 1 ? cap_parent.shape(0) : 0;
   const int64_t* cp = data_of(cap_parent, "cap_parent", {n_caps});
   const double* ca = data_of(cap_a, "cap_a", {n_caps, 3});
@@ -120,6 +122,22 @@ ffsr::Robot make_robot(InInt parent, In placement_R, In placement_p, In axis, In
 }
 
 const double* state_of(const In& x) { return data_of(x, "x", {19}); }
+
+// A loop state from x: 19 configuration floats, or 40 with the servo plant's state after them.
+void load_state(const In& x, ffsr::LoopState& st) {
+  const size_t n = x.ndim() == 1 ? x.shape(0) : 0;
+  if (n != 19 && n != 19 + ffsr::kServoState)
+    throw nb::value_error(("x: shape (" + std::to_string(n) + ",); allowed: (19,) or (40,)").c_str());
+  std::memcpy(st.x, x.data(), sizeof st.x);
+  if (n > 19) std::memcpy(st.servo, x.data() + 19, sizeof st.servo);
+}
+
+Out state_out(const ffsr::LoopState& st) {
+  double all[19 + ffsr::kServoState];
+  std::memcpy(all, st.x, sizeof st.x);
+  std::memcpy(all + 19, st.servo, sizeof st.servo);
+  return copy_out(all, {19 + ffsr::kServoState});
+}
 
 nb::dict kinematics(const ffsr::Robot& robot, In x) {
   ffsr::Frames f{};
@@ -293,7 +311,8 @@ nb::tuple run(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, lo
   if (!s.frames.empty() && static_cast<long>(s.frames.size()) < n_total + 1)
     throw nb::value_error("frames: allowed one per step, n_total + 1 of them");
   auto st = std::make_unique<ffsr::LoopState>();
-  std::memcpy(st->x, state_of(x), sizeof st->x);
+  load_state(x, *st);
+  if (s.substeps > 0 && x.shape(0) == 19) throw nb::value_error("x: the servo plant needs its state, (40,)");
   const size_t n = record_only ? 1 : static_cast<size_t>(std::max(0L, std::min(n_max, n_total - k0)));
   ffsr::LogRows rows_out{};
   nb::dict logs;
@@ -314,7 +333,7 @@ nb::tuple run(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, lo
     status = ffsr::run(robot, plant ? *plant : robot, s, *st, k0, n_total, n_max, data_of(residual, "residual", {12}),
                        stop_on_violation, record_only, false, rows_out, rows);
   }
-  return nb::make_tuple(copy_out(st->x, {19}), rows, static_cast<int>(status), logs);
+  return nb::make_tuple(state_out(*st), rows, static_cast<int>(status), logs);
 }
 
 // One environment episode on the native kernel: the robot (and plant) it steps, its settings, its state and logs.
@@ -335,7 +354,8 @@ struct NativeEpisode {
       throw nb::value_error("settings: no estimates and no frames; allowed: set_estimates or set_frames first");
     if (!s.frames.empty() && static_cast<long>(s.frames.size()) < n_total + 1)
       throw nb::value_error("frames: allowed one per step, n_total + 1 of them");
-    std::memcpy(e->loop.x, state_of(x0), sizeof e->loop.x);
+    load_state(x0, e->loop);
+    if (s.substeps > 0 && x0.shape(0) == 19) throw nb::value_error("x: the servo plant needs its state, (40,)");
     const size_t n = static_cast<size_t>(n_total);
     x.assign(19 * n, 0.0), v.assign(18 * n, 0.0), dq.assign(12 * n, 0.0), err.assign(4 * n, 0.0);
     clear.assign(n, 0.0), self.assign(n, 0.0), mu.assign(2 * n, 0.0), cdf.assign(2 * n, 0.0);
@@ -381,6 +401,15 @@ struct NativeEpisode {
   }
 };
 
+Out aba(const ffsr::Robot& robot, In q, In v, In tau, In armature) {
+  auto dyn = std::make_unique<ffsr::Dynamics>();
+  double out[18];
+  ffsr::spatial_inertias(robot, *dyn);
+  ffsr::aba(robot, data_of(q, "q", {12}), data_of(v, "v", {18}), data_of(tau, "tau", {12}),
+            data_of(armature, "armature", {12}), *dyn, out);
+  return copy_out(out, {18});
+}
+
 }  // namespace
 
 NB_MODULE(_native, m) {
@@ -390,6 +419,7 @@ NB_MODULE(_native, m) {
       .def_static("from_arrays", &make_robot, "parent"_a, "placement_R"_a, "placement_p"_a, "axis"_a,
                   "axis_code"_a, "mass"_a, "lever"_a, "inertia"_a, "ee_parent"_a, "ee_R"_a, "ee_p"_a,
                   "cap_parent"_a, "cap_a"_a, "cap_b"_a, "cap_radius"_a, "cap_arm"_a, "cap_vs_base"_a, "box_half"_a,
+                  "drive"_a = nb::none(),
                   "A robot from the arrays of ffsr_gym.kernel.arrays.extract; a wrong shape or index is a "
                   "ValueError naming the field.")
       .def_prop_ro("total_mass", [](const ffsr::Robot& r) {
@@ -431,6 +461,7 @@ NB_MODULE(_native, m) {
       .def_rw("body_danger", &ffsr::PlannerSettings::body_danger)
       .def_rw("body_collides", &ffsr::PlannerSettings::body_collides)
       .def_rw("rate_limit_balance_only", &ffsr::PlannerSettings::rate_limit_balance_only)
+      .def_rw("substeps", &ffsr::PlannerSettings::substeps)
       .def("set_start", [](ffsr::PlannerSettings& s, In position, In attitude) {
         set_array(s.start_position, position, "start_position");
         set_array(s.start_attitude, attitude, "start_attitude");
@@ -484,9 +515,11 @@ NB_MODULE(_native, m) {
            "One decision from step k: (rows, status, clipped, increment, cost, clearance, EE error); the next "
            "observation into obs (float32, 53 or 59).")
       .def("logs", &NativeEpisode::logs, "The episode's logs, one row per step (copies).")
-      .def("state", [](const NativeEpisode& ep) { return copy_out(ep.e->loop.x, {19}); }, "The state x (a copy).")
+      .def("state", [](const NativeEpisode& ep) { return state_out(ep.e->loop); }, "The state x (40, a copy).")
       .def_prop_ro("m", [](const NativeEpisode& ep) { return ep.s.m; })
       .def_prop_ro("T_c", [](const NativeEpisode& ep) { return ep.s.T_c; });
+  m.def("aba", &aba, "robot"_a, "q"_a, "v"_a, "tau"_a, "armature"_a,
+        "Accelerations (18) of the free-floating robot under joint torques (articulated-body algorithm).");
   m.def("kinematics", &kinematics, "robot"_a, "x"_a, "Forward kinematics of the state x (19,), world frame.");
   m.def("momentum", &momentum, "robot"_a, "x"_a, "H_b, H_bm about the base CoM and the system CoM rg at x.");
   m.def("base_velocity", &base_velocity, "robot"_a, "x"_a, "dq"_a, "h"_a,

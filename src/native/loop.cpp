@@ -65,11 +65,16 @@ Status run(const Robot& robot, const Robot& plant, const PlannerSettings& s, Loo
     }
     double clear, self_c;
     clearances(robot, s, st.f, x, t, st.axes, clear, self_c, st.rel);
-    if (mismatch) momentum(plant, x, st.f, st.m);  // the planner's momentum matrices were the model's
-    base_velocity(x, dq, s.momentum, st.f, st.m, st.v0);
     double* v = out.v + 18 * i;
-    for (int j = 0; j < 6; ++j) v[j] = st.v0[j];
-    for (int j = 0; j < kJoints; ++j) v[6 + j] = dq[j], out.dq[12 * i + j] = dq[j], out.tau[12 * i + j] = 0.0;
+    if (s.substeps == 0) {
+      if (mismatch) momentum(plant, x, st.f, st.m);  // the planner's momentum matrices were the model's
+      base_velocity(x, dq, s.momentum, st.f, st.m, st.v0);
+      for (int j = 0; j < 6; ++j) v[j] = st.v0[j];
+      for (int j = 0; j < kJoints; ++j) v[6 + j] = dq[j], out.dq[12 * i + j] = dq[j], out.tau[12 * i + j] = 0.0;
+    } else {
+      for (int j = 0; j < 18; ++j) v[j] = st.servo[j];
+      for (int j = 0; j < kJoints; ++j) out.dq[12 * i + j] = st.servo[6 + j];  // the rate at the sample
+    }
     for (int j = 0; j < kStateSize; ++j) out.x[19 * i + j] = x[j];
     out.err[4 * i] = norm3(logged), out.err[4 * i + 1] = norm3(logged + 3);
     out.err[4 * i + 2] = norm3(st.p.e0), out.err[4 * i + 3] = norm3(st.p.e0 + 3);
@@ -78,7 +83,12 @@ Status run(const Robot& robot, const Robot& plant, const PlannerSettings& s, Loo
       out.mu[2 * i + arm] = st.p.mu[arm], out.cdf[2 * i + arm] = st.p.cdf[arm], out.smin[2 * i + arm] = st.p.smin[arm];
     ++rows;
     if (record_only) return Status::kOk;
-    midpoint(plant, x, st.v0, dq, dt, s.momentum, st.f, st.m, x);
+    if (s.substeps == 0) {
+      midpoint(plant, x, st.v0, dq, dt, s.momentum, st.f, st.m, x);
+    } else {  // the drives follow the planned rates; the step's rates are those the joints made
+      servo_period(plant, x, st.servo, dq, dt, s.substeps, s.momentum, st.dyn, st.f, st.m, out.tau + 12 * i);
+      for (int j = 0; j < kJoints; ++j) dq[j] = (x[7 + j] - out.x[19 * i + 7 + j]) / dt, out.dq[12 * i + j] = dq[j];
+    }
     if (stop_on_violation) {
       const Status status = violation(s, dq, clear, self_c);
       if (status != Status::kOk) return status;

@@ -6,13 +6,6 @@
 namespace ffsr {
 namespace {
 
-void rot_about(const double axis[3], double c, double s, Mat3& out) {
-  const double x = axis[0], y = axis[1], z = axis[2], C = 1.0 - c;
-  out[0][0] = c + x * x * C, out[0][1] = x * y * C - z * s, out[0][2] = x * z * C + y * s;
-  out[1][0] = y * x * C + z * s, out[1][1] = c + y * y * C, out[1][2] = y * z * C - x * s;
-  out[2][0] = z * x * C - y * s, out[2][1] = z * y * C + x * s, out[2][2] = c + z * z * C;
-}
-
 void mm3(const Mat3& A, const Mat3& B, Mat3& out) {
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) out[i][j] = A[i][0] * B[0][j] + A[i][1] * B[1][j] + A[i][2] * B[2][j];
@@ -54,6 +47,13 @@ void joint_cos_sin(const double x[kStateSize], int k, Frames& f, const double* d
 }
 
 }  // namespace
+
+void rot_about(const double axis[3], double c, double s, Mat3& out) {
+  const double x = axis[0], y = axis[1], z = axis[2], C = 1.0 - c;
+  out[0][0] = c + x * x * C, out[0][1] = x * y * C - z * s, out[0][2] = x * z * C + y * s;
+  out[1][0] = y * x * C + z * s, out[1][1] = c + y * y * C, out[1][2] = y * z * C - x * s;
+  out[2][0] = z * x * C - y * s, out[2][1] = z * y * C + x * s, out[2][2] = c + z * z * C;
+}
 
 void quat_to_R(double qx, double qy, double qz, double qw, Mat3& R) {
   R[0][0] = 1 - 2 * (qy * qy + qz * qz), R[0][1] = 2 * (qx * qy - qz * qw), R[0][2] = 2 * (qx * qz + qy * qw);

@@ -2,6 +2,7 @@
 #pragma once
 
 #include "ffsr/collision.hpp"
+#include "ffsr/dynamics.hpp"
 #include "ffsr/planner.hpp"
 
 namespace ffsr {
@@ -30,6 +31,8 @@ struct LogRows {
 // One copy's loop state: its configuration and the scratch a step fills.
 struct LoopState {
   double x[kStateSize];
+  double servo[kServoState];  // the servo plant's velocities and saturation record (unused by the kinematic plant)
+  Dynamics dyn;
   Frames f;
   Momentum m;
   Plan p;
@@ -38,9 +41,10 @@ struct LoopState {
   double rel[3];
 };
 
-// Advance up to n_max steps from step k0 of n_total on the kinematic plant (the planned rates applied exactly,
-// the base moved by the plant's momentum; plant: the robot the physics integrates, the planner's own unless its
-// inertias differ), or only record one row (record_only). residual: added to the planned rates (12). planned:
+// Advance up to n_max steps from step k0 of n_total, or only record one row (record_only). The kinematic plant
+// applies the planned rates exactly and moves the base by the plant's momentum (plant: the robot the physics
+// integrates, the planner's own unless its inertias differ); the servo plant (s.substeps > 0) takes them as its
+// drives' commands, and the rates logged and checked are the ones the joints made. residual: added to the planned rates (12). planned:
 // st.p already holds plan at (k0 dt, st.x). Writes rows from 0; rows: how many; returns the status of the last.
 Status run(const Robot& robot, const Robot& plant, const PlannerSettings& s, LoopState& st, long k0, long n_total,
            long n_max, const double residual[kJoints], bool stop_on_violation, bool record_only, bool planned,

@@ -6,6 +6,9 @@
 
 namespace ffsr {
 
+// Rotation by the angle of cosine c and sine s about the unit axis.
+void rot_about(const double axis[3], double c, double s, Mat3& out);
+
 // Rotation matrix of the unit quaternion (x, y, z, w).
 void quat_to_R(double qx, double qy, double qz, double qw, Mat3& R);
 

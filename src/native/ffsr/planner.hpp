@@ -64,6 +64,7 @@ struct PlannerSettings {
   double body_danger = 0.0;                 // its danger radius beyond that [m] (0: not in the field)
   bool body_collides = false;               // the body is checked for collision
   bool rate_limit_balance_only = false;     // the rate limit scores the balance arm only
+  int substeps = 0;                         // the servo plant's physics steps per planner step (0: kinematic plant)
 };
 
 // What a planner step writes besides the frames and momentum matrices.

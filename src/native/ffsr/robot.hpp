@@ -36,6 +36,9 @@ struct Robot {
   double ee_R[2][3][3];
   double ee_p[2][3];
   std::vector<Capsule> capsules;      // the arms' collision capsules
+  // the servo plant's drives per joint: gain [N m s/rad], torque limit [N m] (inf: none), armature [kg m²],
+  // viscous friction [N m s/rad] (zeros for the kinematic plant)
+  double drive[kJoints][4];
   double box_half[3];                 // the base box's half extents [m], centred on the base frame
 };
 
