@@ -68,3 +68,57 @@ def test_a_nan_action_does_nothing():
     assert native.decide(bad.astype(np.float64), 1, True, 0, 10, obs)[:2] == (0, 4)
     assert tuple(decision.step_episode(numba_episode, bad, 1, True, 0, 0, scenario.n_steps, 10, obs))[:2] == (0, 4)
     assert np.array_equal(native.state(), KernelRollout(scenario).x) and not obs.any()  # nothing moved
+
+
+def _pool_episode(tier: str, index: int):
+    from ffsr_gym.model.spec import spec_for_version
+    from ffsr_gym.scoring.rules import score_rule
+    from ffsr_gym.tasks.splits import pool, task_scenario
+
+    scenario = task_scenario(tier, pool(tier, "test", version="v2")[index].seed,
+                             score_rule(spec_for_version("v2")).benchmark)
+    setup, rollout = prepare(scenario), KernelRollout(scenario)
+    settings = _native.DecisionSettings()
+    for field, value in zip(DECISION_FIELDS, DS):
+        setattr(settings, field, value)
+    robot = native_robot(rollout._mdl)
+    episode = _native.Episode(robot, planner_settings(setup, method="predefined_time", m=0.3, T_c=4.0), settings,
+                              rollout.x.copy(), scenario.n_steps, plant=native_plant(rollout._mdl, rollout.plant))
+    return scenario, episode
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_a_batch_on_threads_is_each_episode_alone(threads):
+    """Five tasks of three tiers (the servo plant among them) stepped together, one decision each per call, with
+    some copies inactive at times: every return, observation and log equals the same episode stepped alone."""
+    tasks = [("easy", 0), ("hard", 1), ("servo", 2), ("debris", 3), ("easy", 4)]
+    batch_eps = [_pool_episode(tier, i)[1] for tier, i in tasks]
+    alone = [_pool_episode(tier, i)[1] for tier, i in tasks]
+    batch = _native.EpisodeBatch(batch_eps, threads)
+    n, rng = len(tasks), np.random.default_rng(43)
+    k, obs, out = np.zeros(n, np.int64), np.zeros((n, 53), np.float32), np.zeros((n, 7))
+    k_alone, obs_alone = np.zeros(n, np.int64), np.zeros((n, 53), np.float32)
+    finished = np.zeros(n, bool)
+    for call in range(60):
+        actions = rng.uniform(-1.0, 1.0, (n, 2))
+        active = ~finished & (rng.uniform(size=n) > 0.2)
+        batch.decide(actions, active, k, 1, 10, obs, out)
+        for e in np.flatnonzero(active):
+            got = alone[e].decide(actions[e].copy(), 1, True, int(k_alone[e]), 10, obs_alone[e])
+            assert tuple(out[e]) == tuple(float(v) for v in got), (call, e)
+            k_alone[e] += got[0]
+            finished[e] = got[1] != 0 or k_alone[e] >= 200
+        assert np.array_equal(k, k_alone) and np.array_equal(obs, obs_alone)
+    for e in range(n):
+        for key, value in batch_eps[e].logs().items():
+            assert np.array_equal(value, alone[e].logs()[key]), (e, key)
+
+
+def test_a_batch_refuses_a_wrong_buffer():
+    _, episode = _pool_episode("easy", 0)
+    batch = _native.EpisodeBatch([episode], 2)
+    with pytest.raises(ValueError, match=r"out: shape \(1, 6\); allowed: \(1, 7\)"):
+        batch.decide(np.zeros((1, 2)), np.ones(1, bool), np.zeros(1, np.int64), 1, 10, np.zeros((1, 53), np.float32),
+                     np.zeros((1, 6)))
+    with pytest.raises(ValueError, match="each episode once"):
+        _native.EpisodeBatch([episode, episode], 1)

@@ -4,10 +4,12 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/unique_ptr.h>
+#include <nanobind/stl/vector.h>
 
 #include <algorithm>
 #include <cstring>
 #include <memory>
+#include <thread>
 #include <initializer_list>
 #include <string>
 #include <vector>
@@ -410,6 +412,72 @@ Out aba(const ffsr::Robot& robot, In q, In v, In tau, In armature) {
   return copy_out(out, {18});
 }
 
+// Episodes advanced together: one decision each per call, on threads, the GIL released.
+struct EpisodeBatch {
+  std::vector<NativeEpisode*> episodes;
+  int threads;
+
+  EpisodeBatch(std::vector<NativeEpisode*> episodes_, int threads_) : episodes(std::move(episodes_)), threads(threads_) {
+    if (episodes.empty()) throw nb::value_error("episodes: allowed at least one");
+    if (threads < 1) throw nb::value_error("threads: allowed >= 1");
+    for (size_t e = 0; e < episodes.size(); ++e)
+      for (size_t f = 0; f < e; ++f)
+        if (episodes[e] == episodes[f]) throw nb::value_error("episodes: allowed each episode once");
+  }
+
+  // One decision for every active episode e from its step k[e] (which advances): out[e] = (rows, status,
+  // clipped, increment, cost, clearance, EE error); obs[e] the next observation.
+  void decide(In actions, nb::ndarray<const bool, nb::c_contig, nb::device::cpu> active,
+              nb::ndarray<int64_t, nb::c_contig, nb::device::cpu> k, int mode, long n_max,
+              nb::ndarray<float, nb::c_contig, nb::device::cpu> obs,
+              nb::ndarray<double, nb::c_contig, nb::device::cpu> out) {
+    const size_t n = episodes.size();
+    const size_t width = actions.ndim() == 2 ? actions.shape(1) : 0;
+    check_shape(actions, "actions", {n, width});
+    check_shape(active, "active", {n});
+    check_shape(k, "k", {n});
+    const size_t n_obs = obs.ndim() == 2 ? obs.shape(1) : 0;
+    if (n_obs != ffsr::kObservation && n_obs != ffsr::kObservationTwist)
+      throw nb::value_error("obs: allowed a float32 array (N, 53) or (N, 59)");
+    check_shape(obs, "obs", {n, n_obs});
+    check_shape(out, "out", {n, 7});
+    if (mode < 0 || mode > 2) throw nb::value_error("mode: allowed 0 (residual), 1 (parameters) or 2 (set)");
+    for (size_t e = 0; e < n; ++e)
+      if (k.data()[e] < 0 || k.data()[e] > episodes[e]->n_total)
+        throw nb::value_error(("k[" + std::to_string(e) + "]: allowed 0 to the episode's n_total").c_str());
+    const double* a = actions.data();
+    const bool* on = active.data();
+    int64_t* steps = k.data();
+    float* o = obs.data();
+    double* r = out.data();
+    auto work = [&](size_t first, size_t stride) {
+      for (size_t e = first; e < n; e += stride) {
+        if (!on[e]) continue;
+        NativeEpisode& ep = *episodes[e];
+        const size_t row = static_cast<size_t>(steps[e]);
+        ffsr::LogRows logs{ep.x.data() + 19 * row, ep.v.data() + 18 * row, ep.dq.data() + 12 * row,
+                           ep.err.data() + 4 * row, ep.clear.data() + row, ep.self.data() + row,
+                           ep.mu.data() + 2 * row, ep.cdf.data() + 2 * row, ep.smin.data() + 2 * row,
+                           ep.tau.data() + 12 * row};
+        const ffsr::DecisionResult d = ffsr::decide(*ep.robot, *ep.plant, ep.s, ep.d, *ep.e, steps[e], ep.n_total,
+                                                    n_max, a + width * e, static_cast<int>(width),
+                                                    static_cast<ffsr::ActionMode>(mode), true, logs, o + n_obs * e,
+                                                    static_cast<int>(n_obs));
+        steps[e] += d.rows;
+        double* row_out = r + 7 * e;
+        row_out[0] = static_cast<double>(d.rows), row_out[1] = d.status, row_out[2] = d.clipped ? 1.0 : 0.0;
+        row_out[3] = d.increment, row_out[4] = d.cost, row_out[5] = d.clearance, row_out[6] = d.ee_error;
+      }
+    };
+    nb::gil_scoped_release release;
+    const size_t workers = std::min(static_cast<size_t>(threads), n);
+    std::vector<std::thread> pool;
+    for (size_t w = 1; w < workers; ++w) pool.emplace_back(work, w, workers);
+    work(0, workers);
+    for (auto& thread : pool) thread.join();
+  }
+};
+
 }  // namespace
 
 NB_MODULE(_native, m) {
@@ -520,6 +588,11 @@ NB_MODULE(_native, m) {
       .def_prop_ro("T_c", [](const NativeEpisode& ep) { return ep.s.T_c; });
   m.def("aba", &aba, "robot"_a, "q"_a, "v"_a, "tau"_a, "armature"_a,
         "Accelerations (18) of the free-floating robot under joint torques (articulated-body algorithm).");
+  nb::class_<EpisodeBatch>(m, "EpisodeBatch", "Episodes advanced together, one decision each per call, on threads.")
+      .def(nb::init<std::vector<NativeEpisode*>, int>(), "episodes"_a, "threads"_a = 1, nb::keep_alive<1, 2>())
+      .def("decide", &EpisodeBatch::decide, "actions"_a, "active"_a, "k"_a, "mode"_a, "n_max"_a, "obs"_a, "out"_a,
+           "One decision for every active episode from its step k (advanced in place); out (N, 7): rows, status, "
+           "clipped, increment, cost, clearance, EE error; obs (N, 53 or 59) float32, written in place.");
   m.def("kinematics", &kinematics, "robot"_a, "x"_a, "Forward kinematics of the state x (19,), world frame.");
   m.def("momentum", &momentum, "robot"_a, "x"_a, "H_b, H_bm about the base CoM and the system CoM rg at x.");
   m.def("base_velocity", &base_velocity, "robot"_a, "x"_a, "dq"_a, "h"_a,
