@@ -30,7 +30,6 @@ import numba
 import numpy as np
 
 import ffsr_gym
-from ffsr_gym.kernel import batch as kernel_batch
 from ffsr_gym.optim import ga
 from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic, write_text_atomic
 
@@ -38,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 import kernel_parts  # noqa: E402  (benchmarks/kernel_parts.py, next to this script)
 import speed_guard  # noqa: E402  (benchmarks/speed_guard.py)
 from servo_bench import servo_mjcf, servo_speed  # noqa: E402,F401  (re-exported: tests and servo_plant.py use them)
-from timing import _no_gc, best_of  # noqa: E402
+from timing import _no_gc, best_of, kernel_time  # noqa: E402
 from speed_tables import (  # noqa: E402,F401  (benchmarks/speed_tables.py: the page's tables, re-exported for the tests)
     BUDGET_END,
     BUDGET_PARTS,
@@ -126,25 +125,6 @@ def _bare_steps(env, steps: int) -> tuple[float, float]:
     return mean, sum(t - mean for t in ended) / count
 
 
-@contextmanager
-def _kernel_time() -> Iterator[list[float]]:
-    """Seconds spent in the batched v2 kernel (``kernel.batch.decide_batch``) while the block runs, in ``[0]``."""
-    original, spent = kernel_batch.decide_batch, [0.0]
-
-    def timed(*args):
-        start = time.perf_counter()
-        try:
-            return original(*args)
-        finally:
-            spent[0] += time.perf_counter() - start
-
-    kernel_batch.decide_batch = timed
-    try:
-        yield spent
-    finally:
-        kernel_batch.decide_batch = original
-
-
 def vector_throughput(env_id: str, num_envs: int, decisions: int, threads: int, **kwargs) -> tuple[float, float, float]:
     """Physics steps per second, wall time [s] per vector step of a batched env (zero actions), and
     physics steps per second of its compiled decisions alone (``nan`` for an env without them).
@@ -157,7 +137,7 @@ def vector_throughput(env_id: str, num_envs: int, decisions: int, threads: int, 
     venv.reset(seed=0)
     actions = np.zeros(venv.action_space.shape, dtype=np.float32)
     venv.step(actions)
-    with _no_gc(), _kernel_time() as kernel:
+    with _no_gc(), kernel_time() as kernel:
         steps, start = 0, time.perf_counter()
         for _ in range(decisions):
             venv.step(actions)

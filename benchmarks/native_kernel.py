@@ -12,7 +12,6 @@ provenance to ``benchmarks/native_kernel.json``. Run it on an otherwise idle mac
 from __future__ import annotations
 
 import argparse
-import gc
 import sys
 import time
 from pathlib import Path
@@ -23,7 +22,6 @@ import numpy as np
 
 import ffsr_gym  # noqa: F401 - registers the ids
 from ffsr_gym import _native
-from ffsr_gym.kernel import batch as kernel_batch
 from ffsr_gym.kernel import loop
 from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.model.spec import spec_for_version
@@ -35,26 +33,14 @@ from ffsr_gym.sim.compiled import LOG_FIELDS, KernelRollout, settings_vectors
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.tasks.splits import pool, task_scenario
 
+sys.path.insert(0, str(Path(__file__).parent))
+from timing import _no_gc, best_of, kernel_time  # noqa: E402  (benchmarks/timing.py)
+
 #: The v2 decision settings (envs/benchmark/v2.toml): residual scale, fade, motion, the (m, T_c) box, the rate
 #: limit, the violation cost's clearance scale, then α, β, E_ref, V_ref.
 DECISION = {"rate_scale": np.radians(20.0), "fade_s": 2.0, "motion_s": 10.0, "m_lo": 0.05, "m_hi": 0.6, "T_lo": 1.0,
             "T_hi": 10.0, "rate_limit_deg_s": 200.0, "clear_scale": 0.01, "alpha": 0.35, "beta": 0.65, "E_ref": 1.0,
             "V_ref": 10.0}
-
-
-def _best(run, repeats: int) -> float:
-    run()  # warm
-    gc.collect()
-    gc.disable()
-    try:
-        times = []
-        for _ in range(repeats):
-            start = time.perf_counter()
-            run()
-            times.append(time.perf_counter() - start)
-    finally:
-        gc.enable()
-    return min(times)
 
 
 def episode_rows(scenario, repeats: int) -> tuple[float, float]:
@@ -65,9 +51,9 @@ def episode_rows(scenario, repeats: int) -> tuple[float, float]:
     logs = [np.zeros((n, *shape)) for shape in LOG_FIELDS.values()]
     robot, settings = native_robot(mdl), planner_settings(setup, method="predefined_time", m=0.3, T_c=4.0)
     plant = native_plant(mdl, rollout.plant)
-    numba_s = _best(lambda: loop.run(mdl, rollout.plant, rollout.x.copy(), 0, n, n, fp, ip, np.zeros(12), False,
+    numba_s = best_of(lambda: loop.run(mdl, rollout.plant, rollout.x.copy(), 0, n, n, fp, ip, np.zeros(12), False,
                                      False, *logs), repeats)
-    native_s = _best(lambda: _native.run(robot, settings, rollout.x.copy(), 0, n, n, np.zeros(12), False,
+    native_s = best_of(lambda: _native.run(robot, settings, rollout.x.copy(), 0, n, n, np.zeros(12), False,
                                          plant=plant), repeats)
     return 1e6 * numba_s / n, 1e6 * native_s / n
 
@@ -80,23 +66,12 @@ def batched_numba(copies: int, decisions: int, threads: int) -> float:
     venv.reset(seed=0, options={"task_index": list(range(copies))})
     actions = np.zeros(venv.action_space.shape, np.float32)
     venv.step(actions)
-    original, spent = kernel_batch.decide_batch, [0.0]
-
-    def timed(*args):
-        start = time.perf_counter()
-        try:
-            return original(*args)
-        finally:
-            spent[0] += time.perf_counter() - start
-
-    kernel_batch.decide_batch, steps = timed, 0
-    try:
+    steps = 0
+    with _no_gc(), kernel_time() as spent:
         for _ in range(decisions):
             venv.step(actions)
             steps += int(venv.engine.out[:, 0].sum())
-    finally:
-        kernel_batch.decide_batch = original
-        venv.close()
+    venv.close()
     return steps / spent[0]
 
 

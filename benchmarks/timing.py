@@ -34,3 +34,25 @@ def best_of(fn, repeats: int) -> float:
             fn()
             times.append(time.perf_counter() - start)
     return min(times)
+
+
+@contextmanager
+def kernel_time() -> Iterator[list[float]]:
+    """Seconds spent in the batched v2 kernel (``ffsr_gym.kernel.batch.decide_batch``) while the block runs, in
+    ``[0]``."""
+    from ffsr_gym.kernel import batch as kernel_batch
+
+    original, spent = kernel_batch.decide_batch, [0.0]
+
+    def timed(*args):
+        start = time.perf_counter()
+        try:
+            return original(*args)
+        finally:
+            spent[0] += time.perf_counter() - start
+
+    kernel_batch.decide_batch = timed
+    try:
+        yield spent
+    finally:
+        kernel_batch.decide_batch = original

@@ -10,6 +10,17 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
+// The segment's ends as distances along it from the foot of the perpendicular (lo <= hi, lo >= 0 when the foot
+// is off the segment), with their distances to the point.
+void ordered_ends(double length, double t0, double rho1, double rho2, double& lo, double& hi, double& r_lo,
+                  double& r_hi) {
+  const double tau1 = -t0, tau2 = length - t0;
+  if (tau2 > 0.0)
+    lo = tau1, hi = tau2, r_lo = rho1, r_hi = rho2;
+  else
+    lo = -tau2, hi = -tau1, r_lo = rho2, r_hi = rho1;
+}
+
 // Integral of 1/ρ along segment i seen from (ox, oy, oz), and the nearest distance; keeps (length, t0, h,
 // ρ1, ρ2) in geometry. A zero-length segment gives (0, inf).
 void field_of_segment(double ox, double oy, double oz, const double points[7][3], int i, double geometry[5],
@@ -30,12 +41,8 @@ void field_of_segment(double ox, double oy, double oz, const double points[7][3]
   const double vx = wx - Lx, vy = wy - Ly, vz = wz - Lz;
   const double rho2 = std::sqrt(vx * vx + vy * vy + vz * vz);
   geometry[1] = t0, geometry[2] = h, geometry[3] = rho1, geometry[4] = rho2;
-  const double tau1 = -t0, tau2 = length - t0;
   double lo, hi, r_lo, r_hi;
-  if (tau2 > 0.0)
-    lo = tau1, hi = tau2, r_lo = rho1, r_hi = rho2;
-  else
-    lo = -tau2, hi = -tau1, r_lo = rho2, r_hi = rho1;
+  ordered_ends(length, t0, rho1, rho2, lo, hi, r_lo, r_hi);
   if (lo >= 0.0) {  // the foot of the perpendicular is off the segment
     F = std::log((hi + r_hi) / (lo + r_lo)) / length, nearest = r_lo;
     return;
@@ -46,12 +53,8 @@ void field_of_segment(double ox, double oy, double oz, const double points[7][3]
 // (I0, I1): the integrals of 1/ρ³ and s/ρ³ along a segment, from its geometry.
 void moments_of_segment(const double geometry[5], double& I0, double& I1) {
   const double length = geometry[0], t0 = geometry[1], h = geometry[2], rho1 = geometry[3], rho2 = geometry[4];
-  const double tau1 = -t0, tau2 = length - t0;
   double lo, hi, r_lo, r_hi;
-  if (tau2 > 0.0)
-    lo = tau1, hi = tau2, r_lo = rho1, r_hi = rho2;
-  else
-    lo = -tau2, hi = -tau1, r_lo = rho2, r_hi = rho1;
+  ordered_ends(length, t0, rho1, rho2, lo, hi, r_lo, r_hi);
   const double inv3 = lo >= 0.0 ? (hi * hi - lo * lo) / (r_lo * r_hi * (hi * r_lo + lo * r_hi))
                                  : (hi / r_hi - lo / r_lo) / (h * h);
   I0 = inv3 / length;
