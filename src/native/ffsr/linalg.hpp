@@ -1,7 +1,7 @@
 // Small dense linear algebra of the kernel: fixed sizes, caller-owned storage, no allocation.
 //
 // Every routine keeps the operation order of the reference it replaces, so that with floating-point
-// contraction off (CMakeLists.txt) the results are the same bits on every machine.
+// contraction off and a generic target (CMakeLists.txt) the results are the numba kernel's bits.
 #pragma once
 
 #include <cmath>
