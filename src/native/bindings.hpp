@@ -1,0 +1,83 @@
+// Shared helpers of the native kernel's bindings: array checks that name the field, copies out to numpy.
+#pragma once
+
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+
+#include <cstring>
+#include <initializer_list>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "ffsr/loop.hpp"
+
+namespace nb = nanobind;
+
+namespace ffsr_bindings {
+
+using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
+using InInt = nb::ndarray<const int64_t, nb::c_contig, nb::device::cpu>;
+using Out = nb::ndarray<nb::numpy, double>;
+
+inline std::string shape_text(const std::vector<size_t>& shape) {
+  std::string text = "(";
+  for (size_t k = 0; k < shape.size(); ++k) text += (k ? ", " : "") + std::to_string(shape[k]);
+  return text + (shape.size() == 1 ? ",)" : ")");
+}
+
+template <typename Array>
+void check_shape(const Array& a, const char* name, std::initializer_list<size_t> shape) {
+  std::vector<size_t> want(shape), got;
+  for (size_t k = 0; k < a.ndim(); ++k) got.push_back(a.shape(k));
+  if (got != want)
+    throw nb::value_error((std::string(name) + ": shape " + shape_text(got) + "; allowed: " + shape_text(want)).c_str());
+}
+
+template <typename Array>
+const typename std::remove_const<typename Array::Scalar>::type* data_of(const Array& a, const char* name,
+                                                                         std::initializer_list<size_t> shape) {
+  check_shape(a, name, shape);
+  return a.data();
+}
+
+// A new numpy array holding a copy of n doubles, of the given shape.
+inline Out copy_out(const double* data, std::initializer_list<size_t> shape) {
+  size_t n = 1;
+  for (size_t s : shape) n *= s;
+  double* owned = new double[n];
+  std::memcpy(owned, data, n * sizeof(double));
+  nb::capsule owner(owned, [](void* p) noexcept { delete[] static_cast<double*>(p); });
+  std::vector<size_t> dims(shape);
+  return Out(owned, dims.size(), dims.data(), owner);
+}
+
+inline const double* state_of(const In& x) { return data_of(x, "x", {19}); }
+
+// A loop state from x: 19 configuration floats, or 40 with the servo plant's state after them.
+inline void load_state(const In& x, ffsr::LoopState& st) {
+  const size_t n = x.ndim() == 1 ? x.shape(0) : 0;
+  if (n != 19 && n != 19 + ffsr::kServoState)
+    throw nb::value_error(("x: shape (" + std::to_string(n) + ",); allowed: (19,) or (40,)").c_str());
+  std::memcpy(st.x, x.data(), sizeof st.x);
+  if (n > 19) std::memcpy(st.servo, x.data() + 19, sizeof st.servo);
+}
+
+inline Out state_out(const ffsr::LoopState& st) {
+  double all[19 + ffsr::kServoState];
+  std::memcpy(all, st.x, sizeof st.x);
+  std::memcpy(all + 19, st.servo, sizeof st.servo);
+  return copy_out(all, {19 + ffsr::kServoState});
+}
+
+// A new zeroed numpy array of the given shape, and its data.
+inline Out zeros(std::initializer_list<size_t> shape, double*& data) {
+  size_t n = 1;
+  for (size_t s : shape) n *= s;
+  data = new double[n]();
+  nb::capsule owner(data, [](void* p) noexcept { delete[] static_cast<double*>(p); });
+  std::vector<size_t> dims(shape);
+  return Out(data, dims.size(), dims.data(), owner);
+}
+
+}  // namespace ffsr_bindings
