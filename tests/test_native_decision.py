@@ -38,7 +38,8 @@ def _episodes(name: str):
     return scenario, numba_episode, logs, native
 
 
-@pytest.mark.parametrize("name, mode", [("paper", 1), ("v2/debris", 1), ("paper", 0), ("v2/servo", 0), ("capture-v0/fast", 0)])
+@pytest.mark.parametrize("name, mode", [("paper", 1), ("v2/debris", 1), ("paper", 0), ("v2/servo", 0),
+                                        ("capture-v0/fast", 0)])
 def test_an_episode_of_decisions_is_the_numba_kernels_to_the_bit(name, mode):
     scenario, numba_episode, logs, native = _episodes(name)
     rng, n, width = np.random.default_rng(41), scenario.n_steps, 12 if mode == 0 else 2

@@ -11,7 +11,6 @@ from test_native_planner import _scenario
 
 from ffsr_gym import _native
 from ffsr_gym.kernel import loop
-from ffsr_gym.kernel.arrays import ModelArrays
 from ffsr_gym.native.planner import planner_settings
 from ffsr_gym.native.robot import native_plant, native_robot
 from ffsr_gym.sim.compiled import LOG_FIELDS, KernelRollout, settings_vectors

@@ -11,9 +11,9 @@ from conftest import random_states
 from ffsr_gym import _native
 from ffsr_gym.kernel import physics
 from ffsr_gym.kernel.linalg import smallest_singular_value, smallest_singular_values, svd_into
-from ffsr_gym.native.robot import ROBOT_FIELDS, native_robot
 from ffsr_gym.model.robot import load_robot
 from ffsr_gym.model.scenario import load_scenario
+from ffsr_gym.native.robot import ROBOT_FIELDS, native_robot
 from ffsr_gym.sim.compiled import KernelRollout
 
 

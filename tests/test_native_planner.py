@@ -12,8 +12,8 @@ from conftest import random_states
 
 from ffsr_gym import _native
 from ffsr_gym.kernel import physics
-from ffsr_gym.kernel import settings as ks
 from ffsr_gym.kernel import planner as numba_planner
+from ffsr_gym.kernel import settings as ks
 from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.native.planner import planner_settings

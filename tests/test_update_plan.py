@@ -122,7 +122,8 @@ def test_an_unstamped_entry_is_replayed_when_git_reports_it_changed(tmp_path, sa
     git("-c", "user.name=t", "-c", "user.email=t@t", "add", "-A")
     git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "board")
     steps = update_plan.plan(board)
-    assert not _only(steps, "cmaes.json").replay and "unchanged since the last commit" in _only(steps, "cmaes.json").reason
+    kept = _only(steps, "cmaes.json")
+    assert not kept.replay and "unchanged since the last commit" in kept.reason
     (board / "FFSR-v0" / "cmaes.json").write_text((board / "FFSR-v0" / "cmaes.json").read_text() + "\n")
     shutil.copy(board / "FFSR-v0" / "ga_full.json", board / "FFSR-v0" / "mine.json")
     steps = update_plan.plan(board)

@@ -4,12 +4,12 @@ check that a stamp still describes the entry it sits in.
 A stamp (``extra.verified``) names the verifier (the package version and the commit it ran from), the pool file and
 frozen reference the entry was replayed against, the sha256 of the rows it reproduced, of the whole entry it
 replayed (:func:`entry_digest`: every field but the stamp, its name included) and of the code the replay ran
-(:func:`code_digest`; ``leaderboard update`` replays an entry whose code changed since). It proves nothing by itself (anyone
-can type one); what it states is checked: a stamp whose entry, rows, pool or reference differ from the entry's and
-the shipped files' (a stamp copied with the rows under another name, or typed by hand) gets the entry refused, as
-does a commit that is not one of this repository's when the check runs in a checkout; and the pull-request workflow
-replays every added, changed or renamed entry itself. Only versions that rank by the rules carry a stamp (v0 does
-not: a stamp on a v0 entry is refused). The tables show a valid stamp beside the entry's commit.
+(:func:`code_digest`; ``leaderboard update`` replays an entry whose code changed since). It proves nothing by itself
+(anyone can type one); what it states is checked: a stamp whose entry, rows, pool or reference differ from the
+entry's and the shipped files' (a stamp copied with the rows under another name, or typed by hand) gets the entry
+refused, as does a commit that is not one of this repository's when the check runs in a checkout; and the
+pull-request workflow replays every added, changed or renamed entry itself. Only versions that rank by the rules
+carry a stamp (v0 does not: a stamp on a v0 entry is refused). The tables show a valid stamp beside the entry's commit.
 """
 
 from __future__ import annotations
