@@ -13,7 +13,7 @@ from ffsr_gym.kernel import physics
 from ffsr_gym.kernel.linalg import smallest_singular_value, smallest_singular_values, svd_into
 from ffsr_gym.model.robot import load_robot
 from ffsr_gym.model.scenario import load_scenario
-from ffsr_gym.native.robot import ROBOT_FIELDS, native_robot
+from ffsr_gym.native.robot import native_robot, robot_arrays
 from ffsr_gym.sim.compiled import KernelRollout
 
 
@@ -116,7 +116,7 @@ def test_a_singular_matrix_is_declined_by_the_fast_path():
 
 def test_a_wrong_array_is_refused_naming_its_field(models):
     _, mdl, _ = models
-    arrays = {name: np.ascontiguousarray(getattr(mdl, name), dtype=dtype) for name, dtype in ROBOT_FIELDS.items()}
+    arrays = robot_arrays(mdl)
     with pytest.raises(ValueError, match=r"mass: shape \(12,\); allowed: \(13,\)"):
         _native.Robot.from_arrays(**(arrays | {"mass": arrays["mass"][:12]}))
     with pytest.raises(ValueError, match=r"parent\[3\] = 7"):

@@ -19,17 +19,22 @@ ROBOT_FIELDS = {"parent": np.int64, "placement_R": float, "placement_p": float, 
                 "cap_vs_base": np.int64, "box_half": float}
 
 
+def robot_arrays(model: KernelModel | ModelArrays) -> dict[str, np.ndarray]:
+    """The arrays :meth:`ffsr_gym._native.Robot.from_arrays` takes, by name, from a kernel model (contiguous, of
+    :data:`ROBOT_FIELDS`' dtypes)."""
+    return {name: np.ascontiguousarray(getattr(model, name), dtype=dtype) for name, dtype in ROBOT_FIELDS.items()}
+
+
 def native_robot(model: KernelModel | ModelArrays) -> Robot:
     """The native :class:`ffsr_gym._native.Robot` of a kernel model (a wrong shape: ``ValueError`` naming it)."""
-    return Robot.from_arrays(**{name: np.ascontiguousarray(getattr(model, name), dtype=dtype)
-                                        for name, dtype in ROBOT_FIELDS.items()})
+    return Robot.from_arrays(**robot_arrays(model))
 
 
 def native_plant(model: KernelModel | ModelArrays, plant: tuple) -> Robot:
     """The robot the physics integrates: ``model``'s kinematics with the plant's (mass, lever, inertia, drive)
     (``ffsr_gym.sim.setup.ScenarioSetup.plant_arrays``; drive zeros for the kinematic plant)."""
     mass, lever, inertia, drive = plant
-    fields = {name: np.ascontiguousarray(getattr(model, name), dtype=dtype) for name, dtype in ROBOT_FIELDS.items()}
-    fields |= {"mass": np.ascontiguousarray(mass, float), "lever": np.ascontiguousarray(lever, float),
-               "inertia": np.ascontiguousarray(inertia, float)}
+    fields = robot_arrays(model) | {"mass": np.ascontiguousarray(mass, float),
+                                    "lever": np.ascontiguousarray(lever, float),
+                                    "inertia": np.ascontiguousarray(inertia, float)}
     return Robot.from_arrays(**fields, drive=np.ascontiguousarray(drive, float))

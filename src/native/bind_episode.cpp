@@ -29,15 +29,11 @@ namespace {
 
 nb::tuple run(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, long k0, long n_total, long n_max,
               In residual, bool stop_on_violation, bool record_only, const ffsr::Robot* plant) {
-  if (s.estimates.empty() && s.frames.empty())
-    throw nb::value_error("settings: no estimates and no frames; allowed: set_estimates or set_frames first");
   if (k0 < 0 || n_total < k0 || n_max < 0)
     throw nb::value_error("steps: allowed 0 <= k0 <= n_total and n_max >= 0");
-  if (!s.frames.empty() && static_cast<long>(s.frames.size()) < n_total + 1)
-    throw nb::value_error("frames: allowed one per step, n_total + 1 of them");
+  check_settings(s, n_total);
   auto st = std::make_unique<ffsr::LoopState>();
-  load_state(x, *st);
-  if (s.substeps > 0 && x.shape(0) == 19) throw nb::value_error("x: the servo plant needs its state, (40,)");
+  load_state(x, *st, s);
   const size_t n = record_only ? 1 : static_cast<size_t>(std::max(0L, std::min(n_max, n_total - k0)));
   ffsr::LogRows rows_out{};
   nb::dict logs;
@@ -75,12 +71,8 @@ struct NativeEpisode {
                 long n_total_, const ffsr::Robot* plant_)
       : robot(&robot_), plant(plant_ ? plant_ : &robot_), s(s_), d(d_), n_total(n_total_) {
     if (n_total < 1) throw nb::value_error("n_total: allowed >= 1 step");
-    if (s.estimates.empty() && s.frames.empty())
-      throw nb::value_error("settings: no estimates and no frames; allowed: set_estimates or set_frames first");
-    if (!s.frames.empty() && static_cast<long>(s.frames.size()) < n_total + 1)
-      throw nb::value_error("frames: allowed one per step, n_total + 1 of them");
-    load_state(x0, e->loop);
-    if (s.substeps > 0 && x0.shape(0) == 19) throw nb::value_error("x: the servo plant needs its state, (40,)");
+    check_settings(s, n_total);
+    load_state(x0, e->loop, s);
     const size_t n = static_cast<size_t>(n_total);
     x.assign(19 * n, 0.0), v.assign(18 * n, 0.0), dq.assign(12 * n, 0.0), err.assign(4 * n, 0.0);
     clear.assign(n, 0.0), self.assign(n, 0.0), mu.assign(2 * n, 0.0), cdf.assign(2 * n, 0.0);

@@ -209,8 +209,7 @@ void set_frames(ffsr::PlannerSettings& s, In rows) {
 }
 
 nb::dict plan(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, double t) {
-  if (s.estimates.empty() && s.frames.empty())
-    throw nb::value_error("settings: no estimates and no frames; allowed: set_estimates or set_frames first");
+  check_settings(s, -1);
   ffsr::Frames f{};
   ffsr::Momentum m{};
   ffsr::Plan p{};

@@ -54,13 +54,24 @@ inline Out copy_out(const double* data, std::initializer_list<size_t> shape) {
 
 inline const double* state_of(const In& x) { return data_of(x, "x", {19}); }
 
-// A loop state from x: 19 configuration floats, or 40 with the servo plant's state after them.
-inline void load_state(const In& x, ffsr::LoopState& st) {
+// A loop state from x: 19 configuration floats, or 40 with the servo plant's state after them (the servo plant
+// needs them).
+inline void load_state(const In& x, ffsr::LoopState& st, const ffsr::PlannerSettings& s) {
   const size_t n = x.ndim() == 1 ? x.shape(0) : 0;
   if (n != 19 && n != 19 + ffsr::kServoState)
     throw nb::value_error(("x: shape (" + std::to_string(n) + ",); allowed: (19,) or (40,)").c_str());
+  if (s.substeps > 0 && n == 19) throw nb::value_error("x: the servo plant needs its state, (40,)");
   std::memcpy(st.x, x.data(), sizeof st.x);
   if (n > 19) std::memcpy(st.servo, x.data() + 19, sizeof st.servo);
+}
+
+// Settings a run can follow: a target path (estimates) or a tumbling target's frames, one per step of n_total
+// (n_total < 0: no run length to check).
+inline void check_settings(const ffsr::PlannerSettings& s, long n_total) {
+  if (s.estimates.empty() && s.frames.empty())
+    throw nb::value_error("settings: no estimates and no frames; allowed: set_estimates or set_frames first");
+  if (n_total >= 0 && !s.frames.empty() && static_cast<long>(s.frames.size()) < n_total + 1)
+    throw nb::value_error("frames: allowed one per step, n_total + 1 of them");
 }
 
 inline Out state_out(const ffsr::LoopState& st) {

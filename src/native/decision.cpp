@@ -5,8 +5,6 @@
 #include <cmath>
 #include <limits>
 
-#include "field.hpp"
-
 namespace ffsr {
 namespace {
 
@@ -18,23 +16,8 @@ double clip(double value, double bound) { return std::min(std::max(value, -bound
 // (t, x); rel: the vector to the nearest obstacle.
 double observe(const Robot& robot, const PlannerSettings& s, LoopState& st, double t, double rel[3]) {
   plan(robot, s, st.x, t, st.f, st.m, st.p);
-  double clear = std::numeric_limits<double>::infinity();
   if (!s.obstacles.empty() || s.body_collides) capsule_axes(robot, st.f, st.x, st.axes);
-  if (!s.obstacles.empty()) {
-    double r[3] = {0.0, 0.0, 0.0}, p_o[3], here[3];
-    for (size_t o = 0; o < s.obstacles.size(); ++o) {
-      obstacle_at(s.obstacles[o], t, p_o);
-      const double value = obstacle_clearance(robot, st.f, st.axes, st.x, p_o, s.obstacles[o].radius, here);
-      if (value < clear || o == 0) clear = value, r[0] = here[0], r[1] = here[1], r[2] = here[2];
-    }
-    rel[0] = r[0], rel[1] = r[1], rel[2] = r[2];
-  }
-  if (s.body_collides) {
-    const Frame& frame = frame_at(s, t);
-    const double(&R)[3][3] = *reinterpret_cast<const double(*)[3][3]>(frame.R);
-    clear = std::min(clear, body_clearance(robot, st.f, st.axes, st.x, R, frame.centre, s.body_half));
-  }
-  return clear;
+  return nearest_clearance(robot, s, st.f, st.axes, st.x, t, rel);
 }
 
 }  // namespace

@@ -9,10 +9,9 @@
 
 namespace ffsr {
 
-void clearances(const Robot& robot, const PlannerSettings& s, const Frames& f, const double x[kStateSize], double t,
-                CapsuleAxes& axes, double& clear, double& self_c, double rel[3]) {
-  capsule_axes(robot, f, x, axes);
-  clear = std::numeric_limits<double>::infinity();
+double nearest_clearance(const Robot& robot, const PlannerSettings& s, const Frames& f, const CapsuleAxes& axes,
+                         const double x[kStateSize], double t, double rel[3]) {
+  double clear = std::numeric_limits<double>::infinity();
   double r[3] = {0.0, 0.0, 0.0}, p_o[3], here[3];
   for (size_t o = 0; o < s.obstacles.size(); ++o) {
     obstacle_at(s.obstacles[o], t, p_o);
@@ -25,6 +24,13 @@ void clearances(const Robot& robot, const PlannerSettings& s, const Frames& f, c
     const double(&R)[3][3] = *reinterpret_cast<const double(*)[3][3]>(frame.R);
     clear = std::min(clear, body_clearance(robot, f, axes, x, R, frame.centre, s.body_half));
   }
+  return clear;
+}
+
+void clearances(const Robot& robot, const PlannerSettings& s, const Frames& f, const double x[kStateSize], double t,
+                CapsuleAxes& axes, double& clear, double& self_c, double rel[3]) {
+  capsule_axes(robot, f, x, axes);
+  clear = nearest_clearance(robot, s, f, axes, x, t, rel);
   self_c = self_clearance(robot, f, axes, x);
 }
 

@@ -9,6 +9,12 @@ namespace ffsr {
 
 enum class Status { kOk = 0, kRate = 1, kCollision = 2, kNonFinite = 3 };
 
+// Robot-obstacle clearance at t (inf without an obstacle; a tumbling target's body is one), the capsule axes
+// already at the state whose frames f holds (not needed without obstacle and body); rel points to the nearest
+// obstacle (zeros without one; ties keep the first).
+double nearest_clearance(const Robot& robot, const PlannerSettings& s, const Frames& f, const CapsuleAxes& axes,
+                         const double x[kStateSize], double t, double rel[3]);
+
 // Robot-obstacle clearance at t (inf without an obstacle; a tumbling target's body is one) and the self clearance
 // [m] at the state whose frames f holds; rel points from the robot to the nearest obstacle (ties keep the first).
 void clearances(const Robot& robot, const PlannerSettings& s, const Frames& f, const double x[kStateSize], double t,
