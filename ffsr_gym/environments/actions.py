@@ -9,11 +9,11 @@ from typing import Any
 import numpy as np
 
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.kernel import decision
+from ffsr_gym import _native
 from ffsr_gym.model.benchmark import action_to_parameters  # noqa: F401 - the environments' mapping, re-exported
 from ffsr_gym.model.benchmark import residual_rates as scaled_residual
 from ffsr_gym.model.scenario import Scenario
-from ffsr_gym.scoring.score import score_vector
+from ffsr_gym.scoring.score import cost_settings
 
 OBS_CLIP = {"rates": 20.0, "errors": 10.0, "relative": 10.0, "clearance": 10.0, "twist": 10.0}
 
@@ -108,22 +108,23 @@ def residual_rates(action: np.ndarray, task: Scenario, rule: Any, fades: bool, t
     return rule.benchmark.residual_fade(t, task.desired_path.motion_time_s) * rates
 
 
-def decision_settings(task: Scenario, rule: Any, fades: bool) -> np.ndarray:
-    """The compiled decision's settings (:data:`ffsr_gym.kernel.decision.N_DS`) of a task under a score rule.
+def decision_settings(task: Scenario, rule: Any, fades: bool) -> _native.DecisionSettings:
+    """The native decision's settings of a task under a score rule: the residual's scale and fade, the (m, T_c)
+    action box, the rate limit, the violation cost's clearance scale and the smoothness cost's settings.
 
     Without a fade the residual's weight stays 1 (the fade starts at +inf). A rule whose increment
     and cost are not the kernel's (``compiled_terms`` False) gets neutral score settings: its terms
     are computed from the applied rates.
     """
-    settings = np.zeros(decision.N_DS)
-    (m_lo, m_hi), (t_lo, t_hi) = task.env.m_bounds, task.env.T_c_bounds_s
+    settings = _native.DecisionSettings()
+    (settings.m_lo, settings.m_hi), (settings.T_lo, settings.T_hi) = task.env.m_bounds, task.env.T_c_bounds_s
     benchmark = rule.benchmark
-    fade_s, motion_s = (benchmark.action.residual_fade_s, task.desired_path.motion_time_s) if fades else (1.0, np.inf)
-    clearance_scale = benchmark.action.cost_clearance_scale_m if rule.compiled_terms else 1.0
-    settings[:decision.D_SCORE] = (float(np.radians(task.env.residual_rate_deg_s)), fade_s, motion_s, m_lo, m_hi, t_lo,
-                                   t_hi, task.objective.max_rate_deg_s, clearance_scale)
+    settings.fade_s, settings.motion_s = ((benchmark.action.residual_fade_s, task.desired_path.motion_time_s) if fades
+                                          else (1.0, np.inf))
+    settings.rate_scale = float(np.radians(task.env.residual_rate_deg_s))
+    settings.rate_limit_deg_s = task.objective.max_rate_deg_s
+    settings.clear_scale = benchmark.action.cost_clearance_scale_m if rule.compiled_terms else 1.0
     if rule.compiled_terms:
-        settings[decision.D_SCORE:] = score_vector(benchmark.score)
-    else:
-        settings[decision.D_SCORE:decision.D_SCORE + 4] = (0.0, 0.0, 1.0, 1.0)
+        return cost_settings(benchmark.score, settings)
+    settings.alpha, settings.beta, settings.E_ref, settings.V_ref = 0.0, 0.0, 1.0, 1.0
     return settings

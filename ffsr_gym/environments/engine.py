@@ -8,9 +8,9 @@ adapter over one copy, the batched environment an adapter over N.
 
 Two pipelines compute a decision, written once for every version:
 
-* compiled (the kernel backend): one call of :func:`ffsr_gym.kernel.decision.decide` per copy:
-  :func:`~ffsr_gym.kernel.decision.step_episode` for one copy (a microsecond of dispatch),
-  :func:`~ffsr_gym.kernel.batch.decide_batch` for N (thread-parallel); same numbers;
+* compiled (the kernel backend): each copy's episode is a native :class:`ffsr_gym._native.Episode` that writes
+  its logs into the engine's arrays; one call of its ``decide`` for one copy, one call of an
+  :class:`ffsr_gym._native.EpisodeBatch` for N (on threads, the GIL released); same numbers;
 * reference (any backend, one copy): the :class:`~ffsr_gym.sim.rollout.Rollout` interface, the
   increment from the score rule in numpy, the observation assembled in Python. It gives the
   compiled pipeline's numbers bit for bit on the kernel backend (tested), and runs the Pinocchio
@@ -23,23 +23,23 @@ from typing import Any
 
 import numpy as np
 
+from ffsr_gym import _native
 from ffsr_gym.environments import actions as act
 from ffsr_gym.environments import info as info_contract
 from ffsr_gym.environments.task_source import TaskSource
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
-from ffsr_gym.kernel import batch as kernel_batch
-from ffsr_gym.kernel import decision, first_use, servo
-from ffsr_gym.kernel import settings as ks
 from ffsr_gym.model import portable
 from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.native import layout
 from ffsr_gym.planning import ptsf
 from ffsr_gym.sim.budget import check_run
-from ffsr_gym.sim.compiled import LOG_FIELDS, KernelRollout, new_log
+from ffsr_gym.sim.compiled import KernelRollout, new_log
 from ffsr_gym.sim.rollout import BACKENDS, STATUS, Rollout
-from ffsr_gym.sim.simulate import kernel_available, make_rollout
+from ffsr_gym.sim.simulate import make_rollout
 from ffsr_gym.sim.trajectory import Trajectory
 
 _FLOAT32 = np.dtype(np.float32)
+_FLOAT64 = np.dtype(np.float64)
 
 
 def _scalars(n: int, kind: type, single: bool) -> Any:
@@ -52,11 +52,13 @@ class EpisodeEngine:
 
     Per-copy state lives in stacked arrays (row i = copy i); ``obs`` (N, 53) float32 holds each
     copy's current observation, ``clearance`` and ``ee_error`` its last clearance and end-effector
-    position error [m].
+    position error [m]; ``logs`` (compiled) each copy's trajectory so far, written by its native episode.
+    ``threads``: the threads a batched decision runs its copies on.
     """
 
     def __init__(self, source: TaskSource, *, residual: bool, copies: int = 1, backend: str = "auto",
-                 terminate_on_violation: bool = True, dense_shaping: bool = False, batched: bool = False) -> None:
+                 terminate_on_violation: bool = True, dense_shaping: bool = False, batched: bool = False,
+                 threads: int = 1) -> None:
         self.source, self.rule, self.spec = source, source.rule, source.spec
         self.residual, self.backend, self.n = residual, backend, int(copies)
         self.terminate, self.shaping = terminate_on_violation, dense_shaping and self.rule.shaping
@@ -66,7 +68,7 @@ class EpisodeEngine:
         self.action_shape = (12 if residual else 2,)
         if backend not in BACKENDS:
             raise InvalidInputError(f"backend {backend!r}; allowed: {list(BACKENDS)}")
-        self.compiled = backend == "kernel" or (backend == "auto" and kernel_available())
+        self.compiled = backend in ("kernel", "auto")
         N = self.n
         copies = f"{N} environment cop{'ies' if N != 1 else 'y'} of {family.name}"
         check_run(steps=self.n_steps, copies=N, steps_per_decision=self.steps_per_decision,
@@ -76,23 +78,21 @@ class EpisodeEngine:
         self.rollouts: list[Rollout | None] = [None] * N
         self.results: list[Any] = [None] * N  # each copy's last finished episode's result (the rule's)
         self.twist = self.spec.target_twist  # the observation ends with the desired twist (a capture spec)
-        self.obs = np.zeros((N, decision.N_OBS_TWIST if self.twist else decision.N_OBS), dtype=np.float32)
+        self.obs = np.zeros((N, layout.N_OBS_TWIST if self.twist else layout.N_OBS), dtype=np.float32)
         self._obs0 = self.obs[0]  # copy 0's row (the single env's compiled step writes it)
-        self._mode = decision.MODE_RESIDUAL if residual else decision.MODE_PARAMETERS
-        self._no_action = np.zeros(2, dtype=np.float32)  # the action of a decision with (m, T_c) already set
-        self.last_rates, self.X = np.zeros((N, 12)), np.zeros((N, servo.N_STATE))
+        self._mode = layout.MODE_RESIDUAL if residual else layout.MODE_PARAMETERS
+        self._no_action = np.zeros(2)  # the action of a decision with (m, T_c) already set
+        self.last_rates = np.zeros((N, 12))  # the reference pipeline's
         # Per-copy scalars: step k, clipped actions, smoothness cost so far, shaping potential, clearance [m] and
         # EE position error [m]. One copy keeps them in lists (a Python element access costs a third of numpy's,
         # which the single env's microsecond budget notices); N copies in arrays for the vectorised bookkeeping.
         self.K, self.clipped = _scalars(N, np.int64, self.single), _scalars(N, np.int64, self.single)
         self.cost_so_far, self.potential = _scalars(N, float, self.single), _scalars(N, float, self.single)
         self.clearance, self.ee_error = _scalars(N, float, self.single), _scalars(N, float, self.single)
-        self.FP, self.IP = np.zeros((N, ks.N_FP)), np.zeros((N, ks.N_IP), dtype=np.int64)
-        self.plants = (np.zeros((N, 13)), np.zeros((N, 13, 3)), np.zeros((N, 13, 3, 3)), np.zeros((N, 12, servo.N_DRIVE)))
-        self.DS, self.scratch = np.zeros((N, decision.N_DS)), np.zeros((N, decision.N_SCRATCH))
         self.logs = new_log(self.n_steps + 1, N) if self.compiled else None
+        self.episodes: list[_native.Episode | None] = [None] * N
+        self.threads, self.batch = int(threads), None
         self.out = np.zeros((N, 7))
-        self.mdl, self.episode, self.workspaces = None, None, None
         self.task_index, self.task_seed = np.full(N, -1, dtype=np.int64), np.full(N, -1, dtype=np.int64)
         self._blank = info_contract.scalars(info_contract.blank(self.rule, 1), 0)  # the single env's info, before
 
@@ -103,16 +103,16 @@ class EpisodeEngine:
         self.scenarios[i], self.results[i] = scenario, None
         for key, values in (("task_index", self.task_index), ("task_seed", self.task_seed)):
             values[i] = -1 if info.get(key) is None else info[key]
+        self.last_rates[i], self.clipped[i], self.cost_so_far[i], self.K[i] = 0.0, 0, 0.0, 0
         if self.compiled:
             self._load_copy(i, scenario)
-            rollout = self.rollouts[i]
+            self.clearance[i], self.ee_error[i] = self.episodes[i].observe(0, self.obs[i])
         else:
             rollout = self.rollouts[i] = make_rollout(scenario, backend=self.backend)
-        self.last_rates[i], self.clipped[i], self.cost_so_far[i], self.K[i] = 0.0, 0, 0.0, 0
-        angles, e1, e0, rel, clear = rollout.observation()
-        self.obs[i] = act.assemble_observation(angles, self.last_rates[i], e1, e0, rel, clear, 0.0,
-                                               self._desired_twist(rollout))
-        self.clearance[i], self.ee_error[i] = clear, portable.norm(e1[:3])
+            angles, e1, e0, rel, clear = rollout.observation()
+            self.obs[i] = act.assemble_observation(angles, self.last_rates[i], e1, e0, rel, clear, 0.0,
+                                                   self._desired_twist(rollout))
+            self.clearance[i], self.ee_error[i] = clear, portable.norm(e1[:3])
         self.out[i, 5], self.out[i, 6] = self.clearance[i], self.ee_error[i]
         self.potential[i] = self._potential(self.ee_error[i])
         return info
@@ -125,31 +125,25 @@ class EpisodeEngine:
         arrays["clipped_actions"][:] = self.clipped
         return arrays
 
-    def _load_copy(self, i: int, scenario: Scenario) -> None:
-        """Put copy ``i``'s new episode into the stacked kernel arrays."""
+    def _load_copy(self, i: int, scenario: Scenario, state: tuple | None = None) -> None:
+        """Copy ``i``'s new episode: its rollout and its native episode, both on copy ``i``'s rows of the logs.
+        ``state``: (x (40), m, T_c [s], last rates (12)) to continue from instead of the task's start."""
         if scenario.n_steps != self.n_steps or scenario.simulation.dt_s != self.dt:
             raise FFSRError("a task changed dt_s or duration_s; the copies need them fixed")
-        rollout = KernelRollout(scenario, log={key: self.logs[key][i] for key in LOG_FIELDS})
-        self.rollouts[i], self.mdl = rollout, rollout._mdl
-        if len(rollout.fp) > self.FP.shape[1]:  # more target estimates than any copy so far: widen the rows
-            wider = np.zeros((self.n, len(rollout.fp)))
-            wider[:, :self.FP.shape[1]] = self.FP
-            self.FP = wider
-        self.X[i], self.K[i], self.IP[i] = rollout.x, 0, rollout.ip
-        self.FP[i, :len(rollout.fp)], self.FP[i, len(rollout.fp):] = rollout.fp, 0.0
-        for stacked, own in zip(self.plants, rollout.plant):
-            stacked[i] = own
-        decision.forget_plan(self.scratch[i])
-        self.DS[i] = act.decision_settings(scenario, self.rule, self.spec.actions.residual_fades)
-        if self.single:
-            self.episode = self._new_episode()
-
-    def _new_episode(self) -> decision.Episode:
-        """Copy 0's arrays as one kernel structure (the single environment's compiled step)."""
-        logs = tuple(self.logs[key][0] for key in LOG_FIELDS)
-        rollout = self.rollouts[0]
-        return decision.new_episode(rollout._mdl, tuple(p[0] for p in self.plants), self.X[0], self.FP[0], self.IP[0],
-                                    self.DS[0], logs, self.last_rates[0])
+        views = {key: rows[i] for key, rows in self.logs.items()}
+        rollout = KernelRollout(scenario, log=views)
+        x = rollout.x
+        if state is not None:
+            x, (rollout.settings.m, rollout.settings.T_c) = state[0], state[1:3]
+        setup = rollout.setup
+        episode = _native.Episode(setup.assets.native, rollout.settings,
+                                  act.decision_settings(scenario, self.rule, self.spec.actions.residual_fades), x,
+                                  self.n_steps, plant=setup.native_plant, logs=views)
+        if state is not None:
+            episode.last_rates = state[3]
+        self.rollouts[i], self.episodes[i] = rollout, episode
+        if self.batch is not None:
+            self.batch.set(i, episode)
 
     def use_reference_pipeline(self) -> None:
         """Step copy 0 through the :class:`Rollout` interface from now on (right after a reset; one copy only).
@@ -159,7 +153,7 @@ class EpisodeEngine:
         """
         if not self.single or any(self.K):
             raise InvalidInputError("the reference pipeline steps one copy, from the start of an episode")
-        self.compiled, self.episode = False, None
+        self.compiled, self.episodes[0] = False, None
 
     def _potential(self, ee_error: Any) -> Any:
         return -ee_error / self.rule.benchmark.action.shaping_position_scale_m if self.shaping else 0.0
@@ -190,15 +184,15 @@ class EpisodeEngine:
         mode = self._mode
         if parameters is not None:
             self._set_parameters(0, parameters)
-            action, mode = self._no_action, decision.MODE_SET
+            action, mode = self._no_action, layout.MODE_SET
         k = self.K[0]
-        rows, status, was_clipped, increment, cost, clearance, ee_error = first_use.call(
-            "single env", decision.step_episode, self.episode, action, mode, self.terminate, k, k, self.n_steps,
+        rows, status, was_clipped, increment, cost, clearance, ee_error = self.episodes[0].decide(
+            action if action.dtype is _FLOAT64 else action.astype(_FLOAT64), mode, self.terminate, k,
             self.steps_per_decision, self._obs0)
-        if status == decision.STATUS_BAD_ACTION:
+        if status == layout.STATUS_BAD_ACTION:
             act.check_action(action, self.action_shape)  # raises, naming the problem
             raise InvalidInputError(f"action must be finite, got {action}; allowed range [-1, 1] per entry")
-        if status == decision.STATUS_NONFINITE:
+        if status == layout.STATUS_NONFINITE:
             raise FFSRError(f"planner produced non-finite joint rates at t = {(k + rows) * self.dt:.3f} s")
         self.K[0] = k + rows
         self.clipped[0] += int(was_clipped)
@@ -274,21 +268,22 @@ class EpisodeEngine:
         Returns ``(rewards, terminated, truncated, info)``, arrays over the copies (inactive: 0);
         ``info`` has the rule's end keys with their ``_key`` masks and the per-decision keys.
         """
-        mode = decision.MODE_RESIDUAL if self.residual else decision.MODE_PARAMETERS
+        mode = layout.MODE_RESIDUAL if self.residual else layout.MODE_PARAMETERS
         if parameters is not None:
             self._set_parameters_of(active, parameters)
-            mode = decision.MODE_SET
+            mode = layout.MODE_SET
         out, start = self.out, self.K.copy()
         out[~active, :5] = 0.0  # no steps, no cost; clearance and EE error of the reset (or held) state stay
-        if self.workspaces is None:
-            self.workspaces = kernel_batch.workspaces(self.n, len(self.mdl.cap_radius))
-        first_use.call("batched env", kernel_batch.decide_batch, self.mdl, self.plants, self.workspaces, self.X, self.K,
-                       active, self.n_steps, self.n_steps if to_end else self.steps_per_decision, self.FP, self.IP,
-                       self.DS, actions, mode, tuple(self.logs[key] for key in LOG_FIELDS), self.last_rates,
-                       self.scratch, self.obs, out, kernel_batch.groups(self.n))
+        if self.batch is None:
+            self.batch = _native.EpisodeBatch(self.n, self.threads)
+            for i, episode in enumerate(self.episodes):
+                if episode is not None:
+                    self.batch.set(i, episode)
+        self.batch.decide(np.ascontiguousarray(actions, dtype=_FLOAT64), np.ascontiguousarray(active, dtype=bool),
+                          self.K, mode, self.n_steps if to_end else self.steps_per_decision, self.obs, out)
         rows, status = out[:, 0].astype(np.int64), out[:, 1].astype(np.int64)
-        if np.any(status == decision.STATUS_NONFINITE):
-            bad = np.flatnonzero(status == decision.STATUS_NONFINITE).tolist()
+        if np.any(status == layout.STATUS_NONFINITE):
+            bad = np.flatnonzero(status == layout.STATUS_NONFINITE).tolist()
             raise FFSRError(f"planner produced non-finite joint rates in copies {bad}")
         terminated = active & (status != 0)
         truncated = active & ~terminated & (self.K >= self.n_steps)
@@ -339,15 +334,17 @@ class EpisodeEngine:
         """Validated physical (m, T_c [s]) for copy ``i``'s next decisions."""
         rollout = self.rollouts[i]
         rollout.set_parameters(*parameters)
-        self.FP[i, ks.F_M], self.FP[i, ks.F_TC] = rollout.fp[ks.F_M], rollout.fp[ks.F_TC]
+        self.episodes[i].set_parameters(rollout.m, rollout.T_c)
 
     def _set_parameters_of(self, active: np.ndarray, parameters: tuple[float, float]) -> None:
         """:meth:`_set_parameters` for every ``active`` copy at once (checked once per predefined-time form; the
-        copies' rollouts read them from ``FP`` when next asked for, :meth:`rollout`)."""
+        copies' rollouts read them from their episodes when next asked for, :meth:`rollout`)."""
         m, T_c = float(parameters[0]), float(parameters[1])
-        for form in {self.scenarios[i].planner.phi_form for i in np.flatnonzero(active)}:
+        chosen = np.flatnonzero(active)
+        for form in {self.scenarios[i].planner.phi_form for i in chosen}:
             ptsf.check_parameters(T_c, m, form)
-        self.FP[active, ks.F_M], self.FP[active, ks.F_TC] = m, T_c
+        for i in chosen:
+            self.episodes[i].set_parameters(m, T_c)
 
     def end_copy(self, i: int) -> Any:
         """Record copy ``i``'s final sample and score its whole trajectory with the rule."""
@@ -361,9 +358,10 @@ class EpisodeEngine:
         rollout = self.rollouts[i]
         if rollout is None:
             raise InvalidInputError("no episode yet: call reset()")
-        if self.compiled and not rollout.finished:
-            rollout.x, rollout.k, rollout.rows = self.X[i].copy(), int(self.K[i]), int(self.K[i])
-            rollout.fp[:] = self.FP[i, :len(rollout.fp)]  # (m, T_c) the decisions set
+        episode = self.episodes[i] if self.compiled else None
+        if episode is not None and not rollout.finished:
+            rollout.x, rollout.k, rollout.rows = episode.state(), int(self.K[i]), int(self.K[i])
+            rollout.settings.m, rollout.settings.T_c = episode.m, episode.T_c  # (m, T_c) the decisions set
         return rollout
 
     def trajectory(self, i: int) -> Trajectory:
@@ -377,16 +375,18 @@ class EpisodeEngine:
 
     # ------------------------------------------------------------------------- pickling
     def __getstate__(self) -> dict:
-        """Pickled without the kernel structures (numba objects): a clone makes new ones, and its copies'
-        next decisions plan afresh (same numbers)."""
+        """Pickled without the native episodes: each running copy keeps its state, (m, T_c) and last rates, and a
+        clone builds new episodes from them (same numbers)."""
         state = self.__dict__.copy()
-        state["episode"], state["workspaces"], state["scratch"] = None, None, self.scratch.copy()
-        decision.forget_plan(state["scratch"])
-        state["_rebuild"] = self.episode is not None
+        state["batch"], state["episodes"] = None, [None] * self.n
+        state["_episodes"] = [None if e is None else (e.state(), e.m, e.T_c, e.last_rates) for e in self.episodes]
         return state
 
     def __setstate__(self, state: dict) -> None:
-        rebuild = state.pop("_rebuild", False)
+        saved = state.pop("_episodes")
         self.__dict__.update(state)
-        if rebuild:
-            self.episode = self._new_episode()
+        for i, episode in enumerate(saved):
+            if episode is not None and not self.rollouts[i].finished:
+                self._load_copy(i, self.scenarios[i], episode)
+            elif self.rollouts[i] is not None and self.logs is not None:
+                self.rollouts[i]._log = {key: rows[i] for key, rows in self.logs.items()}

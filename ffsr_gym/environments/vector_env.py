@@ -9,10 +9,10 @@ the same score rule, per copy.
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 import gymnasium as gym
-import numba
 import numpy as np
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode
@@ -37,6 +37,13 @@ def copy_info(info: dict[str, Any], i: int) -> dict[str, Any]:
     return {key: value[i] for key, value in info.items()
             if not key.startswith("_") and (f"_{key}" not in info or info[f"_{key}"][i])}
 
+
+
+def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the platform tells it)."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return max(1, os.cpu_count() or 1)
 
 class FFSRVectorEnv(gym.vector.VectorEnv):
     """``num_envs`` copies of :class:`~ffsr_gym.environments.env.FFSREnv` (spaces, rewards, info keys: see there).
@@ -76,12 +83,11 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         if options.get("terminate_on_violation", True) is not True:
             raise InvalidInputError("terminate_on_violation: the batched environments stop a copy at its first "
                                     "violation; use True, or the single environment for False")
-        if threads is not None:
-            if (isinstance(threads, bool) or not isinstance(threads, (int, np.integer))
-                    or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS):
-                raise InvalidInputError(f"threads = {threads!r}; allowed: an integer from 1 to "
-                                        f"{numba.config.NUMBA_NUM_THREADS}")
-            numba.set_num_threads(threads)
+        cores = available_cores()
+        if threads is not None and (isinstance(threads, bool) or not isinstance(threads, (int, np.integer))
+                                    or not 1 <= threads <= cores):
+            raise InvalidInputError(f"threads = {threads!r}; allowed: an integer from 1 to {cores} (this machine's "
+                                    "cores)")
         self.metadata = {**self.metadata, "autoreset_mode": mode}
         if not isinstance(residual, (bool, np.bool_)):
             raise InvalidInputError(f"residual = {residual!r}; allowed: True or False (each id sets it)")
@@ -90,7 +96,8 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         self.source = TaskSource(spec, score_rule(spec), options.get(spec.tasks.keyword), options.get("split"),
                                  options.get("dt_s"))
         self.engine = EpisodeEngine(self.source, residual=self.residual, copies=self.num_envs, backend="kernel",
-                                    dense_shaping=options.get("dense_shaping", False), batched=True)
+                                    dense_shaping=options.get("dense_shaping", False), batched=True,
+                                    threads=cores if threads is None else int(threads))
         self.family = self.source.family
         self.n_steps, self.dt = self.engine.n_steps, self.engine.dt
         self.steps_per_decision = self.engine.steps_per_decision

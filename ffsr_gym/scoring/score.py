@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ffsr_gym.kernel import score_terms
+from ffsr_gym import _native
 from ffsr_gym.model.benchmark import Benchmark, ScoreSettings
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.scoring.capture import capture, episode_relative_motion
@@ -50,26 +50,24 @@ def smoothness_terms(dq_joints: Array, dt: float, previous: Array | None = None)
 
     Returns:
         ``(E, V)``, each (2,) for (mission, balance). The sums run in
-        :func:`ffsr_gym.kernel.score_terms.smoothness_into` (shared with the environments' step).
+        native kernel (``ffsr_gym._native.smoothness_terms``, shared with the environments' step).
     """
     rates = np.ascontiguousarray(dq_joints, dtype=float).reshape(-1, 12)
     before = np.zeros(12) if previous is None else np.ascontiguousarray(previous, dtype=float).reshape(12)
-    out = np.empty(4)
-    score_terms.smoothness_into(rates, len(rates), float(dt), before, out)
-    return out[:2], out[2:]
+    return _native.smoothness_terms(rates, float(dt), before)
 
 
 def smoothness_cost(energy: Array, variation: Array, settings: ScoreSettings) -> float:
     """C = α (E₁/E_ref + V₁/V_ref) + β (E₂/E_ref + V₂/V_ref) (dimensionless, ≥ 0)."""
-    terms = np.concatenate((np.asarray(energy, dtype=float), np.asarray(variation, dtype=float)))
-    return float(score_terms.smoothness_cost(terms, score_vector(settings)))
+    return float(_native.smoothness_cost(np.ascontiguousarray(energy, dtype=float),
+                                         np.ascontiguousarray(variation, dtype=float), cost_settings(settings)))
 
 
-def score_vector(settings: ScoreSettings) -> Array:
-    """The cost's settings as the compiled terms read them (:data:`ffsr_gym.kernel.score_terms.S_ALPHA`, ...)."""
-    out = np.empty(score_terms.N_SCORE)
-    out[[score_terms.S_ALPHA, score_terms.S_BETA, score_terms.S_E_REF, score_terms.S_V_REF]] = (
-        settings.alpha, settings.beta, settings.rate_energy_ref_rad2_s, settings.rate_variation_ref_rad_s)
+def cost_settings(settings: ScoreSettings, into: _native.DecisionSettings | None = None) -> _native.DecisionSettings:
+    """The cost's settings (α, β, E_ref, V_ref) in a native decision's settings (``into``, else new ones)."""
+    out = _native.DecisionSettings() if into is None else into
+    out.alpha, out.beta = settings.alpha, settings.beta
+    out.E_ref, out.V_ref = settings.rate_energy_ref_rad2_s, settings.rate_variation_ref_rad_s
     return out
 
 

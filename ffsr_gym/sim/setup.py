@@ -13,10 +13,9 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 
+from ffsr_gym import _native
 from ffsr_gym.exceptions import ScenarioError
-from ffsr_gym.kernel import first_use
 from ffsr_gym.kernel.arrays import KernelModel, ModelArrays, extract
-from ffsr_gym.kernel.tumbling import propagate_into
 from ffsr_gym.model.collision import BoxObstacle, CollisionModel, Obstacle
 from ffsr_gym.model.drives import drive_array, drives_path, load_drives
 from ffsr_gym.model.obstacles import ObstacleField, obstacle_field
@@ -27,6 +26,7 @@ from ffsr_gym.model.robot_check import check_robot_folder
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.model.scenario_sections import TumblingTarget
 from ffsr_gym.model.tumbling import TargetMotion
+from ffsr_gym.native.robot import native_plant, native_robot
 from ffsr_gym.planning.desired_path import DesiredPath
 from ffsr_gym.planning.moving_target import (
     BodyField,
@@ -58,6 +58,15 @@ class RobotAssets:
     def kernel(self) -> KernelModel:
         """The kernel's arrays, extracted on first use."""
         return extract(self.robot, self.collision)
+
+    def __reduce__(self) -> tuple:
+        """Pickle as the robot's name: the process's shared assets of that robot on load."""
+        return (robot_assets, (self.name,))
+
+    @cached_property
+    def native(self) -> _native.Robot:
+        """The native kernel's typed robot (:func:`~ffsr_gym.native.robot.native_robot`), built on first use."""
+        return native_robot(self.kernel)
 
     @cached_property
     def kernel_arrays(self) -> ModelArrays:
@@ -102,6 +111,8 @@ class ScenarioSetup:
         plant: the robot the physics integrates (``[plant]``; the nominal robot without it).
         plant_arrays: the plant's (mass, lever, inertia, drive) kernel arrays (the nominal inertials
             without ``[plant]``; ``drive`` (12, 4) the servo plant's drives, zeros for the kinematic plant).
+        native_plant: the native robot the physics integrates when it is not the planner's own (``[plant]``, or
+            the servo plant's drives); None when it is.
         path: the desired end-effector path (to the true target).
         estimates: the planner's desired paths, one per target estimate (``(path,)`` without
             ``[target_noise]``; :mod:`ffsr_gym.planning.target_estimate`).
@@ -118,6 +129,7 @@ class ScenarioSetup:
     obstacles: ObstacleField
     plant: Robot
     plant_arrays: tuple
+    native_plant: _native.Robot | None
     path: DesiredPath | MovingTargetPath
     estimates: tuple[DesiredPath | MovingTargetPath, ...]
     estimate_interval_s: float
@@ -130,6 +142,10 @@ class ScenarioSetup:
     def robot(self) -> Robot:
         """The scenario's robot model."""
         return self.assets.robot
+
+    def __reduce__(self) -> tuple:
+        """Pickle as the scenario: :func:`prepare` builds the same setup (or finds it cached) on load."""
+        return (prepare, (self.scenario,))
 
     def obstacles_at(self, k: int) -> tuple[Obstacle, ...]:
         """Every obstacle where it is at step ``k``: the scenario's spheres and, with ``[tumbling_target]``, its
@@ -179,8 +195,10 @@ def _prepare(scenario: Scenario, stamp: tuple) -> ScenarioSetup:
         plant = assets.robot.with_inertial_changes(changes.mass_scale, changes.inertia_scale,
                                                    changes.com_offset_m or np.zeros((12, 3)))
         kernel = extract(plant, assets.collision)
+    plant_arrays = (kernel.mass, kernel.lever, kernel.inertia, _drive(scenario))
+    own = scenario.plant is None and scenario.simulation.plant != "servo"
     setup = ScenarioSetup(scenario=scenario, assets=assets, q0=q0, obstacles=obstacle_field(scenario), plant=plant,
-                          plant_arrays=(kernel.mass, kernel.lever, kernel.inertia, _drive(scenario)),
+                          plant_arrays=plant_arrays, native_plant=None if own else native_plant(kernel, plant_arrays),
                           path=path, estimates=estimated_paths(scenario, path),
                           estimate_interval_s=0.0 if scenario.target_noise is None else scenario.target_noise.interval_s,
                           base_target=base_target, target_motion=target, grasp=grasp, body_field=field)
@@ -218,10 +236,9 @@ def check_start(setup: ScenarioSetup) -> None:
 
 def compiled_body_motion(body: TumblingTarget, *, dt_s: float, steps: int) -> TargetMotion:
     """The motion of a ``[tumbling_target]``'s body at every step of ``dt_s`` [s] over ``steps`` steps:
-    :func:`ffsr_gym.model.tumbling.propagate` on the compiled integrator (the same RK4, agreeing to 1e-13;
+    :func:`ffsr_gym.model.tumbling.propagate` on the native integrator (the same RK4, agreeing to 1e-13;
     ``tests/test_tumbling.py``), so a 20 s episode at dt / 4 costs milliseconds instead of seconds."""
-    quats, omegas = np.empty((steps + 1, 4)), np.empty((steps + 1, 3))
-    first_use.call("target motion", propagate_into, np.array(body.quaternion_wxyz, dtype=float),
-                   np.deg2rad(np.array(body.omega_body_deg_s, dtype=float)), np.array(body.inertia_kg_m2, dtype=float),
-                   dt_s, 4, quats, omegas)
+    quats, omegas = _native.propagate_tumbling(np.array(body.quaternion_wxyz, dtype=float),
+                                               np.deg2rad(np.array(body.omega_body_deg_s, dtype=float)),
+                                               np.array(body.inertia_kg_m2, dtype=float), dt_s, 4, steps)
     return TargetMotion.drifting(body.position_m, body.velocity_m_s, dt_s, quats, omegas)

@@ -9,36 +9,27 @@ from tqdm.auto import tqdm
 
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.scenario import Scenario, load_scenario
+from ffsr_gym.sim.compiled import KernelRollout
 from ffsr_gym.sim.reference import ReferenceRollout
 from ffsr_gym.sim.rollout import BACKENDS, Rollout
 from ffsr_gym.sim.trajectory import Trajectory
 from ffsr_gym.types import Array
 
 
-def kernel_available() -> bool:
-    """Whether the compiled kernel (numba) can be used."""
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
 def make_rollout(scenario: Scenario, *, backend: str = "auto", **kwargs: Any) -> Rollout:
-    """A rollout on the requested backend: ``"kernel"``, ``"pinocchio"`` or ``"auto"`` (kernel if numba imports).
+    """A rollout on the requested backend: ``"kernel"`` (the native kernel; also ``"auto"``) or ``"pinocchio"``
+    (the reference implementation).
 
     Keyword arguments are those of the backends (``method``, ``m``, ``T_c``, ``q0``).
     """
     if backend not in BACKENDS:
         raise InvalidInputError(f"backend {backend!r}; allowed: {list(BACKENDS)}")
-    if scenario.simulation.plant == "servo" and (backend == "pinocchio" or not kernel_available()):
+    if scenario.simulation.plant == "servo" and backend == "pinocchio":
         raise InvalidInputError(f"scenario {scenario.name!r}: the servo plant (simulation.plant = 'servo') runs on the "
-                                "kernel backend only (numba); backend 'kernel' or 'auto'")
-    if backend == "kernel" or (backend == "auto" and kernel_available()):
-        from ffsr_gym.sim.compiled import KernelRollout  # needs numba, an optional speed-up
-
-        return KernelRollout(scenario, **kwargs)
-    return ReferenceRollout(scenario, **kwargs)
+                                "kernel backend only; backend 'kernel' or 'auto'")
+    if backend == "pinocchio":
+        return ReferenceRollout(scenario, **kwargs)
+    return KernelRollout(scenario, **kwargs)
 
 
 def simulate(scenario: Scenario | str, *, method: str = "predefined_time", m: float | None = None,
@@ -55,8 +46,8 @@ def simulate(scenario: Scenario | str, *, method: str = "predefined_time", m: fl
         q0: start from this configuration (19,) instead of the scenario's initial state. The
             desired path and the base set-point still come from the scenario's initial state, so
             this is how an initial pose error is imposed.
-        backend: ``"auto"`` (the compiled kernel when numba is installed), ``"kernel"`` or
-            ``"pinocchio"`` (the reference implementation).
+        backend: ``"auto"`` or ``"kernel"`` (the native kernel), or ``"pinocchio"`` (the reference
+            implementation).
         progress: show a progress bar.
         stop_on_violation: end the run after the first step that exceeds the rate limit or
             collides (the trajectory then ends one sample after it; its score is +inf either way).

@@ -57,7 +57,12 @@ nb::tuple run(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, lo
   return nb::make_tuple(state_out(*st), rows, static_cast<int>(status), logs);
 }
 
-// One environment episode on the native kernel: the robot (and plant) it steps, its settings, its state and logs.
+// The log fields of an episode, their widths (0: one float per row, the array one-dimensional).
+constexpr const char* kLogNames[10] = {"x", "v", "dq", "err", "clear", "self", "mu", "cdf", "smin", "tau"};
+constexpr size_t kLogWidths[10] = {19, 18, 12, 4, 0, 0, 2, 2, 2, 12};
+
+// One environment episode on the native kernel: the robot (and plant) it steps, its settings, its state, and its
+// logs of n_total + 1 rows (the last for the final sample), its own or numpy arrays the caller owns.
 struct NativeEpisode {
   const ffsr::Robot* robot;
   const ffsr::Robot* plant;
@@ -65,70 +70,114 @@ struct NativeEpisode {
   ffsr::DecisionSettings d;
   std::unique_ptr<ffsr::EpisodeState> e = std::make_unique<ffsr::EpisodeState>();
   long n_total;
-  std::vector<double> x, v, dq, err, clear, self, mu, cdf, smin, tau;
+  std::vector<double> owned;
+  double* log[10] = {};
+  nb::object keep;  // the caller's log arrays, alive as long as the episode
 
   NativeEpisode(const ffsr::Robot& robot_, const ffsr::PlannerSettings& s_, const ffsr::DecisionSettings& d_, In x0,
-                long n_total_, const ffsr::Robot* plant_)
+                long n_total_, const ffsr::Robot* plant_, std::optional<nb::dict> logs)
       : robot(&robot_), plant(plant_ ? plant_ : &robot_), s(s_), d(d_), n_total(n_total_) {
     if (n_total < 1) throw nb::value_error("n_total: allowed >= 1 step");
     check_settings(s, n_total);
     load_state(x0, e->loop, s);
-    const size_t n = static_cast<size_t>(n_total);
-    x.assign(19 * n, 0.0), v.assign(18 * n, 0.0), dq.assign(12 * n, 0.0), err.assign(4 * n, 0.0);
-    clear.assign(n, 0.0), self.assign(n, 0.0), mu.assign(2 * n, 0.0), cdf.assign(2 * n, 0.0);
-    smin.assign(2 * n, 0.0), tau.assign(12 * n, 0.0);
+    const size_t rows = static_cast<size_t>(n_total) + 1;
+    if (!logs) {
+      size_t total = 0;
+      for (size_t f = 0; f < 10; ++f) total += rows * std::max<size_t>(kLogWidths[f], 1);
+      owned.assign(total, 0.0);
+      double* next = owned.data();
+      for (size_t f = 0; f < 10; ++f) log[f] = next, next += rows * std::max<size_t>(kLogWidths[f], 1);
+      return;
+    }
+    for (size_t f = 0; f < 10; ++f) {
+      if (!logs->contains(kLogNames[f]))
+        throw nb::value_error((std::string("logs: no '") + kLogNames[f] + "'; allowed: a dict of the ten log arrays")
+                                  .c_str());
+      auto array = nb::cast<nb::ndarray<double, nb::c_contig, nb::device::cpu>>((*logs)[kLogNames[f]]);
+      if (kLogWidths[f] == 0)
+        check_shape(array, kLogNames[f], {rows});
+      else
+        check_shape(array, kLogNames[f], {rows, kLogWidths[f]});
+      log[f] = array.data();
+    }
+    keep = *logs;
+  }
+
+  ffsr::LogRows rows_from(long k) const {
+    const size_t r = static_cast<size_t>(k);
+    return ffsr::LogRows{log[0] + 19 * r, log[1] + 18 * r, log[2] + 12 * r, log[3] + 4 * r, log[4] + r,
+                         log[5] + r, log[6] + 2 * r, log[7] + 2 * r, log[8] + 2 * r, log[9] + 12 * r};
+  }
+
+  static int observation_size(const nb::ndarray<float, nb::c_contig, nb::device::cpu>& obs) {
+    const int n_obs = obs.ndim() == 1 ? static_cast<int>(obs.shape(0)) : 0;
+    if (n_obs != ffsr::kObservation && n_obs != ffsr::kObservationTwist)
+      throw nb::value_error("obs: allowed a float32 array of 53 or 59");
+    return n_obs;
+  }
+
+  void check_step(long k) const {
+    if (k < 0 || k > n_total) throw nb::value_error("k: allowed 0 <= k <= n_total");
   }
 
   nb::tuple decide(In action, int mode, bool stop, long k, long n_max,
                    nb::ndarray<float, nb::c_contig, nb::device::cpu> obs) {
     if (mode < 0 || mode > 2) throw nb::value_error("mode: allowed 0 (residual), 1 (parameters) or 2 (set)");
-    if (k < 0 || k > n_total || n_max < 0) throw nb::value_error("steps: allowed 0 <= k <= n_total and n_max >= 0");
+    check_step(k);
+    if (n_max < 0) throw nb::value_error("n_max: allowed >= 0");
     if (action.ndim() != 1) throw nb::value_error("action: allowed a 1-d array");
     const int n_action = static_cast<int>(action.shape(0));
-    const int n_obs = obs.ndim() == 1 ? static_cast<int>(obs.shape(0)) : 0;
-    if (n_obs != ffsr::kObservation && n_obs != ffsr::kObservationTwist)
-      throw nb::value_error("obs: allowed a float32 array of 53 or 59");
-    const size_t r = static_cast<size_t>(k);
-    ffsr::LogRows logs{x.data() + 19 * r, v.data() + 18 * r, dq.data() + 12 * r, err.data() + 4 * r,
-                       clear.data() + r, self.data() + r, mu.data() + 2 * r, cdf.data() + 2 * r,
-                       smin.data() + 2 * r, tau.data() + 12 * r};
+    const int n_obs = observation_size(obs);
     ffsr::DecisionResult out;
     {
       nb::gil_scoped_release release;
       out = ffsr::decide(*robot, *plant, s, d, *e, k, n_total, n_max, action.data(), n_action,
-                         static_cast<ffsr::ActionMode>(mode), stop, logs, obs.data(), n_obs);
+                         static_cast<ffsr::ActionMode>(mode), stop, rows_from(k), obs.data(), n_obs);
     }
     return nb::make_tuple(out.rows, out.status, out.clipped, out.increment, out.cost, out.clearance, out.ee_error);
   }
 
+  nb::tuple observe(long k, nb::ndarray<float, nb::c_contig, nb::device::cpu> obs) {
+    check_step(k);
+    const int n_obs = observation_size(obs);
+    double clearance = 0.0, ee_error = 0.0;
+    ffsr::observation(*robot, s, *e, k, n_total, obs.data(), n_obs, clearance, ee_error);
+    return nb::make_tuple(clearance, ee_error);
+  }
+
+  void set_parameters(double m, double T_c) {
+    if (!(m > 0.0 && m < 1.0) || !(T_c > 0.0)) throw nb::value_error("(m, T_c): allowed 0 < m < 1 and T_c > 0 s");
+    s.m = m, s.T_c = T_c;
+  }
+
   nb::dict logs() const {
-    const size_t n = static_cast<size_t>(n_total);
+    const size_t n = static_cast<size_t>(n_total) + 1;
     nb::dict out;
-    out["x"] = copy_out(x.data(), {n, 19});
-    out["v"] = copy_out(v.data(), {n, 18});
-    out["dq"] = copy_out(dq.data(), {n, 12});
-    out["err"] = copy_out(err.data(), {n, 4});
-    out["clear"] = copy_out(clear.data(), {n});
-    out["self"] = copy_out(self.data(), {n});
-    out["mu"] = copy_out(mu.data(), {n, 2});
-    out["cdf"] = copy_out(cdf.data(), {n, 2});
-    out["smin"] = copy_out(smin.data(), {n, 2});
-    out["tau"] = copy_out(tau.data(), {n, 12});
+    for (size_t f = 0; f < 10; ++f)
+      out[kLogNames[f]] = kLogWidths[f] == 0 ? copy_out(log[f], {n}) : copy_out(log[f], {n, kLogWidths[f]});
     return out;
   }
 };
 
-// Episodes advanced together: one decision each per call, on threads, the GIL released.
+// Episodes advanced together: one slot per copy, each holding an episode (set when the copy resets); one
+// decision each per call, on threads, the GIL released.
 struct EpisodeBatch {
   std::vector<NativeEpisode*> episodes;
+  std::vector<nb::object> keep;  // the slots' episodes, alive as long as they are in the batch
   int threads;
 
-  EpisodeBatch(std::vector<NativeEpisode*> episodes_, int threads_) : episodes(std::move(episodes_)), threads(threads_) {
-    if (episodes.empty()) throw nb::value_error("episodes: allowed at least one");
+  EpisodeBatch(size_t n, int threads_) : episodes(n, nullptr), keep(n), threads(threads_) {
+    if (n < 1) throw nb::value_error("n: allowed at least one slot");
     if (threads < 1) throw nb::value_error("threads: allowed >= 1");
+  }
+
+  void set(size_t slot, nb::handle episode) {
+    if (slot >= episodes.size()) throw nb::value_error("slot: allowed 0 to n - 1");
+    NativeEpisode* ep = nb::cast<NativeEpisode*>(episode);
     for (size_t e = 0; e < episodes.size(); ++e)
-      for (size_t f = 0; f < e; ++f)
-        if (episodes[e] == episodes[f]) throw nb::value_error("episodes: allowed each episode once");
+      if (e != slot && episodes[e] == ep) throw nb::value_error("episode: allowed in one slot only");
+    episodes[slot] = ep;
+    keep[slot] = nb::borrow(episode);
   }
 
   // One decision for every active episode e from its step k[e] (which advances): out[e] = (rows, status,
@@ -149,7 +198,10 @@ struct EpisodeBatch {
     check_shape(out, "out", {n, 7});
     if (mode < 0 || mode > 2) throw nb::value_error("mode: allowed 0 (residual), 1 (parameters) or 2 (set)");
     for (size_t e = 0; e < n; ++e)
-      if (k.data()[e] < 0 || k.data()[e] > episodes[e]->n_total)
+      if (active.data()[e] && !episodes[e])
+        throw nb::value_error(("active[" + std::to_string(e) + "]: slot without an episode; set it first").c_str());
+    for (size_t e = 0; e < n; ++e)
+      if (episodes[e] && (k.data()[e] < 0 || k.data()[e] > episodes[e]->n_total))
         throw nb::value_error(("k[" + std::to_string(e) + "]: allowed 0 to the episode's n_total").c_str());
     const double* a = actions.data();
     const bool* on = active.data();
@@ -160,14 +212,9 @@ struct EpisodeBatch {
       for (size_t e = first; e < n; e += stride) {
         if (!on[e]) continue;
         NativeEpisode& ep = *episodes[e];
-        const size_t row = static_cast<size_t>(steps[e]);
-        ffsr::LogRows logs{ep.x.data() + 19 * row, ep.v.data() + 18 * row, ep.dq.data() + 12 * row,
-                           ep.err.data() + 4 * row, ep.clear.data() + row, ep.self.data() + row,
-                           ep.mu.data() + 2 * row, ep.cdf.data() + 2 * row, ep.smin.data() + 2 * row,
-                           ep.tau.data() + 12 * row};
         const ffsr::DecisionResult d = ffsr::decide(*ep.robot, *ep.plant, ep.s, ep.d, *ep.e, steps[e], ep.n_total,
                                                     n_max, a + width * e, static_cast<int>(width),
-                                                    static_cast<ffsr::ActionMode>(mode), true, logs, o + n_obs * e,
+                                                    static_cast<ffsr::ActionMode>(mode), true, ep.rows_from(steps[e]), o + n_obs * e,
                                                     static_cast<int>(n_obs));
         steps[e] += d.rows;
         double* row_out = r + 7 * e;
@@ -208,18 +255,30 @@ void bind_episode(nb::module_& m) {
       .def_rw("V_ref", &ffsr::DecisionSettings::V_ref);
   nb::class_<NativeEpisode>(m, "Episode", "One environment episode on the native kernel.")
       .def(nb::init<const ffsr::Robot&, const ffsr::PlannerSettings&, const ffsr::DecisionSettings&, In, long,
-                    const ffsr::Robot*>(),
-           "robot"_a, "settings"_a, "decision"_a, "x"_a, "n_total"_a, "plant"_a = nb::none(), nb::keep_alive<1, 2>(),
-           nb::keep_alive<1, 7>())
+                    const ffsr::Robot*, std::optional<nb::dict>>(),
+           "robot"_a, "settings"_a, "decision"_a, "x"_a, "n_total"_a, "plant"_a = nb::none(), "logs"_a = nb::none(),
+           nb::keep_alive<1, 2>(), nb::keep_alive<1, 7>(),
+           "logs: a dict of the ten log arrays (float64, C order, n_total + 1 rows: x 19, v 18, dq 12, err 4, "
+           "clear, self, mu 2, cdf 2, smin 2, tau 12) to write into; the episode's own without.")
       .def("decide", &NativeEpisode::decide, "action"_a, "mode"_a, "stop"_a, "k"_a, "n_max"_a, "obs"_a,
            "One decision from step k: (rows, status, clipped, increment, cost, clearance, EE error); the next "
            "observation into obs (float32, 53 or 59).")
-      .def("logs", &NativeEpisode::logs, "The episode's logs, one row per step (copies).")
+      .def("observe", &NativeEpisode::observe, "k"_a, "obs"_a,
+           "The observation at step k into obs (float32, 53 or 59): (clearance [m], EE position error [m]).")
+      .def("set_parameters", &NativeEpisode::set_parameters, "m"_a, "T_c"_a, "(m, T_c [s]) from the next step on.")
+      .def("logs", &NativeEpisode::logs, "The episode's logs, n_total + 1 rows (copies).")
       .def("state", [](const NativeEpisode& ep) { return state_out(ep.e->loop); }, "The state x (40, a copy).")
+      .def_prop_rw(
+          "last_rates", [](const NativeEpisode& ep) { return copy_out(ep.e->last_rates, {12}); },
+          [](NativeEpisode& ep, In rates) {
+            std::memcpy(ep.e->last_rates, data_of(rates, "last_rates", {12}), sizeof ep.e->last_rates);
+          },
+          nb::rv_policy::move, "The joint rates applied last [rad/s] (12): what the next decision's variation starts from.")
       .def_prop_ro("m", [](const NativeEpisode& ep) { return ep.s.m; })
       .def_prop_ro("T_c", [](const NativeEpisode& ep) { return ep.s.T_c; });
   nb::class_<EpisodeBatch>(m, "EpisodeBatch", "Episodes advanced together, one decision each per call, on threads.")
-      .def(nb::init<std::vector<NativeEpisode*>, int>(), "episodes"_a, "threads"_a = 1, nb::keep_alive<1, 2>())
+      .def(nb::init<size_t, int>(), "n"_a, "threads"_a = 1)
+      .def("set", &EpisodeBatch::set, "slot"_a, "episode"_a, "Put an episode into a slot (a copy's reset).")
       .def("decide", &EpisodeBatch::decide, "actions"_a, "active"_a, "k"_a, "mode"_a, "n_max"_a, "obs"_a, "out"_a,
            "One decision for every active episode from its step k (advanced in place); out (N, 7): rows, status, "
            "clipped, increment, cost, clearance, EE error; obs (N, 53 or 59) float32, written in place.");

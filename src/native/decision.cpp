@@ -53,6 +53,29 @@ double smoothness_cost(const double terms[4], const DecisionSettings& d) {
   return d.alpha * mission + d.beta * balance;
 }
 
+void observation(const Robot& robot, const PlannerSettings& s, EpisodeState& e, long k, long n_total, float* obs,
+                 int n_obs, double& clearance, double& ee_error) {
+  double rel[3] = {0.0, 0.0, 0.0};
+  clearance = observe(robot, s, e.loop, static_cast<double>(k) * s.dt, rel);
+  e.planned = true, e.planned_k = k, e.planned_m = s.m, e.planned_T_c = s.T_c;
+  const Plan& p = e.loop.p;
+  if (n_obs > kObservation)
+    for (int j = 0; j < 6; ++j) obs[kObservation + j] = static_cast<float>(clip(p.V_ed[j], kObsTwist));
+  for (int j = 0; j < kJoints; ++j) {
+    obs[j] = static_cast<float>(std::sin(e.loop.x[7 + j]));
+    obs[12 + j] = static_cast<float>(std::cos(e.loop.x[7 + j]));
+    obs[24 + j] = static_cast<float>(clip(e.last_rates[j], kObsRate));
+  }
+  for (int j = 0; j < 6; ++j) {
+    obs[36 + j] = static_cast<float>(clip(p.e1[j], kObsError));
+    obs[42 + j] = static_cast<float>(clip(p.e0[j], kObsError));
+  }
+  for (int j = 0; j < 3; ++j) obs[48 + j] = static_cast<float>(clip(rel[j], kObsRelative));
+  obs[51] = static_cast<float>(clip(clearance, kObsClearance));
+  obs[52] = static_cast<float>(std::min(1.0, static_cast<double>(k) / static_cast<double>(n_total)));
+  ee_error = std::sqrt(p.e1[0] * p.e1[0] + p.e1[1] * p.e1[1] + p.e1[2] * p.e1[2]);
+}
+
 DecisionResult decide(const Robot& robot, const Robot& plant, PlannerSettings& s, const DecisionSettings& d,
                       EpisodeState& e, long k, long n_total, long n_max, const double* action, int n_action,
                       ActionMode mode, bool stop, const LogRows& logs, float* obs, int n_obs) {
@@ -99,26 +122,7 @@ DecisionResult decide(const Robot& robot, const Robot& plant, PlannerSettings& s
   const double excess = std::max(0.0, peak * (180.0 / M_PI) / d.rate_limit_deg_s - 1.0);
   result.cost = depth / d.clear_scale + excess;
   for (int j = 0; j < kJoints; ++j) e.last_rates[j] = logs.dq[12 * (rows - 1) + j];
-  double rel[3] = {0.0, 0.0, 0.0};
-  const double t_next = static_cast<double>(k + rows) * dt;
-  result.clearance = observe(robot, s, e.loop, t_next, rel);
-  e.planned = true, e.planned_k = k + rows, e.planned_m = s.m, e.planned_T_c = s.T_c;
-  const Plan& p = e.loop.p;
-  if (n_obs > kObservation)
-    for (int j = 0; j < 6; ++j) obs[kObservation + j] = static_cast<float>(clip(p.V_ed[j], kObsTwist));
-  for (int j = 0; j < kJoints; ++j) {
-    obs[j] = static_cast<float>(std::sin(e.loop.x[7 + j]));
-    obs[12 + j] = static_cast<float>(std::cos(e.loop.x[7 + j]));
-    obs[24 + j] = static_cast<float>(clip(e.last_rates[j], kObsRate));
-  }
-  for (int j = 0; j < 6; ++j) {
-    obs[36 + j] = static_cast<float>(clip(p.e1[j], kObsError));
-    obs[42 + j] = static_cast<float>(clip(p.e0[j], kObsError));
-  }
-  for (int j = 0; j < 3; ++j) obs[48 + j] = static_cast<float>(clip(rel[j], kObsRelative));
-  obs[51] = static_cast<float>(clip(result.clearance, kObsClearance));
-  obs[52] = static_cast<float>(std::min(1.0, static_cast<double>(k + rows) / static_cast<double>(n_total)));
-  result.ee_error = std::sqrt(p.e1[0] * p.e1[0] + p.e1[1] * p.e1[1] + p.e1[2] * p.e1[2]);
+  observation(robot, s, e, k + rows, n_total, obs, n_obs, result.clearance, result.ee_error);
   return result;
 }
 

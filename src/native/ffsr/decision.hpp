@@ -48,6 +48,11 @@ void smoothness_terms(const double* rates, long rows, double dt, const double pr
 // C = α (E₁/E_ref + V₁/V_ref) + β (E₂/E_ref + V₂/V_ref).
 double smoothness_cost(const double terms[4], const DecisionSettings& d);
 
+// The observation at step k of n_total into obs (n_obs floats), with the robot-obstacle clearance [m] and the
+// end-effector position error [m] it shows; the plan it computed serves the next decision from step k.
+void observation(const Robot& robot, const PlannerSettings& s, EpisodeState& e, long k, long n_total, float* obs,
+                 int n_obs, double& clearance, double& ee_error);
+
 // One decision from step k (logs written from their row 0, that is the episode's row k): mode kParameters sets
 // s.m and s.T_c from the action, kResidual adds the faded residual rates, kSet ignores the action. obs:
 // n_obs floats (kObservation or kObservationTwist).
