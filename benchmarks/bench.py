@@ -20,13 +20,10 @@ import os
 import platform
 import sys
 import time
-from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
-from contextlib import contextmanager
 from pathlib import Path
 
 import gymnasium as gym
-import numba
 import numpy as np
 
 import ffsr_gym
@@ -34,24 +31,19 @@ from ffsr_gym.optim import ga
 from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic, write_text_atomic
 
 sys.path.insert(0, str(Path(__file__).parent))
-import kernel_parts  # noqa: E402  (benchmarks/kernel_parts.py, next to this script)
 import speed_guard  # noqa: E402  (benchmarks/speed_guard.py)
 from servo_bench import servo_mjcf, servo_speed  # noqa: E402,F401  (re-exported: tests and servo_plant.py use them)
-from timing import _no_gc, best_of, kernel_time  # noqa: E402
 from speed_tables import (  # noqa: E402,F401  (benchmarks/speed_tables.py: the page's tables, re-exported for the tests)
     BUDGET_END,
     BUDGET_PARTS,
     BUDGET_START,
-    KERNEL_END,
-    KERNEL_START,
     README_END,
     README_START,
     budget_table,
     clock_ghz,
-    floor_line,
-    kernel_table,
     speed_table,
 )
+from timing import _no_gc, best_of, kernel_time  # noqa: E402
 
 
 def per_step(env, steps: int) -> float:
@@ -132,8 +124,7 @@ def vector_throughput(env_id: str, num_envs: int, decisions: int, threads: int, 
     For the residual ids a zero action is the reference planner; copies run whole episodes (ends
     scored, resets included) for ``decisions`` decisions after a first one.
     """
-    numba.set_num_threads(threads)
-    venv = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs)
+    venv = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", threads=threads, **kwargs)
     venv.reset(seed=0)
     actions = np.zeros(venv.action_space.shape, dtype=np.float32)
     venv.step(actions)
@@ -209,10 +200,9 @@ def measure(workers: int, repeats: int, quick: bool) -> tuple[list[dict], dict]:
             steps_per_s, "physics steps/s", f"1 thread {single:,.0f} steps/s", steps_per_s / single,
             f">= {goal:,} steps/s", steps_per_s >= goal)
         if not math.isnan(compiled):  # the v2 env: its compiled decisions alone bound the row above
-            row(f"{key}_compiled", "the same pass, its compiled decisions alone (`decide_batch`, Python excluded)",
+            row(f"{key}_compiled", "the same pass, its native decisions alone (`EpisodeBatch.decide`, Python excluded)",
                 compiled, "physics steps/s", f"whole episodes {steps_per_s:,.0f} steps/s", compiled / steps_per_s,
                 f"bound on whole episodes: >= {goal:,} needed", compiled >= goal)
-    numba.set_num_threads(workers)
 
     from ffsr_gym.bench.evaluation import evaluate as evaluate_pool
     from ffsr_gym.tasks.tiers import ALL_TIERS
@@ -317,17 +307,16 @@ def main() -> None:
     committed = json.loads(Path(args.against).read_text()) if Path(args.against).is_file() else None
     workers = os.cpu_count() or 1
     machine = (f"{platform.processor() or platform.machine()}, {workers} CPUs, Python {platform.python_version()}, "
-               f"numba {numba.__version__}")
+               "native kernel")
     print("machine:", machine)
-    start, runs, budgets, parts = time.perf_counter(), [], [], []
+    start, runs, budgets = time.perf_counter(), [], []
     for k in range(args.runs):
         print(f"run {k + 1} of {args.runs}")
         rows, budget = measure(workers, args.repeats, args.quick)
         runs.append(rows)
         budgets.append(budget)
-        parts.append(kernel_parts.measure_parts())
     results = {"machine": machine, "workers": workers, "quick": args.quick, "runs": runs, "budgets": budgets,
-               "kernel_parts": parts, "operations": kernel_parts.operation_counts(), "clock_ghz": clock_ghz(),
+               "clock_ghz": clock_ghz(),
                "yardstick_s": speed_guard.yardstick_s(),
                "provenance": provenance(command="python benchmarks/bench.py " + " ".join(sys.argv[1:]),
                                         wall_time_s=time.perf_counter() - start)}
@@ -337,7 +326,6 @@ def main() -> None:
     print(speed_table(results))
     print(speed_guard.guard_block(results))
     print(budget_table(results))
-    print(kernel_table(results))
     if args.readme:
         splice_page(results, args.readme)
 
@@ -348,7 +336,6 @@ def splice_page(results: dict, page: str | None) -> None:
         text = Path(page).read_text(encoding="utf-8")
         text = splice_generated(text, README_START, README_END, speed_table(results), where=page)
         text = splice_generated(text, BUDGET_START, BUDGET_END, budget_table(results), where=page)
-        text = splice_generated(text, KERNEL_START, KERNEL_END, kernel_table(results), where=page)
         text = splice_generated(text, speed_guard.START, speed_guard.END, speed_guard.guard_block(results),
                                 where=page)
         write_text_atomic(page, text)

@@ -48,12 +48,14 @@ def servo_speed(repeats: int, h: float = 0.001, seconds: float = 1.0) -> tuple[f
     """Wall time per simulated second [s/s] of the kernel's servo plant and of MuJoCo on a model of the same
     robot and drives (None without MuJoCo), the same commands at the same step; and their final joint rates'
     largest difference [rad/s] (the two are different integrators of the same dynamics)."""
-    from ffsr_gym.kernel import servo
+    from ffsr_gym import _native
+    from ffsr_gym.kernel.layout import N_STATE, X_V
+    from ffsr_gym.kernel.robot import native_plant
     from ffsr_gym.model.scenario import load_scenario
     from ffsr_gym.sim.setup import prepare
 
     setup = prepare(load_scenario("paper"))
-    kernel, mdl, drive = setup.assets.kernel, setup.assets.kernel_arrays, setup.plant_arrays[3]
+    kernel, drive = setup.assets.kernel, setup.plant_arrays[3]
     if not drive.any():
         from ffsr_gym.model.drives import drive_array, drives_path, load_drives
         from ffsr_gym.model.resources import robot_dir
@@ -61,11 +63,11 @@ def servo_speed(repeats: int, h: float = 0.001, seconds: float = 1.0) -> tuple[f
         drive = drive_array(load_drives(drives_path(robot_dir("ffsr_dual_arm"))))
     n = int(round(seconds / h))
     cmds = np.sin(3.0 * np.arange(n)[:, None] * h + np.arange(12)[None, :])  # [rad/s]
-    start = np.zeros(servo.N_STATE)
+    start = np.zeros(N_STATE)
     start[:7], start[7:19] = setup.q0[:7], setup.q0[kernel.q_index]
-    states, torques = np.zeros((n + 1, servo.N_STATE)), np.zeros((n, 12))
-    ours = best_of(lambda: servo.drive_open_loop(start.copy(), mdl, cmds, drive, h, np.zeros(6), 10, states, torques),
-                   repeats) / seconds
+    plant = native_plant(kernel, (kernel.mass, kernel.lever, kernel.inertia, drive))
+    ours = best_of(lambda: _native.drive_open_loop(plant, start, cmds, h, np.zeros(6), 10), repeats) / seconds
+    states, _ = _native.drive_open_loop(plant, start, cmds, h, np.zeros(6), 10)
     try:
         import mujoco
     except ImportError:
@@ -82,7 +84,7 @@ def servo_speed(repeats: int, h: float = 0.001, seconds: float = 1.0) -> tuple[f
             mujoco.mj_step(mj, data)
 
     run_mujoco()
-    gap = float(np.abs(data.qvel[6:] - states[-1, servo.X_V + 6:servo.X_V + 18]).max())
+    gap = float(np.abs(data.qvel[6:] - states[-1, X_V + 6:X_V + 18]).max())
     try:  # MuJoCo's own C loop over the steps (no Python per step), where this MuJoCo has it
         from mujoco import rollout
     except ImportError:

@@ -32,7 +32,9 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from ffsr_gym.kernel import servo as servo_kernel
+from ffsr_gym import _native
+from ffsr_gym.kernel.layout import N_STATE
+from ffsr_gym.kernel.robot import native_plant
 from ffsr_gym.model.benchmark import VERSIONS, load_benchmark
 from ffsr_gym.model.scenario import Scenario, ServoSettings, load_scenario
 from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic, write_text_atomic
@@ -81,14 +83,13 @@ def open_loop(paper: Scenario, commands: np.ndarray, h: float) -> tuple[np.ndarr
     kernel, drive = setup.assets.kernel, setup.plant_arrays[3]
     substeps = servo.physics_substeps
     held = np.repeat(commands, substeps, axis=0)
-    start = np.zeros(servo_kernel.N_STATE)
+    start = np.zeros(N_STATE)
     start[:7], start[7:19] = setup.q0[:7], setup.q0[kernel.q_index]
-    states, torques = np.zeros((len(held) + 1, servo_kernel.N_STATE)), np.zeros((len(held), 12))
+    plant = native_plant(kernel, (kernel.mass, kernel.lever, kernel.inertia, drive))
     costs = []
     for _ in range(2):
         begin = time.perf_counter()
-        servo_kernel.drive_open_loop(start.copy(), setup.assets.kernel_arrays, held, drive, h, np.zeros(6), substeps, states,
-                                     torques)
+        states, _ = _native.drive_open_loop(plant, start, np.ascontiguousarray(held), h, np.zeros(6), substeps)
         costs.append(time.perf_counter() - begin)
     return states[::substeps], min(costs) / (len(commands) * paper.simulation.dt_s)
 

@@ -3,10 +3,10 @@
 Run: ``python benchmarks/setup_time.py --readme README.md`` from a checkout whose code is
 committed (it clones HEAD). Each command runs in its own clone in a temporary folder, part by part
 (its ``&&``-separated commands, each timed; a failing part stops it, as ``&&`` does), with pip's
-cache off and empty numba and matplotlib caches; the main job's last part then runs once more
-(warm), and then the first use of each other compiled entry point, in the order a user meets them
-(:data:`FIRST_USES`, each a fresh process in the main job's environment, from outside the clone; a
-use compiles what no earlier one cached). Writes ``benchmarks/setup_time.json`` (with provenance)
+cache off and an empty matplotlib cache; the main job's last part then runs once more (warm), and then
+the first use of each environment a user meets (:data:`FIRST_USES`, each a fresh process in the main
+job's environment, from outside the clone: import, make, reset, one step), and the same for MuJoCo's
+``Pusher-v5`` in this script's environment (which has MuJoCo), the anchor the first uses are compared with. Writes ``benchmarks/setup_time.json`` (with provenance)
 and, with ``--readme``, the README's set-up times between their markers.
 """
 
@@ -32,15 +32,16 @@ END = "<!-- setup-time:end -->"
 NAMES = ("main job", "tests")
 _ENV = "import gymnasium as gym, ffsr_gym; "
 _STEP = "env.reset(seed=0); env.step(env.action_space.sample())"
-#: After the main job (which compiles the closed loop): the first use of each env, as a user writes it.
+#: After the main job: the first use of each env, as a user writes it (import, make, reset, one step).
 FIRST_USES = {
-    "single env": f"{_ENV}env = gym.make('FFSR-Residual-v2', task='easy'); {_STEP}",
-    "batched env": (f"{_ENV}env = gym.make_vec('FFSR-Residual-v2', num_envs=2, "
-                    f"vectorization_mode='vector_entry_point', task='easy'); {_STEP}"),
-    "servo single env": f"{_ENV}env = gym.make('FFSR-Residual-v2', task='servo'); {_STEP}",
-    "servo batched env": (f"{_ENV}env = gym.make_vec('FFSR-Residual-v2', num_envs=2, "
-                          f"vectorization_mode='vector_entry_point', task='servo'); {_STEP}"),
+    "FFSR-v2": f"{_ENV}env = gym.make('FFSR-v2', task='easy'); {_STEP}",
+    "batched FFSR-Residual-v2": (f"{_ENV}env = gym.make_vec('FFSR-Residual-v2', num_envs=2, "
+                                 f"vectorization_mode='vector_entry_point', task='easy'); {_STEP}"),
+    "servo tier": f"{_ENV}env = gym.make('FFSR-Residual-v2', task='servo'); {_STEP}",
+    "capture": f"{_ENV}env = gym.make('FFSR-Capture-v0'); {_STEP}",
 }
+#: The anchor: MuJoCo's Pusher-v5, the same four things, in this script's environment.
+PUSHER = f"import gymnasium as gym; env = gym.make('Pusher-v5'); {_STEP}"
 
 
 def setup_commands(readme: str) -> tuple[str, str]:
@@ -56,7 +57,7 @@ def setup_commands(readme: str) -> tuple[str, str]:
 
 def _clean_env(home: Path) -> dict[str, str]:
     """This process's environment without its virtual environment, with fresh caches under ``home``."""
-    env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH", "NUMBA_CACHE_DIR", "PYTHONHOME")}
+    env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH", "PYTHONHOME")}
     active = Path(sys.prefix) / "bin"
     env["PATH"] = os.pathsep.join(p for p in env.get("PATH", "").split(os.pathsep) if Path(p) != active)
     env.update(PIP_NO_CACHE_DIR="1", XDG_CACHE_HOME=str(home / "cache"), MPLCONFIGDIR=str(home / "matplotlib"))
@@ -98,8 +99,11 @@ def measure(readme: str, work: Path) -> dict:
             home.mkdir(parents=True, exist_ok=True)
             uses = _run_each([f"{python} -c {shlex.quote(code)}" for code in FIRST_USES.values()], home, env, log,
                              "first use")
+            pusher = _run_each([f"{shlex.quote(sys.executable)} -c {shlex.quote(PUSHER)}"], home, dict(os.environ),
+                               log, "Pusher-v5")[0]
             results["first uses"] = {"after": "the main job", "uses": [dict(use, name=name) for name, use in
-                                                                      zip(FIRST_USES, uses)]}
+                                                                      zip(FIRST_USES, uses)],
+                                     "pusher": dict(pusher, name="Pusher-v5")}
         results[name] = {"command": command, "parts": parts}
     return results
 
@@ -119,20 +123,24 @@ def setup_text(results: dict) -> str:
         return _duration(sum(p["seconds"] for p in parts))
 
     return (f"Both commands as written, each from a fresh clone of {results['provenance']['git_commit'][:7]} on "
-            f"{results['machine']}, with pip's cache off and empty numba and matplotlib caches: the main job "
-            f"took {total(first)} (`pip install .` {total(first[1:2])}, the run {total(first[2:])}, which "
-            f"compiles the kernel once; {total(again)} when run again), the tests {total(tests)} "
-            f"(`pip install -e \".[dev]\"` {total(tests[1:2])}, pytest {total(tests[2:])}, the kernel's "
-            "compilation included)." + _first_uses_text(results) + "\n")
+            f"{results['machine']}, with pip's cache off and an empty matplotlib cache: the main job "
+            f"took {total(first)} (`pip install .` {total(first[1:2])}, which builds the native kernel, the run "
+            f"{total(first[2:])}; {total(again)} when run again), the tests {total(tests)} "
+            f"(`pip install -e \".[dev]\"` {total(tests[1:2])}, pytest {total(tests[2:])})."
+            + _first_uses_text(results) + "\n")
 
 
 def _first_uses_text(results: dict) -> str:
-    """After the main job, each env's first use (what it compiles that the main job did not)."""
-    uses = results.get("first_uses", {}).get("uses")
+    """After the main job, each env's first use in a new process, and MuJoCo's Pusher-v5's, the anchor."""
+    uses, pusher = results.get("first_uses", {}).get("uses"), results.get("first_uses", {}).get("pusher")
     if not uses:
         return ""
-    return " After the main job, the first use of each env took: " + ", ".join(
-        f"{use['name']} {_duration(use['seconds'])}" for use in uses) + " (one reset and one step, in a new process)."
+    text = " After the main job, a new process's import, make, reset and one step took: " + ", ".join(
+        f"{use['name']} {use['seconds']:.1f} s" for use in uses)
+    if pusher:
+        text += (f"; MuJoCo's Pusher-v5 the same {pusher['seconds']:.1f} s (ratios " +
+                 ", ".join(f"{use['seconds'] / pusher['seconds']:.2f}" for use in uses) + ")")
+    return text + "; nothing is compiled at first use."
 
 
 def main() -> None:

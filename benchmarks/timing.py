@@ -38,21 +38,31 @@ def best_of(fn, repeats: int) -> float:
 
 @contextmanager
 def kernel_time() -> Iterator[list[float]]:
-    """Seconds spent in the batched v2 kernel (``ffsr_gym.kernel.batch.decide_batch``) while the block runs, in
-    ``[0]``."""
-    from ffsr_gym.kernel import batch as kernel_batch
+    """Seconds spent in the batched environments' native decisions (``ffsr_gym._native.EpisodeBatch.decide``, the
+    GIL released) while the block runs, in ``[0]``: the batches of engines made inside the block are timed."""
+    import types
 
-    original, spent = kernel_batch.decide_batch, [0.0]
+    from ffsr_gym import _native
+    from ffsr_gym.environments import engine
 
-    def timed(*args):
-        start = time.perf_counter()
-        try:
-            return original(*args)
-        finally:
-            spent[0] += time.perf_counter() - start
+    spent = [0.0]
 
-    kernel_batch.decide_batch = timed
+    class TimedBatch:
+        def __init__(self, *args) -> None:
+            self.batch = _native.EpisodeBatch(*args)
+
+        def set(self, *args) -> None:
+            self.batch.set(*args)
+
+        def decide(self, *args) -> None:
+            start = time.perf_counter()
+            try:
+                self.batch.decide(*args)
+            finally:
+                spent[0] += time.perf_counter() - start
+
+    engine._native = types.SimpleNamespace(**{**vars(_native), "EpisodeBatch": TimedBatch})
     try:
         yield spent
     finally:
-        kernel_batch.decide_batch = original
+        engine._native = _native

@@ -3,8 +3,8 @@ loops take.
 
 ``--scheduler ADDRESS`` names a running Dask scheduler (``tcp://host:8786``, or ``host:8786``); ``local:N`` starts a
 ``LocalCluster`` of N worker processes on this machine. Each worker runs one piece at a time, and every piece pins
-numba's, torch's and the BLAS libraries' threads (one unless asked) before it runs, so it computes the same numbers
-wherever it runs.
+the batched environments', torch's and the BLAS libraries' threads (one unless asked) before it runs, so it computes
+the same numbers wherever it runs.
 The studies send pure pieces (a chunk of candidates, one task's search) and the client writes what comes back,
 atomically, as it arrives: a killed worker loses only the piece it was running (the scheduler runs it again on
 another worker), and a killed client resumes from what it had written (docs/cluster.md).
@@ -71,14 +71,11 @@ def parse_scheduler(text: str) -> Scheduler:
 
 
 def pin_threads(threads: int = 1) -> None:
-    """Run numba's code in the calling thread, and torch's and the BLAS libraries' in this process, on ``threads``
+    """Run the batched environments' copies, torch's and the BLAS libraries' code in this process on ``threads``
     threads (every cluster piece calls it first, :func:`pinned`; the environment variables reach the libraries
-    loaded after it)."""
-    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    loaded after it, and ``FFSR_GYM_THREADS`` the batched environments made after it)."""
+    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "FFSR_GYM_THREADS"):
         os.environ[name] = str(threads)
-    import numba
-
-    numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
     try:
         import torch
     except ImportError:  # the RL extra is not installed: nothing to pin
@@ -87,7 +84,7 @@ def pin_threads(threads: int = 1) -> None:
 
 
 def pinned(threads: int, function: Callable[..., Any], *args: Any) -> Any:
-    """``function(*args)`` after :func:`pin_threads` in the thread that runs it (numba's setting is per thread)."""
+    """``function(*args)`` after :func:`pin_threads` in the thread that runs it."""
     pin_threads(threads)
     return function(*args)
 

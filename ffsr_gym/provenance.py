@@ -16,8 +16,8 @@ from typing import Any
 
 from ffsr_gym.exceptions import FFSRError, WriteError
 
-#: numba compiles the kernel; mujoco runs the speed benchmark's reference (Pusher-v5), when installed.
-_PACKAGES = ("ffsr-gym", "numpy", "numba", "pin", "coal", "gymnasium", "matplotlib", "stable-baselines3", "torch",
+#: mujoco runs the speed benchmark's reference (Pusher-v5), when installed.
+_PACKAGES = ("ffsr-gym", "numpy", "pin", "coal", "gymnasium", "matplotlib", "stable-baselines3", "torch",
              "mujoco", "cma", "optuna", "rliable", "minari")
 _SOURCE = Path(__file__).resolve().parent.parent
 

@@ -37,10 +37,13 @@ def test_a_malformed_scheduler_is_refused_by_name(text):
 
 
 def _threads() -> tuple[int, int, str]:
-    import numba
+    import gymnasium as gym
     import torch
 
-    return numba.get_num_threads(), torch.get_num_threads(), os.environ["OMP_NUM_THREADS"]
+    import ffsr_gym  # noqa: F401  (registers the environments)
+
+    venv = gym.make_vec("FFSR-v2", num_envs=2, vectorization_mode="vector_entry_point")
+    return venv.unwrapped.engine.threads, torch.get_num_threads(), os.environ["OMP_NUM_THREADS"]
 
 
 def test_a_local_cluster_pins_its_workers_threads():

@@ -10,8 +10,8 @@ import pytest
 from test_kernel import ARRAYS, assert_agree
 from test_scenario import assert_section_rejected
 
+from ffsr_gym import _native
 from ffsr_gym.exceptions import ScenarioError
-from ffsr_gym.kernel import settings as ks
 from ffsr_gym.model.collision import SphereObstacle
 from ffsr_gym.model.obstacles import obstacle_field
 from ffsr_gym.model.scenario import Debris, load_scenario, to_dict
@@ -33,7 +33,7 @@ def scenario():
 
 
 def test_kernel_slots_hold_every_obstacle_a_scenario_may_list():
-    assert ks.MAX_OBSTACLES == MAX_DEBRIS + 1
+    assert _native.MAX_OBSTACLES == MAX_DEBRIS + 1
 
 
 @pytest.mark.parametrize("method", ["predefined_time", "proportional"])

@@ -1,4 +1,4 @@
-"""The compiled v2 decision (``ffsr_gym.kernel.decision``) against the step-by-step path it replaces.
+"""The native v2 decision (``ffsr_gym._native.Episode.decide``) against the step-by-step path it replaces.
 
 The single v2 env steps through one compiled call on the kernel backend. With its episode
 switched off (``env.unwrapped.compiled_step = False``) the same env goes through the
@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 import ffsr_gym  # noqa: F401  (registers the environments)
-from ffsr_gym.environments.actions import OBS_CLIP
+from ffsr_gym import _native
+from ffsr_gym.environments.actions import OBS_CLIP, assemble_observation
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.kernel import decision
 from ffsr_gym.model.benchmark import load_benchmark
 
 BENCH = load_benchmark("v2")
@@ -115,19 +115,19 @@ def test_compiled_fade_is_the_benchmark_fade():
     motion, fade = 4.3, BENCH.action.residual_fade_s
     times = np.concatenate((np.linspace(0.0, 20.0, 2001), [motion - fade, motion, np.nextafter(motion - fade, 9.0)]))
     for t in times:
-        assert decision.residual_fade(float(t), motion, fade) == BENCH.residual_fade(float(t), motion)
+        assert _native.residual_fade(float(t), motion, fade) == BENCH.residual_fade(float(t), motion)
 
 
 def test_observation_is_the_documented_layout():
-    """Against an independent numpy assembly, with entries beyond every clip bound and an infinite clearance."""
+    """The reference pipeline's assembly (which the native decision's observation equals bit for bit, above) against
+    an independent numpy one, with entries beyond every clip bound and an infinite clearance."""
     rng = np.random.default_rng(5)
     angles, rates = rng.uniform(-7, 7, 12), rng.uniform(-40, 40, 12)
     ee, base, rel = rng.uniform(-20, 20, 6), rng.uniform(-20, 20, 6), rng.uniform(-20, 20, 3)
     twist = rng.uniform(-20, 20, 6)
     for clearance, fraction in ((math.inf, 0.5), (-12.0, 1.2), (0.03, 0.0)):
-        obs, longer = np.zeros(decision.N_OBS, dtype=np.float32), np.zeros(decision.N_OBS_TWIST, dtype=np.float32)
-        decision.observation_into(obs, angles, rates, ee, base, rel, clearance, fraction, twist)
-        decision.observation_into(longer, angles, rates, ee, base, rel, clearance, fraction, twist)
+        obs = assemble_observation(angles, rates, ee, base, rel, clearance, fraction)
+        longer = assemble_observation(angles, rates, ee, base, rel, clearance, fraction, twist)
         expected = np.concatenate([np.sin(angles), np.cos(angles), np.clip(rates, -20, 20), np.clip(ee, -10, 10),
                                    np.clip(base, -10, 10), np.clip(rel, -10, 10), [np.clip(clearance, -10, 10)],
                                    [min(1.0, fraction)]]).astype(np.float32)
@@ -158,22 +158,3 @@ def test_batched_step_with_parameters_equals_single_envs():
         if all(done):
             break
     assert all(done)
-
-
-def test_the_closed_loop_single_and_batched_envs_share_one_compiled_step():
-    """The step function and the decision each have one compiled body, whichever path calls them: a flag
-    passed as a constant by one caller and at run time by another would compile (and cache) a second copy."""
-    from ffsr_gym.kernel import batch, loop
-
-    actions = [np.zeros(gym.make("FFSR-Residual-v2", task="easy").action_space.shape, np.float32)] * 2
-    episode("FFSR-Residual-v2", "easy", actions, compiled=True)
-    episode("FFSR-Residual-v2", "easy", actions, compiled=False)  # the closed loop, through kernel.loop.run
-    venv = gym.make_vec("FFSR-Residual-v2", num_envs=2, task="easy", vectorization_mode="vector_entry_point")
-    venv.reset(seed=0)
-    venv.step(np.zeros((2, *actions[0].shape), np.float32))
-    assert batch.decide_batch.signatures and loop.run.signatures  # every path was taken
-    for function in (loop.run_into, decision.decide):
-        # what numba compiled for it, in this process or any earlier one (a callee loaded with its caller from the
-        # cache is not registered in its own dispatcher, so the cache's index is the record)
-        compiled = function._cache._cache_file._load_index()
-        assert len(compiled) == 1, [signature for signature, _ in compiled]

@@ -37,15 +37,12 @@ def _q(x):
 
 
 def _kernel(x, p_o, r_o):
-    from ffsr_gym.kernel import collision as compiled
-    from ffsr_gym.kernel import physics as kernel_physics
+    from ffsr_gym import _native
 
-    mdl = ASSETS.kernel_arrays
-    ws = kernel_physics.workspace(len(mdl.cap_radius))
-    kernel_physics.kinematics_into(mdl, x, ws)
-    compiled.capsule_ends_into(mdl, ws, x[:3])
-    clear = compiled.obstacle_clearance(mdl, ws, x[:3], p_o, r_o)
-    return clear, ws.rel.copy(), compiled.self_clearance(mdl, ws, x[:3])
+    settings = _native.PlannerSettings()
+    settings.set_obstacles(p_o.reshape(1, 3), np.zeros((1, 3)), np.array([r_o]))
+    clear, self_c, rel = _native.clearances(ASSETS.native, settings, x, 0.0)
+    return clear, rel, self_c
 
 
 def test_clearances_match_coal_and_the_kernel():

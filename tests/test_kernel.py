@@ -1,4 +1,5 @@
-"""The compiled kernel against the Pinocchio reference: every trajectory array, many scenarios."""
+"""The native kernel against the Pinocchio reference: every trajectory array, many scenarios; its parts against
+closed forms, dense solves and LAPACK."""
 
 from __future__ import annotations
 
@@ -6,9 +7,8 @@ import numpy as np
 import pytest
 from conftest import random_states as _random_states
 
+from ffsr_gym import _native
 from ffsr_gym.bench.planner_scores import scenario_for_seed
-from ffsr_gym.kernel.collision import segment_box
-from ffsr_gym.kernel.linalg import smallest_singular_value, smallest_singular_values, svd_into
 from ffsr_gym.planning.planner import METHODS
 from ffsr_gym.sim.compiled import KernelRollout
 from ffsr_gym.sim.simulate import simulate
@@ -82,8 +82,8 @@ def test_segment_box_matches_dense_sampling():
         local = (a + s * (b - a) - center) @ R
         d = np.abs(local) - half
         sdf = np.where(np.all(d <= 0, axis=1), d.max(axis=1), np.linalg.norm(np.maximum(d, 0), axis=1))
-        assert segment_box(a, b, R, center, half) == pytest.approx(sdf.min(), abs=2e-4 * np.linalg.norm(b - a))
-        assert segment_box(a, b, R, center, half) <= sdf.min() + 1e-12
+        assert _native.segment_box(a, b, R, center, half) == pytest.approx(sdf.min(), abs=2e-4 * np.linalg.norm(b - a))
+        assert _native.segment_box(a, b, R, center, half) <= sdf.min() + 1e-12
 
 
 def test_segment_box_starting_on_an_edge():
@@ -98,7 +98,7 @@ def test_segment_box_starting_on_an_edge():
     s = np.linspace(0, 1, 200001)[:, None]
     d = np.abs(a + s * (b - a)) - half
     sampled = np.linalg.norm(np.maximum(d, 0), axis=1).min()
-    assert segment_box(a, b, np.eye(3), np.zeros(3), half) == pytest.approx(sampled, abs=1e-9)
+    assert _native.segment_box(a, b, np.eye(3), np.zeros(3), half) == pytest.approx(sampled, abs=1e-9)
     assert sampled < 0.072
 
 
@@ -106,7 +106,6 @@ def test_segment_box_starting_on_an_edge():
 def test_smallest_singular_value_matches_lapack(condition):
     """Newton on the tridiagonalised AᵀA vs LAPACK, for matrices with prescribed singular values."""
     rng = np.random.default_rng(7)
-    G, tri = np.empty((6, 6)), np.empty((2, 6))
     for _ in range(300):
         U, _ = np.linalg.qr(rng.normal(size=(6, 6)))
         V, _ = np.linalg.qr(rng.normal(size=(6, 6)))
@@ -115,29 +114,26 @@ def test_smallest_singular_value_matches_lapack(condition):
         sigma[-2] = sigma[-1] * rng.choice([1.0, 1.0 + 1e-9, 1.5])  # double, nearly double, separated
         A = U @ np.diag(sigma) @ V.T
         expected = np.linalg.svd(A, compute_uv=False)[-1]
-        assert smallest_singular_value(A, G, tri) == pytest.approx(expected, rel=0, abs=1e-12 * sigma.max())
+        assert _native.smallest_singular_value(A) == pytest.approx(expected, rel=0, abs=1e-12 * sigma.max())
 
 
 def test_smallest_singular_value_declines_what_it_cannot_certify():
     """-1 (the caller then uses the Jacobi SVD) for a singular matrix; a six-fold σ_min is found (the
     Laguerre step is exact for a root of multiplicity 6)."""
-    G, tri = np.empty((6, 6)), np.empty((2, 6))
     rng = np.random.default_rng(3)
     A = rng.normal(size=(6, 6))
     A[:, 5] = A[:, 0] - 2.0 * A[:, 3]  # rank 5
-    assert smallest_singular_value(A, G, tri) == -1.0
-    s = np.empty(6)
-    svd_into(A, np.empty((6, 6)), s, np.empty((6, 6)), False)
+    assert _native.smallest_singular_value(A) == -1.0
+    s = _native.svd6(A, False)[1]
     assert s.min() < 1e-14 * s.max()
     Q, _ = np.linalg.qr(rng.normal(size=(6, 6)))
-    assert smallest_singular_value(3.0 * Q, G, tri) == pytest.approx(3.0, rel=1e-11)
+    assert _native.smallest_singular_value(3.0 * Q) == pytest.approx(3.0, rel=1e-11)
 
 
 def test_paired_smallest_singular_values_equal_two_calls():
     """The interleaved pair (the planner's two arms) gives each matrix's own result bit for bit, also
     when one declines (-1) or needs more Newton steps than the other."""
     rng = np.random.default_rng(11)
-    G, G_b, tri, tri_b = np.empty((6, 6)), np.empty((6, 6)), np.empty((2, 6)), np.empty((2, 6))
     singular = rng.normal(size=(6, 6))
     singular[:, 5] = singular[:, 0] - 2.0 * singular[:, 3]
     Q, _ = np.linalg.qr(rng.normal(size=(6, 6)))
@@ -145,35 +141,11 @@ def test_paired_smallest_singular_values_equal_two_calls():
     seen = set()
     for i, A in enumerate(matrices):
         B = matrices[(7 * i + 3) % len(matrices)]
-        pair = smallest_singular_values(A, B, G, G_b, tri, tri_b)
-        single = (smallest_singular_value(A, G, tri), smallest_singular_value(B, G, tri))
+        pair = _native.smallest_singular_values(A, B)
+        single = (_native.smallest_singular_value(A), _native.smallest_singular_value(B))
         assert pair == single, i
         seen.update(value == -1.0 for value in single)
     assert seen == {True, False}
-
-
-def test_cache_guard_covers_every_compiled_module():
-    """numba caches per file; a compiled module missing from ``kernel_cache.MODULES`` could run stale code."""
-    import importlib
-    from pathlib import Path
-
-    from numba.core.extending import _Intrinsic
-    from numba.core.registry import CPUDispatcher
-
-    from ffsr_gym.kernel import cache as kernel_cache
-
-    package = Path(kernel_cache.__file__).parent
-    compiled, intrinsics = set(), set()
-    for path in (p for p in package.glob("*.py") if not p.stem.startswith("_")):
-        module = importlib.import_module(f"ffsr_gym.kernel.{path.stem}")
-        own = [obj for obj in vars(module).values() if getattr(obj, "__module__", None) == module.__name__]
-        if any(isinstance(obj, CPUDispatcher) for obj in own):
-            compiled.add(module.__name__)
-        if any(isinstance(obj, _Intrinsic) and obj._defn.__module__ == module.__name__ for obj in vars(module).values()):
-            intrinsics.add(module.__name__)
-    assert compiled == {module.__name__ for module in kernel_cache.MODULES}
-    assert intrinsics == {"ffsr_gym.kernel.borrow", "ffsr_gym.kernel.flags"}
-    assert compiled | intrinsics == {module.__name__ for module in kernel_cache.SOURCES}
 
 
 def _pinocchio_q(rollout, x):
@@ -185,39 +157,32 @@ def _pinocchio_q(rollout, x):
 def test_composite_body_momentum_matches_pinocchio():
     """H_b and H_bm from the composite-body pass against Pinocchio's centroidal map (``Robot.momentum_matrices``),
     and the system CoM against ``pinocchio.centerOfMass``, at random states."""
-    from ffsr_gym.kernel import physics
     from ffsr_gym.model.robot import load_robot
     from ffsr_gym.model.scenario import load_scenario
 
     rollout, robot = KernelRollout(load_scenario("paper")), load_robot()
-    mdl, ws = rollout._mdl, physics.workspace(len(rollout._mdl.cap_radius))
     for x in _random_states(np.random.default_rng(5), 20):
-        physics.kinematics_into(mdl, x, ws)
-        physics.momentum_into(mdl, x, ws)
+        got = _native.momentum(rollout.setup.assets.native, x)
         q = _pinocchio_q(rollout, x)
         ref = robot.momentum_matrices(q)
-        np.testing.assert_allclose(ws.H_b, ref.H_b, rtol=0, atol=1e-11 * np.abs(ref.H_b).max())
-        np.testing.assert_allclose(ws.H_bm, ref.H_bm, rtol=0, atol=1e-11 * np.abs(ref.H_bm).max())
-        np.testing.assert_allclose(ws.rg, robot.system_com(q), rtol=0, atol=1e-13)
+        np.testing.assert_allclose(got["H_b"], ref.H_b, rtol=0, atol=1e-11 * np.abs(ref.H_b).max())
+        np.testing.assert_allclose(got["H_bm"], ref.H_bm, rtol=0, atol=1e-11 * np.abs(ref.H_bm).max())
+        np.testing.assert_allclose(got["rg"], robot.system_com(q), rtol=0, atol=1e-13)
 
 
 def test_schur_base_velocity_matches_a_dense_solve():
     """The base velocity by H_b's Schur complement against numpy's dense solve of the same system."""
-    from ffsr_gym.kernel import physics
     from ffsr_gym.model.scenario import load_scenario
 
-    rollout = KernelRollout(load_scenario("paper"))
-    mdl, ws, rng = rollout._mdl, physics.workspace(len(rollout._mdl.cap_radius)), np.random.default_rng(6)
+    robot, rng = KernelRollout(load_scenario("paper")).setup.assets.native, np.random.default_rng(6)
     for x in _random_states(rng, 20):
         dq, h = rng.normal(size=12), rng.normal(size=6)
-        physics.kinematics_into(mdl, x, ws)
-        physics.momentum_into(mdl, x, ws)
-        out = np.empty(6)
-        physics.velocity_into(out, x, dq, h, ws)
-        d = ws.rg - x[:3]  # [P; L_G] about the system CoM -> about the base CoM, minus the arms' part
-        rhs = np.concatenate((h[:3], h[3:] + np.cross(d, h[:3]))) - ws.H_bm[0] @ dq[:6] - ws.H_bm[1] @ dq[6:]
-        world = np.linalg.solve(ws.H_b, rhs)
-        R = ws.R_b
+        m = _native.momentum(robot, x)
+        out = _native.base_velocity(robot, x, dq, h)
+        d = m["rg"] - x[:3]  # [P; L_G] about the system CoM -> about the base CoM, minus the arms' part
+        rhs = np.concatenate((h[:3], h[3:] + np.cross(d, h[:3]))) - m["H_bm"][0] @ dq[:6] - m["H_bm"][1] @ dq[6:]
+        world = np.linalg.solve(m["H_b"], rhs)
+        R = _native.kinematics(robot, x)["R_b"]
         np.testing.assert_allclose(out, np.concatenate((R.T @ world[:3], R.T @ world[3:])), rtol=0,
                                    atol=1e-12 * max(1.0, np.abs(world).max()))
 
@@ -226,10 +191,9 @@ def test_danger_field_segments_match_the_reference_integrals():
     """One logarithm per segment and the kept geometry against ``planning.avoidance``'s closed form (two inverse
     hyperbolic sines, hypot): the feet before, on and after the segment, nearly collinear points, and a segment
     of zero length (skipped)."""
-    from ffsr_gym.kernel.field import _field_of_segment, _moments_of_segment
     from ffsr_gym.planning.avoidance import _segment_integrals
 
-    rng, geometry = np.random.default_rng(8), np.empty(5)
+    rng = np.random.default_rng(8)
     a, b = np.array([0.1, -0.2, 0.3]), np.array([0.6, 0.1, 0.2])
     direction = (b - a) / np.linalg.norm(b - a)
     normal = np.cross(direction, [0.0, 0.0, 1.0])
@@ -238,36 +202,29 @@ def test_danger_field_segments_match_the_reference_integrals():
     points += [a + s * (b - a) + 1e-7 * normal for s in (-0.5, 0.3, 1.7)]  # nearly on the line
     cases = 0
     for p in points:
-        F, nearest = _field_of_segment(p[0], p[1], p[2], np.array([a, b]), 0, geometry)
-        I0, I1 = _moments_of_segment(geometry)
+        F, nearest, I0, I1 = _native.segment_field(p, a, b)
         F_ref, I0_ref, I1_ref, nearest_ref = _segment_integrals(p, a, b)
         assert F == pytest.approx(F_ref, rel=1e-12) and nearest == pytest.approx(nearest_ref, rel=1e-12)
         assert I0 == pytest.approx(I0_ref, rel=1e-9) and I1 == pytest.approx(I1_ref, rel=1e-9, abs=1e-9 * abs(I0_ref))
         cases += 1
     assert cases == 203
-    assert _field_of_segment(0.0, 0.0, 1.0, np.array([a, a]), 0, geometry) == (0.0, np.inf)
+    assert _native.segment_field(np.array([0.0, 0.0, 1.0]), a, a)[:2] == (0.0, np.inf)
 
 
 def test_midpoint_kinematics_from_the_kept_cosines():
     """The half step's kinematics from the planner step's cosines and sines (angle-sum formula, series for the
     increment) equal a fresh evaluation to rounding; a state the kept values do not belong to is computed afresh."""
-    from ffsr_gym.kernel import physics
     from ffsr_gym.model.scenario import load_scenario
 
-    rollout = KernelRollout(load_scenario("paper"))
-    mdl = rollout._mdl
-    kept, fresh = physics.workspace(len(mdl.cap_radius)), physics.workspace(len(mdl.cap_radius))
+    robot = KernelRollout(load_scenario("paper")).setup.assets.native
     rng = np.random.default_rng(9)
     for x, scale in zip(_random_states(rng, 12), [0.5] * 6 + [40.0] * 6):  # small increments (series), large ones
         dq, h = rng.normal(scale=scale, size=12), 0.005
         half = x.copy()
         half[7:] = x[7:] + dq * h
-        physics.kinematics_into(mdl, x, kept)  # keeps cos/sin at x
-        physics.kinematics_into(mdl, half, kept, dq, h)
-        physics.kinematics_into(mdl, half, fresh)
+        kept, fresh = _native.kinematics_from(robot, x, half, dq, h), _native.kinematics(robot, half)
         for name in ("Rj", "pj", "z", "Re", "pe"):
-            np.testing.assert_allclose(getattr(kept, name), getattr(fresh, name), rtol=0, atol=4e-15, err_msg=name)
+            np.testing.assert_allclose(kept[name], fresh[name], rtol=0, atol=4e-15, err_msg=name)
     other = _random_states(rng, 1)[0]
-    physics.kinematics_into(mdl, other, kept, dq, h)  # the kept values are of another state: computed afresh
-    physics.kinematics_into(mdl, other, fresh)
-    assert np.array_equal(kept.Rj, fresh.Rj) and np.array_equal(kept.pj, fresh.pj)
+    kept, fresh = _native.kinematics_from(robot, x, other, dq, h), _native.kinematics(robot, other)  # of another state
+    assert np.array_equal(kept["Rj"], fresh["Rj"]) and np.array_equal(kept["pj"], fresh["pj"])

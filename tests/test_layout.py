@@ -16,25 +16,24 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parent.parent / "ffsr_gym"
 FOUNDATION = {"cluster", "exceptions", "types", "provenance", "user_files"}
-#: The compiled extension, a module of the native stage (``from ffsr_gym import _native``).
+#: The compiled extension, a module of the kernel stage (``from ffsr_gym import _native``).
 EXTENSION = "ffsr_gym._native"
 #: What each stage may import of the project (besides itself and the foundation modules).
 ALLOWED = {
     "model": set(),
     "planning": {"model"},
     "kernel": {"model"},
-    "native": {"model", "kernel"},  # kernel: the arrays it is built from (until it replaces the numba kernel)
-    "sim": {"model", "planning", "kernel", "native"},
-    "scoring": {"model", "native", "sim"},  # native: the score's smoothness terms
+    "sim": {"model", "planning", "kernel"},
+    "scoring": {"model", "kernel", "sim"},  # kernel: the score's smoothness terms
     "tasks": {"model", "planning", "sim", "scoring"},
-    "environments": {"model", "planning", "native", "sim", "scoring", "tasks"},
-    "bench": {"model", "planning", "sim", "scoring", "tasks", "environments"},
+    "environments": {"model", "planning", "kernel", "sim", "scoring", "tasks"},
+    "bench": {"model", "planning", "kernel", "sim", "scoring", "tasks", "environments"},  # kernel: its source digest
     "report": {"model", "planning", "sim", "scoring", "tasks"},  # tasks: the tier names the figures order
     "optim": {"model", "planning", "sim", "scoring", "tasks", "environments", "bench", "report"},
     "jax": {"model", "planning", "kernel", "sim", "scoring", "tasks", "environments"},  # the loop in JAX
     "cli": {"model", "planning", "sim", "scoring", "tasks", "environments", "bench", "report", "optim"},  # the front
 }
-PHYSICS_STAGES = ("model", "planning", "kernel", "native", "sim", "scoring", "tasks")
+PHYSICS_STAGES = ("model", "planning", "kernel", "sim", "scoring", "tasks")
 FORBIDDEN_IN_PHYSICS = ("gymnasium", "stable_baselines3", "matplotlib", "torch")
 
 
@@ -72,7 +71,7 @@ def project_imports(name: str) -> set[str]:
 
 def stage_of(name: str) -> str:
     if name == EXTENSION:
-        return "native"
+        return "kernel"
     parts = name.split(".")
     return parts[1] if len(parts) > 1 else ""
 

@@ -27,9 +27,32 @@ import numpy as np
 import gymnasium as gym
 import ffsr_gym
 from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym._native import Method
+from ffsr_gym.kernel.planner import settings_fields
+from ffsr_gym.kernel.robot import robot_arrays
 from ffsr_gym.sim.compiled import KernelRollout
 from ffsr_gym.tasks.splits import pool, task_scenario
 from ffsr_gym.tasks.tiers import ALL_TIERS
+
+
+def kernel_inputs(rollout, task, model=True):
+    # every number the kernel is given for this task: its state, its settings field by field, the plant's and the
+    # robot's arrays
+    fields = settings_fields(rollout.setup, method="predefined_time", m=task.certificate.m, T_c=task.certificate.T_c_s)
+    arrays = [rollout.x]
+    for name in sorted(fields):
+        value = fields[name]
+        if isinstance(value, tuple):  # the arguments of a set_ method
+            arrays += list(value)
+        else:  # a number, a flag or the method
+            arrays.append(np.array([float(value.value) if isinstance(value, Method) else float(value)]))
+    if model:
+        arrays += [*rollout.setup.plant_arrays, *robot_arrays(rollout.model).values()]
+    digest = hashlib.sha256()
+    for array in arrays:
+        digest.update(np.ascontiguousarray(array, dtype=float).tobytes())
+    return digest.hexdigest()
+
 
 bench = load_benchmark()
 out = {}
@@ -39,22 +62,16 @@ for tier in ALL_TIERS:
         task = tasks[index]
         scenario = task_scenario(tier, task.seed, bench)
         rollout = KernelRollout(scenario, m=task.certificate.m, T_c=task.certificate.T_c_s)
-        digest = hashlib.sha256()
-        for array in (rollout.x, rollout.fp, rollout.ip, *rollout.plant, *rollout._mdl):
-            digest.update(np.ascontiguousarray(array, dtype=float).tobytes())
-        out[f"{tier}/{index}"] = digest.hexdigest()
+        out[f"{tier}/{index}"] = kernel_inputs(rollout, task)
 from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
 capture = load_benchmark("capture-v0")
-for tier in CAPTURE_TIERS:  # the tumbling body's motion and the approach onto its grasp frame are in fp
+for tier in CAPTURE_TIERS:  # the tumbling body's motion and the approach onto its grasp frame are in the frames
     tasks = pool(tier, "test", version="capture-v0")
     for index in (0, len(tasks) // 2, len(tasks) - 1):
         task = tasks[index]
         rollout = KernelRollout(task_scenario(tier, task.seed, capture), m=task.certificate.m,
                                 T_c=task.certificate.T_c_s)
-        digest = hashlib.sha256()
-        for array in (rollout.x, rollout.fp, rollout.ip):
-            digest.update(np.ascontiguousarray(array, dtype=float).tobytes())
-        out[f"capture {tier}/{index}"] = digest.hexdigest()
+        out[f"capture {tier}/{index}"] = kernel_inputs(rollout, task, model=False)
 env = gym.make("FFSR-Capture-v0", task="slow", split="test")
 env.reset(seed=0, options={"task_index": 0})
 while True:

@@ -8,8 +8,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from ffsr_gym import _native
 from ffsr_gym.exceptions import InvalidInputError, ScenarioError
-from ffsr_gym.kernel import servo as sv
+from ffsr_gym.kernel import layout as sv
+from ffsr_gym.kernel.robot import native_plant
 from ffsr_gym.model.drives import drive_array, drives_path, load_drives
 from ffsr_gym.model.resources import robot_dir
 from ffsr_gym.model.scenario import Scenario, load_scenario
@@ -77,15 +79,14 @@ def test_logged_rates_are_the_ones_the_joints_made(robot, servo_paper):
 
 
 def _open_loop(setup, drive, h, seconds, every=0):
-    kernel, mdl = setup.assets.kernel, setup.assets.kernel_arrays
+    kernel = setup.assets.kernel
     n = int(round(seconds / h))
     t = np.arange(n) * h
     cmds = np.sin(3.0 * t[:, None] + np.arange(12)[None, :])  # [rad/s]
     x = np.zeros(sv.N_STATE)
     x[:7], x[7:19] = setup.q0[:7], setup.q0[kernel.q_index]
-    states, torques = np.zeros((n + 1, sv.N_STATE)), np.zeros((n, 12))
-    sv.drive_open_loop(x, mdl, cmds, drive, h, np.zeros(6), every, states, torques)
-    return states, torques
+    plant = native_plant(kernel, (kernel.mass, kernel.lever, kernel.inertia, drive))
+    return _native.drive_open_loop(plant, x, cmds, h, np.zeros(6), every)
 
 
 def test_the_dynamics_alone_conserve_momentum_to_first_order_in_the_step(robot, drives):

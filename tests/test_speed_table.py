@@ -19,8 +19,6 @@ def test_the_speed_tables_are_rendered_from_the_results():
     assert block == bench.speed_table(results), "rerun: python benchmarks/bench.py --runs 3 --readme docs/speed.md"
     budget = text.split(bench.BUDGET_START + "\n")[1].split(bench.BUDGET_END)[0]
     assert budget == bench.budget_table(results), "rerun: python benchmarks/bench.py --runs 3 --readme docs/speed.md"
-    kernel = text.split(bench.KERNEL_START + "\n")[1].split(bench.KERNEL_END)[0]
-    assert kernel == bench.kernel_table(results), "rerun: python benchmarks/bench.py --runs 3 --readme docs/speed.md"
     guard = benchmark_script("speed_guard")
     block = text.split(guard.START + "\n")[1].split(guard.END)[0]
     assert block == guard.guard_block(results), "rerun: python benchmarks/bench.py --runs 3 --readme docs/speed.md"
@@ -34,17 +32,6 @@ def test_speed_table_ranges_and_verdicts():
     table = bench.speed_table({"machine": "m", "runs": runs})
     assert "| w | 2-3 ms | r (last run) | 0.50-1.50 | t | in some runs |" in table
 
-
-
-def test_floor_line_shares():
-    """The kernel table's floor: cores x clock x operations per cycle / operations per step, and the batched share."""
-    bench = benchmark_script("bench")
-    results = {"operations": {"step": 10_000}, "clock_ghz": 2.5, "workers": 2,
-               "runs": [[{"key": "batched", "value": 250_000.0}], [{"key": "batched", "value": 300_000.0}]]}
-    line = bench.floor_line(results)
-    assert "could run 1,000,000 steps/s, and 8,000,000 at the AVX2 peak" in line
-    assert "250,000-300,000 steps/s: 25-30 % of the scalar floor, 3.1-3.8 % of the vector one." in line
-    assert bench.floor_line(results | {"clock_ghz": None}).endswith("`operation_counts`).")
 
 
 def test_a_slower_row_is_flagged_against_the_committed_results():
@@ -74,15 +61,14 @@ def test_a_slower_row_is_flagged_against_the_committed_results():
 
 def test_the_speed_page_was_measured_on_the_newest_kernel():
     """The results the speed page is rendered from were measured at a commit that holds the newest change to
-    ``ffsr_gym/kernel/`` (rerun ``python benchmarks/bench.py --runs 3 --readme docs/speed.md`` after a kernel change)."""
+    ``ffsr_gym/kernel/``, ``src/native/`` or the build's flags (rerun ``python benchmarks/bench.py --runs 3 --readme
+    docs/speed.md`` after a kernel change)."""
     import subprocess
 
     def git(*args: str) -> subprocess.CompletedProcess:
         return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True)
 
-    # first_use.py holds no compiled code (the kernel cache's digest leaves it out): its notices change no speed
-    newest = git("log", "-1", "--format=%H", "--", "ffsr_gym/kernel",
-                 ":(exclude)ffsr_gym/kernel/first_use.py").stdout.strip()
+    newest = git("log", "-1", "--format=%H", "--", "ffsr_gym/kernel", "src/native", "CMakeLists.txt").stdout.strip()
     if not newest or git("rev-parse", "--is-shallow-repository").stdout.strip() == "true":
         pytest.skip("not a full git checkout: the history of ffsr_gym/kernel is not here")
     measured = json.loads((ROOT / "benchmarks" / "results.json").read_text())["provenance"]["git_commit"]

@@ -83,11 +83,10 @@ def test_a_point_on_the_body_moves_as_its_finite_differences_say():
 
 
 def test_the_kernels_propagation_is_the_models():
-    from ffsr_gym.kernel.tumbling import propagate_into
+    from ffsr_gym import _native
 
     inertia, omega = np.array([120.0, 180.0, 250.0]), np.array([0.3, -0.2, 0.5])
     start = from_axis_angle(np.array([1.0, 2.0, -1.0]) / np.sqrt(6.0), 0.7)
     motion = _tumble(inertia, omega, quaternion=start, steps=2000)
-    out_q, out_w = np.empty((2001, 4)), np.empty((2001, 3))
-    propagate_into(start, omega, inertia, DT_S, 4, out_q, out_w)
+    out_q, out_w = _native.propagate_tumbling(start, omega, inertia, DT_S, 4, 2000)
     assert np.abs(out_q - motion.quaternion).max() < 1e-13 and np.abs(out_w - motion.omega_body_rad_s).max() < 1e-13

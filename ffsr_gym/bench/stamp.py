@@ -52,16 +52,18 @@ def entry_digest(entry: dict[str, Any]) -> str:
 @lru_cache(maxsize=1)
 def code_digest() -> str:
     """sha256 over the path and bytes of every file a replay runs (:data:`REPLAYED_CODE`, the ``envs`` data), caches
-    aside: the same for a checkout and a wheel of the same code."""
+    aside, and the native kernel's source digest compiled into it: the same for a checkout and a wheel of the same
+    code."""
     from pathlib import Path
 
+    from ffsr_gym import _native
     from ffsr_gym.model.resources import envs_dir
 
     package = Path(__file__).resolve().parents[1]
     files = [(f"ffsr_gym/{path.relative_to(package).as_posix()}", path) for part in REPLAYED_CODE
              for path in ([package / part] if (package / part).is_file() else (package / part).rglob("*"))]
     files += [(f"envs/{path.relative_to(envs_dir()).as_posix()}", path) for path in envs_dir().rglob("*")]
-    digest = hashlib.sha256()
+    digest = hashlib.sha256(b"src/native\0" + _native.SOURCE_SHA256.encode())
     for name, path in sorted(files):
         if path.is_file() and "__pycache__" not in path.parts:
             digest.update(name.encode() + b"\0" + hashlib.sha256(path.read_bytes()).digest())

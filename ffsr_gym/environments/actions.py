@@ -8,8 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym import _native
+from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.benchmark import action_to_parameters  # noqa: F401 - the environments' mapping, re-exported
 from ffsr_gym.model.benchmark import residual_rates as scaled_residual
 from ffsr_gym.model.scenario import Scenario

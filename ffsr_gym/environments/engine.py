@@ -28,9 +28,9 @@ from ffsr_gym.environments import actions as act
 from ffsr_gym.environments import info as info_contract
 from ffsr_gym.environments.task_source import TaskSource
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
+from ffsr_gym.kernel import layout
 from ffsr_gym.model import portable
 from ffsr_gym.model.scenario import Scenario
-from ffsr_gym.native import layout
 from ffsr_gym.planning import ptsf
 from ffsr_gym.sim.budget import check_run
 from ffsr_gym.sim.compiled import KernelRollout, new_log

@@ -39,17 +39,32 @@ def copy_info(info: dict[str, Any], i: int) -> dict[str, Any]:
 
 
 
+#: The variable that sets the batched environments' default thread count (a cluster piece sets it to its share).
+THREADS_VARIABLE = "FFSR_GYM_THREADS"
+
+
 def available_cores() -> int:
     """The cores this process may run on (its CPU affinity where the platform tells it)."""
     if hasattr(os, "sched_getaffinity"):
         return max(1, len(os.sched_getaffinity(0)))
     return max(1, os.cpu_count() or 1)
 
+
+def default_threads(cores: int) -> int:
+    """The batched environments' threads when none are asked for: ``FFSR_GYM_THREADS`` (bounded by ``cores``),
+    else every core."""
+    text = os.environ.get(THREADS_VARIABLE, "").strip()
+    if not text:
+        return cores
+    if not text.isdigit() or int(text) < 1:
+        raise InvalidInputError(f"{THREADS_VARIABLE} = {text!r}; allowed: an integer >= 1 (unset: every core)")
+    return min(int(text), cores)
+
 class FFSRVectorEnv(gym.vector.VectorEnv):
     """``num_envs`` copies of :class:`~ffsr_gym.environments.env.FFSREnv` (spaces, rewards, info keys: see there).
 
-    Arguments as the single environment plus ``threads`` (numba's thread count, default all
-    cores); ``terminate_on_violation`` must stay True (the batched kernel stops a copy at its first
+    Arguments as the single environment plus ``threads`` (the threads the copies are stepped on, default
+    ``FFSR_GYM_THREADS`` or else every core); ``terminate_on_violation`` must stay True (the batched kernel stops a copy at its first
     violation). Autoreset is Gymnasium's next-step mode; with ``AutoresetMode.SAME_STEP`` a copy
     whose episode ended is reset in the same step (its last observation in ``info["final_obs"]``, an
     object array, and its last info in ``info["final_info"]``, a dict of masked arrays, as Gymnasium's
@@ -97,7 +112,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
                                  options.get("dt_s"))
         self.engine = EpisodeEngine(self.source, residual=self.residual, copies=self.num_envs, backend="kernel",
                                     dense_shaping=options.get("dense_shaping", False), batched=True,
-                                    threads=cores if threads is None else int(threads))
+                                    threads=default_threads(cores) if threads is None else int(threads))
         self.family = self.source.family
         self.n_steps, self.dt = self.engine.n_steps, self.engine.dt
         self.steps_per_decision = self.engine.steps_per_decision

@@ -19,13 +19,26 @@ import numpy as np
 from ffsr_gym.jax.collision import Shapes, capsule_ends, obstacle_clearance, self_clearance
 from ffsr_gym.jax.physics import Model, jax, jnp, kinematics, midpoint
 from ffsr_gym.jax.planner import PlanRules, PlanTask, plan
-from ffsr_gym.kernel import decision
+from ffsr_gym.kernel import layout
 
-#: Status codes of a decision (``ffsr_gym.kernel.loop``): running, a rate above the limit, a collision, and a
-#: non-finite action (``ffsr_gym.kernel.decision.STATUS_BAD_ACTION``: nothing is done, the episode ends as failed;
-#: a compiled function cannot raise, so this is how a NaN action shows instead of NaN states).
-STATUS_OK, STATUS_RATE, STATUS_COLLISION, STATUS_BAD_ACTION = 0, 1, 2, decision.STATUS_BAD_ACTION
-RESIDUAL, PARAMETERS = decision.MODE_RESIDUAL, decision.MODE_PARAMETERS
+#: Status codes of a decision (``ffsr_gym.kernel.layout``): running, a rate above the limit, a collision, and a
+#: non-finite action (nothing is done, the episode ends as failed; a compiled function cannot raise, so this is how
+#: a NaN action shows instead of NaN states).
+STATUS_OK, STATUS_RATE, STATUS_COLLISION, STATUS_BAD_ACTION = (layout.STATUS_OK, layout.STATUS_RATE,
+                                                               layout.STATUS_COLLISION, layout.STATUS_BAD_ACTION)
+RESIDUAL, PARAMETERS = layout.MODE_RESIDUAL, layout.MODE_PARAMETERS
+#: The decision's settings vector: the native :class:`ffsr_gym._native.DecisionSettings`' fields, in this order.
+SETTINGS = ("rate_scale", "fade_s", "motion_s", "m_lo", "m_hi", "T_lo", "T_hi", "rate_limit_deg_s", "clear_scale",
+            "alpha", "beta", "E_ref", "V_ref")
+(D_RATE_SCALE, D_FADE_S, D_MOTION_S, D_M_LO, D_M_HI, D_T_LO, D_T_HI, D_RATE_LIMIT, D_CLEAR_SCALE,
+ D_SCORE) = range(10)
+#: The observation's clip bounds (docs/envs.md).
+OBS_RATE, OBS_ERROR, OBS_RELATIVE, OBS_CLEARANCE = 20.0, 10.0, 10.0, 10.0
+
+
+def settings_vector(settings) -> np.ndarray:
+    """A native decision's settings as the vector the JAX episode reads (:data:`SETTINGS`' order)."""
+    return np.array([getattr(settings, name) for name in SETTINGS], dtype=float)
 
 
 @jax.tree_util.register_dataclass
@@ -35,8 +48,8 @@ class EpisodeTask:
 
     ``plan``: the planner's numbers; ``plant``: the robot the physics moves (the planner's own unless the task
     changes its inertials); ``obstacle_radius`` (n,) [m]; ``keep_out`` [m]; ``settings``: the decision's vector
-    (``ffsr_gym.kernel.decision.N_DS``: residual scale, fade, motion time, the (m, T_c) box, rate limit, cost
-    scale, score settings); ``tolerances``: final end-effector position [m] and attitude errors; ``x0`` (19,).
+    (:data:`SETTINGS`: residual scale, fade, motion time, the (m, T_c) box, rate limit, cost scale, score
+    settings); ``tolerances``: final end-effector position [m] and attitude errors; ``x0`` (19,).
     """
 
     plan: PlanTask
@@ -102,14 +115,14 @@ def _planned(task: EpisodeTask, m, T_c) -> PlanTask:
 
 
 def observe(model: Model, shapes: Shapes, rules: PlanRules, task: EpisodeTask, state: EpisodeState) -> Observed:
-    """The observation at ``state`` (``ffsr_gym.kernel.decision.observation_into``), float32."""
+    """The observation at ``state`` (the native decision's, docs/envs.md), float32."""
     t = state.k * task.dt
     decided = plan(model, _planned(task, state.m, state.T_c), rules, t, state.x)
     clearance, rel, self_c = _clearances(model, shapes, task, t, state.x)
     clip = lambda v, bound: jnp.clip(v, -bound, bound)  # noqa: E731
-    parts = [jnp.sin(state.x[7:]), jnp.cos(state.x[7:]), clip(state.last_rates, decision.OBS_RATE),
-             clip(decided.ee_error, decision.OBS_ERROR), clip(decided.base_error, decision.OBS_ERROR),
-             clip(rel, decision.OBS_RELATIVE), clip(jnp.atleast_1d(clearance), decision.OBS_CLEARANCE),
+    parts = [jnp.sin(state.x[7:]), jnp.cos(state.x[7:]), clip(state.last_rates, OBS_RATE),
+             clip(decided.ee_error, OBS_ERROR), clip(decided.base_error, OBS_ERROR),
+             clip(rel, OBS_RELATIVE), clip(jnp.atleast_1d(clearance), OBS_CLEARANCE),
              jnp.atleast_1d(jnp.minimum(1.0, state.k / task.n_steps))]
     return Observed(jnp.concatenate(parts).astype(jnp.float32), decided.ee_error, clearance, self_c)
 
@@ -125,9 +138,9 @@ def reset(model: Model, shapes: Shapes, rules: PlanRules, task: EpisodeTask) -> 
 
 def _fade(task: EpisodeTask, t):
     s = task.settings
-    start = s[decision.D_MOTION_S] - s[decision.D_FADE_S]
-    return jnp.where(t <= start, 1.0, jnp.where(t >= s[decision.D_MOTION_S], 0.0, 0.5 * (
-        1.0 + jnp.cos(jnp.pi * (t - start) / s[decision.D_FADE_S]))))
+    start = s[D_MOTION_S] - s[D_FADE_S]
+    return jnp.where(t <= start, 1.0, jnp.where(t >= s[D_MOTION_S], 0.0, 0.5 * (
+        1.0 + jnp.cos(jnp.pi * (t - start) / s[D_FADE_S]))))
 
 
 def _physics_step(model, shapes, rules, task, residual, carry, i):
@@ -139,7 +152,7 @@ def _physics_step(model, shapes, rules, task, residual, carry, i):
     clear, _, self_c = _clearances(model, shapes, task, t, x)
     x_next = midpoint(task.plant, x, dq, task.plan.momentum, task.dt)[0]
     scope = dq[6:] if task.balance_scope else dq
-    too_fast = jnp.any(jnp.abs(scope) * (180.0 / jnp.pi) > task.settings[decision.D_RATE_LIMIT])
+    too_fast = jnp.any(jnp.abs(scope) * (180.0 / jnp.pi) > task.settings[D_RATE_LIMIT])
     hit = (clear < task.keep_out) | (self_c < 0.0)
     new_status = jnp.where(too_fast, STATUS_RATE, jnp.where(hit, STATUS_COLLISION, STATUS_OK))
     carry = (jnp.where(active, x_next, x), k, jnp.where(active, new_status, status), m, T_c)
@@ -157,12 +170,12 @@ def step(model: Model, shapes: Shapes, rules: PlanRules, task: EpisodeTask, stat
     a = jnp.clip(jnp.where(bad, 0.0, action), -1.0, 1.0)
     t0 = state.k * task.dt
     if task.mode == RESIDUAL:
-        residual = _fade(task, t0) * (s[decision.D_RATE_SCALE] * a)
+        residual = _fade(task, t0) * (s[D_RATE_SCALE] * a)
         m, T_c = state.m, state.T_c
     else:
         residual = jnp.zeros(12)
-        m = s[decision.D_M_LO] + 0.5 * (a[0] + 1.0) * (s[decision.D_M_HI] - s[decision.D_M_LO])
-        T_c = s[decision.D_T_LO] + 0.5 * (a[1] + 1.0) * (s[decision.D_T_HI] - s[decision.D_T_LO])
+        m = s[D_M_LO] + 0.5 * (a[0] + 1.0) * (s[D_M_HI] - s[D_M_LO])
+        T_c = s[D_T_LO] + 0.5 * (a[1] + 1.0) * (s[D_T_HI] - s[D_T_LO])
     carry = (state.x, state.k, jnp.where(state.done, -1, STATUS_OK), m, T_c)
     (x, _, status, _, _), (rates, clear, self_c, active) = jax.lax.scan(
         lambda c, i: _physics_step(model, shapes, rules, task, residual, c, i), carry,
@@ -176,7 +189,7 @@ def step(model: Model, shapes: Shapes, rules: PlanRules, task: EpisodeTask, stat
     increment = _cost(s, energy, variation)
     peak = jnp.max(jnp.abs(applied).reshape(-1, 2, 6), axis=(0, 2)) * (180.0 / jnp.pi)
     depth = jnp.maximum(0.0, jnp.max(jnp.where(active, jnp.maximum(task.keep_out - clear, -self_c), 0.0)))
-    cost = depth / s[decision.D_CLEAR_SCALE] + jnp.maximum(0.0, jnp.max(peak) / s[decision.D_RATE_LIMIT] - 1.0)
+    cost = depth / s[D_CLEAR_SCALE] + jnp.maximum(0.0, jnp.max(peak) / s[D_RATE_LIMIT] - 1.0)
     last = jnp.where(rows > 0, applied[jnp.maximum(rows - 1, 0)], state.last_rates)
     k = state.k + rows
     status = jnp.where(state.done, state.status, status)
@@ -212,8 +225,8 @@ def _root(value):
 
 
 def _cost(s, energy, variation):
-    """C = α (E₁/E_ref + V₁/V_ref) + β (E₂/E_ref + V₂/V_ref) (``ffsr_gym.kernel.score_terms``)."""
-    score = s[decision.D_SCORE:]
+    """C = α (E₁/E_ref + V₁/V_ref) + β (E₂/E_ref + V₂/V_ref) (the native kernel's ``smoothness_cost``)."""
+    score = s[D_SCORE:]
     ref_e, ref_v = score[2], score[3]
     return score[0] * (energy[0] / ref_e + variation[0] / ref_v) + score[1] * (energy[1] / ref_e + variation[1] / ref_v)
 
@@ -223,7 +236,7 @@ def judge(task: EpisodeTask, state: EpisodeState, ee_error: jnp.ndarray) -> tupl
     (``ffsr_gym.scoring.score.score_episode``): no rate above the limit, no collision, final errors within the
     tolerances; the score 1 / (1 + C) on success, else 0."""
     position, attitude = jnp.linalg.norm(ee_error[:3]), jnp.linalg.norm(ee_error[3:])
-    success = ((state.status == STATUS_OK) & jnp.all(state.peak <= task.settings[decision.D_RATE_LIMIT])
+    success = ((state.status == STATUS_OK) & jnp.all(state.peak <= task.settings[D_RATE_LIMIT])
                & (state.min_clear >= task.keep_out) & (state.min_self >= 0.0)
                & (position <= task.tolerances[0]) & (attitude <= task.tolerances[1]))
     return success, jnp.where(success, 1.0 / (1.0 + state.cost), 0.0)

@@ -9,7 +9,7 @@ from functools import lru_cache
 import numpy as np
 
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.jax.episode import PARAMETERS, RESIDUAL, EpisodeTask
+from ffsr_gym.jax.episode import PARAMETERS, RESIDUAL, EpisodeTask, settings_vector
 from ffsr_gym.jax.physics import Model, jnp, model_of
 from ffsr_gym.jax.planner import PlanRules, PlanTask
 from ffsr_gym.model.scenario import Scenario
@@ -103,7 +103,7 @@ def episode_task(scenario: Scenario, *, residual: bool = True, version: str = "v
     task = EpisodeTask(
         plan=plan_task, plant=plant, obstacle_radius=jnp.asarray(np.asarray(radii, dtype=np.float64)),
         keep_out=jnp.asarray(scenario.objective.keep_out_m),
-        settings=jnp.asarray(decision_settings(scenario, rule, spec.actions.residual_fades)),
+        settings=jnp.asarray(settings_vector(decision_settings(scenario, rule, spec.actions.residual_fades))),
         tolerances=jnp.asarray([score.ee_position_tolerance_m, score.ee_attitude_tolerance]), x0=x0,
         dt=float(scenario.simulation.dt_s), n_steps=int(scenario.n_steps),
         steps_per_decision=max(1, int(round(scenario.env.decision_interval_s / scenario.simulation.dt_s))),

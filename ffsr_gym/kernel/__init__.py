@@ -1,4 +1,6 @@
-"""The compiled (numba) kernel: the planner and the physics of one step, the closed loop and its batched form.
+"""The kernel's Python face: the native kernel (C++17 in ``src/native``, compiled at install into
+``ffsr_gym._native``) and what it is built from.
 
-The numba modules import only each other; ``arrays`` reads their inputs from ``model``.
+``arrays`` extracts the robot's numbers from its URDF through Pinocchio; ``robot`` makes the typed robot of them,
+``planner`` the planner's settings of a scenario, ``layout`` names the state, log and decision layouts.
 """

@@ -1,4 +1,4 @@
-"""Arrays for the compiled kernel, extracted from the Pinocchio model and the collision file.
+"""Arrays for the native kernel, extracted from the Pinocchio model and the collision file.
 
 The URDF (through Pinocchio) stays the single source of truth: the kernel receives the joint
 placements, axes, inertias, end-effector frames and collision primitives read here, never numbers
@@ -8,8 +8,7 @@ Pinocchio's ``q``/``v`` layout.
 
 from __future__ import annotations
 
-from collections import namedtuple
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -63,15 +62,6 @@ class KernelModel:
     q_index: np.ndarray
     v_index: np.ndarray
     axis_code: np.ndarray
-
-    def arrays(self) -> ModelArrays:
-        """The arrays as the kernel takes them: a :data:`ModelArrays` named tuple (same names, same order)."""
-        return ModelArrays(*(getattr(self, name) for name in self.__dataclass_fields__))
-
-
-#: The kernel's model argument: :class:`KernelModel`'s arrays as a named tuple, which numba passes and reads by
-#: name (``mdl.cap_radius``) at the cost of a plain tuple.
-ModelArrays = namedtuple("ModelArrays", [f.name for f in fields(KernelModel)])
 
 
 def extract(robot: Robot, collision: CollisionModel) -> KernelModel:

@@ -31,7 +31,7 @@ class BatchedVecEnv(VecEnv):
     Args:
         env_id: a registered id of a version with the batched environment (``ffsr-gym list``).
         n_envs: copies.
-        threads: numba threads of the batched kernel (default: all cores).
+        threads: threads of the batched kernel (default: FFSR_GYM_THREADS, else every core).
         **env_kwargs: the id's ``gymnasium.make`` arguments (``task``, ``split``, ...).
     """
 

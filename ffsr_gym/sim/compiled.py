@@ -9,10 +9,10 @@ import numpy as np
 
 from ffsr_gym import _native
 from ffsr_gym.exceptions import FFSRError
+from ffsr_gym.kernel.layout import LOG_FIELDS, N_STATE, STATUS_NONFINITE, X_PEAK, X_SATURATED, X_STEPS, X_V
+from ffsr_gym.kernel.planner import planner_settings
 from ffsr_gym.model.robot import check_state
 from ffsr_gym.model.scenario import Scenario
-from ffsr_gym.native.layout import LOG_FIELDS, N_STATE, STATUS_NONFINITE, X_PEAK, X_SATURATED, X_STEPS, X_V
-from ffsr_gym.native.planner import planner_settings
 from ffsr_gym.planning import ptsf
 from ffsr_gym.planning.planner import planner_parameters
 from ffsr_gym.sim.budget import check_run

@@ -1,6 +1,6 @@
 """What a closed loop needs from a robot and a scenario, built once and shared by both backends.
 
-A :class:`RobotAssets` (Pinocchio model, collision model, kernel arrays) is built once per robot
+A :class:`RobotAssets` (Pinocchio model, collision model, kernel arrays, native robot) is built once per robot
 and process; a :class:`ScenarioSetup` (initial configuration, obstacles, desired path, base
 set-point) once per scenario. The reference rollout, the kernel rollout, the task generator and
 the report all take them from here instead of rebuilding them.
@@ -15,7 +15,8 @@ import numpy as np
 
 from ffsr_gym import _native
 from ffsr_gym.exceptions import ScenarioError
-from ffsr_gym.kernel.arrays import KernelModel, ModelArrays, extract
+from ffsr_gym.kernel.arrays import KernelModel, extract
+from ffsr_gym.kernel.robot import native_plant, native_robot
 from ffsr_gym.model.collision import BoxObstacle, CollisionModel, Obstacle
 from ffsr_gym.model.drives import drive_array, drives_path, load_drives
 from ffsr_gym.model.obstacles import ObstacleField, obstacle_field
@@ -26,7 +27,6 @@ from ffsr_gym.model.robot_check import check_robot_folder
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.model.scenario_sections import TumblingTarget
 from ffsr_gym.model.tumbling import TargetMotion
-from ffsr_gym.native.robot import native_plant, native_robot
 from ffsr_gym.planning.desired_path import DesiredPath
 from ffsr_gym.planning.moving_target import (
     BodyField,
@@ -67,11 +67,6 @@ class RobotAssets:
     def native(self) -> _native.Robot:
         """The native kernel's typed robot (:func:`~ffsr_gym.native.robot.native_robot`), built on first use."""
         return native_robot(self.kernel)
-
-    @cached_property
-    def kernel_arrays(self) -> ModelArrays:
-        """``kernel.arrays()``, the kernel's model argument (a named tuple of arrays)."""
-        return self.kernel.arrays()
 
 
 def robot_assets(name: str) -> RobotAssets:

@@ -51,6 +51,8 @@ void bind_terms(nb::module_& m) {
         "the previous rates (12): (E (2,), V (2,)), mission arm first.");
   m.def("smoothness_cost", &smoothness_cost, "energy"_a, "variation"_a, "settings"_a,
         "C = alpha (E1/E_ref + V1/V_ref) + beta (E2/E_ref + V2/V_ref) of a DecisionSettings' cost settings.");
+  m.def("residual_fade", &ffsr::residual_fade, "t"_a, "motion_s"_a, "fade_s"_a,
+        "The residual's weight f(t): 1, a half-cosine over the last fade_s [s] of the motion (motion_s [s]), then 0.");
   m.def("propagate_tumbling", &propagate, "quaternion"_a, "omega"_a, "inertia"_a, "dt"_a, "substeps"_a, "steps"_a,
         "Torque-free motion of a body (RK4, substeps per step, the quaternion renormalised): quaternions "
         "(steps + 1, 4), w first, and body rates (steps + 1, 3) [rad/s] at every step of dt [s].");

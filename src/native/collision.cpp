@@ -231,8 +231,12 @@ double body_clearance(const Robot& robot, const Frames& f, const CapsuleAxes& ax
   double best = kInf;
   for (size_t i = 0; i < robot.capsules.size(); ++i)
     best = std::min(best, capsule_box(axes, i, R_o, c_o, half_o) - robot.capsules[i].radius);
-  best = std::min(best, edges_to_box(f.R_b, p_b, robot.box_half, R_o, c_o, half_o));
-  return std::min(best, edges_to_box(R_o, c_o, half_o, f.R_b, p_b, robot.box_half));
+  return std::min(best, box_box(f.R_b, p_b, robot.box_half, R_o, c_o, half_o));
+}
+
+double box_box(const Mat3& R_a, const double c_a[3], const double half_a[3], const Mat3& R_b, const double c_b[3],
+               const double half_b[3]) {
+  return std::min(edges_to_box(R_a, c_a, half_a, R_b, c_b, half_b), edges_to_box(R_b, c_b, half_b, R_a, c_a, half_a));
 }
 
 double self_clearance(const Robot& robot, const Frames& f, CapsuleAxes& axes, const double p_b[3]) {

@@ -1,10 +1,11 @@
 // Free-floating multibody dynamics and the servo plant (dynamics.hpp).
 #include "ffsr/dynamics.hpp"
 
-#include <cmath>
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <limits>
+#include <memory>
 
 namespace ffsr {
 namespace {
@@ -256,6 +257,28 @@ void servo_period(const Robot& plant, double x[kStateSize], double servo[kServoS
   kinematics(plant, x, f);  // the base twist that carries the momentum at the new joint rates
   momentum(plant, x, f, m);
   base_velocity(x, servo + 6, h, f, m, servo);
+}
+
+void drive_open_loop(const Robot& plant, double x[kStateSize], double servo[kServoState], const double* cmds, long n,
+                     double h, const double h_mom[6], long every, double* x_out, double* tau_out) {
+  auto dyn = std::make_unique<Dynamics>();
+  auto f = std::make_unique<Frames>();
+  auto m = std::make_unique<Momentum>();
+  spatial_inertias(plant, *dyn);
+  auto record = [&](long row) {
+    std::memcpy(x_out + 40 * row, x, sizeof(double) * kStateSize);
+    std::memcpy(x_out + 40 * row + kStateSize, servo, sizeof(double) * kServoState);
+  };
+  record(0);
+  for (long k = 0; k < n; ++k) {
+    servo_step(plant, x, servo, cmds + 12 * k, h, *dyn, tau_out + 12 * k);
+    if (every > 0 && (k + 1) % every == 0) {
+      kinematics(plant, x, *f);
+      momentum(plant, x, *f, *m);
+      base_velocity(x, servo + 6, h_mom, *f, *m, servo);
+    }
+    record(k + 1);
+  }
 }
 
 }  // namespace ffsr

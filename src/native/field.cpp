@@ -154,4 +154,14 @@ void avoidance(const PlannerSettings& s, const Frames& f, int arm, double t, Pla
   }
 }
 
+void segment_field(const double p[3], const double a[3], const double b[3], double& F, double& nearest, double& I0,
+                   double& I1) {
+  double points[7][3] = {};
+  for (int k = 0; k < 3; ++k) points[0][k] = a[k], points[1][k] = b[k];
+  double geometry[5] = {};
+  field_of_segment(p[0], p[1], p[2], points, 0, geometry, F, nearest);
+  I0 = I1 = 0.0;
+  if (std::isfinite(nearest)) moments_of_segment(geometry, I0, I1);
+}
+
 }  // namespace ffsr

@@ -24,6 +24,11 @@ double box_sdf(const double p[3], const Mat3& R, const double c[3], const double
 // Signed distance segment a-b to a box [m], exact (the convex SDF minimised piece by piece).
 double segment_box(const double a[3], const double b[3], const Mat3& R, const double c[3], const double half[3]);
 
+// Distance of two boxes (rotation, centre, half extents) [m] when apart, by their edges: exact then (the
+// closest points of two disjoint boxes lie on an edge of one of them); overlapping boxes give a value <= 0.
+double box_box(const Mat3& R_a, const double c_a[3], const double half_a[3], const Mat3& R_b, const double c_b[3],
+               const double half_b[3]);
+
 // Signed distance robot-obstacle sphere [m]; rel gets the vector robot point → obstacle point.
 double obstacle_clearance(const Robot& robot, const Frames& f, const CapsuleAxes& axes, const double p_b[3],
                           const double p_o[3], double r_o, double rel[3]);

@@ -32,4 +32,12 @@ void servo_period(const Robot& plant, double x[kStateSize], double servo[kServoS
                   double dt, int substeps, const double h[6], Dynamics& dyn, Frames& f, Momentum& m,
                   double tau_log[kJoints]);
 
+// The servo plant under given commands, without a planner (how the dynamics are studied alone): row k of cmds
+// (n, 12) [rad/s] held for physics step k of h [s]; every > 0: the base twist set back to the one carrying
+// momentum h_mom after every `every` steps (0: never; the momentum then drifts as Euler lets it). x (19) and
+// servo (21) advance; x_out (n + 1, 40) gets the state before each step and after the last, tau_out (n, 12) each
+// step's torques.
+void drive_open_loop(const Robot& plant, double x[kStateSize], double servo[kServoState], const double* cmds, long n,
+                     double h, const double h_mom[6], long every, double* x_out, double* tau_out);
+
 }  // namespace ffsr
