@@ -86,7 +86,7 @@ def random_episodes(tier: str, count: int, seed: int = 0) -> dict:
                     action = rng.uniform(-0.3, 0.3, 12).astype(np.float32)
                 _, _, terminated, truncated, _ = env.step(action)
                 state, _, _, _ = step(state, jnp.asarray(action, dtype=jnp.float64))
-                x, kernel_x = np.asarray(state.x), engine.X[0][:19]
+                x, kernel_x = np.asarray(state.x), engine.episodes[0].state()[:19]
                 worst["joint_angles_rad"] = max(worst["joint_angles_rad"], float(np.abs(x[7:] - kernel_x[7:]).max()))
                 worst["base_position_m"] = max(worst["base_position_m"], float(np.abs(x[:3] - kernel_x[:3]).max()))
                 worst["base_attitude"] = max(worst["base_attitude"], float(min(

@@ -9,7 +9,8 @@ score, and the final end-effector position and attitude errors (functions of the
     python benchmarks/native_agreement.py --label numba                     # run from a checkout of the numba kernel
     python benchmarks/native_agreement.py --merge --docs docs/kernel.md     # the table
 
-Each run writes ``runs/native_agreement/<label>.json`` (atomically, every 50 replays; a rerun resumes); ``--merge``
+Each run writes ``runs/native_agreement/<label>.json`` (atomically, every 50 replays; a rerun of the same commit
+resumes, of another starts again; the provenance is taken when the run starts); ``--merge``
 writes ``benchmarks/native_agreement.json`` (both runs' provenance and rows, and the per-tier summary) and, with
 ``--docs``, the table between the ``native-agreement`` markers.
 """
@@ -66,13 +67,16 @@ def run(label: str) -> None:
     path = PARTS / f"{label}.json"
     path.parent.mkdir(parents=True, exist_ok=True)
     data = json.loads(path.read_text()) if path.exists() else {"label": label, "rows": []}
+    made = provenance(command=" ".join(["python", *sys.argv]))  # the code that runs, before anything is edited
+    if data["rows"] and data.get("provenance", {}).get("git_commit") != made["git_commit"]:
+        data["rows"] = []  # rows of other code: replay again
+    data["provenance"] = made
     have = {(r["version"], r["tier"], r["split"], r["index"]) for r in data["rows"]}
     todo = [case for case in cases() if case not in have]
     for k, case in enumerate(tqdm(todo, desc=f"certificates ({label})")):
         data["rows"].append(replay_row(*case))
         if k % 50 == 49:
             save(path, data)
-    data["provenance"] = provenance(command=" ".join(["python", *sys.argv]))
     save(path, data)
 
 
