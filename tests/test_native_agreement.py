@@ -25,8 +25,8 @@ def test_every_certificate_replays_the_same_on_both_kernels():
 
 def test_the_summary_and_the_docs_table_are_the_records():
     script = benchmark_script("native_agreement")
-    by_kernel = {kernel: [{k: v for k, v in r.items() if k != "kernel"} for r in RECORD["rows"] if r["kernel"] == kernel]
-                 for kernel in ("numba", "native")}
+    by_kernel = {kernel: [{k: v for k, v in r.items() if k != "kernel"} for r in RECORD["rows"]
+                          if r["kernel"] == kernel] for kernel in ("numba", "native")}
     assert script.summary(by_kernel["numba"], by_kernel["native"]) == RECORD["summary"]
     text = (ROOT / "docs" / "kernel.md").read_text(encoding="utf-8")
     block = text.split(script.START + "\n")[1].split(script.END)[0]
