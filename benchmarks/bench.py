@@ -43,7 +43,7 @@ from speed_tables import (  # noqa: E402,F401  (benchmarks/speed_tables.py: the 
     clock_ghz,
     speed_table,
 )
-from timing import _no_gc, best_of, kernel_time  # noqa: E402
+from timing import _no_gc, best_of, decision_time, kernel_time  # noqa: E402
 
 
 def per_step(env, steps: int) -> float:
@@ -69,30 +69,15 @@ def per_step(env, steps: int) -> float:
 def step_budget(env_id: str, task: str, steps: int) -> dict[str, float]:
     """Where the wall time [s] of one ``env_id`` step goes (means per step, random actions).
 
-    ``compiled``: inside the compiled decision (physics, score terms, observation); ``episode_end``:
+    ``compiled``: inside the native decision (physics, score terms, observation); ``episode_end``:
     the extra time of the episodes' last steps (final sample, trajectory, score), spread over all
     steps; ``wrappers``: Gymnasium's wrappers (wrapped minus bare env); ``python``: the rest.
     """
-    from ffsr_gym.environments import engine
-
-    inside = [0.0]
-    compiled = engine.decision.step_episode
-
-    def timed(*args):
-        start = time.perf_counter()
-        out = compiled(*args)
-        inside[0] += time.perf_counter() - start
-        return out
-
     env = gym.make(env_id, task=task)
     wrapped = per_step(env, steps)
-    engine.decision.step_episode = timed
-    try:
-        inside[0] = 0.0
+    with decision_time() as inside:
         bare, ends = _bare_steps(env.unwrapped, steps)
         in_decision = inside[0] / steps
-    finally:
-        engine.decision.step_episode = compiled
     return {"total": wrapped, "compiled": in_decision, "episode_end": ends, "wrappers": wrapped - bare,
             "python": bare - in_decision - ends}
 

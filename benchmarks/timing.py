@@ -66,3 +66,35 @@ def kernel_time() -> Iterator[list[float]]:
         yield spent
     finally:
         engine._native = _native
+
+
+@contextmanager
+def decision_time() -> Iterator[list[float]]:
+    """Seconds spent in single episodes' native decisions (``ffsr_gym._native.Episode.decide``) while the block runs,
+    in ``[0]``: the episodes of resets inside the block are timed (everything else they do is delegated)."""
+    import types
+
+    from ffsr_gym import _native
+    from ffsr_gym.environments import engine
+
+    spent = [0.0]
+
+    class TimedEpisode:
+        def __init__(self, *args, **kwargs) -> None:
+            self.episode = _native.Episode(*args, **kwargs)
+
+        def __getattr__(self, name: str):
+            return getattr(self.episode, name)
+
+        def decide(self, *args):
+            start = time.perf_counter()
+            try:
+                return self.episode.decide(*args)
+            finally:
+                spent[0] += time.perf_counter() - start
+
+    engine._native = types.SimpleNamespace(**{**vars(_native), "Episode": TimedEpisode})
+    try:
+        yield spent
+    finally:
+        engine._native = _native
