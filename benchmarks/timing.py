@@ -37,64 +37,44 @@ def best_of(fn, repeats: int) -> float:
 
 
 @contextmanager
-def kernel_time() -> Iterator[list[float]]:
-    """Seconds spent in the batched environments' native decisions (``ffsr_gym._native.EpisodeBatch.decide``, the
-    GIL released) while the block runs, in ``[0]``: the batches of engines made inside the block are timed."""
+def _timed_decisions(kind: str) -> Iterator[list[float]]:
+    """Seconds spent in ``decide`` of the native ``kind`` (``Episode`` or ``EpisodeBatch``) objects the engines make
+    while the block runs, in ``[0]`` (everything else those objects do is delegated to them)."""
     import types
 
     from ffsr_gym import _native
     from ffsr_gym.environments import engine
 
-    spent = [0.0]
+    spent, native_kind = [0.0], getattr(_native, kind)
 
-    class TimedBatch:
-        def __init__(self, *args) -> None:
-            self.batch = _native.EpisodeBatch(*args)
-
-        def set(self, *args) -> None:
-            self.batch.set(*args)
-
-        def decide(self, *args) -> None:
-            start = time.perf_counter()
-            try:
-                self.batch.decide(*args)
-            finally:
-                spent[0] += time.perf_counter() - start
-
-    engine._native = types.SimpleNamespace(**{**vars(_native), "EpisodeBatch": TimedBatch})
-    try:
-        yield spent
-    finally:
-        engine._native = _native
-
-
-@contextmanager
-def decision_time() -> Iterator[list[float]]:
-    """Seconds spent in single episodes' native decisions (``ffsr_gym._native.Episode.decide``) while the block runs,
-    in ``[0]``: the episodes of resets inside the block are timed (everything else they do is delegated)."""
-    import types
-
-    from ffsr_gym import _native
-    from ffsr_gym.environments import engine
-
-    spent = [0.0]
-
-    class TimedEpisode:
+    class Timed:
         def __init__(self, *args, **kwargs) -> None:
-            self.episode = _native.Episode(*args, **kwargs)
+            self.inner = native_kind(*args, **kwargs)
 
         def __getattr__(self, name: str):
-            return getattr(self.episode, name)
+            return getattr(self.inner, name)
 
         def decide(self, *args):
             start = time.perf_counter()
             try:
-                return self.episode.decide(*args)
+                return self.inner.decide(*args)
             finally:
                 spent[0] += time.perf_counter() - start
 
-    engine._native = types.SimpleNamespace(**{**vars(_native), "Episode": TimedEpisode})
+    engine._native = types.SimpleNamespace(**{**vars(_native), kind: Timed})
     try:
         yield spent
     finally:
         engine._native = _native
+
+
+def kernel_time():
+    """Seconds spent in the batched environments' native decisions (``ffsr_gym._native.EpisodeBatch.decide``, the
+    GIL released) while the block runs, in ``[0]``: the batches of engines made inside the block are timed."""
+    return _timed_decisions("EpisodeBatch")
+
+
+def decision_time():
+    """Seconds spent in single episodes' native decisions (``ffsr_gym._native.Episode.decide``) while the block runs,
+    in ``[0]``: the episodes of resets inside the block are timed."""
+    return _timed_decisions("Episode")
