@@ -122,8 +122,7 @@ def setup_text(results: dict) -> str:
     def total(parts: list[dict]) -> str:
         return _duration(sum(p["seconds"] for p in parts))
 
-    if "pusher" not in results.get("first_uses", {}):  # a measurement of the numba kernel (before the native one)
-        return (f"Both commands as written, each from a fresh clone of {results['provenance']['git_commit'][:7]} on "
+    return (f"Both commands as written, each from a fresh clone of {results['provenance']['git_commit'][:7]} on "
                 f"{results['machine']}, with pip's cache off and empty numba and matplotlib caches: the main job "
                 f"took {total(first)} (`pip install .` {total(first[1:2])}, the run {total(first[2:])}, which "
                 f"compiles the kernel once; {total(again)} when run again), the tests {total(tests)} "
