@@ -123,14 +123,6 @@ def setup_text(results: dict) -> str:
         return _duration(sum(p["seconds"] for p in parts))
 
     return (f"Both commands as written, each from a fresh clone of {results['provenance']['git_commit'][:7]} on "
-                f"{results['machine']}, with pip's cache off and empty numba and matplotlib caches: the main job "
-                f"took {total(first)} (`pip install .` {total(first[1:2])}, the run {total(first[2:])}, which "
-                f"compiles the kernel once; {total(again)} when run again), the tests {total(tests)} "
-                f"(`pip install -e \".[dev]\"` {total(tests[1:2])}, pytest {total(tests[2:])}, the kernel's "
-                "compilation included). After the main job, the first use of each env took: " + ", ".join(
-                    f"{use['name']} {_duration(use['seconds'])}" for use in results["first_uses"]["uses"])
-                + " (one reset and one step, in a new process).\n")
-    return (f"Both commands as written, each from a fresh clone of {results['provenance']['git_commit'][:7]} on "
             f"{results['machine']}, with pip's cache off and an empty matplotlib cache: the main job "
             f"took {total(first)} (`pip install .` {total(first[1:2])}, which builds the native kernel, the run "
             f"{total(first[2:])}; {total(again)} when run again), the tests {total(tests)} "
