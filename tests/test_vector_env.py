@@ -229,3 +229,25 @@ def test_v2_play_out_gives_the_trajectories_of_decision_after_decision():
         FFSRVectorEnv(2, "v2", residual=True, task="hard").play_out_with_parameters(0.3, 4.0)
     with pytest.raises(InvalidInputError, match="reset"):
         FFSRVectorEnv(2, "v2", task="hard").play_out_with_parameters(0.3, 4.0)
+
+
+def test_the_default_thread_count_reads_ffsr_gym_threads(monkeypatch):
+    """``FFSR_GYM_THREADS`` sets the batched envs' default threads (bounded by the cores); a malformed value is
+    refused by name; ``threads=`` outside 1..cores is refused with the allowed range."""
+    from ffsr_gym.environments.vector_env import THREADS_VARIABLE, available_cores, default_threads
+
+    cores = available_cores()
+    monkeypatch.delenv(THREADS_VARIABLE, raising=False)
+    assert default_threads(cores) == cores
+    monkeypatch.setenv(THREADS_VARIABLE, "1")
+    venv = gym.make_vec("FFSR-v2", num_envs=2, vectorization_mode="vector_entry_point")
+    assert venv.unwrapped.engine.threads == 1
+    monkeypatch.setenv(THREADS_VARIABLE, str(cores + 7))
+    assert default_threads(cores) == cores
+    for bad in ("0", "two", "-1"):
+        monkeypatch.setenv(THREADS_VARIABLE, bad)
+        with pytest.raises(InvalidInputError, match="FFSR_GYM_THREADS"):
+            default_threads(cores)
+    monkeypatch.delenv(THREADS_VARIABLE)
+    with pytest.raises(InvalidInputError, match=f"allowed: an integer from 1 to {cores}"):
+        gym.make_vec("FFSR-v2", num_envs=2, vectorization_mode="vector_entry_point", threads=cores + 1)
