@@ -138,7 +138,8 @@ def test_observation_is_the_documented_layout():
 
 def test_batched_step_with_parameters_equals_single_envs():
     """``step_with_parameters`` in the batch (mode: (m, T_c) already set) against single envs, to the end."""
-    venv = gym.make_vec("FFSR-v2", num_envs=2, task="hard", vectorization_mode="vector_entry_point")
+    venv = gym.make_vec("FFSR-v2", num_envs=2, task="hard", vectorization_mode="vector_entry_point",
+                           record_trajectories=True)
     singles = [gym.make("FFSR-v2", task="hard") for _ in range(2)]
     obs, _ = venv.reset(seed=4)
     np.testing.assert_array_equal(obs, np.stack([env.reset(seed=4 + i)[0] for i, env in enumerate(singles)]))

@@ -31,8 +31,11 @@ def _refused_fast(call, match: str) -> None:
 
 
 def test_buffers_beyond_the_memory_limit_are_refused_before_the_run(tmp_path):
-    _refused_fast(lambda: ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task="easy", env_kwargs={"dt_s": 1e-4}),
+    from ffsr_gym.environments.vector_env import FFSRVectorEnv
+
+    _refused_fast(lambda: FFSRVectorEnv(100, "v2", task="easy", dt_s=1e-4, record_trajectories=True),
                   r"100 copies x 200,001 trajectory rows need about 10.9 GiB; allowed: at most 8 GiB")
+    FFSRVectorEnv(100, "v2", task="easy", dt_s=1e-4)  # copies that keep no trajectory: 64 kB each
     with pytest.raises(ffsr_gym.exceptions.FFSRError, match=r"2,000,000 steps; allowed: at most 200,000 steps"):
         ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task="easy", env_kwargs={"dt_s": 1e-5})  # one episode is too long
     hour = _custom(tmp_path, {"duration_s = 20.0": "duration_s = 3600.0", "dt_s = 0.01": "dt_s = 0.00001"})
@@ -40,7 +43,8 @@ def test_buffers_beyond_the_memory_limit_are_refused_before_the_run(tmp_path):
         gym.make("FFSR-v2", task=hour)
     from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
 
-    _refused_fast(lambda: BatchedVecEnv("FFSR-v2", 1_000_000, task="easy"), "1,000,000 copies")
+    _refused_fast(lambda: BatchedVecEnv("FFSR-v2", 1_000_000, task="easy"),
+                  "1,000,000 copies x 64 kB need about 61.0 GiB")
 
 
 def test_the_limit_can_be_set_and_is_checked(monkeypatch):

@@ -205,7 +205,7 @@ def test_v2_play_out_gives_the_trajectories_of_decision_after_decision():
     from ffsr_gym.environments.vector_env import FFSRVectorEnv
 
     def played(whole):
-        venv = FFSRVectorEnv(2, "v2", task="hard", split="test", autoreset_mode="Disabled")
+        venv = FFSRVectorEnv(2, "v2", task="hard", split="test", autoreset_mode="Disabled", record_trajectories=True)
         venv.reset(seed=[0, 1], options={"task_index": [0, 5]})
         if whole:
             terminated, truncated, _ = venv.play_out_with_parameters(0.1, 1.5)

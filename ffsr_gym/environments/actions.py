@@ -110,7 +110,8 @@ def residual_rates(action: np.ndarray, task: Scenario, rule: Any, fades: bool, t
 
 def decision_settings(task: Scenario, rule: Any, fades: bool) -> _native.DecisionSettings:
     """The native decision's settings of a task under a score rule: the residual's scale and fade, the (m, T_c)
-    action box, the rate limit, the violation cost's clearance scale and the smoothness cost's settings.
+    action box, the rate limit, the violation cost's clearance scale, the smoothness cost's settings, and what the
+    episode's score totals need (the paper objective's danger rate, the end-effector position tolerance).
 
     Without a fade the residual's weight stays 1 (the fade starts at +inf). A rule whose increment
     and cost are not the kernel's (``compiled_terms`` False) gets neutral score settings: its terms
@@ -124,6 +125,8 @@ def decision_settings(task: Scenario, rule: Any, fades: bool) -> _native.Decisio
     settings.rate_scale = float(np.radians(task.env.residual_rate_deg_s))
     settings.rate_limit_deg_s = task.objective.max_rate_deg_s
     settings.clear_scale = benchmark.action.cost_clearance_scale_m if rule.compiled_terms else 1.0
+    settings.danger_rate_deg_s = task.objective.danger_rate_deg_s  # the episode's totals (paper_B, convergence)
+    settings.tolerance_m = (benchmark.score if rule.compiled_terms else task.objective).ee_position_tolerance_m
     if rule.compiled_terms:
         return cost_settings(benchmark.score, settings)
     settings.alpha, settings.beta, settings.E_ref, settings.V_ref = 0.0, 0.0, 1.0, 1.0

@@ -1,22 +1,19 @@
 """The episode engine: N copies of one benchmark version's episodes, stepped decision by decision.
 
-The engine owns everything an environment step computes: the action's mapping, the decision's
-physics, its reward, the episode's end, the final score and the info keys. It draws its tasks from
-a :class:`~ffsr_gym.environments.task_source.TaskSource` and scores with the spec's rule
-(:mod:`ffsr_gym.scoring.rules`). It knows nothing of Gymnasium: the single environment is an
-adapter over one copy, the batched environment an adapter over N.
+The engine owns everything an environment step computes: the action's mapping, the decision's physics, its reward,
+the episode's end, the final score and the info keys. It draws its tasks from a
+:class:`~ffsr_gym.environments.task_source.TaskSource` and scores with the spec's rule (:mod:`ffsr_gym.scoring.rules`).
+It knows nothing of Gymnasium: the single environment is an adapter over one copy, the batched one over N.
 
 Two pipelines compute a decision, written once for every version:
 
-* compiled (the kernel backend): each copy's episode is a native :class:`ffsr_gym._native.Episode` that writes
-  its logs into the engine's arrays; one call of its ``decide`` for one copy, one call of an
+* compiled (the kernel backend): each copy's episode is a native :class:`ffsr_gym._native.Episode` (its logs in the
+  engine's arrays, or none: its score totals); one call of its ``decide`` for one copy, one call of an
   :class:`ffsr_gym._native.EpisodeBatch` for N (on threads, the GIL released); same numbers;
-* reference (any backend, one copy): the :class:`~ffsr_gym.sim.rollout.Rollout` interface, the
-  increment from the score rule in numpy, the observation assembled in Python. It gives the
-  compiled pipeline's numbers bit for bit on the kernel backend (tested), and runs the Pinocchio
-  reference.
+* reference (any backend, one copy): the :class:`~ffsr_gym.sim.rollout.Rollout` interface, the increment from the
+  score rule in numpy, the observation assembled in Python: the compiled pipeline's numbers bit for bit on the
+  kernel backend (tested), and the Pinocchio reference.
 """
-
 from __future__ import annotations
 
 from typing import Any
@@ -52,13 +49,15 @@ class EpisodeEngine:
 
     Per-copy state lives in stacked arrays (row i = copy i); ``obs`` (N, 53) float32 holds each
     copy's current observation, ``clearance`` and ``ee_error`` its last clearance and end-effector
-    position error [m]; ``logs`` (compiled) each copy's trajectory so far, written by its native episode.
+    position error [m]; ``logs`` (compiled, ``record``) each copy's trajectory so far, written by its native
+    episode. ``record=False``: a copy keeps no trajectory, only its native episode's score totals (its episode's
+    result is the same; a rule that needs the trajectory, v0's and a capture rule, records anyway).
     ``threads``: the threads a batched decision runs its copies on.
     """
 
     def __init__(self, source: TaskSource, *, residual: bool, copies: int = 1, backend: str = "auto",
                  terminate_on_violation: bool = True, dense_shaping: bool = False, batched: bool = False,
-                 threads: int = 1) -> None:
+                 threads: int = 1, record: bool = True) -> None:
         self.source, self.rule, self.spec = source, source.rule, source.spec
         self.residual, self.backend, self.n = residual, backend, int(copies)
         self.terminate, self.shaping = terminate_on_violation, dense_shaping and self.rule.shaping
@@ -71,8 +70,10 @@ class EpisodeEngine:
         self.compiled = backend in ("kernel", "auto")
         N = self.n
         copies = f"{N} environment cop{'ies' if N != 1 else 'y'} of {family.name}"
+        rule = self.rule
+        self.record = bool(record) or not rule.compiled_terms or rule.benchmark.capture is not None
         check_run(steps=self.n_steps, copies=N, steps_per_decision=self.steps_per_decision,
-                  substeps=max(1, family.physics_substeps), what=copies)
+                  substeps=max(1, family.physics_substeps), what=copies, trajectories=self.record)
         self.single = N == 1 and not batched  # stepped by step_one (else by step_copies)
         self.scenarios: list[Scenario | None] = [None] * N
         self.rollouts: list[Rollout | None] = [None] * N
@@ -89,7 +90,7 @@ class EpisodeEngine:
         self.K, self.clipped = _scalars(N, np.int64, self.single), _scalars(N, np.int64, self.single)
         self.cost_so_far, self.potential = _scalars(N, float, self.single), _scalars(N, float, self.single)
         self.clearance, self.ee_error = _scalars(N, float, self.single), _scalars(N, float, self.single)
-        self.logs = new_log(self.n_steps + 1, N) if self.compiled else None
+        self.logs = new_log(self.n_steps + 1, N) if self.compiled and self.record else None
         self.episodes: list[_native.Episode | None] = [None] * N
         self.threads, self.batch = int(threads), None
         self.out = np.zeros((N, 7))
@@ -127,11 +128,11 @@ class EpisodeEngine:
 
     def _load_copy(self, i: int, scenario: Scenario, state: tuple | None = None) -> None:
         """Copy ``i``'s new episode: its rollout and its native episode, both on copy ``i``'s rows of the logs.
-        ``state``: (x (40), m, T_c [s], last rates (12)) to continue from instead of the task's start."""
+        ``state``: (x (40), m, T_c [s], last rates (12), score totals) to continue from instead of the task's start."""
         if scenario.n_steps != self.n_steps or scenario.simulation.dt_s != self.dt:
             raise FFSRError("a task changed dt_s or duration_s; the copies need them fixed")
-        views = {key: rows[i] for key, rows in self.logs.items()}
-        rollout = KernelRollout(scenario, log=views)
+        views = {key: rows[i] for key, rows in self.logs.items()} if self.record else None
+        rollout = KernelRollout(scenario, log=new_log(1) if views is None else views)  # no trajectory: one row
         x = rollout.x
         if state is not None:
             x, (rollout.settings.m, rollout.settings.T_c) = state[0], state[1:3]
@@ -140,7 +141,7 @@ class EpisodeEngine:
                                   act.decision_settings(scenario, self.rule, self.spec.actions.residual_fades), x,
                                   self.n_steps, plant=setup.native_plant, logs=views)
         if state is not None:
-            episode.last_rates = state[3]
+            episode.last_rates, episode.totals = state[3], state[4]
         self.rollouts[i], self.episodes[i] = rollout, episode
         if self.batch is not None:
             self.batch.set(i, episode)
@@ -347,16 +348,20 @@ class EpisodeEngine:
             self.episodes[i].set_parameters(m, T_c)
 
     def end_copy(self, i: int) -> Any:
-        """Record copy ``i``'s final sample and score its whole trajectory with the rule."""
-        rollout = self.rollout(i)
-        rollout.finish()
-        self.results[i] = self.rule.result(rollout.trajectory(), self.scenarios[i])
+        """Record copy ``i``'s final sample and score its episode with the rule: from its trajectory, or from its
+        native episode's totals when it keeps none (the same numbers)."""
+        rollout, episode = self.rollout(i), self.episodes[i] if self.compiled else None
+        if episode is not None and not rollout.finished:
+            episode.finish(int(self.K[i]))
+            rollout.rows, rollout.finished = rollout.rows + 1, True
+        rollout.finish()  # the reference pipeline's
+        self.results[i] = (self.rule.result(rollout.trajectory(), self.scenarios[i]) if self.record
+                           else self.rule.result_of_totals(episode.totals, self.scenarios[i]))
         return self.results[i]
 
     def rollout(self, i: int) -> Rollout:
         """Copy ``i``'s rollout with the engine's state (an unfinished compiled episode: one logged row per step)."""
-        rollout = self.rollouts[i]
-        if rollout is None:
+        if (rollout := self.rollouts[i]) is None:
             raise InvalidInputError("no episode yet: call reset()")
         episode = self.episodes[i] if self.compiled else None
         if episode is not None and not rollout.finished:
@@ -365,13 +370,15 @@ class EpisodeEngine:
         return rollout
 
     def trajectory(self, i: int) -> Trajectory:
-        """Copy ``i``'s :class:`Trajectory` so far."""
+        """Copy ``i``'s :class:`Trajectory` so far (an engine made with ``record=True``)."""
+        if not self.record:
+            raise InvalidInputError("these copies keep no trajectory (record_trajectories=False); make the "
+                                    "environment with record_trajectories=True to read one")
         return self.rollout(i).trajectory()
 
     def finished(self, i: int) -> bool:
         """Whether copy ``i``'s episode has ended."""
-        rollout = self.rollouts[i]
-        return rollout is not None and rollout.finished
+        return self.rollouts[i] is not None and self.rollouts[i].finished
 
     # ------------------------------------------------------------------------- pickling
     def __getstate__(self) -> dict:
@@ -379,7 +386,8 @@ class EpisodeEngine:
         clone builds new episodes from them (same numbers)."""
         state = self.__dict__.copy()
         state["batch"], state["episodes"] = None, [None] * self.n
-        state["_episodes"] = [None if e is None else (e.state(), e.m, e.T_c, e.last_rates) for e in self.episodes]
+        state["_episodes"] = [None if e is None else (e.state(), e.m, e.T_c, e.last_rates, e.totals)
+                              for e in self.episodes]
         return state
 
     def __setstate__(self, state: dict) -> None:

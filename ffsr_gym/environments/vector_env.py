@@ -76,14 +76,17 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
     ``options={"task_index": [...]}``
     picks each copy's pool task of this reset. Every info has every key of the info contract
     (:mod:`ffsr_gym.environments.info`) as an array with its ``_key`` mask, as ``SyncVectorEnv`` gives them.
-    Memory: one full-episode trajectory buffer per copy (~1 MB at dt = 0.01 s, 20 s).
+    Memory: a copy keeps its state and its episode's score totals, a few kB (docs/kernel.md); with
+    ``record_trajectories=True`` (or a ``render_mode``, or a rule that scores from the trajectory: v0's, a capture
+    rule's) also its whole trajectory, ~1 MB at dt = 0.01 s over 20 s, which :meth:`trajectory` reads.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"], "render_fps": 10}
 
     def __init__(self, num_envs: int, version: str = "v2", residual: bool = False, *, threads: int | None = None,
                  backend: str = "kernel", render_mode: str | None = None, max_episode_steps: int | None = None,
-                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **options: Any) -> None:
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, record_trajectories: bool = False,
+                 **options: Any) -> None:
         spec = spec_for_version(version)
         options = task_options(spec, options)
         if not isinstance(num_envs, (int, np.integer)) or isinstance(num_envs, bool) or num_envs < 1:
@@ -104,15 +107,17 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
             raise InvalidInputError(f"threads = {threads!r}; allowed: an integer from 1 to {cores} (this machine's "
                                     "cores)")
         self.metadata = {**self.metadata, "autoreset_mode": mode}
-        if not isinstance(residual, (bool, np.bool_)):
-            raise InvalidInputError(f"residual = {residual!r}; allowed: True or False (each id sets it)")
+        for name, flag in (("residual", residual), ("record_trajectories", record_trajectories)):
+            if not isinstance(flag, (bool, np.bool_)):
+                raise InvalidInputError(f"{name} = {flag!r}; allowed: True or False")
         self.render_mode, self._renderer, self.residual = render_mode, None, bool(residual)
         self.benchmark_spec, self.num_envs = spec, int(num_envs)
         self.source = TaskSource(spec, score_rule(spec), options.get(spec.tasks.keyword), options.get("split"),
                                  options.get("dt_s"))
         self.engine = EpisodeEngine(self.source, residual=self.residual, copies=self.num_envs, backend="kernel",
                                     dense_shaping=options.get("dense_shaping", False), batched=True,
-                                    threads=default_threads(cores) if threads is None else int(threads))
+                                    threads=default_threads(cores) if threads is None else int(threads),
+                                    record=bool(record_trajectories) or render_mode is not None)
         self.family = self.source.family
         self.n_steps, self.dt = self.engine.n_steps, self.engine.dt
         self.steps_per_decision = self.engine.steps_per_decision
@@ -231,7 +236,8 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
 
     # ----------------------------------------------------------------------------- extras
     def trajectory(self, i: int) -> Trajectory:
-        """The :class:`~ffsr_gym.sim.trajectory.Trajectory` of copy ``i``'s current episode (samples so far)."""
+        """The :class:`~ffsr_gym.sim.trajectory.Trajectory` of copy ``i``'s current episode (samples so far; an env
+        made with ``record_trajectories=True``)."""
         if not 0 <= i < self.num_envs:
             raise InvalidInputError(f"copy {i}; allowed: 0 to {self.num_envs - 1}")
         return self.engine.trajectory(i)

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from ffsr_gym import _native
 from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model.benchmark import Benchmark
 from ffsr_gym.model.scenario import Scenario
@@ -32,6 +33,7 @@ from ffsr_gym.scoring.score import (
     EpisodeScore,
     running_reward,
     score_episode,
+    score_of_totals,
     score_reward,
     smoothness_cost,
     smoothness_terms,
@@ -73,7 +75,7 @@ class PaperObjective:
     def result(self, traj: Trajectory, scenario: Scenario) -> ObjectiveTerms:
         """B, feasibility and score of a trajectory; one cut short without a violation is infeasible."""
         terms = objective_terms(traj, scenario.objective)
-        if incomplete(traj, scenario, terms.rate_violation or terms.collided):
+        if incomplete(len(traj.t), scenario, terms.rate_violation or terms.collided):
             return dataclasses.replace(terms, feasible=False, score=math.inf)
         return terms
 
@@ -146,8 +148,19 @@ class BoundedSmoothness:
     def result(self, traj: Trajectory, scenario: Scenario) -> EpisodeScore:
         """The episode score of a trajectory (:func:`ffsr_gym.scoring.score.score_episode`); one cut short
         without a violation fails as ``incomplete``."""
-        result = score_episode(traj, scenario, self.benchmark)
-        if incomplete(traj, scenario, result.failure in ("rate_limit", "collision")):
+        return self._complete(score_episode(traj, scenario, self.benchmark), len(traj.t), scenario)
+
+    def result_of_totals(self, totals: _native.ScoreTotals, scenario: Scenario) -> EpisodeScore:
+        """:meth:`result` of an environment episode that kept its score's totals only (no trajectory); the same
+        numbers (the totals are the trajectory's sums, :func:`~ffsr_gym.scoring.score.trajectory_totals`)."""
+        dt = scenario.simulation.dt_s
+        return self._complete(score_of_totals(totals, scenario, self.benchmark, dt, lambda k: k * dt),
+                              totals.samples, scenario)
+
+    @staticmethod
+    def _complete(result: EpisodeScore, samples: int, scenario: Scenario) -> EpisodeScore:
+        """``result``, or a failure as ``incomplete`` when the episode was cut short without a violation."""
+        if incomplete(samples, scenario, result.failure in ("rate_limit", "collision")):
             return dataclasses.replace(result, score=0.0, success=False, failure="incomplete")
         return result
 
@@ -192,11 +205,11 @@ class CaptureSmoothness(BoundedSmoothness):
                                 f"section; {spec.score.rules_file!r} has none")
 
 
-def incomplete(traj: Trajectory, scenario: Scenario, violated: bool) -> bool:
+def incomplete(samples: int, scenario: Scenario, violated: bool) -> bool:
     """Whether an episode ended before its horizon without a violation (cut short by a wrapper, a time limit
     or a caller): such an episode is never scored as complete. A complete one holds every step's sample
     and the final one (``n_steps + 1`` rows)."""
-    return not violated and len(traj.t) < scenario.n_steps + 1
+    return not violated and samples < scenario.n_steps + 1
 
 
 def _iqm_or_inf(values: Array) -> float:

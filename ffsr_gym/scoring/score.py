@@ -19,16 +19,18 @@ the score is computed: the env reward, the optimisers and the leaderboards all u
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
 
 from ffsr_gym import _native
+from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.benchmark import Benchmark, ScoreSettings
-from ffsr_gym.model.scenario import Scenario
-from ffsr_gym.scoring.capture import capture, episode_relative_motion
-from ffsr_gym.scoring.objective import objective_terms
+from ffsr_gym.model.scenario import ObjectiveSettings, Scenario
+from ffsr_gym.scoring.capture import Capture, capture, episode_relative_motion
+from ffsr_gym.scoring.objective import smooth_part
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.sim.trajectory import Trajectory
 from ffsr_gym.types import Array
@@ -154,20 +156,44 @@ class EpisodeScore:
         return data
 
 
+def trajectory_totals(traj: Trajectory, task: Scenario, benchmark: Benchmark) -> _native.ScoreTotals:
+    """The score's terms of a recorded trajectory (the rates of its last sample are not applied), summed by the
+    same native accumulator an environment episode sums them with as it runs (so the same bits)."""
+    rows = len(traj.t)
+    err = np.column_stack([traj.ee_position_error_m, traj.ee_attitude_error, traj.base_position_error_m,
+                           traj.base_attitude_error])
+    return _native.score_totals(np.ascontiguousarray(traj.dq_joints, dtype=float), np.ascontiguousarray(err),
+                                np.ascontiguousarray(traj.clearance_m, dtype=float),
+                                np.ascontiguousarray(traj.self_clearance_m, dtype=float), max(rows - 1, 0),
+                                task.objective.danger_rate_deg_s, benchmark.score.ee_position_tolerance_m)
+
+
 def score_episode(traj: Trajectory, task: Scenario, benchmark: Benchmark) -> EpisodeScore:
     """Score a complete trajectory of ``task`` under ``benchmark`` (the rates of the last sample are not applied)."""
-    settings = benchmark.score
-    applied = traj.dq_joints[:-1]
-    energy, variation = smoothness_terms(applied, traj.dt)
+    judged = None
+    if benchmark.capture is not None:
+        judged = capture(traj.t, episode_relative_motion(prepare(task), traj), benchmark.capture)
+    times = traj.t
+    return score_of_totals(trajectory_totals(traj, task, benchmark), task, benchmark, traj.dt,
+                           lambda k: float(times[k]), judged)
+
+
+def score_of_totals(totals: _native.ScoreTotals, task: Scenario, benchmark: Benchmark, dt: float,
+                    time_of: Callable[[int], float], judged: Capture | None = None) -> EpisodeScore:
+    """The episode score of an episode's totals (:func:`trajectory_totals`, or an environment episode's own):
+    ``dt`` [s] the step, ``time_of(k)`` the time [s] of sample k; ``judged``: its capture, under a capture rule."""
+    settings, objective = benchmark.score, task.objective
+    energy, variation = np.array(totals.square) * dt, np.array(totals.variation)
     cost = smoothness_cost(energy, variation, settings)
-    peak = np.degrees(np.abs(applied).max(axis=0).reshape(2, 6).max(axis=1)) if len(applied) else np.zeros(2)
-    min_clear, min_self = float(np.min(traj.clearance_m)), float(np.min(traj.self_clearance_m))
-    final_p, final_o = float(traj.ee_position_error_m[-1]), float(traj.ee_attitude_error[-1])
-    checks = (bool(np.any(peak > settings.max_rate_deg_s)), min_clear < task.objective.keep_out_m or min_self < 0.0,
+    peak = np.degrees(np.array(totals.peak)) if totals.applied else np.zeros(2)
+    min_clear, min_self = float(totals.min_clear), float(totals.min_self)
+    final_p, final_o = (float(value) for value in totals.last_err[:2])
+    checks = (bool(np.any(peak > settings.max_rate_deg_s)), min_clear < objective.keep_out_m or min_self < 0.0,
               not (final_p <= settings.ee_position_tolerance_m and final_o <= settings.ee_attitude_tolerance))
     names, captured = FAILURES, {}
     if benchmark.capture is not None:  # a capture rule: the hold window replaces the final errors
-        judged = capture(traj.t, episode_relative_motion(prepare(task), traj), benchmark.capture)
+        if judged is None:
+            raise InvalidInputError("a capture rule's score needs the episode's capture (its recorded trajectory)")
         names, checks = CAPTURE_FAILURES, (*checks[:2], not judged.captured)
         captured = {"capture_time_s": judged.time_s if judged.captured else None,
                     "capture_ratio": judged.margin_ratio}
@@ -175,8 +201,27 @@ def score_episode(traj: Trajectory, task: Scenario, benchmark: Benchmark) -> Epi
     return EpisodeScore(
         score=bounded_score(failure is None, cost), success=failure is None, failure=failure, smoothness_cost=cost,
         rate_energy=(float(energy[0]), float(energy[1])), rate_variation=(float(variation[0]), float(variation[1])),
-        paper_B=objective_terms(traj, task.objective).objective,
-        peak_rate_deg_s=(float(peak[0]), float(peak[1])), final_ee_position_error_m=final_p,
-        final_ee_attitude_error=final_o, min_clearance_m=min_clear, min_self_clearance_m=min_self,
-        convergence_time_s=traj.convergence_time(settings.ee_position_tolerance_m), **captured,
+        paper_B=paper_objective(totals, objective, dt), peak_rate_deg_s=(float(peak[0]), float(peak[1])),
+        final_ee_position_error_m=final_p, final_ee_attitude_error=final_o, min_clearance_m=min_clear,
+        min_self_clearance_m=min_self, convergence_time_s=convergence_time(totals, time_of), **captured,
     )
+
+
+def paper_objective(totals: _native.ScoreTotals, objective: ObjectiveSettings, dt: float) -> float:
+    """The paper's B of an episode's totals (:func:`ffsr_gym.scoring.objective.objective_terms`' ``objective``):
+    +inf when a joint (of the scope's arms) exceeded the rate limit, else γ (α ∫Ψ¹ + β ∫Ψ²)."""
+    peak = np.degrees(np.array(totals.peak)) if totals.applied else np.zeros(2)
+    checked = peak if objective.rate_limit_scope == "both_arms" else peak[1:]
+    if bool(np.any(checked > objective.max_rate_deg_s)):
+        return math.inf
+    return smooth_part(float(totals.psi[0] * dt), float(totals.psi[1] * dt), objective)
+
+
+def convergence_time(totals: _native.ScoreTotals, time_of: Callable[[int], float]) -> float | None:
+    """:meth:`Trajectory.convergence_time` at the totals' tolerance: the time after the last sample at or above it
+    (the first sample's time when none was; None when the last one was)."""
+    if totals.last_above < 0:
+        return time_of(0)
+    if totals.last_above == totals.samples - 1:
+        return None
+    return time_of(totals.last_above + 1)

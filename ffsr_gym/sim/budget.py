@@ -7,7 +7,8 @@ after minutes of work, or a compiled step that runs for an hour and cannot be in
 run is refused before it starts:
 
 * **memory**: the trajectory buffers (``copies x (steps + 1)`` rows of
-  :data:`~ffsr_gym.sim.compiled.LOG_FIELDS`) above ``FFSR_GYM_MEMORY_LIMIT_GIB`` (default
+  :data:`~ffsr_gym.sim.compiled.LOG_FIELDS`), or :data:`COPY_BYTES` per copy that keeps none, above
+  ``FFSR_GYM_MEMORY_LIMIT_GIB`` (default
   :data:`DEFAULT_MEMORY_LIMIT_GIB` GiB; set the variable to raise or lower it);
 * **time per decision**: more than :data:`MAX_PHYSICS_STEPS_PER_DECISION` physics steps inside one
   decision (one compiled call, which Ctrl-C cannot stop): planner steps per decision, times the
@@ -29,6 +30,9 @@ MEMORY_VARIABLE = "FFSR_GYM_MEMORY_LIMIT_GIB"
 MAX_PHYSICS_STEPS_PER_DECISION = 1_000_000
 #: Floats per trajectory row (the sum of the sizes of ``LOG_FIELDS``), 8 bytes each.
 ROW_FLOATS = 73
+#: What a batched copy without a trajectory holds, rounded up [bytes] (its state, totals, task and settings;
+#: ``benchmarks/memory.py`` measures it, docs/kernel.md).
+COPY_BYTES = 64 * 1024
 
 
 class ResourceLimitError(InvalidInputError):
@@ -53,18 +57,21 @@ def memory_limit_bytes() -> float:
     return value * 2**30
 
 
-def check_run(*, steps: int, copies: int, steps_per_decision: int, substeps: int = 1, what: str) -> None:
+def check_run(*, steps: int, copies: int, steps_per_decision: int, substeps: int = 1, what: str,
+              trajectories: bool = True) -> None:
     """Refuse a run of ``copies`` episodes of ``steps`` planner steps (``steps_per_decision`` per decision,
-    ``substeps`` physics steps each) whose buffers or decisions are above the limits.
+    ``substeps`` physics steps each) whose buffers or decisions are above the limits (``trajectories``: whether
+    each copy records its trajectory).
 
     Raises:
         ResourceLimitError: naming the estimate, the limit and how to change it.
     """
-    need = float(copies) * (steps + 1) * ROW_FLOATS * 8
+    need = float(copies) * ((steps + 1) * ROW_FLOATS * 8 if trajectories else COPY_BYTES)
     limit = memory_limit_bytes()
     if need > limit:
         plural = "ies" if copies != 1 else "y"
-        raise ResourceLimitError(f"{what}: {copies:,} cop{plural} x {steps + 1:,} trajectory rows "
+        kept = f"x {steps + 1:,} trajectory rows" if trajectories else f"x {COPY_BYTES // 1024} kB"
+        raise ResourceLimitError(f"{what}: {copies:,} cop{plural} {kept} "
                                  f"need about {need / 2**30:,.1f} GiB; allowed: at most {limit / 2**30:g} GiB (set "
                                  f"{MEMORY_VARIABLE} to change it, or use a longer dt_s, a shorter task or fewer "
                                  "copies)")

@@ -21,6 +21,7 @@
 #include "ffsr/loop.hpp"
 #include "ffsr/physics.hpp"
 #include "ffsr/planner.hpp"
+#include "ffsr/totals.hpp"
 
 using namespace nb::literals;
 using namespace ffsr_bindings;
@@ -61,8 +62,9 @@ nb::tuple run(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, lo
 constexpr const char* kLogNames[10] = {"x", "v", "dq", "err", "clear", "self", "mu", "cdf", "smin", "tau"};
 constexpr size_t kLogWidths[10] = {19, 18, 12, 4, 0, 0, 2, 2, 2, 12};
 
-// One environment episode on the native kernel: the robot (and plant) it steps, its settings, its state, and its
-// logs of n_total + 1 rows (the last for the final sample), its own or numpy arrays the caller owns.
+// One environment episode on the native kernel: the robot (and plant) it steps, its settings, its state and score
+// totals, and its log: the caller's numpy arrays of n_total + 1 rows (the last for the final sample), or none (one
+// scratch row of its own, written over at every step).
 struct NativeEpisode {
   const ffsr::Robot* robot;
   const ffsr::Robot* plant;
@@ -70,7 +72,7 @@ struct NativeEpisode {
   ffsr::DecisionSettings d;
   std::unique_ptr<ffsr::EpisodeState> e = std::make_unique<ffsr::EpisodeState>();
   long n_total;
-  std::vector<double> owned;
+  std::vector<double> scratch;  // the row of an episode without a log
   double* log[10] = {};
   nb::object keep;  // the caller's log arrays, alive as long as the episode
 
@@ -80,15 +82,16 @@ struct NativeEpisode {
     if (n_total < 1) throw nb::value_error("n_total: allowed >= 1 step");
     check_settings(s, n_total);
     load_state(x0, e->loop, s);
-    const size_t rows = static_cast<size_t>(n_total) + 1;
+    e->totals.danger_deg_s = d.danger_rate_deg_s, e->totals.tolerance_m = d.tolerance_m;
     if (!logs) {
       size_t total = 0;
-      for (size_t f = 0; f < 10; ++f) total += rows * std::max<size_t>(kLogWidths[f], 1);
-      owned.assign(total, 0.0);
-      double* next = owned.data();
-      for (size_t f = 0; f < 10; ++f) log[f] = next, next += rows * std::max<size_t>(kLogWidths[f], 1);
+      for (size_t f = 0; f < 10; ++f) total += std::max<size_t>(kLogWidths[f], 1);
+      scratch.assign(total, 0.0);
+      double* next = scratch.data();
+      for (size_t f = 0; f < 10; ++f) log[f] = next, next += std::max<size_t>(kLogWidths[f], 1);
       return;
     }
+    const size_t rows = static_cast<size_t>(n_total) + 1;
     for (size_t f = 0; f < 10; ++f) {
       if (!logs->contains(kLogNames[f]))
         throw nb::value_error((std::string("logs: no '") + kLogNames[f] + "'; allowed: a dict of the ten log arrays")
@@ -103,10 +106,12 @@ struct NativeEpisode {
     keep = *logs;
   }
 
+  bool recording() const { return scratch.empty(); }
+
   ffsr::LogRows rows_from(long k) const {
-    const size_t r = static_cast<size_t>(k);
-    return ffsr::LogRows{log[0] + 19 * r, log[1] + 18 * r, log[2] + 12 * r, log[3] + 4 * r, log[4] + r,
-                         log[5] + r, log[6] + 2 * r, log[7] + 2 * r, log[8] + 2 * r, log[9] + 12 * r};
+    const size_t r = recording() ? static_cast<size_t>(k) : 0;
+    return ffsr::LogRows{log[0] + 19 * r, log[1] + 18 * r, log[2] + 12 * r, log[3] + 4 * r, log[4] + r, log[5] + r,
+                         log[6] + 2 * r, log[7] + 2 * r, log[8] + 2 * r, log[9] + 12 * r, recording() ? 1L : 0L};
   }
 
   static int observation_size(const nb::ndarray<float, nb::c_contig, nb::device::cpu>& obs) {
@@ -150,12 +155,11 @@ struct NativeEpisode {
     s.m = m, s.T_c = T_c;
   }
 
-  nb::dict logs() const {
-    const size_t n = static_cast<size_t>(n_total) + 1;
-    nb::dict out;
-    for (size_t f = 0; f < 10; ++f)
-      out[kLogNames[f]] = kLogWidths[f] == 0 ? copy_out(log[f], {n}) : copy_out(log[f], {n, kLogWidths[f]});
-    return out;
+  void finish(long k) {
+    check_step(k);
+    if (e->totals.samples != k)
+      throw nb::value_error("k: allowed the episode's next sample (finish once, after its last decision)");
+    ffsr::finish(*robot, *plant, s, *e, k, n_total, rows_from(k));
   }
 };
 
@@ -252,21 +256,30 @@ void bind_episode(nb::module_& m) {
       .def_rw("alpha", &ffsr::DecisionSettings::alpha)
       .def_rw("beta", &ffsr::DecisionSettings::beta)
       .def_rw("E_ref", &ffsr::DecisionSettings::E_ref)
-      .def_rw("V_ref", &ffsr::DecisionSettings::V_ref);
+      .def_rw("V_ref", &ffsr::DecisionSettings::V_ref)
+      .def_rw("danger_rate_deg_s", &ffsr::DecisionSettings::danger_rate_deg_s)
+      .def_rw("tolerance_m", &ffsr::DecisionSettings::tolerance_m);
   nb::class_<NativeEpisode>(m, "Episode", "One environment episode on the native kernel.")
       .def(nb::init<const ffsr::Robot&, const ffsr::PlannerSettings&, const ffsr::DecisionSettings&, In, long,
                     const ffsr::Robot*, std::optional<nb::dict>>(),
            "robot"_a, "settings"_a, "decision"_a, "x"_a, "n_total"_a, "plant"_a = nb::none(), "logs"_a = nb::none(),
            nb::keep_alive<1, 2>(), nb::keep_alive<1, 7>(),
            "logs: a dict of the ten log arrays (float64, C order, n_total + 1 rows: x 19, v 18, dq 12, err 4, "
-           "clear, self, mu 2, cdf 2, smin 2, tau 12) to write into; the episode's own without.")
+           "clear, self, mu 2, cdf 2, smin 2, tau 12) to write into; without, the episode keeps no log (its "
+           "totals only).")
       .def("decide", &NativeEpisode::decide, "action"_a, "mode"_a, "stop"_a, "k"_a, "n_max"_a, "obs"_a,
            "One decision from step k: (rows, status, clipped, increment, cost, clearance, EE error); the next "
            "observation into obs (float32, 53 or 59).")
       .def("observe", &NativeEpisode::observe, "k"_a, "obs"_a,
            "The observation at step k into obs (float32, 53 or 59): (clearance [m], EE position error [m]).")
       .def("set_parameters", &NativeEpisode::set_parameters, "m"_a, "T_c"_a, "(m, T_c [s]) from the next step on.")
-      .def("logs", &NativeEpisode::logs, "The episode's logs, n_total + 1 rows (copies).")
+      .def("finish", &NativeEpisode::finish, "k"_a,
+           "Record the final sample at step k (the rates there are not applied): into the log, and the totals.")
+      .def_prop_rw(
+          "totals", [](const NativeEpisode& ep) { return ep.e->totals; },
+          [](NativeEpisode& ep, const ffsr::ScoreTotals& t) { ep.e->totals = t; },
+          "The episode's score terms so far (a copy; set: a pickled episode's).")
+      .def_prop_ro("recording", &NativeEpisode::recording, "Whether the episode writes a log of every step.")
       .def("state", [](const NativeEpisode& ep) { return state_out(ep.e->loop); }, "The state x (40, a copy).")
       .def_prop_rw(
           "last_rates", [](const NativeEpisode& ep) { return copy_out(ep.e->last_rates, {12}); },

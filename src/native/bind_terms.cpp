@@ -1,17 +1,44 @@
-// Bindings of the score's smoothness terms and the tumbling target's motion.
+// Bindings of the score's terms (a decision's smoothness terms, an episode's totals) and the tumbling target's
+// motion.
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 
+#include <cstring>
+#include <new>
+#include <type_traits>
 #include <string>
+#include <vector>
 
 #include "bindings.hpp"
 #include "ffsr/decision.hpp"
+#include "ffsr/totals.hpp"
 #include "ffsr/tumbling.hpp"
 
 using namespace nb::literals;
 using namespace ffsr_bindings;
 
 namespace {
+
+// Totals of a recorded trajectory: samples rows of errors (4) and clearances, its first `applied` rows of rates
+// (12) applied, summed as an episode sums them.
+ffsr::ScoreTotals score_totals(In rates, In err, In clear, In self_c, long applied, double danger_deg_s,
+                               double tolerance_m) {
+  const size_t n = clear.ndim() == 1 ? clear.shape(0) : 0;
+  check_shape(rates, "rates", {n, 12});
+  check_shape(err, "err", {n, 4});
+  check_shape(clear, "clear", {n});
+  check_shape(self_c, "self", {n});
+  if (applied < 0 || applied > static_cast<long>(n)) throw nb::value_error("applied: allowed 0 to the rows");
+  ffsr::ScoreTotals t;
+  t.danger_deg_s = danger_deg_s, t.tolerance_m = tolerance_m;
+  for (long k = 0; k < applied; ++k) ffsr::add_applied(t, rates.data() + 12 * k);
+  for (size_t k = 0; k < n; ++k) ffsr::add_sample(t, err.data() + 4 * k, clear.data()[k], self_c.data()[k]);
+  return t;
+}
+
+nb::tuple pair(const double v[2]) { return nb::make_tuple(v[0], v[1]); }
+
+static_assert(std::is_trivially_copyable_v<ffsr::ScoreTotals>, "ScoreTotals pickles as its bytes");
 
 nb::tuple smoothness_terms(In rates, double dt, In previous) {
   const size_t rows = rates.ndim() == 2 ? rates.shape(0) : 0;
@@ -56,4 +83,40 @@ void bind_terms(nb::module_& m) {
   m.def("propagate_tumbling", &propagate, "quaternion"_a, "omega"_a, "inertia"_a, "dt"_a, "substeps"_a, "steps"_a,
         "Torque-free motion of a body (RK4, substeps per step, the quaternion renormalised): quaternions "
         "(steps + 1, 4), w first, and body rates (steps + 1, 3) [rad/s] at every step of dt [s].");
+
+  nb::class_<ffsr::ScoreTotals>(m, "ScoreTotals", "An episode's score terms, summed sample by sample (read-only).")
+      .def_ro("danger_deg_s", &ffsr::ScoreTotals::danger_deg_s)
+      .def_ro("tolerance_m", &ffsr::ScoreTotals::tolerance_m)
+      .def_ro("samples", &ffsr::ScoreTotals::samples, "Samples seen (rows of the trajectory).")
+      .def_ro("applied", &ffsr::ScoreTotals::applied, "Steps whose rates were applied.")
+      .def_prop_ro("square", [](const ffsr::ScoreTotals& t) { return pair(t.square); },
+                   "Σ‖Θ̇‖² of each arm [rad²/s²] over the applied steps (E = square dt).")
+      .def_prop_ro("variation", [](const ffsr::ScoreTotals& t) { return pair(t.variation); },
+                   "Σ‖Θ̇_k − Θ̇_{k−1}‖ of each arm [rad/s], from rest.")
+      .def_prop_ro("psi", [](const ffsr::ScoreTotals& t) { return pair(t.psi); },
+                   "Σ Ψ(‖Θ̇‖ [deg/s], danger rate) of each arm (the paper objective's integrand).")
+      .def_prop_ro("peak", [](const ffsr::ScoreTotals& t) { return pair(t.peak); },
+                   "Largest |Θ̇| of each arm [rad/s] over the applied steps.")
+      .def_ro("min_clear", &ffsr::ScoreTotals::min_clear)
+      .def_ro("min_self", &ffsr::ScoreTotals::min_self)
+      .def_prop_ro("last_err", [](const ffsr::ScoreTotals& t) {
+                     return nb::make_tuple(t.last_err[0], t.last_err[1], t.last_err[2], t.last_err[3]);
+                   },
+                   "The last sample's EE position, EE attitude, base position and base attitude errors.")
+      .def_ro("last_above", &ffsr::ScoreTotals::last_above,
+              "The last sample whose EE position error was at or above the tolerance (-1: none).")
+      .def("__getstate__",
+           [](const ffsr::ScoreTotals& t) {
+             std::vector<double> v(sizeof t / sizeof(double));
+             std::memcpy(v.data(), &t, sizeof t);
+             return copy_out(v.data(), {v.size()});
+           })
+      .def("__setstate__", [](ffsr::ScoreTotals& t, In state) {
+        new (&t) ffsr::ScoreTotals();
+        std::memcpy(&t, data_of(state, "state", {sizeof t / sizeof(double)}), sizeof t);
+      });
+  m.def("score_totals", &score_totals, "rates"_a, "err"_a, "clear"_a, "self"_a, "applied"_a, "danger_deg_s"_a,
+        "tolerance_m"_a,
+        "The ScoreTotals of a recorded trajectory (rows of rates, errors, clearances; its first `applied` rates "
+        "applied), summed as an episode sums them.");
 }

@@ -108,22 +108,27 @@ DecisionResult decide(const Robot& robot, const Robot& plant, PlannerSettings& s
   const bool planned = e.planned && e.planned_k == k && e.planned_m == s.m && e.planned_T_c == s.T_c;
   e.planned = false;
   long rows = 0;
-  const Status status = run(robot, plant, s, e.loop, k, n_total, n_max, residual, stop, false, planned, logs, rows);
+  DecisionTerms terms;
+  std::copy(e.last_rates, e.last_rates + kJoints, terms.previous);
+  const Status status = run(robot, plant, s, e.loop, k, n_total, n_max, residual, stop, false, planned, logs, rows,
+                            &terms, &e.totals);
   result.rows = rows, result.status = static_cast<int>(status);
   if (rows == 0 || status == Status::kNonFinite) return result;
-  double terms[4];
-  smoothness_terms(logs.dq, rows, dt, e.last_rates, terms);
-  result.increment = smoothness_cost(terms, d);
-  double peak = 0.0, depth = 0.0;
-  for (long i = 0; i < rows; ++i) {
-    for (int j = 0; j < kJoints; ++j) peak = std::max(peak, std::fabs(logs.dq[12 * i + j]));
-    depth = std::max({depth, s.keep_out - logs.clear[i], -logs.self[i]});
-  }
-  const double excess = std::max(0.0, peak * (180.0 / M_PI) / d.rate_limit_deg_s - 1.0);
-  result.cost = depth / d.clear_scale + excess;
-  for (int j = 0; j < kJoints; ++j) e.last_rates[j] = logs.dq[12 * (rows - 1) + j];
+  const double sums[4] = {terms.square[0] * dt, terms.square[1] * dt, terms.variation[0], terms.variation[1]};
+  result.increment = smoothness_cost(sums, d);
+  const double excess = std::max(0.0, terms.peak * (180.0 / M_PI) / d.rate_limit_deg_s - 1.0);
+  result.cost = terms.depth / d.clear_scale + excess;
+  std::copy(terms.previous, terms.previous + kJoints, e.last_rates);
   observation(robot, s, e, k + rows, n_total, obs, n_obs, result.clearance, result.ee_error);
   return result;
+}
+
+void finish(const Robot& robot, const Robot& plant, const PlannerSettings& s, EpisodeState& e, long k, long n_total,
+            const LogRows& logs) {
+  const double none[kJoints] = {};
+  long rows = 0;
+  e.planned = false;
+  run(robot, plant, s, e.loop, k, n_total, 1, none, false, true, false, logs, rows, nullptr, &e.totals);
 }
 
 }  // namespace ffsr

@@ -50,7 +50,7 @@ double norm3(const double* e) { return std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2
 
 Status run(const Robot& robot, const Robot& plant, const PlannerSettings& s, LoopState& st, long k0, long n_total,
            long n_max, const double residual[kJoints], bool stop_on_violation, bool record_only, bool planned,
-           const LogRows& out, long& rows) {
+           const LogRows& out, long& rows, DecisionTerms* terms, ScoreTotals* totals) {
   const bool mismatch = &plant != &robot;
   const double dt = s.dt;
   double* x = st.x;
@@ -71,30 +71,36 @@ Status run(const Robot& robot, const Robot& plant, const PlannerSettings& s, Loo
     }
     double clear, self_c;
     clearances(robot, s, st.f, x, t, st.axes, clear, self_c, st.rel);
-    double* v = out.v + 18 * i;
+    const long r = i * out.stride;
+    double* v = out.v + 18 * r;
+    double* applied = out.dq + 12 * r;
     if (s.substeps == 0) {
       if (mismatch) momentum(plant, x, st.f, st.m);  // the planner's momentum matrices were the model's
       base_velocity(x, dq, s.momentum, st.f, st.m, st.v0);
       for (int j = 0; j < 6; ++j) v[j] = st.v0[j];
-      for (int j = 0; j < kJoints; ++j) v[6 + j] = dq[j], out.dq[12 * i + j] = dq[j], out.tau[12 * i + j] = 0.0;
+      for (int j = 0; j < kJoints; ++j) v[6 + j] = dq[j], applied[j] = dq[j], out.tau[12 * r + j] = 0.0;
     } else {
       for (int j = 0; j < 18; ++j) v[j] = st.servo[j];
-      for (int j = 0; j < kJoints; ++j) out.dq[12 * i + j] = st.servo[6 + j];  // the rate at the sample
+      for (int j = 0; j < kJoints; ++j) applied[j] = st.servo[6 + j];  // the rate at the sample
     }
-    for (int j = 0; j < kStateSize; ++j) out.x[19 * i + j] = x[j];
-    out.err[4 * i] = norm3(logged), out.err[4 * i + 1] = norm3(logged + 3);
-    out.err[4 * i + 2] = norm3(st.p.e0), out.err[4 * i + 3] = norm3(st.p.e0 + 3);
-    out.clear[i] = clear, out.self[i] = self_c;
+    double* start = out.x + 19 * r;
+    for (int j = 0; j < kStateSize; ++j) start[j] = x[j];
+    double* err = out.err + 4 * r;
+    err[0] = norm3(logged), err[1] = norm3(logged + 3), err[2] = norm3(st.p.e0), err[3] = norm3(st.p.e0 + 3);
+    out.clear[r] = clear, out.self[r] = self_c;
     for (int arm = 0; arm < 2; ++arm)
-      out.mu[2 * i + arm] = st.p.mu[arm], out.cdf[2 * i + arm] = st.p.cdf[arm], out.smin[2 * i + arm] = st.p.smin[arm];
+      out.mu[2 * r + arm] = st.p.mu[arm], out.cdf[2 * r + arm] = st.p.cdf[arm], out.smin[2 * r + arm] = st.p.smin[arm];
     ++rows;
+    if (totals) add_sample(*totals, err, clear, self_c);
     if (record_only) return Status::kOk;
     if (s.substeps == 0) {
       midpoint(plant, x, st.v0, dq, dt, s.momentum, st.f, st.m, x);
     } else {  // the drives follow the planned rates; the step's rates are those the joints made
-      servo_period(plant, x, st.servo, dq, dt, s.substeps, s.momentum, st.dyn, st.f, st.m, out.tau + 12 * i);
-      for (int j = 0; j < kJoints; ++j) dq[j] = (x[7 + j] - out.x[19 * i + 7 + j]) / dt, out.dq[12 * i + j] = dq[j];
+      servo_period(plant, x, st.servo, dq, dt, s.substeps, s.momentum, st.dyn, st.f, st.m, out.tau + 12 * r);
+      for (int j = 0; j < kJoints; ++j) dq[j] = (x[7 + j] - start[7 + j]) / dt, applied[j] = dq[j];
     }
+    if (terms) add_step(*terms, applied, clear, self_c, s.keep_out);
+    if (totals) add_applied(*totals, applied);
     if (stop_on_violation) {
       const Status status = violation(s, dq, clear, self_c);
       if (status != Status::kOk) return status;

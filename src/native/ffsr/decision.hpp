@@ -13,18 +13,21 @@ enum class ActionMode { kResidual = 0, kParameters = 1, kSet = 2 };
 
 // A decision's settings: the residual's scale [rad/s per unit] and fade [s] before the desired motion's end [s],
 // the (m, T_c [s]) action box, the rate limit [deg/s] and the violation cost's clearance scale [m], and the
-// smoothness cost's α, β, E_ref [rad²/s], V_ref [rad/s].
+// smoothness cost's α, β, E_ref [rad²/s], V_ref [rad/s]; the paper objective's danger rate [deg/s] and the
+// end-effector position tolerance [m] of the episode's totals.
 struct DecisionSettings {
   double rate_scale = 0.0, fade_s = 2.0, motion_s = 10.0;
   double m_lo = 0.05, m_hi = 0.6, T_lo = 1.0, T_hi = 10.0;
   double rate_limit_deg_s = 200.0, clear_scale = 0.01;
   double alpha = 0.35, beta = 0.65, E_ref = 1.0, V_ref = 10.0;
+  double danger_rate_deg_s = 0.0, tolerance_m = 0.0;  // the episode totals' settings (ScoreTotals)
 };
 
 // One episode's state between decisions: the loop state, the rates applied last, and which planner step the
 // last observation computed (reused by the next decision's first physics step when state and (m, T_c) agree).
 struct EpisodeState {
   LoopState loop;
+  ScoreTotals totals;  // the episode's score terms so far
   double last_rates[kJoints] = {};
   bool planned = false;
   long planned_k = 0;
@@ -53,11 +56,16 @@ double smoothness_cost(const double terms[4], const DecisionSettings& d);
 void observation(const Robot& robot, const PlannerSettings& s, EpisodeState& e, long k, long n_total, float* obs,
                  int n_obs, double& clearance, double& ee_error);
 
-// One decision from step k (logs written from their row 0, that is the episode's row k): mode kParameters sets
+// One decision from step k (logs written from their row 0, that is the episode's row k, or all over row 0 with
+// stride 0); the episode's totals advance with it. Mode kParameters sets
 // s.m and s.T_c from the action, kResidual adds the faded residual rates, kSet ignores the action. obs:
 // n_obs floats (kObservation or kObservationTwist).
 DecisionResult decide(const Robot& robot, const Robot& plant, PlannerSettings& s, const DecisionSettings& d,
                       EpisodeState& e, long k, long n_total, long n_max, const double* action, int n_action,
                       ActionMode mode, bool stop, const LogRows& logs, float* obs, int n_obs);
+
+// The episode's final sample at step k (its rates are not applied): one row into logs and the totals.
+void finish(const Robot& robot, const Robot& plant, const PlannerSettings& s, EpisodeState& e, long k, long n_total,
+            const LogRows& logs);
 
 }  // namespace ffsr

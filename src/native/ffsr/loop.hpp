@@ -4,6 +4,7 @@
 #include "ffsr/collision.hpp"
 #include "ffsr/dynamics.hpp"
 #include "ffsr/planner.hpp"
+#include "ffsr/totals.hpp"
 
 namespace ffsr {
 
@@ -20,7 +21,8 @@ double nearest_clearance(const Robot& robot, const PlannerSettings& s, const Fra
 void clearances(const Robot& robot, const PlannerSettings& s, const Frames& f, const double x[kStateSize], double t,
                 CapsuleAxes& axes, double& clear, double& self_c, double rel[3]);
 
-// Where a run writes one row per step (caller-owned, row-major; rows from 0).
+// Where a run writes one row per step (caller-owned, row-major; rows from 0), or every step over row 0 (stride 0: an
+// episode that keeps no log).
 struct LogRows {
   double* x;      // (n, 19) the state at the step's start
   double* v;      // (n, 18) base velocity (base frame) and joint rates
@@ -32,6 +34,7 @@ struct LogRows {
   double* cdf;    // (n, 2)
   double* smin;   // (n, 2)
   double* tau;    // (n, 12) drive torques (zero for the kinematic plant)
+  long stride = 1;  // rows advanced per step: 1, or 0
 };
 
 // One copy's loop state: its configuration and the scratch a step fills.
@@ -50,10 +53,11 @@ struct LoopState {
 // Advance up to n_max steps from step k0 of n_total, or only record one row (record_only). The kinematic plant
 // applies the planned rates exactly and moves the base by the plant's momentum (plant: the robot the physics
 // integrates, the planner's own unless its inertias differ); the servo plant (s.substeps > 0) takes them as its
-// drives' commands, and the rates logged and checked are the ones the joints made. residual: added to the planned rates (12). planned:
-// st.p already holds plan at (k0 dt, st.x). Writes rows from 0; rows: how many; returns the status of the last.
+// drives' commands, and the rates logged and checked are the ones the joints made. residual: added to the planned
+// rates (12). planned: st.p already holds plan at (k0 dt, st.x). Writes rows from 0; rows: how many; returns the
+// status of the last. terms, totals (either may be null): summed over the steps and samples as they are taken.
 Status run(const Robot& robot, const Robot& plant, const PlannerSettings& s, LoopState& st, long k0, long n_total,
            long n_max, const double residual[kJoints], bool stop_on_violation, bool record_only, bool planned,
-           const LogRows& out, long& rows);
+           const LogRows& out, long& rows, DecisionTerms* terms = nullptr, ScoreTotals* totals = nullptr);
 
 }  // namespace ffsr
