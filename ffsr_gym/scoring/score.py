@@ -51,7 +51,7 @@ def smoothness_terms(dq_joints: Array, dt: float, previous: Array | None = None)
             of an episode, each with the previous chunk's last row, sum to the whole episode's terms.
 
     Returns:
-        ``(E, V)``, each (2,) for (mission, balance). The sums run in
+        ``(E, V)``, each (2,) for (mission, balance). The sums run in the
         native kernel (``ffsr_gym._native.smoothness_terms``, shared with the environments' step).
     """
     rates = np.ascontiguousarray(dq_joints, dtype=float).reshape(-1, 12)

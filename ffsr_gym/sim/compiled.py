@@ -29,7 +29,7 @@ def new_log(rows: int, *batch: int) -> dict[str, Array]:
 
 def initial_state(setup: Any, q: Array) -> Array:
     """The kernel state (40,) of configuration ``q`` (Pinocchio order) at rest: the servo plant's joints still, its
-    base moving as the scenario's momentum makes it (:mod:`ffsr_gym.native.layout`)."""
+    base moving as the scenario's momentum makes it (:mod:`ffsr_gym.kernel.layout`)."""
     scenario, model = setup.scenario, setup.assets.kernel
     x = np.zeros(N_STATE)
     x[:7], x[7:19] = q[:7], q[model.q_index]

@@ -65,7 +65,7 @@ class RobotAssets:
 
     @cached_property
     def native(self) -> _native.Robot:
-        """The native kernel's typed robot (:func:`~ffsr_gym.native.robot.native_robot`), built on first use."""
+        """The native kernel's typed robot (:func:`~ffsr_gym.kernel.robot.native_robot`), built on first use."""
         return native_robot(self.kernel)
 
 
