@@ -36,7 +36,7 @@ def test_kernel_slots_hold_every_obstacle_a_scenario_may_list():
     assert _native.MAX_OBSTACLES == MAX_DEBRIS + 1
 
 
-@pytest.mark.parametrize("method", ["predefined_time", "proportional"])
+@pytest.mark.parametrize("method", ["predefined_time", pytest.param("proportional", marks=pytest.mark.slow)])
 def test_kernel_matches_reference_with_debris(scenario, method):
     assert_agree(scenario, method)
 

@@ -85,7 +85,8 @@ def ensemble_problems(tier: str, split: str, index: int) -> list[str]:
     return problems
 
 
-@pytest.mark.parametrize("tier,split,index", certificate_cases(1))
+@pytest.mark.parametrize("tier,split,index", [case if case[1] == "test" else pytest.param(*case, marks=pytest.mark.slow)
+                                               for case in certificate_cases(1)])  # CI: the test pools' tasks
 def test_certificate_succeeds_in_every_ensemble_member_with_its_stored_margins(tier, split, index):
     assert not ensemble_problems(tier, split, index)
 
