@@ -9,7 +9,8 @@ random-action episodes side by side with ``FFSR-Residual-v2``, and the momentum 
   angles [rad], the base position [m] and the base attitude (quaternion distance) over time.
 * Momentum: Pinocchio's centroidal momentum of the JAX states with the rates they applied (zero in the model).
 
-A tier's rows are written as soon as it is done (``--summary``, resumable: a tier in the file is not run again).
+A tier's rows are written as soon as it is done (``--summary``, resumable: a tier in the file is not run again when
+the file was made at the same commit; made at another, every tier is measured again).
 
     python benchmarks/jax_agreement.py [--tiers easy medium hard debris] [--random 2] [--docs docs/jax.md]
 """
@@ -136,11 +137,14 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     path = Path(args.summary)
     result = json.loads(path.read_text()) if path.is_file() else {"tiers": {}}
+    made = provenance(command=" ".join(["python", *sys.argv]))  # the code that runs, before anything is edited
+    if result.get("provenance", {}).get("git_commit") != made["git_commit"]:
+        result = {"tiers": {}}  # tiers measured on other code: measure again
     for tier in args.tiers:
         if tier in result["tiers"]:
             continue
         result["tiers"][tier] = {"certificates": certificates(tier), "random": random_episodes(tier, args.random)}
-        result["provenance"] = provenance(command=" ".join(["python", *sys.argv]))
+        result["provenance"] = made
         write_json_atomic(path, result)
         print(tier, json.dumps(result["tiers"][tier]), flush=True)
     if args.docs:
