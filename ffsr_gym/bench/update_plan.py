@@ -46,7 +46,8 @@ def plan(root: str | Path, *, full: bool = False) -> list[Step]:
         changed: set[Path] | None = {path.resolve() for path in changed_entries(root, "HEAD")}
     except InvalidInputError:
         changed = None  # not in a git repository, or no commit yet
-    return [_step(path, changed) for path in paths]
+    digest = code_digest()  # once: it hashes the replayed code and the envs data (megabytes)
+    return [_step(path, changed, digest) for path in paths]
 
 
 def _unstamped(path: Path, changed: set[Path] | None, why: str) -> Step:
@@ -57,7 +58,7 @@ def _unstamped(path: Path, changed: set[Path] | None, why: str) -> Step:
     return Step(path, False, f"{why}; unchanged since the last commit (verify or --full replays it)")
 
 
-def _step(path: Path, changed: set[Path] | None) -> Step:
+def _step(path: Path, changed: set[Path] | None, digest: str) -> Step:
     try:
         entry = parse_json(read_text(path), str(path))
         if not isinstance(entry, dict):
@@ -76,6 +77,6 @@ def _step(path: Path, changed: set[Path] | None) -> Step:
         return Step(path, True, f"its stamp no longer describes it ({problems[0]})")
     if "code_sha256" not in stamp:
         return Step(path, True, "its stamp predates the code's digest: the code it ran cannot be compared")
-    if stamp["code_sha256"] != code_digest():
+    if stamp["code_sha256"] != digest:
         return Step(path, True, "the code a replay runs changed since it was verified (code_sha256 differs)")
     return Step(path, False, "stamped; entry, pool, reference and the code a replay runs unchanged since")
