@@ -1,15 +1,15 @@
-"""Physics steps per second of the JAX loop against the compiled (numba) batched environment, measured in one run.
+"""Physics steps per second of the JAX loop against the native kernel's batched environment, measured in one run.
 
 For each batch size: the JAX episode's decision (``ffsr_gym.jax.episode.step`` under ``jit`` and
 ``ffsr_gym.jax.copies.over_copies``: one ``vmap`` per slice of at most 512 copies; 10 physics steps each) on the
 first tasks of a tier's training pool, with zero residual actions, and ``gymnasium.make_vec("FFSR-Residual-v2",
 ...)`` with the same actions. The JAX figure is steady state: its compile time is reported apart, and the cost of a
-batched reset is added once per 200 decisions (one per episode), as the numba env's autoresets are counted in its
-own time (after one whole episode of warm-up, which loads the compiled kernel and sets up the tasks it draws: a
-task's first draw costs its setup once per process). Runs unchanged on an accelerator (``JAX_PLATFORMS=cuda``) and
+batched reset is added once per 200 decisions (one per episode), as the kernel env's autoresets are counted in its
+own time (after one whole episode of warm-up, which sets up the tasks it draws: a task's first draw costs its setup
+once per process). The kernel env keeps no trajectories (its default), so every batch size runs on it. Runs unchanged on an accelerator (``JAX_PLATFORMS=cuda``) and
 prints the device it used.
 
-    python benchmarks/jax_throughput.py [--tier easy] [--batches 1 4 16 64 256 1024 4096] [--numba-max 1024]
+    python benchmarks/jax_throughput.py [--tier easy] [--batches 1 4 16 64 256 1024 4096]
         [--seconds 3] [--summary benchmarks/jax_throughput.json] [--docs docs/jax.md]
 """
 
@@ -60,7 +60,7 @@ def jax_rate(batch: int, tier: str, seconds: float) -> dict:
             "steps_per_s": batch * decisions * tasks.steps_per_decision / spent}
 
 
-def numba_rate(batch: int, tier: str, seconds: float) -> dict:
+def kernel_rate(batch: int, tier: str, seconds: float) -> dict:
     """Physics steps per second of ``batch`` copies of the compiled batched environment (autoresets included)."""
     env = gymnasium.make_vec("FFSR-Residual-v2", num_envs=batch, vectorization_mode="vector_entry_point", task=tier)
     env.reset(seed=0)
@@ -83,12 +83,12 @@ def docs_text(result: dict) -> str:
              f"device `{result['device']}`), {result['tier']} training tasks, zero residual actions, JAX copies in "
              f"slices of at most {result.get('copies_per_call', 'all')} per `vmap`, physics steps per second (10 per "
              "decision; resets included):", "",
-             "| copies | JAX steps/s | JAX compile [s] | numba steps/s | JAX / numba |", "|---|---|---|---|---|"]
+             "| copies | JAX steps/s | JAX compile [s] | kernel steps/s | JAX / kernel |", "|---|---|---|---|---|"]
     for row in result["rows"]:
-        numba = row.get("numba")
+        kernel = row.get("kernel")
         lines.append(f"| {row['batch']} | {row['jax']['steps_per_s']:,.0f} | {row['jax']['compile_s']:.0f} | "
-                     + (f"{numba['steps_per_s']:,.0f} | {row['jax']['steps_per_s'] / numba['steps_per_s']:.3f} |"
-                        if numba else "not run | |"))
+                     + (f"{kernel['steps_per_s']:,.0f} | {row['jax']['steps_per_s'] / kernel['steps_per_s']:.3f} |"
+                        if kernel else "not run | |"))
     return "\n".join(lines) + "\n"
 
 
@@ -96,9 +96,6 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--tier", default="easy", help="tier whose training tasks are stepped (default: easy)")
     parser.add_argument("--batches", type=int, nargs="+", default=[1, 4, 16, 64, 256, 1024, 4096])
-    parser.add_argument("--numba-max", type=int, default=1024,
-                        help="largest batch run on the numba env (its logs hold whole episodes: about 1.3 GB per "
-                             "1024 copies) (default: 1024)")
     parser.add_argument("--seconds", type=float, default=3.0, help="time per measurement (default: 3)")
     parser.add_argument("--summary", default="benchmarks/jax_throughput.json", help="result with provenance")
     parser.add_argument("--docs", default=None, help="write the table between its markers in this file")
@@ -111,9 +108,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"JAX device: {device.platform} ({device.device_kind})", flush=True)
         rows = []
         for batch in args.batches:
-            row = {"batch": batch, "jax": jax_rate(batch, args.tier, args.seconds)}
-            if batch <= args.numba_max:
-                row["numba"] = numba_rate(batch, args.tier, args.seconds)
+            row = {"batch": batch, "jax": jax_rate(batch, args.tier, args.seconds),
+                   "kernel": kernel_rate(batch, args.tier, args.seconds)}
             rows.append(row)
             print(json.dumps(row), flush=True)
         result = {"tier": args.tier, "device": f"{device.platform} ({device.device_kind})", "rows": rows,
