@@ -135,15 +135,15 @@ class KernelRollout:
         ptsf.check_parameters(float(T_c), float(m), self.scenario.planner.phi_form)
         self.settings.m, self.settings.T_c = float(m), float(T_c)
 
-    def _step(self, x: Array, k: int, n: int, residual: Array | None, stop: bool, record_only: bool) -> tuple:
+    def _step(self, x: Array, k: int, n: int, residual: Array | None, stop: bool, record_only: bool,
+              logs: dict[str, Array] | None = None) -> tuple:
         res = np.zeros(12) if residual is None else np.ascontiguousarray(residual, dtype=float)
-        return _native.run(self._native, self.settings, x, k, self.n_steps, n, res, stop, record_only, self._plant)
+        return _native.run(self._native, self.settings, x, k, self.n_steps, n, res, stop, record_only, self._plant,
+                           logs)
 
     def _run(self, n: int, residual: Array | None, stop: bool, record_only: bool) -> int:
-        x, rows, status, logs = self._step(self.x, self.k, n, residual, stop, record_only)
-        if rows:
-            for key, rows_out in logs.items():
-                self._log[key][self.rows:self.rows + rows] = rows_out[:rows]
+        views = {key: rows[self.rows:] for key, rows in self._log.items()}  # the kernel writes its rows there
+        x, rows, status, _ = self._step(self.x, self.k, n, residual, stop, record_only, views)
         if status == STATUS_NONFINITE:
             raise FFSRError(f"planner produced non-finite joint rates at t = {(self.k + rows) * self.dt:.3f} s")
         self.rows += rows

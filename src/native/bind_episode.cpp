@@ -28,26 +28,50 @@ using namespace ffsr_bindings;
 
 namespace {
 
+// The log fields of an episode, their widths (0: one float per row, the array one-dimensional).
+constexpr const char* kLogNames[10] = {"x", "v", "dq", "err", "clear", "self", "mu", "cdf", "smin", "tau"};
+constexpr size_t kLogWidths[10] = {19, 18, 12, 4, 0, 0, 2, 2, 2, 12};
+
+// The ten log arrays of a dict (float64, C order, at least `rows` rows each) into their first-row pointers.
+void log_arrays(const nb::dict& logs, size_t rows, double* out[10]) {
+  for (size_t f = 0; f < 10; ++f) {
+    if (!logs.contains(kLogNames[f]))
+      throw nb::value_error((std::string("logs: no '") + kLogNames[f] + "'; allowed: a dict of the ten log arrays")
+                                .c_str());
+    auto array = nb::cast<nb::ndarray<double, nb::c_contig, nb::device::cpu>>(logs[kLogNames[f]]);
+    const size_t have = array.ndim() > 0 ? array.shape(0) : 0;
+    if (kLogWidths[f] == 0)
+      check_shape(array, kLogNames[f], {have});
+    else
+      check_shape(array, kLogNames[f], {have, kLogWidths[f]});
+    if (have < rows)
+      throw nb::value_error((std::string("logs['") + kLogNames[f] + "']: " + std::to_string(have) +
+                             " rows; allowed: at least " + std::to_string(rows)).c_str());
+    out[f] = array.data();
+  }
+}
+
+// The closed loop from step k0; its rows go into `logs` (the ten arrays, from their first row) or new arrays.
 nb::tuple run(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, long k0, long n_total, long n_max,
-              In residual, bool stop_on_violation, bool record_only, const ffsr::Robot* plant) {
+              In residual, bool stop_on_violation, bool record_only, const ffsr::Robot* plant,
+              std::optional<nb::dict> logs) {
   if (k0 < 0 || n_total < k0 || n_max < 0)
     throw nb::value_error("steps: allowed 0 <= k0 <= n_total and n_max >= 0");
   check_settings(s, n_total);
   auto st = std::make_unique<ffsr::LoopState>();
   load_state(x, *st, s);
   const size_t n = record_only ? 1 : static_cast<size_t>(std::max(0L, std::min(n_max, n_total - k0)));
-  ffsr::LogRows rows_out{};
-  nb::dict logs;
-  logs["x"] = zeros({n, 19}, rows_out.x);
-  logs["v"] = zeros({n, 18}, rows_out.v);
-  logs["dq"] = zeros({n, 12}, rows_out.dq);
-  logs["err"] = zeros({n, 4}, rows_out.err);
-  logs["clear"] = zeros({n}, rows_out.clear);
-  logs["self"] = zeros({n}, rows_out.self);
-  logs["mu"] = zeros({n, 2}, rows_out.mu);
-  logs["cdf"] = zeros({n, 2}, rows_out.cdf);
-  logs["smin"] = zeros({n, 2}, rows_out.smin);
-  logs["tau"] = zeros({n, 12}, rows_out.tau);
+  nb::dict out;
+  double* field[10];
+  if (logs) {
+    log_arrays(*logs, n, field);
+    out = *logs;
+  } else {
+    for (size_t f = 0; f < 10; ++f)
+      out[kLogNames[f]] = kLogWidths[f] == 0 ? zeros({n}, field[f]) : zeros({n, kLogWidths[f]}, field[f]);
+  }
+  const ffsr::LogRows rows_out{field[0], field[1], field[2], field[3], field[4],
+                               field[5], field[6], field[7], field[8], field[9]};
   long rows = 0;
   ffsr::Status status;
   {
@@ -55,12 +79,8 @@ nb::tuple run(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, lo
     status = ffsr::run(robot, plant ? *plant : robot, s, *st, k0, n_total, n_max, data_of(residual, "residual", {12}),
                        stop_on_violation, record_only, false, rows_out, rows);
   }
-  return nb::make_tuple(state_out(*st), rows, static_cast<int>(status), logs);
+  return nb::make_tuple(state_out(*st), rows, static_cast<int>(status), out);
 }
-
-// The log fields of an episode, their widths (0: one float per row, the array one-dimensional).
-constexpr const char* kLogNames[10] = {"x", "v", "dq", "err", "clear", "self", "mu", "cdf", "smin", "tau"};
-constexpr size_t kLogWidths[10] = {19, 18, 12, 4, 0, 0, 2, 2, 2, 12};
 
 // One environment episode on the native kernel: the robot (and plant) it steps, its settings, its state and score
 // totals, and its log: the caller's numpy arrays of n_total + 1 rows (the last for the final sample), or none (one
@@ -92,16 +112,12 @@ struct NativeEpisode {
       return;
     }
     const size_t rows = static_cast<size_t>(n_total) + 1;
-    for (size_t f = 0; f < 10; ++f) {
-      if (!logs->contains(kLogNames[f]))
-        throw nb::value_error((std::string("logs: no '") + kLogNames[f] + "'; allowed: a dict of the ten log arrays")
-                                  .c_str());
+    log_arrays(*logs, rows, log);
+    for (size_t f = 0; f < 10; ++f) {  // exactly the episode's rows
       auto array = nb::cast<nb::ndarray<double, nb::c_contig, nb::device::cpu>>((*logs)[kLogNames[f]]);
-      if (kLogWidths[f] == 0)
-        check_shape(array, kLogNames[f], {rows});
-      else
-        check_shape(array, kLogNames[f], {rows, kLogWidths[f]});
-      log[f] = array.data();
+      if (array.shape(0) != rows)
+        throw nb::value_error((std::string("logs['") + kLogNames[f] + "']: allowed n_total + 1 = " +
+                               std::to_string(rows) + " rows").c_str());
     }
     keep = *logs;
   }
@@ -239,9 +255,10 @@ struct EpisodeBatch {
 
 void bind_episode(nb::module_& m) {
   m.def("run", &run, "robot"_a, "settings"_a, "x"_a, "k0"_a, "n_total"_a, "n_max"_a, "residual"_a,
-        "stop_on_violation"_a = true, "record_only"_a = false, "plant"_a = nb::none(),
+        "stop_on_violation"_a = true, "record_only"_a = false, "plant"_a = nb::none(), "logs"_a = nb::none(),
         "The closed loop on the kinematic plant from step k0: (x after, rows, status 0 ok / 1 rate / 2 collision / "
-        "3 non-finite, logs of one row per step). plant: the robot the physics integrates, if not robot itself.");
+        "3 non-finite, logs of one row per step). plant: the robot the physics integrates, if not robot itself; "
+        "logs: the ten log arrays to write the rows into (from their first row; new arrays without).");
   nb::class_<ffsr::DecisionSettings>(m, "DecisionSettings", "A decision's settings, by name.")
       .def(nb::init<>())
       .def_rw("rate_scale", &ffsr::DecisionSettings::rate_scale)
