@@ -1,5 +1,6 @@
 """The native planner's settings, by name, from a scenario's setup: the method and (m, T_c), the planner's gains and
-laws, the desired path (or a tumbling target's frames), the base set-point, the momentum and the obstacles."""
+laws, the desired path (or a tumbling target's frames, and a commanded approach's limits), the base set-point, the
+momentum and the obstacles."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ from ffsr_gym.model.tumbling import rotations
 
 #: The fields set through a method of :class:`ffsr_gym._native.PlannerSettings` (``set_<name>(*value)``), not by
 #: assignment.
-SET_BY_METHOD = ("start", "base_target", "momentum", "obstacles", "truth", "estimates", "frames", "body_half")
+SET_BY_METHOD = ("start", "base_target", "momentum", "obstacles", "truth", "estimates", "frames", "body_half",
+                 "timing")
 
 
 def _target_row(target: Any) -> np.ndarray:
@@ -61,6 +63,8 @@ def settings_fields(setup: Any, *, method: str, m: float, T_c: float) -> dict[st
     fields["body_half"] = (np.array(body.size_m, float) / 2.0,)
     fields |= {"body_radius": 0.5 * portable.norm(body.size_m), "body_danger": body.danger_radius_m,
                "body_collides": True}
+    if scenario.commanded_approach is not None:  # the frames hold the grasp frame; the kernel derives the approach
+        fields["timing"] = path.limits.kernel_values()
     return fields
 
 

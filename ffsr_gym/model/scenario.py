@@ -25,6 +25,7 @@ from ffsr_gym.model import portable
 from ffsr_gym.model.drives import drives_path
 from ffsr_gym.model.resources import is_shipped_robot, robot_dir, scenario_path
 from ffsr_gym.model.scenario_sections import (
+    CommandedApproach,
     Debris,
     EnvSettings,
     InitialState,
@@ -39,7 +40,7 @@ from ffsr_gym.model.scenario_sections import (
     Target,
     TargetNoise,
     TumblingTarget,
-    tumbling_problems,
+    tumbling_scenario_problems,
 )
 from ffsr_gym.model.schema import (
     TEXT,
@@ -76,6 +77,7 @@ class Scenario:
     servo: ServoSettings | None = field(default=None, metadata=section(ServoSettings))
     target_noise: TargetNoise | None = field(default=None, metadata=section(TargetNoise))
     tumbling_target: TumblingTarget | None = field(default=None, metadata=section(TumblingTarget))
+    commanded_approach: CommandedApproach | None = field(default=None, metadata=section(CommandedApproach))
     objective: ObjectiveSettings = field(default=ObjectiveSettings(), metadata=section(ObjectiveSettings))
     env: EnvSettings = field(default=EnvSettings(), metadata=section(EnvSettings))
     randomization: Randomization | None = field(default=None, metadata=section(Randomization))
@@ -167,7 +169,8 @@ def to_dict(scenario: Scenario) -> dict[str, Any]:
     """Return the scenario as plain data (the TOML layout), without its source path."""
     data = _plain(scenario)
     data.pop("source")
-    for optional in ("obstacle", "debris", "plant", "servo", "target_noise", "tumbling_target", "randomization"):
+    for optional in ("obstacle", "debris", "plant", "servo", "target_noise", "tumbling_target", "commanded_approach",
+                     "randomization"):
         if data[optional] is None:
             data.pop(optional)
     for (table, key), default in ADDED_KEYS.items():
@@ -370,18 +373,11 @@ def _check_servo(s: Scenario, where: str) -> None:
 
 
 def _check_tumbling(s: Scenario, where: str) -> None:
-    """A ``[tumbling_target]`` of a real body, whose grasp frame at t = 0 is the scenario's ``[target]``."""
-    problems = [] if s.tumbling_target is None else tumbling_problems(s.tumbling_target, s.target)
-    if s.tumbling_target is not None and s.target_noise is not None:
-        problems.append("sections 'tumbling_target' and 'target_noise' together: not supported yet (the noisy "
-                        "estimate is of a still target)")
-    body = s.tumbling_target
-    if body is not None and body.standoff_m > 0.0:
-        end = s.desired_path.motion_time_s + body.insertion_time_s
-        if end > s.simulation.duration_s + 1e-9:
-            problems.append(f"key 'tumbling_target.insertion_time_s' = {body.insertion_time_s!r}: the insertion ends at "
-                            f"t = {end:g} s, after the episode ({s.simulation.duration_s:g} s); allowed: at most "
-                            f"{s.simulation.duration_s - s.desired_path.motion_time_s:g} s (duration_s - motion_time_s)")
+    """A ``[tumbling_target]`` of a real body, whose grasp frame at t = 0 is the scenario's ``[target]``, and a
+    ``[commanded_approach]`` only with one (:func:`tumbling_scenario_problems`)."""
+    problems = tumbling_scenario_problems(s.tumbling_target, s.commanded_approach, s.target,
+                                          s.target_noise is not None, s.desired_path.motion_time_s,
+                                          s.simulation.duration_s)
     if problems:
         raise ScenarioError(where + "; ".join(problems))
 

@@ -258,6 +258,47 @@ class TumblingTarget:
     danger_radius_m: float = field(default=0.0, metadata=number(0.0, 1.0))
 
 
+@dataclass(frozen=True)
+class CommandedApproach:
+    """A commanded approach onto a ``[tumbling_target]``'s grasp frame (beyond the paper; docs/model.md §23): the
+    method decides when the end-effector closes in on the pre-grasp frame (the grasp frame backed off along its z
+    axis by the target's ``standoff_m``) and when the tool goes in, through one command u in [0, 2]
+    (:mod:`ffsr_gym.planning.timed_approach`): 0 holds the start pose, 1 the pre-grasp frame, 2 the grasp frame.
+
+    The approach's progress runs from 0 to 1 in ``approach_time_s`` [s] at its top speed and reaches that speed
+    from rest in ``approach_ramp_s`` [s]; the insertion's likewise with ``insertion_time_s`` and
+    ``insertion_ramp_s``. ``command`` is the command until a method gives one. The scripted schedule
+    (``trajectory.motion_time_s`` and ``tumbling_target.insertion_time_s``) is not used.
+    """
+
+    approach_time_s: float = field(metadata=number(0.5, 600.0))
+    approach_ramp_s: float = field(metadata=number(0.01, 600.0))
+    insertion_time_s: float = field(metadata=number(0.1, 600.0))
+    insertion_ramp_s: float = field(metadata=number(0.01, 600.0))
+    command: float = field(default=2.0, metadata=number(0.0, 2.0))
+
+
+def tumbling_scenario_problems(body: TumblingTarget | None, approach: CommandedApproach | None, target: Target,
+                               has_noise: bool, motion_time_s: float, duration_s: float) -> list[str]:
+    """What makes a scenario's ``[tumbling_target]`` and ``[commanded_approach]`` impossible, key by key (empty when
+    nothing): :func:`tumbling_problems`, a noisy target with it, a scripted insertion that ends after the episode,
+    a commanded approach without a tumbling target."""
+    if body is None:
+        return ([] if approach is None else
+                ["section 'commanded_approach' without 'tumbling_target'; allowed: a commanded approach onto a "
+                 "tumbling target's grasp frame (add [tumbling_target], or remove [commanded_approach])"])
+    problems = tumbling_problems(body, target)
+    if has_noise:
+        problems.append("sections 'tumbling_target' and 'target_noise' together: not supported yet (the noisy "
+                        "estimate is of a still target)")
+    end = motion_time_s + body.insertion_time_s
+    if approach is None and body.standoff_m > 0.0 and end > duration_s + 1e-9:
+        problems.append(f"key 'tumbling_target.insertion_time_s' = {body.insertion_time_s!r}: the insertion ends at "
+                        f"t = {end:g} s, after the episode ({duration_s:g} s); allowed: at most "
+                        f"{duration_s - motion_time_s:g} s (duration_s - motion_time_s)")
+    return problems
+
+
 def tumbling_problems(body: TumblingTarget, target: Target) -> list[str]:
     """What makes a ``[tumbling_target]`` section impossible, key by key (empty when nothing): moments no body has
     (beyond the triangle inequality, or beyond what its mass can have inside its box), a handle inside the box, a ``[target]`` that is not the grasp frame at t = 0 (its quaternions' norms are checked

@@ -106,3 +106,43 @@ def episode_relative_motion(setup: ScenarioSetup, trajectory: Trajectory) -> Arr
     twist = portable.matvec_rows(jacobian, trajectory.v[:n])  # Robot.ee_twist of every sample, in one pass
     grasp_twist = np.hstack((grasp.velocity_m_s[:n], grasp.omega_rad_s[:n]))
     return relative_motion(position, attitude, twist, grasp.position_m[:n], grasp.quaternion[:n], grasp_twist)
+
+
+def native_capture(setup: ScenarioSetup, trajectory: Trajectory, rule: CaptureRule) -> Capture:
+    """The native kernel's capture judge (docs/model.md §23) over a recorded trajectory of a scenario with a
+    ``[commanded_approach]``: the same quantities, hold window and margin as :func:`capture`, computed by the
+    kernel's kinematics from the trajectory's states and velocities, as an episode's judge computes them while it
+    runs (the same bits for the same rows).
+
+    Raises:
+        InvalidInputError: the scenario has no commanded approach, or the trajectory is not on its steps.
+    """
+    from ffsr_gym import _native
+    from ffsr_gym.kernel.planner import planner_settings
+
+    scenario = setup.scenario
+    if scenario.commanded_approach is None:
+        raise InvalidInputError(f"scenario {scenario.name!r} has no [commanded_approach]: judge it with "
+                                "episode_relative_motion and capture")
+    n, dt = len(trajectory.t), scenario.simulation.dt_s
+    if n > scenario.n_steps + 1 or abs(trajectory.info.get("dt_s", dt) - dt) > 1e-12:
+        raise InvalidInputError(f"a trajectory of {n} samples at dt = {trajectory.info.get('dt_s')} s; allowed: at "
+                                f"most {scenario.n_steps + 1} samples at dt = {dt} s (the scenario's)")
+    model = setup.assets.kernel
+    x = np.zeros((n, 19))
+    x[:, :7], x[:, 7:] = trajectory.q[:, :7], trajectory.q[:, model.q_index]
+    v = np.zeros((n, 18))
+    v[:, :6], v[:, 6:] = trajectory.v[:, :6], trajectory.v[:, model.v_index]
+    settings = planner_settings(setup, method="predefined_time", m=scenario.planner.m, T_c=scenario.planner.T_c_s)
+    judged = _native.capture_of(setup.assets.native, settings, x, v, np.array([getattr(rule, q) for q in QUANTITIES]),
+                                rule.hold_s)
+    return capture_of_judge(judged, dt)
+
+
+def capture_of_judge(judged: dict, dt_s: float) -> Capture:
+    """The :class:`Capture` of a native judge's dict (``_native.capture_of``, ``Episode.capture``) at step ``dt_s``."""
+    at = int(judged["captured_at"])
+    if at < 0:
+        return Capture(False, float("nan"), np.full(len(QUANTITIES), np.nan), float(judged["margin"]))
+    return Capture(True, at * dt_s, np.asarray(judged["worst"], dtype=float), float(judged["margin"]))
+

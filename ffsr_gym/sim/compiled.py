@@ -8,13 +8,14 @@ from typing import Any
 import numpy as np
 
 from ffsr_gym import _native
-from ffsr_gym.exceptions import FFSRError
+from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.kernel.layout import LOG_FIELDS, N_STATE, STATUS_NONFINITE, X_PEAK, X_SATURATED, X_STEPS, X_V
 from ffsr_gym.kernel.planner import planner_settings
 from ffsr_gym.model.robot import check_state
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning import ptsf
 from ffsr_gym.planning.planner import planner_parameters
+from ffsr_gym.planning.timed_approach import TimingState
 from ffsr_gym.sim.budget import check_run
 from ffsr_gym.sim.rollout import STATUS
 from ffsr_gym.sim.setup import prepare
@@ -95,6 +96,8 @@ class KernelRollout:
             check_state(q0)
         self.x = initial_state(setup, setup.q0 if q0 is None else np.array(q0, dtype=float))
         self.settings = planner_settings(setup, method=method, m=m, T_c=T_c)
+        #: a commanded approach's state (command, s, ṡ, w, ẇ; None without one), advanced by the kernel
+        self.timing = np.array(setup.path.state.values()) if scenario.commanded_approach is not None else None
         self.dt, self.n_steps = scenario.simulation.dt_s, scenario.n_steps
         self.k, self.rows, self.finished = 0, 0, False
         if log is None:
@@ -135,15 +138,23 @@ class KernelRollout:
         ptsf.check_parameters(float(T_c), float(m), self.scenario.planner.phi_form)
         self.settings.m, self.settings.T_c = float(m), float(T_c)
 
+    def set_command(self, command: float) -> None:
+        """Command a commanded approach (u in [0, 2]) from the next step on (docs/model.md §23)."""
+        if self.timing is None:
+            raise InvalidInputError(f"scenario {self.scenario.name!r} has no [commanded_approach] to command")
+        state = TimingState(*self.timing)
+        state.set_command(command)
+        self.timing[0] = state.command
+
     def _step(self, x: Array, k: int, n: int, residual: Array | None, stop: bool, record_only: bool,
-              logs: dict[str, Array] | None = None) -> tuple:
+              logs: dict[str, Array] | None = None, timing: Array | None = None) -> tuple:
         res = np.zeros(12) if residual is None else np.ascontiguousarray(residual, dtype=float)
         return _native.run(self._native, self.settings, x, k, self.n_steps, n, res, stop, record_only, self._plant,
-                           logs)
+                           logs, timing)
 
     def _run(self, n: int, residual: Array | None, stop: bool, record_only: bool) -> int:
         views = {key: rows[self.rows:] for key, rows in self._log.items()}  # the kernel writes its rows there
-        x, rows, status, _ = self._step(self.x, self.k, n, residual, stop, record_only, views)
+        x, rows, status, _ = self._step(self.x, self.k, n, residual, stop, record_only, views, self.timing)
         if status == STATUS_NONFINITE:
             raise FFSRError(f"planner produced non-finite joint rates at t = {(self.k + rows) * self.dt:.3f} s")
         self.rows += rows
@@ -165,13 +176,16 @@ class KernelRollout:
             self._run(1, None, False, True)
             self.finished = True
 
-    def replay_step(self, q: Array, k: int) -> tuple[dict[str, Array], Array]:
-        """One kernel step from an arbitrary state (validation): the sample at (t_k, q) and q_{k+1}.
+    def replay_step(self, q: Array, k: int, timing: Array | None = None) -> tuple[dict[str, Array], Array]:
+        """One kernel step from an arbitrary state (validation): the sample at (t_k, q) and q_{k+1}; ``timing``: a
+        commanded approach's state at step k (default: this rollout's).
 
         Does not change this rollout. Returns the sample as a dict of :class:`Trajectory` field
         names (one row each) and the next configuration in Pinocchio order.
         """
-        x_next, _, _, logs = self._step(initial_state(self.setup, q), k, 1, None, False, False)
+        if self.timing is not None:
+            timing = np.array(self.timing if timing is None else timing, dtype=float)
+        x_next, _, _, logs = self._step(initial_state(self.setup, q), k, 1, None, False, False, None, timing)
         v_pin = np.zeros(18)
         v_pin[:6], v_pin[self.model.v_index] = logs["v"][0, :6], logs["v"][0, 6:]
         q_next = np.empty(19)
@@ -185,7 +199,7 @@ class KernelRollout:
 
     def observation(self) -> tuple[Array, Array, Array, Array, float]:
         """Joint angles, EE error (6), base error (6), obstacle-relative vector (3), clearance [m]."""
-        plan = _native.plan(self._native, self.settings, self.x[:19].copy(), self.t)
+        plan = _native.plan(self._native, self.settings, self.x[:19].copy(), self.t, self.timing)
         clear, _, rel = _native.clearances(self._native, self.settings, self.x[:19].copy(), self.t)
         return self.x[7:19].copy(), plan["e1"], plan["e0"], rel, float(clear)
 

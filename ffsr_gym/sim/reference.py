@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from ffsr_gym.exceptions import FFSRError
+from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.model.collision import Proximity
 from ffsr_gym.model.robot import check_state
 from ffsr_gym.model.scenario import Scenario
@@ -48,8 +48,14 @@ class ReferenceRollout:
         self.setup = setup = prepare(scenario)
         self.robot, self.collision, self.obstacles = setup.robot, setup.assets.collision, setup.obstacles
         self.plant = setup.plant  # the physics' robot (the planner keeps self.robot)
-        self.planner = Planner(self.robot, scenario, method=method, m=m, T_c=T_c, path=setup.path,
-                               base_target=setup.base_target, estimates=setup.estimates,
+        path, estimates = setup.path, setup.estimates
+        if scenario.commanded_approach is not None:  # this rollout's own approach state (docs/model.md §23)
+            path = setup.path.fresh()
+            estimates = (path,)
+        #: a commanded approach's path (None without one): its state is advanced after every step
+        self.timed = path if scenario.commanded_approach is not None else None
+        self.planner = Planner(self.robot, scenario, method=method, m=m, T_c=T_c, path=path,
+                               base_target=setup.base_target, estimates=estimates,
                                estimate_interval_s=setup.estimate_interval_s, body=setup.body_field)
         if q0 is not None:
             check_state(q0)
@@ -107,6 +113,8 @@ class ReferenceRollout:
             raise FFSRError(f"the run is over: {self.n_steps} steps of {self.dt} s were taken")
         dq = self._record(residual)
         self.q, _ = self.plant.step(self.q, dq, self.dt, self.momentum)
+        if self.timed is not None:
+            self.timed.state.advance(self.timed.limits, self.dt)
         self.k += 1
 
     def finish(self) -> None:
@@ -118,6 +126,17 @@ class ReferenceRollout:
     def set_parameters(self, m: float, T_c: float) -> None:
         """Change (m, T_c [s]) from the next step on."""
         self.planner.set_parameters(m, T_c)
+
+    @property
+    def timing(self) -> Array | None:
+        """A commanded approach's state (command, s, ṡ, w, ẇ), or None without one."""
+        return None if self.timed is None else np.array(self.timed.state.values())
+
+    def set_command(self, command: float) -> None:
+        """Command a commanded approach (u in [0, 2]) from the next step on (docs/model.md §23)."""
+        if self.timed is None:
+            raise InvalidInputError(f"scenario {self.scenario.name!r} has no [commanded_approach] to command")
+        self.timed.state.set_command(command)
 
     def advance(self, n: int, residual: Array | None = None, *, stop_on_violation: bool = False) -> tuple[Array, str]:
         """Take up to ``n`` steps; see :meth:`ffsr_gym.sim.rollout.Rollout.advance`."""

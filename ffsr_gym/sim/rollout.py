@@ -68,6 +68,13 @@ class Rollout(Protocol):
     def set_parameters(self, m: float, T_c: float) -> None:
         """Change (m, T_c [s]) from the next step on."""
 
+    @property
+    def timing(self) -> Array | None:
+        """A commanded approach's state (command, s, ṡ, w, ẇ; docs/model.md §23), or None without one."""
+
+    def set_command(self, command: float) -> None:
+        """Command a commanded approach (u in [0, 2]) from the next step on."""
+
     def advance(self, n: int, residual: Array | None = None, *, stop_on_violation: bool = False) -> tuple[Array, str]:
         """Take up to ``n`` steps (fewer at the end of the run), adding ``residual`` (12,) [rad/s] to the plan.
 

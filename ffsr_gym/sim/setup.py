@@ -37,6 +37,7 @@ from ffsr_gym.planning.moving_target import (
 )
 from ffsr_gym.planning.planner import reference_targets
 from ffsr_gym.planning.target_estimate import estimated_paths
+from ffsr_gym.planning.timed_approach import TimedPath, TimingState, approach_limits
 from ffsr_gym.types import Array
 
 
@@ -125,8 +126,8 @@ class ScenarioSetup:
     plant: Robot
     plant_arrays: tuple
     native_plant: _native.Robot | None
-    path: DesiredPath | MovingTargetPath
-    estimates: tuple[DesiredPath | MovingTargetPath, ...]
+    path: DesiredPath | MovingTargetPath | TimedPath
+    estimates: tuple[DesiredPath | MovingTargetPath | TimedPath, ...]
     estimate_interval_s: float
     base_target: tuple[Array, Array]
     target_motion: TargetMotion | None = None
@@ -180,9 +181,15 @@ def _prepare(scenario: Scenario, stamp: tuple) -> ScenarioSetup:
     if body is not None:  # the approach onto its moving grasp frame (docs/model.md §22)
         target = compiled_body_motion(body, dt_s=scenario.simulation.dt_s, steps=scenario.n_steps)
         grasp = grasp_motion(body, target)
-        path = MovingTargetPath.onto(path.start_position, path.start_attitude,
-                                     approach_frame(body, grasp, path.motion_time), motion_time=path.motion_time,
-                                     accel_time=path.accel_time)
+        if scenario.commanded_approach is not None:  # the method's timing (docs/model.md §23)
+            approach = scenario.commanded_approach
+            path = TimedPath(grasp, path.start_position, path.start_attitude,
+                             approach_limits(approach, body.standoff_m), TimingState(approach.command),
+                             approach.approach_time_s, approach.approach_ramp_s)
+        else:
+            path = MovingTargetPath.onto(path.start_position, path.start_attitude,
+                                         approach_frame(body, grasp, path.motion_time), motion_time=path.motion_time,
+                                         accel_time=path.accel_time)
         field = BodyField.of(body, target, scenario.simulation.dt_s)
     plant, kernel = assets.robot, assets.kernel
     if scenario.plant is not None:

@@ -52,14 +52,19 @@ void log_arrays(const nb::dict& logs, size_t rows, double* out[10]) {
 }
 
 // The closed loop from step k0; its rows go into `logs` (the ten arrays, from their first row) or new arrays.
+using Timing = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
+
 nb::tuple run(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, long k0, long n_total, long n_max,
               In residual, bool stop_on_violation, bool record_only, const ffsr::Robot* plant,
-              std::optional<nb::dict> logs) {
+              std::optional<nb::dict> logs, std::optional<Timing> timing) {
   if (k0 < 0 || n_total < k0 || n_max < 0)
     throw nb::value_error("steps: allowed 0 <= k0 <= n_total and n_max >= 0");
   check_settings(s, n_total);
   auto st = std::make_unique<ffsr::LoopState>();
   load_state(x, *st, s);
+  if (s.timing.enabled && !timing)
+    throw nb::value_error("timing: a commanded approach needs its state (5: command, s, s_dot, w, w_dot)");
+  if (timing) load_timing(data_of(*timing, "timing", {ffsr::kTimingState}), st->p.timing);
   const size_t n = record_only ? 1 : static_cast<size_t>(std::max(0L, std::min(n_max, n_total - k0)));
   nb::dict out;
   double* field[10];
@@ -79,6 +84,7 @@ nb::tuple run(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, lo
     status = ffsr::run(robot, plant ? *plant : robot, s, *st, k0, n_total, n_max, data_of(residual, "residual", {12}),
                        stop_on_violation, record_only, false, rows_out, rows);
   }
+  if (timing) timing_values(st->p.timing, timing->data());
   return nb::make_tuple(state_out(*st), rows, static_cast<int>(status), out);
 }
 
@@ -256,9 +262,11 @@ struct EpisodeBatch {
 void bind_episode(nb::module_& m) {
   m.def("run", &run, "robot"_a, "settings"_a, "x"_a, "k0"_a, "n_total"_a, "n_max"_a, "residual"_a,
         "stop_on_violation"_a = true, "record_only"_a = false, "plant"_a = nb::none(), "logs"_a = nb::none(),
+        "timing"_a = nb::none(),
         "The closed loop on the kinematic plant from step k0: (x after, rows, status 0 ok / 1 rate / 2 collision / "
         "3 non-finite, logs of one row per step). plant: the robot the physics integrates, if not robot itself; "
-        "logs: the ten log arrays to write the rows into (from their first row; new arrays without).");
+        "logs: the ten log arrays to write the rows into (from their first row; new arrays without); timing: a "
+        "commanded approach's state (5: command, s, ṡ, w, ẇ; float64), read and then written with the state after.");
   nb::class_<ffsr::DecisionSettings>(m, "DecisionSettings", "A decision's settings, by name.")
       .def(nb::init<>())
       .def_rw("rate_scale", &ffsr::DecisionSettings::rate_scale)
@@ -297,6 +305,35 @@ void bind_episode(nb::module_& m) {
           [](NativeEpisode& ep, const ffsr::ScoreTotals& t) { ep.e->totals = t; },
           "The episode's score terms so far (a copy; set: a pickled episode's).")
       .def_prop_ro("recording", &NativeEpisode::recording, "Whether the episode writes a log of every step.")
+      .def_prop_rw(
+          "timing",
+          [](const NativeEpisode& ep) {
+            double values[ffsr::kTimingState];
+            timing_values(ep.e->loop.p.timing, values);
+            return copy_out(values, {ffsr::kTimingState});
+          },
+          [](NativeEpisode& ep, In values) {
+            load_timing(data_of(values, "timing", {ffsr::kTimingState}), ep.e->loop.p.timing);
+            ep.e->planned = false;
+          },
+          nb::rv_policy::move,
+          "A commanded approach's state (5: command, s, ṡ, w, ẇ; a copy); set: a pickled episode's, or a new "
+          "command.")
+      .def(
+          "judge_capture",
+          [](NativeEpisode& ep, In bounds, double hold_s) {
+            ep.e->capture = ffsr::CaptureJudge();
+            ep.e->capture.rule = capture_rule(ep.s, bounds, hold_s);
+          },
+          "bounds"_a, "hold_s"_a,
+          "Judge capture at every sample from now on (a commanded approach's episode; docs/model.md §23): bounds on "
+          "position [m], attitude [rad], linear [m/s] and angular velocity [rad/s], held for hold_s [s].")
+      .def_prop_ro("capture", [](const NativeEpisode& ep) { return judge_dict(ep.e->capture); },
+                   "What the capture judge says so far (capture_of's dict).")
+      .def_prop_rw(
+          "capture_state", [](const NativeEpisode& ep) { return judge_state(ep.e->capture); },
+          [](NativeEpisode& ep, In state) { load_judge(ep.e->capture, state); }, nb::rv_policy::move,
+          "The capture judge's state as floats (set: a pickled episode's).")
       .def("state", [](const NativeEpisode& ep) { return state_out(ep.e->loop); }, "The state x (40, a copy).")
       .def_prop_rw(
           "last_rates", [](const NativeEpisode& ep) { return copy_out(ep.e->last_rates, {12}); },

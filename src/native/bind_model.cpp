@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "bindings.hpp"
+#include "field.hpp"
 #include "ffsr/collision.hpp"
 #include "ffsr/decision.hpp"
 #include "ffsr/dynamics.hpp"
@@ -201,6 +202,16 @@ void set_estimates(ffsr::PlannerSettings& s, In rows) {
 void set_truth(ffsr::PlannerSettings& s, In row) { s.truth = path_target(data_of(row, "truth", {7})); }
 
 // Frames as rows of (p_d (3), σ_d (4), V_ed (6), centre (3), R (9)).
+void set_timing(ffsr::PlannerSettings& s, double standoff, double approach_speed, double approach_accel,
+                double insert_speed, double insert_accel) {
+  if (!(standoff >= 0.0 && standoff <= 1.0)) throw nb::value_error("standoff: allowed [0, 1] m");
+  const double rates[4] = {approach_speed, approach_accel, insert_speed, insert_accel};
+  for (double r : rates)
+    if (!(r > 0.0 && r <= 1e3))
+      throw nb::value_error("approach_speed, approach_accel, insert_speed, insert_accel: allowed (0, 1000]");
+  s.timing = {true, standoff, approach_speed, approach_accel, insert_speed, insert_accel};
+}
+
 void set_frames(ffsr::PlannerSettings& s, In rows) {
   const size_t n = rows.ndim() == 2 ? rows.shape(0) : 0;
   const double* d = data_of(rows, "frames", {n, 25});
@@ -208,11 +219,12 @@ void set_frames(ffsr::PlannerSettings& s, In rows) {
   for (size_t k = 0; k < n; ++k) std::memcpy(&s.frames[k], d + 25 * k, sizeof(ffsr::Frame));
 }
 
-nb::dict plan(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, double t) {
+nb::dict plan(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, double t, std::optional<In> timing) {
   check_settings(s, -1);
   ffsr::Frames f{};
   ffsr::Momentum m{};
   ffsr::Plan p{};
+  if (timing) load_timing(data_of(*timing, "timing", {ffsr::kTimingState}), p.timing);
   ffsr::plan(robot, s, state_of(x), t, f, m, p);
   nb::dict out;
   out["dq"] = copy_out(p.dq, {12});
@@ -222,6 +234,38 @@ nb::dict plan(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, do
   out["cdf"] = copy_out(p.cdf, {2});
   out["smin"] = copy_out(p.smin, {2});
   return out;
+}
+
+// The commanded approach's desired pose and twist at state `timing` and time t.
+nb::dict timed_desired(const ffsr::PlannerSettings& s, In timing, double t) {
+  if (!s.timing.enabled) throw nb::value_error("settings: no commanded approach; allowed: set_timing first");
+  check_settings(s, -1);
+  ffsr::TimingState st;
+  load_timing(data_of(timing, "timing", {ffsr::kTimingState}), st);
+  const ffsr::Frame& r = ffsr::frame_at(s, t);
+  double p_d[3], q_d[4], V_d[6];
+  ffsr::timed_desired(s.timing, st, s.start_position, s.start_attitude, r.p_d, r.sigma_d, r.V_ed, p_d, q_d, V_d);
+  nb::dict out;
+  out["p_d"] = copy_out(p_d, {3});
+  out["sigma_d"] = copy_out(q_d, {4});
+  out["V_ed"] = copy_out(V_d, {6});
+  return out;
+}
+
+// The commanded approach's state over `steps` physics steps of settings.dt from `timing`: (steps + 1, 5).
+Out timing_profile(const ffsr::PlannerSettings& s, In timing, long steps) {
+  if (!s.timing.enabled) throw nb::value_error("settings: no commanded approach; allowed: set_timing first");
+  if (steps < 0 || steps > 10000000) throw nb::value_error("steps: allowed [0, 10000000]");
+  ffsr::TimingState st;
+  load_timing(data_of(timing, "timing", {ffsr::kTimingState}), st);
+  double* out;
+  Out rows = zeros({static_cast<size_t>(steps) + 1, static_cast<size_t>(ffsr::kTimingState)}, out);
+  timing_values(st, out);
+  for (long k = 1; k <= steps; ++k) {
+    ffsr::advance_timing(s.timing, st, s.dt);
+    timing_values(st, out + ffsr::kTimingState * k);
+  }
+  return rows;
 }
 
 nb::tuple clearances(const ffsr::Robot& robot, const ffsr::PlannerSettings& s, In x, double t) {
@@ -316,11 +360,24 @@ void bind_model(nb::module_& m) {
       .def("set_estimates", &set_estimates, "rows"_a, "The planner's target estimates, rows like set_truth's.")
       .def("set_obstacles", &set_obstacles, "positions"_a, "velocities"_a, "radii"_a,
            "Obstacle points: start positions (n, 3) [m], drift velocities (n, 3) [m/s], radii (n,) [m].")
+      .def("set_timing", &set_timing, "standoff"_a, "approach_speed"_a, "approach_accel"_a, "insert_speed"_a,
+           "insert_accel"_a,
+           "A commanded approach onto the frames (docs/model.md §23; the frames then hold the grasp frame's pose and "
+           "twist): the pre-grasp standoff [m], the approach's and the insertion's top speeds [1/s] and "
+           "accelerations [1/s²].")
+      .def_prop_ro("timed", [](const ffsr::PlannerSettings& s) { return s.timing.enabled; },
+                   "Whether the approach is commanded (set_timing).")
       .def("set_frames", &set_frames, "rows"_a,
            "A tumbling target's frames, one row per step: p_d (3), σ_d (4), V_ed (6), centre (3), R (9).");
-  m.def("plan", &plan, "robot"_a, "settings"_a, "x"_a, "t"_a,
+  m.def("plan", &plan, "robot"_a, "settings"_a, "x"_a, "t"_a, "timing"_a = nb::none(),
         "One planner step at (t, x): joint rates dq (mission first), pose errors e1 and e0, mu, cdf and the "
-        "arms' smallest singular values.");
+        "arms' smallest singular values. timing: a commanded approach's state (5: command, s, ṡ, w, ẇ).");
+  m.def("timed_desired", &timed_desired, "settings"_a, "timing"_a, "t"_a,
+        "A commanded approach's desired end-effector pose and world twist at state timing (5) and t [s]: p_d, "
+        "sigma_d (scalar first), V_ed.");
+  m.def("timing_profile", &timing_profile, "settings"_a, "timing"_a, "steps"_a,
+        "A commanded approach's state (command, s, ṡ, w, ẇ) at every physics step of settings.dt from timing: "
+        "(steps + 1, 5).");
   m.def("clearances", &clearances, "robot"_a, "settings"_a, "x"_a, "t"_a,
         "(robot-obstacle clearance [m], self clearance [m], the vector robot → nearest obstacle) at (t, x).");
   m.def("segment_box", &segment_box, "a"_a, "b"_a, "R"_a, "c"_a, "half"_a,

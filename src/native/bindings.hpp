@@ -4,12 +4,14 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 
+#include <cmath>
 #include <cstring>
 #include <initializer_list>
 #include <string>
 #include <type_traits>
 #include <vector>
 
+#include "ffsr/capture.hpp"
 #include "ffsr/loop.hpp"
 
 namespace nb = nanobind;
@@ -72,6 +74,23 @@ inline void check_settings(const ffsr::PlannerSettings& s, long n_total) {
     throw nb::value_error("settings: no estimates and no frames; allowed: set_estimates or set_frames first");
   if (n_total >= 0 && !s.frames.empty() && static_cast<long>(s.frames.size()) < n_total + 1)
     throw nb::value_error("frames: allowed one per step, n_total + 1 of them");
+  if (s.timing.enabled && s.frames.empty())
+    throw nb::value_error("settings: a commanded approach (set_timing) without frames; allowed: set_frames first");
+}
+
+// A commanded approach's state (command, s, ṡ, w, ẇ) from five floats, checked: the command in [0, 2], s and w in
+// [0, 1], every value finite.
+inline void load_timing(const double* v, ffsr::TimingState& st) {
+  for (int i = 0; i < ffsr::kTimingState; ++i)
+    if (!std::isfinite(v[i])) throw nb::value_error("timing: allowed finite values (command, s, s_dot, w, w_dot)");
+  if (v[0] < 0.0 || v[0] > 2.0) throw nb::value_error("timing[0] (the command): allowed [0, 2]");
+  if (v[1] < 0.0 || v[1] > 1.0 || v[3] < 0.0 || v[3] > 1.0)
+    throw nb::value_error("timing[1] (s) and timing[3] (w): allowed [0, 1]");
+  st.command = v[0], st.s = v[1], st.s_dot = v[2], st.w = v[3], st.w_dot = v[4];
+}
+
+inline void timing_values(const ffsr::TimingState& st, double out[ffsr::kTimingState]) {
+  out[0] = st.command, out[1] = st.s, out[2] = st.s_dot, out[3] = st.w, out[4] = st.w_dot;
 }
 
 inline Out state_out(const ffsr::LoopState& st) {
@@ -90,5 +109,12 @@ inline Out zeros(std::initializer_list<size_t> shape, double*& data) {
   std::vector<size_t> dims(shape);
   return Out(data, dims.size(), dims.data(), owner);
 }
+
+// The capture judge's bindings (bind_capture.cpp): a rule from bounds (4) and a hold window [s] at settings.dt (a
+// commanded approach's settings only), what a judge says, and its state as floats and back.
+ffsr::CaptureRule capture_rule(const ffsr::PlannerSettings& s, In bounds, double hold_s);
+nb::dict judge_dict(const ffsr::CaptureJudge& j);
+Out judge_state(const ffsr::CaptureJudge& j);
+void load_judge(ffsr::CaptureJudge& j, In state);
 
 }  // namespace ffsr_bindings

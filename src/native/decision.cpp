@@ -110,8 +110,9 @@ DecisionResult decide(const Robot& robot, const Robot& plant, PlannerSettings& s
   long rows = 0;
   DecisionTerms terms;
   std::copy(e.last_rates, e.last_rates + kJoints, terms.previous);
+  CaptureJudge* judge = e.capture.rule.needed > 0 ? &e.capture : nullptr;
   const Status status = run(robot, plant, s, e.loop, k, n_total, n_max, residual, stop, false, planned, logs, rows,
-                            &terms, &e.totals);
+                            &terms, &e.totals, judge);
   result.rows = rows, result.status = static_cast<int>(status);
   if (rows == 0 || status == Status::kNonFinite) return result;
   const double sums[4] = {terms.square[0] * dt, terms.square[1] * dt, terms.variation[0], terms.variation[1]};
@@ -128,7 +129,8 @@ void finish(const Robot& robot, const Robot& plant, const PlannerSettings& s, Ep
   const double none[kJoints] = {};
   long rows = 0;
   e.planned = false;
-  run(robot, plant, s, e.loop, k, n_total, 1, none, false, true, false, logs, rows, nullptr, &e.totals);
+  run(robot, plant, s, e.loop, k, n_total, 1, none, false, true, false, logs, rows, nullptr, &e.totals,
+      e.capture.rule.needed > 0 ? &e.capture : nullptr);
 }
 
 }  // namespace ffsr

@@ -50,7 +50,7 @@ double norm3(const double* e) { return std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2
 
 Status run(const Robot& robot, const Robot& plant, const PlannerSettings& s, LoopState& st, long k0, long n_total,
            long n_max, const double residual[kJoints], bool stop_on_violation, bool record_only, bool planned,
-           const LogRows& out, long& rows, DecisionTerms* terms, ScoreTotals* totals) {
+           const LogRows& out, long& rows, DecisionTerms* terms, ScoreTotals* totals, CaptureJudge* judge) {
   const bool mismatch = &plant != &robot;
   const double dt = s.dt;
   double* x = st.x;
@@ -92,6 +92,12 @@ Status run(const Robot& robot, const Robot& plant, const PlannerSettings& s, Loo
       out.mu[2 * r + arm] = st.p.mu[arm], out.cdf[2 * r + arm] = st.p.cdf[arm], out.smin[2 * r + arm] = st.p.smin[arm];
     ++rows;
     if (totals) add_sample(*totals, err, clear, self_c);
+    if (judge) {
+      const Frame& grasp = frame_at(s, t);
+      double q[4];
+      capture_quantities(st.f, x, v, st.p.J, grasp.p_d, grasp.sigma_d, grasp.V_ed, q);
+      add_capture(*judge, q);
+    }
     if (record_only) return Status::kOk;
     if (s.substeps == 0) {
       midpoint(plant, x, st.v0, dq, dt, s.momentum, st.f, st.m, x);
@@ -99,6 +105,7 @@ Status run(const Robot& robot, const Robot& plant, const PlannerSettings& s, Loo
       servo_period(plant, x, st.servo, dq, dt, s.substeps, s.momentum, st.dyn, st.f, st.m, out.tau + 12 * r);
       for (int j = 0; j < kJoints; ++j) dq[j] = (x[7 + j] - start[7 + j]) / dt, applied[j] = dq[j];
     }
+    if (s.timing.enabled) advance_timing(s.timing, st.p.timing, dt);
     if (terms) add_step(*terms, applied, clear, self_c, s.keep_out);
     if (totals) add_applied(*totals, applied);
     if (stop_on_violation) {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "ffsr/capture.hpp"
 #include "field.hpp"
 
 namespace ffsr {
@@ -133,7 +134,11 @@ void base_command(const PlannerSettings& s, const double x[kStateSize], Plan& p)
 
 // The mission arm's task rate x₁ = J_e⁻¹(J_ed V_ed − f(e₁)) − J₀ V0 (end-effector error into p.e1).
 void mission_task(const PlannerSettings& s, const double x[kStateSize], double t, const Frames& f, Plan& p) {
-  if (!s.frames.empty()) {
+  if (s.timing.enabled) {  // the commanded approach onto the grasp frame (docs/model.md §23)
+    const Frame& r = frame_at(s, t);
+    timed_desired(s.timing, p.timing, s.start_position, s.start_attitude, r.p_d, r.sigma_d, r.V_ed, p.p_d,
+                  p.sigma_d, p.V_ed);
+  } else if (!s.frames.empty()) {
     const Frame& r = frame_at(s, t);
     for (int i = 0; i < 3; ++i) p.p_d[i] = r.p_d[i];
     for (int i = 0; i < 4; ++i) p.sigma_d[i] = r.sigma_d[i];
@@ -258,12 +263,7 @@ void plan(const Robot& robot, const PlannerSettings& s, const double x[kStateSiz
   momentum(robot, x, f, m);
   base_command(s, x, p);
   mission_task(s, x, t, f, p);
-  for (int k = 0; k < 6; ++k) {  // geometric Jacobian of the mission arm (world)
-    const double dx = f.pe[0][0] - f.pj[k][0], dy = f.pe[0][1] - f.pj[k][1], dz = f.pe[0][2] - f.pj[k][2];
-    p.J[0][k] = f.z[k][1] * dz - f.z[k][2] * dy, p.J[1][k] = f.z[k][2] * dx - f.z[k][0] * dz;
-    p.J[2][k] = f.z[k][0] * dy - f.z[k][1] * dx;
-    p.J[3][k] = f.z[k][0], p.J[4][k] = f.z[k][1], p.J[5][k] = f.z[k][2];
-  }
+  mission_jacobian(f, p.J);  // geometric Jacobian of the mission arm (world)
   for (int r = 0; r < 6; ++r)  // the balance arm's: J_c² = −H_bm2
     for (int c = 0; c < 6; ++c) p.Jb[r][c] = -m.H_bm[1][r][c];
   double smallest[2];

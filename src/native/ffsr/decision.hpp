@@ -28,6 +28,7 @@ struct DecisionSettings {
 struct EpisodeState {
   LoopState loop;
   ScoreTotals totals;  // the episode's score terms so far
+  CaptureJudge capture;  // a commanded approach's capture judge (capture.rule.needed = 0: none)
   double last_rates[kJoints] = {};
   bool planned = false;
   long planned_k = 0;

@@ -1,6 +1,7 @@
 // The closed loop's checks: clearances at a state and the status of a step.
 #pragma once
 
+#include "ffsr/capture.hpp"
 #include "ffsr/collision.hpp"
 #include "ffsr/dynamics.hpp"
 #include "ffsr/planner.hpp"
@@ -55,9 +56,12 @@ struct LoopState {
 // integrates, the planner's own unless its inertias differ); the servo plant (s.substeps > 0) takes them as its
 // drives' commands, and the rates logged and checked are the ones the joints made. residual: added to the planned
 // rates (12). planned: st.p already holds plan at (k0 dt, st.x). Writes rows from 0; rows: how many; returns the
-// status of the last. terms, totals (either may be null): summed over the steps and samples as they are taken.
+// status of the last. terms, totals (either may be null): summed over the steps and samples as they are taken;
+// judge (may be null; a commanded approach's settings only, whose frames are the grasp frame's): every sample's
+// capture quantities.
 Status run(const Robot& robot, const Robot& plant, const PlannerSettings& s, LoopState& st, long k0, long n_total,
            long n_max, const double residual[kJoints], bool stop_on_violation, bool record_only, bool planned,
-           const LogRows& out, long& rows, DecisionTerms* terms = nullptr, ScoreTotals* totals = nullptr);
+           const LogRows& out, long& rows, DecisionTerms* terms = nullptr, ScoreTotals* totals = nullptr,
+           CaptureJudge* judge = nullptr);
 
 }  // namespace ffsr

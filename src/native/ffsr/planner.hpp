@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "ffsr/physics.hpp"
+#include "ffsr/timing.hpp"
 
 namespace ffsr {
 
@@ -27,7 +28,8 @@ struct Obstacle {
 };
 
 // One step of a tumbling target: the desired end-effector pose (attitude scalar first) and world twist of the
-// approach, then the body's centre [m] and rotation (row by row).
+// approach (with a commanded approach, timing.enabled: the grasp frame's pose and twist), then the body's centre
+// [m] and rotation (row by row).
 struct Frame {
   double p_d[3];
   double sigma_d[4];
@@ -65,6 +67,7 @@ struct PlannerSettings {
   bool body_collides = false;               // the body is checked for collision
   bool rate_limit_balance_only = false;     // the rate limit scores the balance arm only
   int substeps = 0;                         // the servo plant's physics steps per planner step (0: kinematic plant)
+  TimingSettings timing;                    // a commanded approach onto the frames (disabled: the frames' own path)
 };
 
 // What a planner step writes besides the frames and momentum matrices.
@@ -79,6 +82,7 @@ struct Plan {
   double dq_c[6];
   double points[7][3];
   double seg[6 * kMaxObstacles + 6][5];  // the danger field's view of each arm segment
+  TimingState timing;  // the commanded approach's state (read by the step, advanced by the loop after it)
 };
 
 // Joint rates and diagnostics at (t, x) (docs/model.md §8 steps 1-8); fills f and m at x.
