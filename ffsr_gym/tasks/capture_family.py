@@ -75,9 +75,12 @@ def _drift(draw: CaptureDraw, rng: np.random.Generator) -> tuple[float, float, f
 
 
 def sample_capture(family: Scenario, spec: Randomization, draw: CaptureDraw, tier: str,
-                   rng: np.random.Generator) -> Scenario:
+                   rng: np.random.Generator, *, reach_time_s: float | None = None) -> Scenario:
     """One member of the capture family for ``tier`` (module docstring), its ``[target]`` the grasp frame; the
-    grasp frame is drawn with ``spec``'s target ranges, the body with ``draw``.
+    grasp frame is drawn with ``spec``'s target ranges, the body with ``draw``. ``reach_time_s`` [s]: when the grasp
+    frame is where the draw made sure the arm reaches it well (default: the end of the scripted insertion, the
+    desired motion's time plus ``draw.insertion_time_s``, as capture-v0 draws; the draws of ``rng`` are the same
+    either way).
 
     Raises:
         ScenarioError: no admissible draw within ``draw.max_attempts``.
@@ -85,7 +88,8 @@ def sample_capture(family: Scenario, spec: Randomization, draw: CaptureDraw, tie
     setup = prepare(family)
     robot, collision, q_start = setup.robot, setup.assets.collision, setup.q0
     dt = family.simulation.dt_s
-    capture_steps = int(round((family.desired_path.motion_time_s + draw.insertion_time_s) / dt))
+    reach = family.desired_path.motion_time_s + draw.insertion_time_s if reach_time_s is None else reach_time_s
+    capture_steps = int(round(reach / dt))
     rejected = Counter()
     for _ in range(int(draw.max_attempts)):
         drawn = target_attempt(robot, q_start, spec, rng)
