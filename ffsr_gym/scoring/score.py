@@ -185,7 +185,7 @@ def score_of_totals(totals: _native.ScoreTotals, task: Scenario, benchmark: Benc
     settings, objective = benchmark.score, task.objective
     energy, variation = np.array(totals.square) * dt, np.array(totals.variation)
     cost = smoothness_cost(energy, variation, settings)
-    peak = np.degrees(np.array(totals.peak)) if totals.applied else np.zeros(2)
+    peak = peak_rates_deg_s(totals)
     min_clear, min_self = float(totals.min_clear), float(totals.min_self)
     final_p, final_o = (float(value) for value in totals.last_err[:2])
     checks = (bool(np.any(peak > settings.max_rate_deg_s)), min_clear < objective.keep_out_m or min_self < 0.0,
@@ -201,16 +201,23 @@ def score_of_totals(totals: _native.ScoreTotals, task: Scenario, benchmark: Benc
     return EpisodeScore(
         score=bounded_score(failure is None, cost), success=failure is None, failure=failure, smoothness_cost=cost,
         rate_energy=(float(energy[0]), float(energy[1])), rate_variation=(float(variation[0]), float(variation[1])),
-        paper_B=paper_objective(totals, objective, dt), peak_rate_deg_s=(float(peak[0]), float(peak[1])),
+        paper_B=paper_objective(totals, objective, dt, peak), peak_rate_deg_s=(float(peak[0]), float(peak[1])),
         final_ee_position_error_m=final_p, final_ee_attitude_error=final_o, min_clearance_m=min_clear,
         min_self_clearance_m=min_self, convergence_time_s=convergence_time(totals, time_of), **captured,
     )
 
 
-def paper_objective(totals: _native.ScoreTotals, objective: ObjectiveSettings, dt: float) -> float:
+def peak_rates_deg_s(totals: _native.ScoreTotals) -> Array:
+    """Each arm's largest |Θ̇| [deg/s] over an episode's applied steps (zeros before any)."""
+    return np.degrees(np.array(totals.peak)) if totals.applied else np.zeros(2)
+
+
+def paper_objective(totals: _native.ScoreTotals, objective: ObjectiveSettings, dt: float,
+                    peak: Array | None = None) -> float:
     """The paper's B of an episode's totals (:func:`ffsr_gym.scoring.objective.objective_terms`' ``objective``):
-    +inf when a joint (of the scope's arms) exceeded the rate limit, else γ (α ∫Ψ¹ + β ∫Ψ²)."""
-    peak = np.degrees(np.array(totals.peak)) if totals.applied else np.zeros(2)
+    +inf when a joint (of the scope's arms) exceeded the rate limit, else γ (α ∫Ψ¹ + β ∫Ψ²); ``peak``: the totals'
+    :func:`peak_rates_deg_s`, when already at hand."""
+    peak = peak_rates_deg_s(totals) if peak is None else peak
     checked = peak if objective.rate_limit_scope == "both_arms" else peak[1:]
     if bool(np.any(checked > objective.max_rate_deg_s)):
         return math.inf

@@ -32,8 +32,9 @@ namespace {
 constexpr const char* kLogNames[10] = {"x", "v", "dq", "err", "clear", "self", "mu", "cdf", "smin", "tau"};
 constexpr size_t kLogWidths[10] = {19, 18, 12, 4, 0, 0, 2, 2, 2, 12};
 
-// The ten log arrays of a dict (float64, C order, at least `rows` rows each) into their first-row pointers.
-void log_arrays(const nb::dict& logs, size_t rows, double* out[10]) {
+// The ten log arrays of a dict (float64, C order, at least `rows` rows each, or exactly with `exact`) into their
+// first-row pointers.
+void log_arrays(const nb::dict& logs, size_t rows, double* out[10], bool exact = false) {
   for (size_t f = 0; f < 10; ++f) {
     if (!logs.contains(kLogNames[f]))
       throw nb::value_error((std::string("logs: no '") + kLogNames[f] + "'; allowed: a dict of the ten log arrays")
@@ -44,9 +45,9 @@ void log_arrays(const nb::dict& logs, size_t rows, double* out[10]) {
       check_shape(array, kLogNames[f], {have});
     else
       check_shape(array, kLogNames[f], {have, kLogWidths[f]});
-    if (have < rows)
-      throw nb::value_error((std::string("logs['") + kLogNames[f] + "']: " + std::to_string(have) +
-                             " rows; allowed: at least " + std::to_string(rows)).c_str());
+    if (have < rows || (exact && have != rows))
+      throw nb::value_error((std::string("logs['") + kLogNames[f] + "']: " + std::to_string(have) + " rows; allowed: " +
+                             (exact ? "n_total + 1 = " : "at least ") + std::to_string(rows)).c_str());
     out[f] = array.data();
   }
 }
@@ -117,14 +118,7 @@ struct NativeEpisode {
       for (size_t f = 0; f < 10; ++f) log[f] = next, next += std::max<size_t>(kLogWidths[f], 1);
       return;
     }
-    const size_t rows = static_cast<size_t>(n_total) + 1;
-    log_arrays(*logs, rows, log);
-    for (size_t f = 0; f < 10; ++f) {  // exactly the episode's rows
-      auto array = nb::cast<nb::ndarray<double, nb::c_contig, nb::device::cpu>>((*logs)[kLogNames[f]]);
-      if (array.shape(0) != rows)
-        throw nb::value_error((std::string("logs['") + kLogNames[f] + "']: allowed n_total + 1 = " +
-                               std::to_string(rows) + " rows").c_str());
-    }
+    log_arrays(*logs, static_cast<size_t>(n_total) + 1, log, true);  // exactly the episode's rows
     keep = *logs;
   }
 

@@ -33,13 +33,8 @@ void smoothness_terms(const double* rates, long rows, double dt, const double pr
   for (int arm = 0; arm < 2; ++arm) {
     double energy = 0.0, variation = 0.0;
     for (long k = 0; k < rows; ++k) {
-      double square = 0.0, step = 0.0;
-      for (int j = 6 * arm; j < 6 * arm + 6; ++j) {
-        const double rate = rates[12 * k + j];
-        const double before = k == 0 ? previous[j] : rates[12 * (k - 1) + j];
-        square += rate * rate;
-        step += (rate - before) * (rate - before);
-      }
+      double square, step;
+      arm_sums(rates + 12 * k, k == 0 ? previous : rates + 12 * (k - 1), arm, square, step);
       energy += square;
       variation += std::sqrt(step);
     }

@@ -12,14 +12,19 @@ constexpr double kDegrees = 180.0 / M_PI;  // numpy's degrees(): one product wit
 
 }  // namespace
 
+void arm_sums(const double rates[kJoints], const double before[kJoints], int arm, double& square, double& step) {
+  square = 0.0, step = 0.0;
+  for (int j = 6 * arm; j < 6 * arm + 6; ++j) {
+    const double change = rates[j] - before[j];
+    square += rates[j] * rates[j];
+    step += change * change;
+  }
+}
+
 void add_step(DecisionTerms& d, const double rates[kJoints], double clear, double self_c, double keep_out) {
   for (int arm = 0; arm < 2; ++arm) {
-    double square = 0.0, step = 0.0;
-    for (int j = 6 * arm; j < 6 * arm + 6; ++j) {
-      const double change = rates[j] - d.previous[j];
-      square += rates[j] * rates[j];
-      step += change * change;
-    }
+    double square, step;
+    arm_sums(rates, d.previous, arm, square, step);
     d.square[arm] += square;
     d.variation[arm] += std::sqrt(step);
   }
@@ -29,11 +34,10 @@ void add_step(DecisionTerms& d, const double rates[kJoints], double clear, doubl
 
 void add_applied(ScoreTotals& t, const double rates[kJoints]) {
   for (int arm = 0; arm < 2; ++arm) {
-    double square = 0.0, step = 0.0, degrees = 0.0;
+    double square, step, degrees = 0.0;
+    arm_sums(rates, t.previous, arm, square, step);
     for (int j = 6 * arm; j < 6 * arm + 6; ++j) {
-      const double change = rates[j] - t.previous[j], deg = rates[j] * kDegrees;
-      square += rates[j] * rates[j];
-      step += change * change;
+      const double deg = rates[j] * kDegrees;
       degrees += deg * deg;
       t.peak[arm] = std::max(t.peak[arm], std::fabs(rates[j]));
     }

@@ -40,6 +40,10 @@ struct ScoreTotals {
   long last_above = -1;
 };
 
+// One step's sums over an arm's joints (6 arm .. 6 arm + 5, in order): Σ Θ̇² into square and Σ (Θ̇ − Θ̇_before)²
+// into step; every smoothness sum of the kernel is made of these.
+void arm_sums(const double rates[kJoints], const double before[kJoints], int arm, double& square, double& step);
+
 // Rates applied over one step (12, mission arm first) into a decision's terms.
 void add_step(DecisionTerms& d, const double rates[kJoints], double clear, double self_c, double keep_out);
 
