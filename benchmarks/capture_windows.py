@@ -20,9 +20,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import sys
-from pathlib import Path
 
 import numpy as np
 from tqdm.auto import tqdm
@@ -30,7 +28,7 @@ from tqdm.auto import tqdm
 from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.scenario_sections import CommandedApproach
-from ffsr_gym.provenance import provenance, splice_file, write_json_atomic
+from ffsr_gym.provenance import provenance, save_result, splice_file
 from ffsr_gym.scoring.score import score_episode
 from ffsr_gym.sim.simulate import make_rollout
 from ffsr_gym.tasks.capture_family import capture_family, sample_capture
@@ -113,7 +111,8 @@ def docs_text(data: dict) -> str:
              f"0 to {GO_S[-1]:g} s, {DURATION_S:g} s episodes, spin axis {TILT_DEG[0]:g}-{TILT_DEG[1]:g} deg off the "
              "grasp axis):", "",
              "| draws | spin [deg/s] | grasp frame reachable at | drawn | capture for some t_go "
-             "| straight in (t_go = 0) | only by waiting | two windows or more | episodes captured | median earliest capture [s] | "
+             "| straight in (t_go = 0) | only by waiting | two windows or more | episodes captured "
+             "| median earliest capture [s] | "
              + " | ".join(f"`{c}`" for c in causes) + " |", "|---" * (10 + len(causes)) + "|"]
     for s in data["summary"]:
         low, high = GROUPS[s["group"]]
@@ -133,10 +132,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     pieces = [(group, reach, index) for reach in REACH for group in GROUPS for index in range(args.draws)]
     rows = [draw_row(*piece) for piece in tqdm(pieces, desc="draws", unit="draw")]
-    data = {"groups": {g: list(r) for g, r in GROUPS.items()}, "reach": REACH, "tilt_deg": TILT_DEG, "go_s": GO_S,
-            "duration_s": DURATION_S, "approach": dataclasses.asdict(APPROACH), "rows": rows,
-            "summary": summary(rows), "provenance": provenance(command=" ".join(["python", *sys.argv]))}
-    write_json_atomic(Path(args.out), json.loads(json.dumps(data)))
+    data = save_result(args.out, {"groups": {g: list(r) for g, r in GROUPS.items()}, "reach": REACH,
+                                  "tilt_deg": TILT_DEG, "go_s": GO_S, "duration_s": DURATION_S,
+                                  "approach": dataclasses.asdict(APPROACH), "rows": rows, "summary": summary(rows),
+                                  "provenance": provenance(command=" ".join(["python", *sys.argv]))})
     if args.docs:
         splice_file(args.docs, START, END, docs_text(data))
     print(docs_text(data))
