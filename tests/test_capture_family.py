@@ -139,3 +139,33 @@ def test_a_capture_pool_builds_resumes_and_replays_on_pinocchio(tmp_path, monkey
     assert [v.as_dict() for v in again] == [v.as_dict() for v in verdicts]
     summary = build.summarise_split(verdicts, 2, "slow")
     assert summary["tier_counts"] == {"slow": 2} and set(summary["labels"]) <= set("LnwbsugdF")
+
+
+def test_a_draw_can_put_its_reachable_moment_anywhere_and_keeps_capture_v0s_draws_by_default():
+    """``reach_time_s``: the body's motion is run back from that moment, so run forwards (the numpy integrator) a
+    draw made reachable at 21.3 s is there at 21.3 s where the same draw made reachable at capture-v0's moment
+    (14 s) is at 14 s: same centre, attitude and spin. Without it the draw is capture-v0's, seed for seed."""
+    import dataclasses
+
+    from ffsr_gym.tasks.capture_family import capture_family, sample_capture
+
+    draw = dataclasses.replace(RULES.tasks.capture_draw, spin_tilt_deg=(80.0, 90.0))
+    family = capture_family(RULES)
+    default = family.desired_path.motion_time_s + draw.insertion_time_s
+
+    def sampled(**kwargs):
+        return sample_capture(family, RULES.tasks.draw, draw, "fast", np.random.default_rng([0, 5]), **kwargs)
+
+    def at(task, t):
+        body, dt = task.tumbling_target, task.simulation.dt_s
+        return propagate(position_m=np.array(body.position_m), velocity_m_s=np.array(body.velocity_m_s),
+                         quaternion=np.array(body.quaternion_wxyz), omega_body_rad_s=np.radians(body.omega_body_deg_s),
+                         inertia_kg_m2=np.array(body.inertia_kg_m2), dt_s=dt, steps=int(round(t / dt)))
+
+    assert sampled().sha256() == sampled(reach_time_s=default).sha256()
+    late, usual = at(sampled(reach_time_s=21.3), 21.3), at(sampled(), default)
+    np.testing.assert_allclose(late.position_m[-1], usual.position_m[-1], atol=1e-9)
+    np.testing.assert_allclose(late.quaternion[-1], usual.quaternion[-1], atol=1e-9)
+    np.testing.assert_allclose(late.omega_body_rad_s[-1], usual.omega_body_rad_s[-1], atol=1e-9)
+    # and not at 14 s: the body has turned in between
+    assert np.abs(at(sampled(reach_time_s=21.3), default).quaternion[-1] - usual.quaternion[-1]).max() > 0.1
