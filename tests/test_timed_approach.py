@@ -208,3 +208,31 @@ def test_bad_commands_and_settings_are_refused_by_name(tmp_path):
     free = load_scenario("free_space")
     with pytest.raises(ScenarioError, match="'commanded_approach' without 'tumbling_target'"):
         free.replace(commanded_approach=scenario.commanded_approach)
+
+
+def test_an_environment_plays_a_custom_tasks_commanded_approach_and_pickles_it(tmp_path):
+    """A capture id given a scenario with [commanded_approach] as its task follows the scenario's command (no action
+    sets it yet), step for step as a kernel rollout of the same scenario, and a pickled copy continues the same."""
+    import pickle
+
+    import gymnasium as gym
+
+    import ffsr_gym  # noqa: F401  (registers the ids)
+
+    scenario = _scenario(tmp_path, command=2.0)
+    env = gym.make("FFSR-Capture-Residual-v0", task=scenario)
+    env.reset(seed=0)
+    engine = env.unwrapped.engine
+    for _ in range(20):
+        env.step(np.zeros(12, np.float32))
+    timing = engine.episodes[0].timing
+    assert timing[0] == 2.0 and 0.0 < timing[1] < 1.0  # approaching, at the scenario's command
+    rollout = make_rollout(scenario, backend="kernel", m=scenario.planner.m, T_c=scenario.planner.T_c_s)
+    rollout.advance(20 * engine.steps_per_decision)
+    np.testing.assert_array_equal(timing, rollout.timing)
+    clone = pickle.loads(pickle.dumps(env.unwrapped))
+    for _ in range(10):
+        obs, *_ = env.step(np.zeros(12, np.float32))
+        clone_obs, *_ = clone.step(np.zeros(12, np.float32))
+        np.testing.assert_array_equal(obs, clone_obs)
+    np.testing.assert_array_equal(clone.engine.episodes[0].timing, engine.episodes[0].timing)

@@ -128,7 +128,7 @@ class EpisodeEngine:
 
     def _load_copy(self, i: int, scenario: Scenario, state: tuple | None = None) -> None:
         """Copy ``i``'s new episode: its rollout and its native episode, both on copy ``i``'s rows of the logs.
-        ``state``: (x (40), m, T_c [s], last rates (12), score totals) to continue from instead of the task's start."""
+        ``state``: (x (40), m, T_c [s], last rates (12), score totals, approach state (5)) to continue from."""
         if scenario.n_steps != self.n_steps or scenario.simulation.dt_s != self.dt:
             raise FFSRError("a task changed dt_s or duration_s; the copies need them fixed")
         views = {key: rows[i] for key, rows in self.logs.items()} if self.record else None
@@ -136,10 +136,11 @@ class EpisodeEngine:
         x = rollout.x
         if state is not None:
             x, (rollout.settings.m, rollout.settings.T_c) = state[0], state[1:3]
-        setup = rollout.setup
-        episode = _native.Episode(setup.assets.native, rollout.settings,
+        episode = _native.Episode(rollout.setup.assets.native, rollout.settings,
                                   act.decision_settings(scenario, self.rule, self.spec.actions.residual_fades), x,
-                                  self.n_steps, plant=setup.native_plant, logs=views)
+                                  self.n_steps, plant=rollout.setup.native_plant, logs=views)
+        if rollout.timing is not None:  # a custom task's commanded approach (docs/model.md §23): its own command
+            episode.timing = rollout.timing if state is None else state[5]
         if state is not None:
             episode.last_rates, episode.totals = state[3], state[4]
         self.rollouts[i], self.episodes[i] = rollout, episode
@@ -382,11 +383,10 @@ class EpisodeEngine:
 
     # ------------------------------------------------------------------------- pickling
     def __getstate__(self) -> dict:
-        """Pickled without the native episodes: each running copy keeps its state, (m, T_c) and last rates, and a
-        clone builds new episodes from them (same numbers)."""
+        """Pickled without the native episodes: a clone builds them from each running copy's state (same numbers)."""
         state = self.__dict__.copy()
         state["batch"], state["episodes"] = None, [None] * self.n
-        state["_episodes"] = [None if e is None else (e.state(), e.m, e.T_c, e.last_rates, e.totals)
+        state["_episodes"] = [None if e is None else (e.state(), e.m, e.T_c, e.last_rates, e.totals, e.timing)
                               for e in self.episodes]
         return state
 
