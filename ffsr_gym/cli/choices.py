@@ -5,11 +5,12 @@ from __future__ import annotations
 
 def build_targets() -> list[str]:
     """What ``tasks build --tier`` builds: ``base`` (easy, medium and hard together), one perturbed tier, or one
-    capture tier (``--version capture-v0``)."""
+    capture tier (``--version capture-v0``, ``capture-v1``)."""
     from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
+    from ffsr_gym.tasks.capture_timed import TIMED_TIERS
     from ffsr_gym.tasks.perturbation import PERTURBED_TIERS
 
-    return ["base", *PERTURBED_TIERS, *CAPTURE_TIERS]
+    return ["base", *PERTURBED_TIERS, *CAPTURE_TIERS, *TIMED_TIERS]
 
 
 def all_task_tiers() -> list[str]:
@@ -20,10 +21,11 @@ def all_task_tiers() -> list[str]:
 
 
 def capture_tiers() -> list[str]:
-    """The capture family's tiers (``--version capture-v0``)."""
+    """The capture families' tiers (``--version capture-v0``, then ``capture-v1``)."""
     from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
+    from ffsr_gym.tasks.capture_timed import TIMED_TIERS
 
-    return list(CAPTURE_TIERS)
+    return list(CAPTURE_TIERS + TIMED_TIERS)
 
 
 def tier_versions() -> list[str]:

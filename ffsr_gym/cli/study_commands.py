@@ -47,7 +47,8 @@ def add_study_commands(sub: Any) -> None:
     _add_version(tb, "benchmark version whose rule files apply")
     tb.add_argument("--tier", default="base", choices=build_targets(),
                     help="base: the easy, medium and hard pools; debris, robust or servo: that tier, on top of the "
-                         "version's pool file's tier tasks; slow or fast: that capture tier (--version capture-v0) "
+                         "version's pool file's tier tasks; slow or fast: that capture tier (--version capture-v0); sweep or "
+                         "nutation: that capture v1 tier (--version capture-v1) "
                          "(default: base)")
     tb.add_argument("--work", default=None, help="folder of the finished chunks (default: runs/tasks-<version>; "
                                                  "a perturbed tier uses <work>/<tier>)")

@@ -10,9 +10,13 @@ import numpy as np
 
 from ffsr_gym import _native
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.benchmark import action_to_parameters  # noqa: F401 - the environments' mapping, re-exported
+from ffsr_gym.model.benchmark import (
+    CaptureRule,
+    action_to_parameters,  # noqa: F401 - the environments' mapping, re-exported
+)
 from ffsr_gym.model.benchmark import residual_rates as scaled_residual
 from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.scoring.capture import QUANTITIES
 from ffsr_gym.scoring.score import cost_settings
 
 OBS_CLIP = {"rates": 20.0, "errors": 10.0, "relative": 10.0, "clearance": 10.0, "twist": 10.0}
@@ -43,13 +47,19 @@ def assemble_observation(angles: np.ndarray, last_rates: np.ndarray, ee_error: n
     return np.concatenate(parts, axis=-1).astype(np.float32)
 
 
-def observation_bounds(target_twist: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """(low, high) of the observation's box (float32); ``target_twist`` appends the twist's six bounds."""
+def observation_bounds(target_twist: bool = False, grasp: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) of the observation's box (float32); ``target_twist`` appends the twist's six bounds, ``grasp``
+    (with it) the grasp frame's relative position and rotation (6), its twist (6) and the approach's state (5:
+    command u in [0, 2], s and w in [0, 1], their rates clipped as joint rates)."""
+    extra = [np.full(3, OBS_CLIP["relative"]), np.full(3, OBS_CLIP["errors"]), np.full(6, OBS_CLIP["twist"]),
+             [2.0, 1.0, OBS_CLIP["rates"], 1.0, OBS_CLIP["rates"]]] if grasp else []
     high = np.concatenate([np.ones(24), np.full(12, OBS_CLIP["rates"]), np.full(12, OBS_CLIP["errors"]),
                            np.full(3, OBS_CLIP["relative"]), [OBS_CLIP["clearance"]], [1.0],
-                           np.full(6 if target_twist else 0, OBS_CLIP["twist"])]).astype(np.float32)
+                           np.full(6 if target_twist or grasp else 0, OBS_CLIP["twist"]), *extra]).astype(np.float32)
     low = -high
     low[52] = 0.0
+    if grasp:
+        low[[71, 72, 74]] = 0.0  # u, s, w
     return low, high
 
 
@@ -108,10 +118,11 @@ def residual_rates(action: np.ndarray, task: Scenario, rule: Any, fades: bool, t
     return rule.benchmark.residual_fade(t, task.desired_path.motion_time_s) * rates
 
 
-def decision_settings(task: Scenario, rule: Any, fades: bool) -> _native.DecisionSettings:
+def decision_settings(task: Scenario, rule: Any, fades: bool, command: bool = False) -> _native.DecisionSettings:
     """The native decision's settings of a task under a score rule: the residual's scale and fade, the (m, T_c)
-    action box, the rate limit, the violation cost's clearance scale, the smoothness cost's settings, and what the
-    episode's score totals need (the paper objective's danger rate, the end-effector position tolerance).
+    action box, whether the action's last entry commands the approach (``command``), the rate limit, the violation
+    cost's clearance scale, the smoothness cost's settings, and what the episode's score totals need (the paper
+    objective's danger rate, the end-effector position tolerance).
 
     Without a fade the residual's weight stays 1 (the fade starts at +inf). A rule whose increment
     and cost are not the kernel's (``compiled_terms`` False) gets neutral score settings: its terms
@@ -123,6 +134,7 @@ def decision_settings(task: Scenario, rule: Any, fades: bool) -> _native.Decisio
     settings.fade_s, settings.motion_s = ((benchmark.action.residual_fade_s, task.desired_path.motion_time_s) if fades
                                           else (1.0, np.inf))
     settings.rate_scale = float(np.radians(task.env.residual_rate_deg_s))
+    settings.command_action = bool(command)
     settings.rate_limit_deg_s = task.objective.max_rate_deg_s
     settings.clear_scale = benchmark.action.cost_clearance_scale_m if rule.compiled_terms else 1.0
     settings.danger_rate_deg_s = task.objective.danger_rate_deg_s  # the episode's totals (paper_B, convergence)
@@ -131,3 +143,9 @@ def decision_settings(task: Scenario, rule: Any, fades: bool) -> _native.Decisio
         return cost_settings(benchmark.score, settings)
     settings.alpha, settings.beta, settings.E_ref, settings.V_ref = 0.0, 0.0, 1.0, 1.0
     return settings
+
+
+def judge_capture(episode: _native.Episode, rule: CaptureRule) -> None:
+    """Have a native episode judge capture under ``rule`` (a rule file's ``[capture]``) sample by sample, read the
+    speed of first contact, and end at the capture (capture v1)."""
+    episode.judge_capture(np.array([getattr(rule, name) for name in QUANTITIES]), rule.hold_s, rule.contact_m, True)

@@ -23,6 +23,7 @@ import numpy as np
 from ffsr_gym import _native
 from ffsr_gym.environments import actions as act
 from ffsr_gym.environments import info as info_contract
+from ffsr_gym.environments.engine_pickle import PicklableEngine
 from ffsr_gym.environments.task_source import TaskSource
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.kernel import layout
@@ -44,7 +45,7 @@ def _scalars(n: int, kind: type, single: bool) -> Any:
     return [0 if kind is np.int64 else 0.0] if single else np.zeros(n, dtype=kind)
 
 
-class EpisodeEngine:
+class EpisodeEngine(PicklableEngine):
     """``copies`` episodes of ``source``'s tasks under one spec's rule (see the module docstring).
 
     Per-copy state lives in stacked arrays (row i = copy i); ``obs`` (N, 53) float32 holds each
@@ -64,14 +65,16 @@ class EpisodeEngine:
         family = source.family
         self.dt, self.n_steps = family.simulation.dt_s, family.n_steps
         self.steps_per_decision = max(1, int(round(family.env.decision_interval_s / self.dt)))
-        self.action_shape = (12 if residual else 2,)
-        if backend not in BACKENDS:
-            raise InvalidInputError(f"backend {backend!r}; allowed: {list(BACKENDS)}")
+        self.grasp = self.spec.grasp_observation  # capture v1: the command in the action, the grasp frame shown
+        self.action_shape = ((12 if residual else 2) + int(self.spec.actions.command),)
+        if backend not in BACKENDS or (self.grasp and backend == "pinocchio"):
+            raise InvalidInputError(f"backend {backend!r}; allowed: {list(BACKENDS[:2] if self.grasp else BACKENDS)}"
+                                    + (f" ({self.spec.version} is stepped by the native kernel)" if self.grasp else ""))
         self.compiled = backend in ("kernel", "auto")
         N = self.n
         copies = f"{N} environment cop{'ies' if N != 1 else 'y'} of {family.name}"
         rule = self.rule
-        self.record = bool(record) or not rule.compiled_terms or rule.benchmark.capture is not None
+        self.record = bool(record) or not rule.compiled_terms or (rule.benchmark.capture is not None and not self.grasp)
         check_run(steps=self.n_steps, copies=N, steps_per_decision=self.steps_per_decision,
                   substeps=max(1, family.physics_substeps), what=copies, trajectories=self.record)
         self.single = N == 1 and not batched  # stepped by step_one (else by step_copies)
@@ -79,7 +82,8 @@ class EpisodeEngine:
         self.rollouts: list[Rollout | None] = [None] * N
         self.results: list[Any] = [None] * N  # each copy's last finished episode's result (the rule's)
         self.twist = self.spec.target_twist  # the observation ends with the desired twist (a capture spec)
-        self.obs = np.zeros((N, layout.N_OBS_TWIST if self.twist else layout.N_OBS), dtype=np.float32)
+        width = layout.N_OBS_GRASP if self.grasp else layout.N_OBS_TWIST if self.twist else layout.N_OBS
+        self.obs = np.zeros((N, width), dtype=np.float32)
         self._obs0 = self.obs[0]  # copy 0's row (the single env's compiled step writes it)
         self._mode = layout.MODE_RESIDUAL if residual else layout.MODE_PARAMETERS
         self._no_action = np.zeros(2)  # the action of a decision with (m, T_c) already set
@@ -128,7 +132,8 @@ class EpisodeEngine:
 
     def _load_copy(self, i: int, scenario: Scenario, state: tuple | None = None) -> None:
         """Copy ``i``'s new episode: its rollout and its native episode, both on copy ``i``'s rows of the logs.
-        ``state``: (x (40), m, T_c [s], last rates (12), score totals, approach state (5)) to continue from."""
+        ``state``: (x (40), m, T_c [s], last rates (12), score totals, approach state (5), capture judge) to continue
+        from."""
         if scenario.n_steps != self.n_steps or scenario.simulation.dt_s != self.dt:
             raise FFSRError("a task changed dt_s or duration_s; the copies need them fixed")
         views = {key: rows[i] for key, rows in self.logs.items()} if self.record else None
@@ -137,12 +142,17 @@ class EpisodeEngine:
         if state is not None:
             x, (rollout.settings.m, rollout.settings.T_c) = state[0], state[1:3]
         episode = _native.Episode(rollout.setup.assets.native, rollout.settings,
-                                  act.decision_settings(scenario, self.rule, self.spec.actions.residual_fades), x,
+                                  act.decision_settings(scenario, self.rule, self.spec.actions.residual_fades,
+                                                        self.grasp), x,
                                   self.n_steps, plant=rollout.setup.native_plant, logs=views)
         if rollout.timing is not None:  # a custom task's commanded approach (docs/model.md §23): its own command
             episode.timing = rollout.timing if state is None else state[5]
+        if self.grasp:  # capture v1: judged as it runs, and ended at the capture
+            act.judge_capture(episode, self.rule.benchmark.capture)
         if state is not None:
             episode.last_rates, episode.totals = state[3], state[4]
+            if self.grasp:
+                episode.capture_state = state[6]
         self.rollouts[i], self.episodes[i] = rollout, episode
         if self.batch is not None:
             self.batch.set(i, episode)
@@ -173,13 +183,14 @@ class EpisodeEngine:
                                        and action.shape == self.action_shape and action.flags.c_contiguous):
             action, was_clipped = act.check_action(action, self.action_shape)
             clipped = int(was_clipped)
+        started = self.K[0] * self.dt
         if self.compiled:
             status, increment, cost = self._decide_one(action, parameters)
             obs = self._obs0.copy()
         else:
             status, increment, cost, obs = self._advance_one(action, parameters)
         self.clipped[0] += clipped
-        return self._finish_one(status, increment, cost, obs)
+        return self._finish_one(status, increment, cost, obs, started)
 
     def _decide_one(self, action: np.ndarray, parameters: tuple[float, float] | None) -> tuple[int, float, float]:
         """The compiled decision of copy 0."""
@@ -231,8 +242,9 @@ class EpisodeEngine:
         """The desired end-effector twist V_ed at the rollout's time (a capture spec's observation; else None)."""
         return rollout.setup.path.at(rollout.t)[2] if self.twist else None
 
-    def _finish_one(self, status: int, increment: float, cost: float, obs: np.ndarray) -> tuple:
-        """Episode end (the rule's result of the whole trajectory), reward, shaping and info."""
+    def _finish_one(self, status: int, increment: float, cost: float, obs: np.ndarray, started: float) -> tuple:
+        """Episode end (the rule's result of the whole trajectory), reward, shaping and info (``started``: the
+        decision's start [s])."""
         terminated = bool(status != 0)
         truncated = bool(not terminated and self.K[0] >= self.n_steps)
         info: dict[str, Any] = dict(self._blank)
@@ -241,11 +253,11 @@ class EpisodeEngine:
                      "clipped_actions": int(self.clipped[0])})
         result = None
         if terminated or truncated:
-            result = self.end_copy(0)
+            result = self.end_copy(0, captured=status == layout.STATUS_CAPTURED)
             info.update(info_contract.end_values(self.rule, result), episode_end=True)
         before = float(self.cost_so_far[0])
         reward, penalty = self.rule.reward(before, increment, result, terminated=terminated, truncated=truncated,
-                                           scenario=self.scenarios[0])
+                                           scenario=self.scenarios[0], started_s=started)
         self.cost_so_far[0] = before + increment
         info["penalty"] = float(penalty)
         if self.rule.shaping:
@@ -291,7 +303,8 @@ class EpisodeEngine:
         truncated = active & ~terminated & (self.K >= self.n_steps)
         increments, costs = self._batch_terms(active, start, rows, terminated)
         self.clearance[:], self.ee_error[:] = out[:, 5], out[:, 6]
-        return self._batch_rewards(active, terminated, truncated, increments, costs)
+        return self._batch_rewards(active, terminated, truncated, increments, costs, start,
+                                   status == layout.STATUS_CAPTURED)
 
     def _batch_terms(self, active: np.ndarray, start: np.ndarray, rows: np.ndarray,
                      terminated: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -305,10 +318,10 @@ class EpisodeEngine:
         return increments, terminated.astype(float)
 
     def _batch_rewards(self, active: np.ndarray, terminated: np.ndarray, truncated: np.ndarray, increments: np.ndarray,
-                       costs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
-        """Rewards, shaping and info of a batched decision; ends score their whole trajectory."""
+                       costs: np.ndarray, start: np.ndarray, captured: np.ndarray) -> tuple:
+        """Rewards, shaping and info of a batched decision (from steps ``start``); ends score their whole episode."""
         N, ended = self.n, terminated | truncated
-        results = {int(i): self.end_copy(int(i)) for i in np.flatnonzero(ended)}
+        results = {int(i): self.end_copy(int(i), captured=bool(captured[i])) for i in np.flatnonzero(ended)}
         info = info_contract.blank(self.rule, N)
         info["task_index"][:], info["task_seed"][:], info["episode_end"][:] = self.task_index, self.task_seed, ended
         for i, result in results.items():
@@ -318,7 +331,8 @@ class EpisodeEngine:
         rewards, penalties = np.where(active, self.rule.running_rewards(before, increments), 0.0), np.zeros(N)
         for i, result in results.items():
             rewards[i], penalties[i] = self.rule.reward(before[i], increments[i], result, terminated=bool(terminated[i]),
-                                                        truncated=bool(truncated[i]), scenario=self.scenarios[i])
+                                                        truncated=bool(truncated[i]), scenario=self.scenarios[i],
+                                                        started_s=start[i] * self.dt)
         self.cost_so_far = np.where(active, before + increments, before)
         info[self.rule.increment_key][:], info["penalty"][:] = increments, penalties
         if self.rule.shaping:
@@ -348,16 +362,18 @@ class EpisodeEngine:
         for i in chosen:
             self.episodes[i].set_parameters(m, T_c)
 
-    def end_copy(self, i: int) -> Any:
-        """Record copy ``i``'s final sample and score its episode with the rule: from its trajectory, or from its
-        native episode's totals when it keeps none (the same numbers)."""
+    def end_copy(self, i: int, captured: bool = False) -> Any:
+        """Record copy ``i``'s final sample (``captured``: its last row already is) and score its episode with the
+        rule: from its trajectory, or from its native episode's totals when it keeps none (the same numbers)."""
         rollout, episode = self.rollout(i), self.episodes[i] if self.compiled else None
         if episode is not None and not rollout.finished:
-            episode.finish(int(self.K[i]))
-            rollout.rows, rollout.finished = rollout.rows + 1, True
+            if not captured:
+                episode.finish(int(self.K[i]))
+            rollout.rows, rollout.finished = rollout.rows + (not captured), True
         rollout.finish()  # the reference pipeline's
-        self.results[i] = (self.rule.result(rollout.trajectory(), self.scenarios[i]) if self.record
-                           else self.rule.result_of_totals(episode.totals, self.scenarios[i]))
+        scenario = self.scenarios[i]
+        self.results[i] = (self.rule.result(rollout.trajectory(), scenario) if self.record
+                           else self.rule.result_of_totals(episode.totals, scenario, *([episode.capture] * self.grasp)))
         return self.results[i]
 
     def rollout(self, i: int) -> Rollout:
@@ -380,21 +396,3 @@ class EpisodeEngine:
     def finished(self, i: int) -> bool:
         """Whether copy ``i``'s episode has ended."""
         return self.rollouts[i] is not None and self.rollouts[i].finished
-
-    # ------------------------------------------------------------------------- pickling
-    def __getstate__(self) -> dict:
-        """Pickled without the native episodes: a clone builds them from each running copy's state (same numbers)."""
-        state = self.__dict__.copy()
-        state["batch"], state["episodes"] = None, [None] * self.n
-        state["_episodes"] = [None if e is None else (e.state(), e.m, e.T_c, e.last_rates, e.totals, e.timing)
-                              for e in self.episodes]
-        return state
-
-    def __setstate__(self, state: dict) -> None:
-        saved = state.pop("_episodes")
-        self.__dict__.update(state)
-        for i, episode in enumerate(saved):
-            if episode is not None and not self.rollouts[i].finished:
-                self._load_copy(i, self.scenarios[i], episode)
-            elif self.rollouts[i] is not None and self.logs is not None:
-                self.rollouts[i]._log = {key: rows[i] for key, rows in self.logs.items()}

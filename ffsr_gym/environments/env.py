@@ -111,7 +111,8 @@ class FFSREnv(gym.Env):
                                     terminate_on_violation=options.get("terminate_on_violation", True),
                                     dense_shaping=options.get("dense_shaping", False))
         self.action_space = gym.spaces.Box(-1.0, 1.0, self.engine.action_shape, np.float32)
-        self.observation_space = gym.spaces.Box(*observation_bounds(spec.target_twist), dtype=np.float32)
+        self.observation_space = gym.spaces.Box(*observation_bounds(spec.target_twist, spec.grasp_observation),
+                                                dtype=np.float32)
         self.family = self.scenario = self.source.family
         self.benchmark = rule.benchmark
         self.task_name, self.split, self.pool = self.source.name, self.source.split, self.source.pool

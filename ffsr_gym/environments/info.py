@@ -38,7 +38,10 @@ MEANING = {
                         "5 no_capture (ffsr_gym.failure_name)"),
     "capture_time_s": ("s", "when episode_end: when the first hold window ended (0 before, and without a capture)"),
     "capture_ratio": ("1", "when episode_end: the factor by which every capture tolerance could shrink and the "
-                           "episode still capture (> 1: no capture; inf: cut short; 0 before)"),
+                           "episode still capture (> 1: no capture; inf: cut short; 0 before; capture-v1: up to "
+                           "its capture, where the episode ends)"),
+    "contact_speed_m_s": ("m/s", "when episode_end: the tool's speed relative to the grasp frame when it first came "
+                                 "within the rule's contact distance (0 before, and without a contact)"),
     "smoothness_cost": ("1", "when episode_end: C (0 before)"),
     "paper_B": ("1", "when episode_end: the paper's B, inf when a rate exceeds the limit (0 before)"),
     "objective": ("1", "when episode_end: the paper's B, inf when infeasible (0 before)"),

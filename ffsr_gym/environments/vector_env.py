@@ -126,7 +126,8 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
             raise InvalidInputError(f"max_episode_steps = {max_episode_steps}; episodes have {decisions} decisions here "
                                     "(they end at the task's simulation.duration_s)")
         self.single_action_space = gym.spaces.Box(-1.0, 1.0, self.engine.action_shape, np.float32)
-        self.single_observation_space = gym.spaces.Box(*observation_bounds(self.source.spec.target_twist),
+        spec = self.source.spec
+        self.single_observation_space = gym.spaces.Box(*observation_bounds(spec.target_twist, spec.grasp_observation),
                                                        dtype=np.float32)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)

@@ -22,10 +22,12 @@ N_DRIVE = 4
 LOG_FIELDS = {"x": (19,), "v": (18,), "dq": (12,), "err": (4,), "clear": (), "self": (), "mu": (2,), "cdf": (2,),
               "smin": (2,), "tau": (12,)}
 
-#: Status of a run or a decision: running, a rate above the limit, a collision, non-finite planned rates, and (a
-#: decision only) a NaN or infinite action, which does nothing.
-STATUS_OK, STATUS_RATE, STATUS_COLLISION, STATUS_NONFINITE, STATUS_BAD_ACTION = range(5)
+#: Status of a run or a decision: running, a rate above the limit, a collision, non-finite planned rates, (a
+#: decision only) a NaN or infinite action, which does nothing, and a capture that ended the episode (a judge that
+#: stops at capture, capture v1: the last row is the episode's final sample).
+STATUS_OK, STATUS_RATE, STATUS_COLLISION, STATUS_NONFINITE, STATUS_BAD_ACTION, STATUS_CAPTURED = range(6)
 #: What a decision's action is: residual rates, (m, T_c) in the action box, or ignored ((m, T_c) already set).
 MODE_RESIDUAL, MODE_PARAMETERS, MODE_SET = 0, 1, 2
-#: The observation's length, and with the desired end-effector twist appended (a capture spec's ``[observation]``).
-N_OBS, N_OBS_TWIST = 53, 59
+#: The observation's length, with the desired end-effector twist appended (a capture spec's ``[observation]``), and
+#: with the grasp frame's relative pose and twist and the approach's state after that (``grasp``, capture v1).
+N_OBS, N_OBS_TWIST, N_OBS_GRASP = 53, 59, 76

@@ -34,14 +34,16 @@ from ffsr_gym.model.schema import (
     load_table,
     natural,
     number,
+    rows,
     section,
     vector,
 )
 
 #: The ranked rule files shipped (the newest last: scripts default to it).
 VERSIONS = ("v2",)
-#: The capture family's rule files (beyond the paper; docs/model.md §22), loaded by the same :func:`load_benchmark`.
-CAPTURE_VERSIONS = ("capture-v0",)
+#: The capture families' rule files (beyond the paper; docs/model.md §22, §23), loaded by the same
+#: :func:`load_benchmark`.
+CAPTURE_VERSIONS = ("capture-v0", "capture-v1")
 
 
 @dataclass(frozen=True)
@@ -117,6 +119,34 @@ class CaptureRule:
     linear_velocity_m_s: float = field(metadata=number(0.0, 10.0, lo_open=True))
     angular_velocity_rad_s: float = field(metadata=number(0.0, 10.0, lo_open=True))
     hold_s: float = field(metadata=number(0.0, 60.0))
+    contact_m: float = field(default=0.0, metadata=number(0.0, 1.0))
+
+
+@dataclass(frozen=True)
+class CaptureQuality:
+    """What a capture is worth (``[quality]``, capture v1; docs/model.md §23): on capture, the score is
+    ``time_weight`` (1 − t_capture / T) + ``contact_weight`` / (1 + v_contact / ``contact_speed_ref_m_s``)
+    + ``smoothness_weight`` / (1 + C), with T the episode's duration, v_contact [m/s] the relative speed when the
+    tool first comes within ``[capture] contact_m`` of the grasp frame and C v2's smoothness cost up to the
+    capture; 0 without one. The weights sum to 1, so the score lies in [0, 1]."""
+
+    time_weight: float = field(metadata=number(0.0, 1.0))
+    contact_weight: float = field(metadata=number(0.0, 1.0))
+    smoothness_weight: float = field(metadata=number(0.0, 1.0))
+    contact_speed_ref_m_s: float = field(metadata=number(0.0, 10.0, lo_open=True))
+
+
+@dataclass(frozen=True)
+class SpinTier:
+    """A capture v1 tier's body and spin (``[tasks.capture_draw.<tier>]``): the spin rate [deg/s] and the spin
+    axis' angle from the grasp axis [deg], drawn uniformly; an ``axisymmetric`` body has its two edges across the
+    grasp axis equal (the handle precesses regularly: a steady sweep); otherwise its principal moments differ
+    pairwise by at least ``min_inertia_spread`` of the largest (torque-free nutation)."""
+
+    spin_deg_s: Vec = field(metadata=interval(0.0, 90.0))
+    spin_tilt_deg: Vec = field(metadata=interval(0.0, 180.0))
+    axisymmetric: bool = field(metadata=BOOL)
+    min_inertia_spread: float = field(default=0.0, metadata=number(0.0, 0.9))
 
 
 @dataclass(frozen=True)
@@ -145,6 +175,21 @@ class CaptureDraw:
     min_start_clearance_m: float = field(metadata=number(0.0, 10.0))
     min_target_clearance_m: float = field(metadata=number(0.0, 10.0))
     max_attempts: float = field(default=500, metadata=count(1, MAX_DRAW_ATTEMPTS))
+    reach_time_s: Vec = field(default=(0.0, 0.0), metadata=interval(0.0, 3600.0))
+    sweep: SpinTier | None = field(default=None, metadata=section(SpinTier))
+    nutation: SpinTier | None = field(default=None, metadata=section(SpinTier))
+
+    def spin_tier(self, tier: str) -> SpinTier:
+        """Capture v1's ``tier`` (``sweep`` or ``nutation``).
+
+        Raises:
+            ScenarioError: this draw has no such section.
+        """
+        found = getattr(self, tier, None) if tier in ("sweep", "nutation") else None
+        if not isinstance(found, SpinTier):
+            raise ScenarioError(f"[tasks.capture_draw] has no [tasks.capture_draw.{tier}]; allowed: a capture v1 "
+                                "rule file's sweep and nutation")
+        return found
 
 
 @dataclass(frozen=True)
@@ -168,10 +213,11 @@ class TaskRule:
     arm within ``min_balance_sigma`` of a dynamic singularity, or brings the arms closer than
     ``min_nominal_self_clearance_m``. The rest are tiered: easy (the default planner succeeds),
     medium (a constant (m, T_c) of the grid does), hard (none does, a residual of
-    ``residual_trials`` seeded draws does), else rejected as unsolved.
+    ``residual_trials`` seeded draws does), else rejected as unsolved. Capture v1 (family ``capture_timed``)
+    certifies a timing: ``go_s`` lists the moments [s] at which a certificate may command the insertion.
     """
 
-    family: str = field(metadata=choice("random", "capture"))
+    family: str = field(metadata=choice("random", "capture", "capture_timed"))
     min_balance_sigma: float = field(metadata=number(0.0, 100.0))
     min_nominal_self_clearance_m: float = field(metadata=number(-1.0, 1.0))
     grid_m: tuple[float, ...] = field(metadata=vector(6, 0.0, 1.0))
@@ -184,6 +230,7 @@ class TaskRule:
     ensemble: Ensemble | None = field(default=None, metadata=section(Ensemble))
     capture_draw: CaptureDraw | None = field(default=None, metadata=section(CaptureDraw))
     min_mission_sigma: float = field(default=0.0, metadata=number(0.0, 100.0))
+    go_s: tuple[float, ...] = field(default=(), metadata=rows(0, 0.0, 3600.0, 64))
 
     @property
     def splits(self) -> tuple[str, ...]:
@@ -206,6 +253,7 @@ class Benchmark:
     action: ActionSettings = field(metadata=section(ActionSettings))
     tasks: TaskRule = field(metadata=section(TaskRule))
     capture: CaptureRule | None = field(default=None, metadata=section(CaptureRule))
+    quality: CaptureQuality | None = field(default=None, metadata=section(CaptureQuality))
 
     def task(self, scenario: Scenario) -> Scenario:
         """``scenario`` with this version's planner defaults, tolerances, rate limit and action box.
@@ -271,4 +319,12 @@ def load_rules(path: Path) -> Benchmark:
     """
     bench = load_table(Benchmark, path)
     check_action_bounds(bench.action.m_bounds, bench.action.T_c_bounds_s, section="action", where=f"{path}: ")
+    quality = bench.quality
+    if quality is not None:
+        total = quality.time_weight + quality.contact_weight + quality.smoothness_weight
+        if abs(total - 1.0) > 1e-9:
+            raise ScenarioError(f"{path}: keys 'quality.time_weight', 'quality.contact_weight' and "
+                                f"'quality.smoothness_weight' sum to {total!r}; allowed: 1")
+        if bench.capture is None or bench.capture.contact_m <= 0.0:
+            raise ScenarioError(f"{path}: section 'quality' needs 'capture.contact_m' > 0 (where contact is read)")
     return bench

@@ -22,9 +22,9 @@ from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.schema import BOOL, TEXT, TEXTS, choice, integer, load_table, natural, number, rows, section
 
 #: Score rules the engine knows (``ffsr_gym.scoring.rules``): the paper's objective B (lower is
-#: better, +inf when infeasible), the bounded episode score 1 / (1 + C) (higher is better) and the same
-#: with success a capture of a tumbling target.
-SCORE_RULES = ("paper_objective", "bounded_smoothness", "capture_smoothness")
+#: better, +inf when infeasible), the bounded episode score 1 / (1 + C) (higher is better), the same
+#: with success a capture of a tumbling target, and a capture's worth (time, contact speed, smoothness).
+SCORE_RULES = ("paper_objective", "bounded_smoothness", "capture_smoothness", "capture_quality")
 #: Rankings the leaderboard renderer knows: by feasible rate then IQM (ascending), or by IQM with
 #: ranks that only a non-overlapping bootstrap CI separates.
 RANKINGS = ("feasible_then_iqm", "ci_separation")
@@ -53,10 +53,13 @@ class ScoreSpec:
 
 @dataclass(frozen=True)
 class ActionSpec:
-    """Where the action boxes come from (the scenario's [env] or the rule file's [action]) and the residual law."""
+    """Where the action boxes come from (the scenario's [env] or the rule file's [action]), the residual law, and
+    whether the action ends with the commanded approach's command (``command``: one more entry a in [-1, 1],
+    u = a + 1; docs/model.md §23)."""
 
     boxes: str = field(metadata=choice("scenario", "rules"))
     residual_fades: bool = field(metadata=BOOL)
+    command: bool = field(default=False, metadata=BOOL)
 
 
 @dataclass(frozen=True)
@@ -83,9 +86,12 @@ class TaskSpec:
 @dataclass(frozen=True)
 class ObservationSpec:
     """What the observation holds besides v2's 53 floats: with ``target_twist``, the desired end-effector twist (6)
-    of the planner's step (a moving target's motion; ``ffsr_gym.kernel.decision``)."""
+    of the planner's step (a moving target's motion; ``ffsr_gym.kernel.decision``); with ``grasp`` (and
+    ``target_twist``) then the grasp frame relative to the end-effector (6), its twist (6) and the commanded
+    approach's state (5): 76 floats."""
 
     target_twist: bool = field(default=False, metadata=BOOL)
+    grasp: bool = field(default=False, metadata=BOOL)
 
 
 @dataclass(frozen=True)
@@ -156,6 +162,11 @@ class BenchmarkSpec:
         return self.observation is not None and self.observation.target_twist
 
     @property
+    def grasp_observation(self) -> bool:
+        """Whether the observation shows the grasp frame and the approach's state (``[observation] grasp``)."""
+        return self.observation is not None and self.observation.grasp
+
+    @property
     def env_ids(self) -> tuple[str, str]:
         """(parameters id, residual id)."""
         return self.ids.parameters, self.ids.residual
@@ -210,7 +221,7 @@ def read_spec(path: str | Path) -> BenchmarkSpec:
 
 def _check(spec: BenchmarkSpec, path: Path) -> None:
     """Cross-field rules of a spec (each error names the key)."""
-    if spec.score.rule in ("bounded_smoothness", "capture_smoothness") and not spec.score.rules_file:
+    if spec.score.rule in ("bounded_smoothness", "capture_smoothness", "capture_quality") and not spec.score.rules_file:
         raise ScenarioError(f"{path}: key 'score.rules_file' is empty; the rule {spec.score.rule!r} needs a rule file")
     if spec.actions.boxes == "rules" and not spec.score.rules_file:
         raise ScenarioError(f"{path}: key 'actions.boxes' = 'rules' needs 'score.rules_file'")
@@ -226,9 +237,18 @@ def _check(spec: BenchmarkSpec, path: Path) -> None:
         raise ScenarioError(f"{path}: keys 'ids.parameters' and 'ids.residual' must differ")
     if spec.score.rules_file:
         spec.rules  # noqa: B018 - loads and validates the rule file now, naming it on error
-    if (spec.score.rule == "capture_smoothness") != (spec.score.rules_file != "" and spec.rules.capture is not None):
+    rules = spec.rules if spec.score.rules_file else None
+    if (spec.score.rule == "capture_quality") != (rules is not None and rules.quality is not None):
         raise ScenarioError(f"{path}: key 'score.rule' = {spec.score.rule!r} with rule file {spec.score.rules_file!r}; "
-                            "allowed: 'capture_smoothness' exactly when the rule file has a [capture] section")
+                            "allowed: 'capture_quality' exactly when the rule file has a [quality] section")
+    if (spec.score.rule == "capture_smoothness") != (rules is not None and rules.capture is not None
+                                                     and rules.quality is None):
+        raise ScenarioError(f"{path}: key 'score.rule' = {spec.score.rule!r} with rule file {spec.score.rules_file!r}; "
+                            "allowed: 'capture_smoothness' exactly when the rule file has a [capture] section and "
+                            "no [quality]")
+    if spec.grasp_observation != spec.actions.command or (spec.grasp_observation and not spec.target_twist):
+        raise ScenarioError(f"{path}: keys 'actions.command' and 'observation.grasp' go together (with "
+                            "'observation.target_twist'): a method that commands the approach sees its state")
 
 
 def shipped_spec_paths() -> list[Path]:

@@ -39,12 +39,17 @@ class Capture:
             captures with every tolerance scaled by this factor and by no smaller one (<= 1 exactly when
             captured). The first window starts as soon as the quantities enter the bounds, so its own worst ratio
             is about 1 by construction; this is the margin a certificate keeps.
+        sample: the sample that ended the first window (-1: never; the native judge's).
+        contact_speed_m_s: the relative linear speed [m/s] at the first sample within the rule's ``contact_m`` of
+            the grasp frame (NaN: none, or a rule without it; the native judge's).
     """
 
     captured: bool
     time_s: float
     worst_ratio: Array
     margin_ratio: float = math.inf
+    sample: int = -1
+    contact_speed_m_s: float = math.nan
 
 
 def relative_motion(ee_position_m: Array, ee_quaternion: Array, ee_twist: Array, grasp_position_m: Array,
@@ -135,14 +140,15 @@ def native_capture(setup: ScenarioSetup, trajectory: Trajectory, rule: CaptureRu
     v[:, :6], v[:, 6:] = trajectory.v[:, :6], trajectory.v[:, model.v_index]
     settings = planner_settings(setup, method="predefined_time", m=scenario.planner.m, T_c=scenario.planner.T_c_s)
     judged = _native.capture_of(setup.assets.native, settings, x, v, np.array([getattr(rule, q) for q in QUANTITIES]),
-                                rule.hold_s)
+                                rule.hold_s, rule.contact_m)
     return capture_of_judge(judged, dt)
 
 
 def capture_of_judge(judged: dict, dt_s: float) -> Capture:
     """The :class:`Capture` of a native judge's dict (``_native.capture_of``, ``Episode.capture``) at step ``dt_s``."""
-    at = int(judged["captured_at"])
+    at, contact = int(judged["captured_at"]), float(judged.get("contact_speed", math.nan))
     if at < 0:
-        return Capture(False, float("nan"), np.full(len(QUANTITIES), np.nan), float(judged["margin"]))
-    return Capture(True, at * dt_s, np.asarray(judged["worst"], dtype=float), float(judged["margin"]))
+        return Capture(False, float("nan"), np.full(len(QUANTITIES), np.nan), float(judged["margin"]),
+                       contact_speed_m_s=contact)
+    return Capture(True, at * dt_s, np.asarray(judged["worst"], dtype=float), float(judged["margin"]), at, contact)
 

@@ -11,6 +11,8 @@ code path computes every version's score:
 * ``bounded_smoothness`` (v2): 1 / (1 + C) on success (:mod:`ffsr_gym.scoring.score`) from the
   spec's rule file; reward = the change of the episode's value.
 * ``capture_smoothness`` (capture-v0): the same, with success a capture of the tumbling target's grasp frame.
+* ``capture_quality`` (capture-v1): a capture's worth (time, contact speed, smoothness); the episode ends at the
+  capture; reward = the change of the episode's value.
 """
 
 from __future__ import annotations
@@ -25,9 +27,10 @@ import numpy as np
 from ffsr_gym import _native
 from ffsr_gym.exceptions import ScenarioError
 from ffsr_gym.model.benchmark import Benchmark
-from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.model.scenario import Scenario, load_scenario
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.scoring.aggregate import bootstrap_ci, iqm
+from ffsr_gym.scoring.capture import capture_of_judge
 from ffsr_gym.scoring.objective import ObjectiveTerms, objective_terms, rate_terms, smooth_part
 from ffsr_gym.scoring.score import (
     EpisodeScore,
@@ -80,8 +83,9 @@ class PaperObjective:
         return terms
 
     def reward(self, cost_before: float, increment: float, result: ObjectiveTerms | None, *, terminated: bool,
-               truncated: bool, scenario: Scenario) -> tuple[float, float]:
-        """(reward, penalty): −increment − penalty; a violation and a missed final tolerance are penalised."""
+               truncated: bool, scenario: Scenario, started_s: float = 0.0) -> tuple[float, float]:
+        """(reward, penalty): −increment − penalty; a violation and a missed final tolerance are penalised
+        (``started_s``, the decision's start [s], is not needed)."""
         env = scenario.env
         penalty = env.violation_penalty if terminated else 0.0
         if truncated and result is not None and not result.final_errors_ok:
@@ -165,8 +169,8 @@ class BoundedSmoothness:
         return result
 
     def reward(self, cost_before: float, increment: float, result: EpisodeScore | None, *, terminated: bool,
-               truncated: bool, scenario: Scenario) -> tuple[float, float]:
-        """(reward, penalty) of :func:`ffsr_gym.scoring.score.score_reward`."""
+               truncated: bool, scenario: Scenario, started_s: float = 0.0) -> tuple[float, float]:
+        """(reward, penalty) of :func:`ffsr_gym.scoring.score.score_reward` (``started_s`` is not needed)."""
         return score_reward(cost_before, cost_before + increment, result)
 
     @staticmethod
@@ -205,6 +209,65 @@ class CaptureSmoothness(BoundedSmoothness):
                                 f"section; {spec.score.rules_file!r} has none")
 
 
+class CaptureQuality(CaptureSmoothness):
+    """A capture's worth (a rule file with ``[quality]``; ``FFSR-Capture-v1``; docs/model.md §23): on capture,
+    w_t (1 − t / T) + w_v / (1 + v_contact / v_ref) + w_s / (1 + C) (:func:`~ffsr_gym.scoring.score.quality_terms`),
+    0 otherwise. The episode ends at its capture (an environment episode there, a longer trajectory is scored up
+    to it).
+
+    The reward is the change of the episode's value V(t, C) = w_t (1 − t / T) + w_v + w_s / (1 + C), the score it
+    would get were it captured now with a contact at rest: rewards sum to the score minus 1, a decision costs the
+    time it takes and the smoothness it spends, and a failure loses the whole remaining value (the penalty)."""
+
+    name = "capture_quality"
+    end_keys: dict[str, type] = {**CaptureSmoothness.end_keys, "contact_speed_m_s": float}
+
+    def __init__(self, spec: BenchmarkSpec) -> None:
+        super().__init__(spec)
+        self.quality = self.benchmark.quality
+        family = load_scenario(self.benchmark.tasks.family)
+        self.duration_s, self.interval_s = family.simulation.duration_s, family.env.decision_interval_s
+
+    def result_of_totals(self, totals: _native.ScoreTotals, scenario: Scenario,
+                         capture: dict | None = None) -> EpisodeScore:
+        """:meth:`result` of an environment episode from its totals and its native judge (``capture``:
+        ``Episode.capture``); the same numbers."""
+        if capture is None:
+            raise ScenarioError("a capture v1 episode's result needs its native judge (Episode.capture)")
+        dt = scenario.simulation.dt_s
+        judged = capture_of_judge(capture, dt)
+        result = score_of_totals(totals, scenario, self.benchmark, dt, lambda k: k * dt, judged)
+        return self._complete(result, totals.samples, scenario)
+
+    def _complete(self, result: EpisodeScore, samples: int, scenario: Scenario) -> EpisodeScore:
+        """As v2's, with a capture a complete episode however early it ends."""
+        return result if result.success else super()._complete(result, samples, scenario)
+
+    def value(self, elapsed_s: Any, cost: Any) -> Any:
+        """V(t, C) (floats or arrays)."""
+        q = self.quality
+        return (q.time_weight * (1.0 - elapsed_s / self.duration_s) + q.contact_weight
+                + q.smoothness_weight / (1.0 + cost))
+
+    def reward(self, cost_before: float, increment: float, result: EpisodeScore | None, *, terminated: bool,
+               truncated: bool, scenario: Scenario, started_s: float = 0.0) -> tuple[float, float]:
+        """(reward, penalty): V after − V before while the episode runs; at its end, score − V before, and a
+        failure's penalty V(t_end, C_end) (what it lost)."""
+        before = self.value(started_s, cost_before)
+        if result is None:
+            return self.value(started_s + self.interval_s, cost_before + increment) - before, 0.0
+        ended_s = min(started_s + self.interval_s, self.duration_s)
+        penalty = 0.0 if result.success else self.value(ended_s, cost_before + increment)
+        return result.score - before, penalty
+
+    def running_rewards(self, cost_before: Array, increments: Array) -> Array:
+        """Rewards of decisions that did not end their episodes: each costs one decision's time and its
+        smoothness (the time at which it started does not enter: V is linear in t)."""
+        q = self.quality
+        return (q.smoothness_weight * running_reward(cost_before, cost_before + increments)
+                - q.time_weight * self.interval_s / self.duration_s)
+
+
 def incomplete(samples: int, scenario: Scenario, violated: bool) -> bool:
     """Whether an episode ended before its horizon without a violation (cut short by a wrapper, a time limit
     or a caller): such an episode is never scored as complete. A complete one holds every step's sample
@@ -221,8 +284,8 @@ def _iqm_or_inf(values: Array) -> float:
 
 
 RULES = {PaperObjective.name: PaperObjective, BoundedSmoothness.name: BoundedSmoothness,
-         CaptureSmoothness.name: CaptureSmoothness}
-ScoreRule = PaperObjective | BoundedSmoothness | CaptureSmoothness
+         CaptureSmoothness.name: CaptureSmoothness, CaptureQuality.name: CaptureQuality}
+ScoreRule = PaperObjective | BoundedSmoothness | CaptureSmoothness | CaptureQuality
 
 
 def score_rule(spec: BenchmarkSpec) -> ScoreRule:

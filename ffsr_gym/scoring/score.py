@@ -29,7 +29,7 @@ from ffsr_gym import _native
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.benchmark import Benchmark, ScoreSettings
 from ffsr_gym.model.scenario import ObjectiveSettings, Scenario
-from ffsr_gym.scoring.capture import Capture, capture, episode_relative_motion
+from ffsr_gym.scoring.capture import Capture, capture, episode_relative_motion, native_capture
 from ffsr_gym.scoring.objective import smooth_part
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.sim.trajectory import Trajectory
@@ -130,6 +130,10 @@ class EpisodeScore:
         capture_ratio: under a capture rule, the factor by which every capture tolerance could shrink and the
             episode still capture (:attr:`~ffsr_gym.scoring.capture.Capture.margin_ratio`; > 1: no capture;
             None: no rule).
+        contact_speed_m_s: under a rule with ``[quality]`` (capture v1), the relative speed [m/s] when the tool
+            first came within ``contact_m`` of the grasp frame (None: never).
+        quality_terms: under such a rule, the score's three terms (time, contact, smoothness: each weight times
+            its factor; zeros without a capture), which sum to ``score``; None without one.
     """
 
     score: float
@@ -147,12 +151,19 @@ class EpisodeScore:
     convergence_time_s: float | None
     capture_time_s: float | None = None
     capture_ratio: float | None = None
+    contact_speed_m_s: float | None = None
+    quality_terms: tuple[float, float, float] | None = None
 
     def as_dict(self) -> dict:
-        """JSON-ready dict; infinite values become ``None``; the capture keys only under a capture rule."""
+        """JSON-ready dict; infinite values become ``None``; the capture keys only under a capture rule, the
+        quality's under a rule with ``[quality]``."""
         data = {k: (None if isinstance(v, float) and math.isinf(v) else v) for k, v in asdict(self).items()}
         if self.capture_ratio is None and self.capture_time_s is None:
             del data["capture_time_s"], data["capture_ratio"]
+        if self.quality_terms is None:
+            del data["contact_speed_m_s"], data["quality_terms"]
+        else:
+            data["quality_terms"] = list(self.quality_terms)
         return data
 
 
@@ -169,9 +180,19 @@ def trajectory_totals(traj: Trajectory, task: Scenario, benchmark: Benchmark) ->
 
 
 def score_episode(traj: Trajectory, task: Scenario, benchmark: Benchmark) -> EpisodeScore:
-    """Score a complete trajectory of ``task`` under ``benchmark`` (the rates of the last sample are not applied)."""
+    """Score a complete trajectory of ``task`` under ``benchmark`` (the rates of the last sample are not applied).
+
+    Under a rule with ``[quality]`` (capture v1) the episode ends at its capture: a trajectory that ran on is
+    scored up to the sample that completed the capture, as the environments end it there, and the native judge
+    (:func:`~ffsr_gym.scoring.capture.native_capture`) judges it, as theirs does."""
     judged = None
-    if benchmark.capture is not None:
+    if benchmark.quality is not None:
+        setup = prepare(task)
+        judged = native_capture(setup, traj, benchmark.capture)
+        if judged.captured and judged.sample + 1 < len(traj.t):
+            traj = traj.head(judged.sample + 1)
+            judged = native_capture(setup, traj, benchmark.capture)
+    elif benchmark.capture is not None:
         judged = capture(traj.t, episode_relative_motion(prepare(task), traj), benchmark.capture)
     times = traj.t
     return score_of_totals(trajectory_totals(traj, task, benchmark), task, benchmark, traj.dt,
@@ -198,13 +219,28 @@ def score_of_totals(totals: _native.ScoreTotals, task: Scenario, benchmark: Benc
         captured = {"capture_time_s": judged.time_s if judged.captured else None,
                     "capture_ratio": judged.margin_ratio}
     failure = next((name for name, failed in zip(names, checks) if failed), None)
+    score = bounded_score(failure is None, cost)
+    if benchmark.quality is not None:
+        terms = quality_terms(benchmark, judged, cost, task.simulation.duration_s) if failure is None else (0.0,) * 3
+        score = math.fsum(terms)
+        contact = None if math.isnan(judged.contact_speed_m_s) else judged.contact_speed_m_s
+        captured.update(contact_speed_m_s=contact, quality_terms=terms)
     return EpisodeScore(
-        score=bounded_score(failure is None, cost), success=failure is None, failure=failure, smoothness_cost=cost,
+        score=score, success=failure is None, failure=failure, smoothness_cost=cost,
         rate_energy=(float(energy[0]), float(energy[1])), rate_variation=(float(variation[0]), float(variation[1])),
         paper_B=paper_objective(totals, objective, dt, peak), peak_rate_deg_s=(float(peak[0]), float(peak[1])),
         final_ee_position_error_m=final_p, final_ee_attitude_error=final_o, min_clearance_m=min_clear,
         min_self_clearance_m=min_self, convergence_time_s=convergence_time(totals, time_of), **captured,
     )
+
+
+def quality_terms(benchmark: Benchmark, judged: Capture, cost: float, duration_s: float) -> tuple[float, float, float]:
+    """The three terms of a capture's worth under ``[quality]`` (capture v1; docs/model.md §23): time, contact
+    and smoothness, each its weight times its factor (:class:`~ffsr_gym.model.benchmark.CaptureQuality`)."""
+    q = benchmark.quality
+    return (q.time_weight * (1.0 - judged.time_s / duration_s),
+            q.contact_weight / (1.0 + judged.contact_speed_m_s / q.contact_speed_ref_m_s),
+            q.smoothness_weight / (1.0 + cost))
 
 
 def peak_rates_deg_s(totals: _native.ScoreTotals) -> Array:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -59,6 +60,14 @@ class Trajectory:
     def dt(self) -> float:
         """Time step [s]."""
         return float(self.t[1] - self.t[0])
+
+    def head(self, rows: int) -> Trajectory:
+        """The first ``rows`` samples (the last of them becomes the final sample: its rates are not applied)."""
+        if not 1 <= rows <= len(self.t):
+            raise ValueError(f"rows = {rows}; allowed 1 to {len(self.t)}")
+        cut = {f.name: getattr(self, f.name)[:rows] for f in dataclasses.fields(self)
+               if f.name != "info" and getattr(self, f.name) is not None}
+        return dataclasses.replace(self, **cut)
 
     def avoidance_release_time(self) -> float | None:
         """Time [s] after which μ of the mission arm stays 1 (None if avoidance never acted)."""

@@ -39,7 +39,8 @@ from ffsr_gym.model.resources import envs_dir, robot_dir
 from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.provenance import provenance, write_json_atomic
 from ffsr_gym.tasks.capture_family import CAPTURE_REJECTIONS, CAPTURE_TIERS, classify_capture
-from ffsr_gym.tasks.certificate import Certificate, Margins, replay
+from ffsr_gym.tasks.capture_timed import NOMINAL_KEYS, TIMED_REJECTIONS, TIMED_TIERS, classify_timed
+from ffsr_gym.tasks.certificate import Certificate, Margins, replay_with_margins
 from ffsr_gym.tasks.perturbation import (
     PERTURBED_TIERS,
     confirmation_member,
@@ -56,14 +57,17 @@ _ADMITTED = {LABEL_CODES[tier] for tier in TIERS}
 def targets(version: str) -> tuple[str, ...]:
     """What ``--tier`` builds for ``version``: the rule file's tiers together (named after the version), or one
     perturbed tier; a capture rule file's tiers, one at a time."""
-    if load_benchmark(version).capture is not None:
+    benchmark = load_benchmark(version)
+    if benchmark.tasks.family == "capture_timed":
+        return TIMED_TIERS
+    if benchmark.capture is not None:
         return CAPTURE_TIERS
     return (version, *PERTURBED_TIERS)
 
 
 def _one_tier(target: str) -> bool:
     """Whether ``target`` is one tier with a pool file of its own (perturbed or capture)."""
-    return target in PERTURBED_TIERS or target in CAPTURE_TIERS
+    return target in PERTURBED_TIERS or target in CAPTURE_TIERS or target in TIMED_TIERS
 
 
 def _check_target(target: str, version: str) -> None:
@@ -74,9 +78,12 @@ def _check_target(target: str, version: str) -> None:
 def rule_sha256(target: str, version: str) -> str:
     """Hash of the rule a pool file was built under (``<version>.toml``; a perturbed tier: also
     ``<version>_perturbed.toml`` and the version's pool file its candidates come from; ``servo``: also
-    ``<version>_servo.toml`` and the robot's drive file)."""
+    ``<version>_servo.toml`` and the robot's drive file; a capture v1 tier: also its family's scenario file, whose
+    episode and approach it plays)."""
     _check_target(target, version)
     digest = hashlib.sha256((envs_dir() / "benchmark" / f"{version}.toml").read_bytes())
+    if target in TIMED_TIERS:
+        digest.update((envs_dir() / "scenarios" / f"{load_benchmark(version).tasks.family}.toml").read_bytes())
     if target in PERTURBED_TIERS:
         digest.update(perturbed_rule_sha256(version).encode())
         digest.update(pool_path(version=version).read_bytes())
@@ -105,6 +112,8 @@ def classify_chunk(split: str, start: int, stop: int, target: str, version: str)
     benchmark = load_benchmark(version)
     if target in CAPTURE_TIERS:
         return [classify_capture(target, seed, benchmark).as_dict() for seed in range(start, stop)]
+    if target in TIMED_TIERS:
+        return [classify_timed(target, seed, benchmark).as_dict() for seed in range(start, stop)]
     if target not in PERTURBED_TIERS:
         return [classify(seed, benchmark).as_dict() for seed in range(start, stop)]
     rule = load_perturbed_rule(version)
@@ -120,8 +129,8 @@ def confirm(tier: str, seed: int, certificate: dict[str, Any], version: str) -> 
     """
     benchmark = load_benchmark(version)
     member = confirmation_member(task_scenario(tier, seed, benchmark), version)
-    result = replay(member.task, Certificate.from_dict(certificate), benchmark, backend=member.backend)
-    margins = Margins.worst([result])
+    result, margins = replay_with_margins(member.task, Certificate.from_dict(certificate), benchmark,
+                                          backend=member.backend)
     return {"seed": int(seed), "success": result.success and margins.short(benchmark) is None,
             "margins": margins.as_dict()}
 
@@ -273,8 +282,8 @@ def die_with_parent() -> None:
 def summarise_split(verdicts: list[Verdict], needed: int, target: str) -> dict[str, Any]:
     """The pools, labels and counts of a split from its consecutive verdicts (trimmed to the last pool seed)."""
     tiers = _tiers(target)
-    rejections = (CAPTURE_REJECTIONS if target in CAPTURE_TIERS else PERTURBED_REJECTIONS if target in PERTURBED_TIERS
-                  else REJECTIONS)
+    rejections = (CAPTURE_REJECTIONS if target in CAPTURE_TIERS else TIMED_REJECTIONS if target in TIMED_TIERS
+                  else PERTURBED_REJECTIONS if target in PERTURBED_TIERS else REJECTIONS)
     pools: dict[str, list[Verdict]] = {tier: [] for tier in tiers}
     last = 0
     for i, v in enumerate(verdicts):
@@ -308,6 +317,8 @@ def _pool_entry(v: Verdict) -> dict[str, Any]:
     if len(v.nominal) == 3:  # screening's measurements of the nominal motion (base tiers)
         entry["nominal"] = {"final_ee_position_error_m": v.nominal[0], "min_balance_sigma": v.nominal[1],
                             "min_self_clearance_m": v.nominal[2]}
+    elif v.tier in TIMED_TIERS:  # a capture v1 tier's (capture_timed.classify_timed)
+        entry["nominal"] = dict(zip(NOMINAL_KEYS, v.nominal))
     elif v.nominal:  # a capture tier's (capture_family.classify_capture)
         entry["nominal"] = dict(zip(("capture_time_s", "min_mission_sigma", "min_balance_sigma", "min_self_clearance_m",
                                      "peak_rate_deg_s"), v.nominal))

@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -45,6 +46,9 @@ from ffsr_gym.tasks.random_family import target_attempt
 from ffsr_gym.tasks.tiers import Verdict, certify
 from ffsr_gym.types import Array
 
+#: A body draw: from the rng, the box's edges [m] (None: none admissible), its mass [kg] and its body-frame spin
+#: [deg/s] at the reachable moment.
+BodyDraw = Callable[[np.random.Generator], tuple[Array | None, float, tuple[float, float, float]]]
 #: The capture tiers, by spin rate: the index is part of each candidate's generator seed.
 CAPTURE_TIERS = ("slow", "fast")
 #: Screening causes of a capture candidate, in the order they are checked.
@@ -62,8 +66,15 @@ def box_inertia(mass_kg: float, size_m: Array) -> tuple[float, float, float]:
 
 def _spin(draw: CaptureDraw, tier: str, rng: np.random.Generator) -> tuple[float, float, float]:
     """The body-frame angular velocity [deg/s]: the tier's rate about an axis tilted from the grasp axis (body z)."""
-    rate = rng.uniform(*(draw.slow_spin_deg_s if tier == "slow" else draw.fast_spin_deg_s))
-    tilt, azimuth = math.radians(rng.uniform(*draw.spin_tilt_deg)), rng.uniform(0.0, 2.0 * math.pi)
+    return tilted_spin(draw.slow_spin_deg_s if tier == "slow" else draw.fast_spin_deg_s, draw.spin_tilt_deg, rng)
+
+
+def tilted_spin(rate_deg_s: tuple[float, float], tilt_deg: tuple[float, float],
+                rng: np.random.Generator) -> tuple[float, float, float]:
+    """A body-frame angular velocity [deg/s]: a rate uniform in ``rate_deg_s`` about an axis at an angle uniform in
+    ``tilt_deg`` from the grasp axis (body z), its azimuth uniform, either sense (drawn in this order)."""
+    rate = rng.uniform(*rate_deg_s)
+    tilt, azimuth = math.radians(rng.uniform(*tilt_deg)), rng.uniform(0.0, 2.0 * math.pi)
     sense = rng.choice((-1.0, 1.0))
     axis = (math.sin(tilt) * math.cos(azimuth), math.sin(tilt) * math.sin(azimuth), math.cos(tilt))
     return tuple(float(sense * rate * x) for x in axis)
@@ -74,13 +85,20 @@ def _drift(draw: CaptureDraw, rng: np.random.Generator) -> tuple[float, float, f
     return tuple(float(x) for x in rng.uniform(*draw.drift_m_s) * direction / portable.norm(direction))
 
 
+def capture_v0_body(draw: CaptureDraw, tier: str) -> BodyDraw:
+    """capture-v0's body draw for ``tier``: edges, mass and spin (module docstring), in this order from the rng."""
+    return lambda rng: (rng.uniform(*draw.size_m, 3), rng.uniform(*draw.mass_kg), _spin(draw, tier, rng))
+
+
 def sample_capture(family: Scenario, spec: Randomization, draw: CaptureDraw, tier: str,
-                   rng: np.random.Generator, *, reach_time_s: float | None = None) -> Scenario:
+                   rng: np.random.Generator, *, reach_time_s: float | None = None,
+                   body: BodyDraw | None = None) -> Scenario:
     """One member of the capture family for ``tier`` (module docstring), its ``[target]`` the grasp frame; the
     grasp frame is drawn with ``spec``'s target ranges, the body with ``draw``. ``reach_time_s`` [s]: when the grasp
     frame is where the draw made sure the arm reaches it well (default: the end of the scripted insertion, the
     desired motion's time plus ``draw.insertion_time_s``, as capture-v0 draws; the draws of ``rng`` are the same
-    either way).
+    either way). ``body``: the body's edges [m] (None: the draw is rejected), mass [kg] and body-frame spin at the
+    reachable moment [deg/s] from the rng (default: :func:`capture_v0_body`).
 
     Raises:
         ScenarioError: no admissible draw within ``draw.max_attempts``.
@@ -93,10 +111,13 @@ def sample_capture(family: Scenario, spec: Randomization, draw: CaptureDraw, tie
     rejected = Counter()
     for _ in range(int(draw.max_attempts)):
         drawn = target_attempt(robot, q_start, spec, rng)
-        size = rng.uniform(*draw.size_m, 3)
-        mass, spin, drift = rng.uniform(*draw.mass_kg), _spin(draw, tier, rng), _drift(draw, rng)
+        size, mass, spin = (capture_v0_body(draw, tier) if body is None else body)(rng)
+        drift = _drift(draw, rng)
         if drawn is None:
             rejected["min_travel_m / min_sigma_target (the grasp pose draw)"] += 1
+            continue
+        if size is None:
+            rejected["min_inertia_spread (the body's principal moments)"] += 1
             continue
         q_target, grasp = drawn  # where the grasp frame is when the insertion ends
         depth = size[2] / 2.0 + draw.handle_standoff_m  # the grasp point's distance from the centre

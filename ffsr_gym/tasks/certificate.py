@@ -7,7 +7,9 @@ every ``env.decision_interval_s``, stop at the first violation, scored by
 * ``constant``: ``FFSR-v2`` with the same physical (m, T_c [s]) at every decision
   (``env.unwrapped.step_with_parameters(m, T_c)``);
 * ``residual``: ``FFSR-Residual-v2`` with the same action (12 values in [-1, 1], exact in float32)
-  at every decision, faded by the benchmark's law, on top of the default planner.
+  at every decision, faded by the benchmark's law, on top of the default planner;
+* ``timed`` (capture v1): ``FFSR-Capture-v1`` with the same (m, T_c), holding the start pose (command 0) until
+  ``go_s`` [s], then commanding the insertion (command 2), as one run scored up to its capture.
 
 From v2 on, a certificate must also succeed in every member of the rule file's ensemble
 (:func:`ensemble_members`): the task at smaller steps, from starts a hair off, and on the
@@ -27,11 +29,13 @@ from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.benchmark import Benchmark, Ensemble, residual_rates
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning.planner import planner_parameters
+from ffsr_gym.scoring.capture import native_capture
 from ffsr_gym.scoring.score import EpisodeScore, score_episode
+from ffsr_gym.sim.setup import prepare
 from ffsr_gym.sim.simulate import make_rollout
 from ffsr_gym.sim.trajectory import Trajectory
 
-KINDS = ("constant", "residual")
+KINDS = ("constant", "residual", "timed")
 
 
 @dataclass(frozen=True)
@@ -39,21 +43,28 @@ class Certificate:
     """A replayable proof that a task is solvable.
 
     Attributes:
-        kind: ``"constant"`` or ``"residual"``.
+        kind: ``"constant"``, ``"residual"`` or ``"timed"``.
         m, T_c_s: the planner's (m, T_c [s]) (for ``residual``: the benchmark's default).
         residual: (12,) the constant ``FFSR-Residual-v2`` action, or None.
+        go_s: (``timed``) when the insertion is commanded [s], a whole number of decisions; else None.
     """
 
     kind: str
     m: float
     T_c_s: float
     residual: tuple[float, ...] | None = None
+    go_s: float | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise InvalidInputError(f"certificate kind {self.kind!r}; allowed: {list(KINDS)}")
-        if (self.residual is None) != (self.kind == "constant"):
-            raise InvalidInputError("a 'residual' certificate needs 12 residual values; a 'constant' one none")
+        if (self.residual is None) != (self.kind != "residual"):
+            raise InvalidInputError("a 'residual' certificate needs 12 residual values; a 'constant' or 'timed' one "
+                                    "none")
+        if (self.go_s is None) != (self.kind != "timed") or (
+                self.go_s is not None and not (math.isfinite(self.go_s) and 0.0 <= self.go_s <= 3600.0)):
+            raise InvalidInputError(f"certificate go_s = {self.go_s!r}; allowed: a 'timed' certificate's time in "
+                                    "[0, 3600] s, none for the other kinds")
         if self.residual is not None:
             values = np.asarray(self.residual, dtype=float)
             if values.shape != (12,) or not np.all(np.abs(values) <= 1.0):
@@ -66,6 +77,8 @@ class Certificate:
         data: dict[str, Any] = {"kind": self.kind, "m": self.m, "T_c_s": self.T_c_s}
         if self.residual is not None:
             data["residual"] = list(self.residual)
+        if self.go_s is not None:
+            data["go_s"] = self.go_s
         return data
 
     @classmethod
@@ -75,16 +88,18 @@ class Certificate:
         Raises:
             InvalidInputError: not a dict of the keys above with numbers in range.
         """
-        if not isinstance(data, dict) or set(data) - {"kind", "m", "T_c_s", "residual"}:
-            raise InvalidInputError(f"certificate must be a dict with keys kind, m, T_c_s[, residual], got {data!r}")
+        if not isinstance(data, dict) or set(data) - {"kind", "m", "T_c_s", "residual", "go_s"}:
+            raise InvalidInputError(f"certificate must be a dict with keys kind, m, T_c_s[, residual][, go_s], got "
+                                    f"{data!r}")
         try:
             m, T_c = float(data["m"]), float(data["T_c_s"])
             residual = None if data.get("residual") is None else tuple(float(x) for x in data["residual"])
+            go = None if data.get("go_s") is None else float(data["go_s"])
         except (KeyError, TypeError, ValueError) as exc:
             raise InvalidInputError(f"certificate {data!r}: {exc}") from None
         if not (0.0 < m < 1.0 and math.isfinite(T_c) and T_c > 0.0):
             raise InvalidInputError(f"certificate (m, T_c_s) = ({m}, {T_c}); allowed: m in (0, 1), T_c_s > 0")
-        return cls(kind=data.get("kind"), m=m, T_c_s=T_c, residual=residual)
+        return cls(kind=data.get("kind"), m=m, T_c_s=T_c, residual=residual, go_s=go)
 
 
 def planner_task(task: Scenario, method: str, gain_per_s: float | None) -> Scenario:
@@ -120,8 +135,12 @@ def replay(task: Scenario, certificate: Certificate, benchmark: Benchmark, *, ba
     """Run ``certificate`` on ``task`` the way the environments step, and score the episode.
 
     A constant certificate is one run of :func:`planner_episode` (bit-identical with stepping the
-    env decision by decision); a residual one steps decision by decision, fading the residual.
+    env decision by decision); a residual one steps decision by decision, fading the residual; a timed one is
+    :func:`timed_run`.
     """
+    if certificate.go_s is not None:
+        return score_episode(timed_run(task, certificate.m, certificate.T_c_s, certificate.go_s, backend=backend),
+                             task, benchmark)
     if certificate.residual is None:
         return planner_episode(task, benchmark, method="predefined_time", m=certificate.m, T_c=certificate.T_c_s,
                                backend=backend)
@@ -137,6 +156,35 @@ def replay(task: Scenario, certificate: Certificate, benchmark: Benchmark, *, ba
             break
     rollout.finish()
     return score_episode(rollout.trajectory(), task, benchmark)
+
+
+def timed_run(task: Scenario, m: float, T_c: float, go_s: float, *, backend: str = "auto") -> Trajectory:
+    """The whole run of a timed certificate on a task with a commanded approach: the planner at (m, T_c [s]) holds
+    the start pose until ``go_s`` [s], then is commanded to the grasp frame (u = 2); it stops at a violation, not
+    at the capture (the score ends the episode there; the run's remainder gives the certificate's margins)."""
+    rollout = make_rollout(task, backend=backend, m=m, T_c=T_c)
+    wait, status = min(int(round(go_s / task.simulation.dt_s)), task.n_steps), "ok"
+    if wait:
+        _, status = rollout.advance(wait, stop_on_violation=True)
+    if status == "ok" and rollout.k < rollout.n_steps:
+        rollout.set_command(2.0)
+        rollout.advance(rollout.n_steps - rollout.k, stop_on_violation=True)
+    rollout.finish()
+    return rollout.trajectory()
+
+
+def replay_with_margins(task: Scenario, certificate: Certificate, benchmark: Benchmark, *,
+                        backend: str = "auto") -> tuple[EpisodeScore, Margins]:
+    """:func:`replay`, and the margins of its episode. A timed certificate's capture ratio is that of its whole
+    run (:func:`timed_run`: had the tolerances been that factor tighter, it would still have captured, perhaps
+    later); the episode itself ends at its capture, where its own ratio is about 1 by construction."""
+    if certificate.go_s is None:
+        result = replay(task, certificate, benchmark, backend=backend)
+        return result, Margins.worst([result])
+    run = timed_run(task, certificate.m, certificate.T_c_s, certificate.go_s, backend=backend)
+    result = score_episode(run, task, benchmark)
+    whole = native_capture(prepare(task), run, benchmark.capture).margin_ratio
+    return result, Margins.worst([dataclasses.replace(result, capture_ratio=whole)])
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,7 @@ from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.model.spec import ranked_spec
 from ffsr_gym.tasks.capture_family import CAPTURE_REJECTIONS, CAPTURE_TIERS, draw_capture_task
+from ffsr_gym.tasks.capture_timed import TIMED_REJECTIONS, TIMED_TIERS, draw_timed_task
 from ffsr_gym.tasks.certificate import Certificate, Margins
 from ffsr_gym.tasks.generator import draw_task
 from ffsr_gym.tasks.perturbation import PERTURBED_TIERS, load_perturbed_rule, perturbed_task
@@ -40,8 +41,9 @@ LABEL_CODES = {"easy": "e", "medium": "m", "hard": "h", "nominal_final_error": "
                "self_collision": "s", "unsolved_rate_limit": "r", "unsolved_collision": "c", "unsolved_final_error": "t",
                "debris": "D", "robust": "R", "servo": "S", "base_rejected": "x", "draw_failed": "d", "fragile": "g",
                "slow": "L", "fast": "F", "nominal_no_capture": "n", "mission_singularity": "w",
-               "unsolved_no_capture": "u"}
-assert set(LABEL_CODES) == set(ALL_TIERS + REJECTIONS + PERTURBED_REJECTIONS + CAPTURE_TIERS + CAPTURE_REJECTIONS)
+               "unsolved_no_capture": "u", "sweep": "W", "nutation": "N", "no_timing_captures": "o", "unsolved": "U"}
+assert set(LABEL_CODES) == set(ALL_TIERS + REJECTIONS + PERTURBED_REJECTIONS + CAPTURE_TIERS + CAPTURE_REJECTIONS
+                               + TIMED_TIERS + TIMED_REJECTIONS)
 
 
 @dataclass(frozen=True)
@@ -72,8 +74,12 @@ def pool_path(tier: str = "easy", version: str | None = None) -> Path:
 
 
 def version_tiers(version: str | None = None) -> tuple[str, ...]:
-    """The tiers of ``version``'s pools: :data:`ALL_TIERS`, or a capture rule file's :data:`CAPTURE_TIERS`."""
-    return CAPTURE_TIERS if load_benchmark(live_version(version)).capture is not None else ALL_TIERS
+    """The tiers of ``version``'s pools: :data:`ALL_TIERS`, a capture rule file's :data:`CAPTURE_TIERS`, or capture
+    v1's :data:`TIMED_TIERS`."""
+    benchmark = load_benchmark(live_version(version))
+    if benchmark.tasks.family == "capture_timed":
+        return TIMED_TIERS
+    return CAPTURE_TIERS if benchmark.capture is not None else ALL_TIERS
 
 
 def check_tier_split(tier: str, split: str, version: str | None = None) -> None:
@@ -127,6 +133,8 @@ def task_scenario(tier: str, seed: int, benchmark: Benchmark) -> Scenario:
     """
     if tier in CAPTURE_TIERS:
         task = draw_capture_task(tier, seed, benchmark)
+    elif tier in TIMED_TIERS:
+        task = draw_timed_task(tier, seed, benchmark)
     elif tier not in PERTURBED_TIERS:
         return draw_task(seed, benchmark)
     else:

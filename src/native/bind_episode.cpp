@@ -52,6 +52,15 @@ void log_arrays(const nb::dict& logs, size_t rows, double* out[10], bool exact =
   }
 }
 
+// An observation's length n_obs, checked: 53, 59, or 76 (which needs a commanded approach).
+int checked_observation(int n_obs, const ffsr::PlannerSettings& s) {
+  if (n_obs != ffsr::kObservation && n_obs != ffsr::kObservationTwist && n_obs != ffsr::kObservationCapture)
+    throw nb::value_error("obs: allowed a float32 array of 53, 59 or 76 per copy");
+  if (n_obs == ffsr::kObservationCapture && !s.timing.enabled)
+    throw nb::value_error("obs: 76 floats show a commanded approach's grasp frame; these settings have none");
+  return n_obs;
+}
+
 // The closed loop from step k0; its rows go into `logs` (the ten arrays, from their first row) or new arrays.
 using Timing = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
 
@@ -130,11 +139,8 @@ struct NativeEpisode {
                          log[6] + 2 * r, log[7] + 2 * r, log[8] + 2 * r, log[9] + 12 * r, recording() ? 1L : 0L};
   }
 
-  static int observation_size(const nb::ndarray<float, nb::c_contig, nb::device::cpu>& obs) {
-    const int n_obs = obs.ndim() == 1 ? static_cast<int>(obs.shape(0)) : 0;
-    if (n_obs != ffsr::kObservation && n_obs != ffsr::kObservationTwist)
-      throw nb::value_error("obs: allowed a float32 array of 53 or 59");
-    return n_obs;
+  int observation_size(const nb::ndarray<float, nb::c_contig, nb::device::cpu>& obs) const {
+    return checked_observation(obs.ndim() == 1 ? static_cast<int>(obs.shape(0)) : 0, s);
   }
 
   void check_step(long k) const {
@@ -212,8 +218,8 @@ struct EpisodeBatch {
     check_shape(active, "active", {n});
     check_shape(k, "k", {n});
     const size_t n_obs = obs.ndim() == 2 ? obs.shape(1) : 0;
-    if (n_obs != ffsr::kObservation && n_obs != ffsr::kObservationTwist)
-      throw nb::value_error("obs: allowed a float32 array (N, 53) or (N, 59)");
+    for (size_t e = 0; e < n; ++e)
+      if (episodes[e]) checked_observation(static_cast<int>(n_obs), episodes[e]->s);
     check_shape(obs, "obs", {n, n_obs});
     check_shape(out, "out", {n, 7});
     if (mode < 0 || mode > 2) throw nb::value_error("mode: allowed 0 (residual), 1 (parameters) or 2 (set)");
@@ -277,7 +283,9 @@ void bind_episode(nb::module_& m) {
       .def_rw("E_ref", &ffsr::DecisionSettings::E_ref)
       .def_rw("V_ref", &ffsr::DecisionSettings::V_ref)
       .def_rw("danger_rate_deg_s", &ffsr::DecisionSettings::danger_rate_deg_s)
-      .def_rw("tolerance_m", &ffsr::DecisionSettings::tolerance_m);
+      .def_rw("tolerance_m", &ffsr::DecisionSettings::tolerance_m)
+      .def_rw("command_action", &ffsr::DecisionSettings::command_action,
+              "Whether the action's last entry a in [-1, 1] commands the approach, u = a + 1 (docs/model.md §23).");
   nb::class_<NativeEpisode>(m, "Episode", "One environment episode on the native kernel.")
       .def(nb::init<const ffsr::Robot&, const ffsr::PlannerSettings&, const ffsr::DecisionSettings&, In, long,
                     const ffsr::Robot*, std::optional<nb::dict>>(),
@@ -288,9 +296,10 @@ void bind_episode(nb::module_& m) {
            "totals only).")
       .def("decide", &NativeEpisode::decide, "action"_a, "mode"_a, "stop"_a, "k"_a, "n_max"_a, "obs"_a,
            "One decision from step k: (rows, status, clipped, increment, cost, clearance, EE error); the next "
-           "observation into obs (float32, 53 or 59).")
+           "observation into obs (float32, 53, 59 or 76). Status 5: captured (a judge that stops at capture; the "
+           "last row is the episode's final sample).")
       .def("observe", &NativeEpisode::observe, "k"_a, "obs"_a,
-           "The observation at step k into obs (float32, 53 or 59): (clearance [m], EE position error [m]).")
+           "The observation at step k into obs (float32, 53, 59 or 76): (clearance [m], EE position error [m]).")
       .def("set_parameters", &NativeEpisode::set_parameters, "m"_a, "T_c"_a, "(m, T_c [s]) from the next step on.")
       .def("finish", &NativeEpisode::finish, "k"_a,
            "Record the final sample at step k (the rates there are not applied): into the log, and the totals.")
@@ -315,13 +324,16 @@ void bind_episode(nb::module_& m) {
           "command.")
       .def(
           "judge_capture",
-          [](NativeEpisode& ep, In bounds, double hold_s) {
+          [](NativeEpisode& ep, In bounds, double hold_s, double contact_m, bool stop) {
             ep.e->capture = ffsr::CaptureJudge();
-            ep.e->capture.rule = capture_rule(ep.s, bounds, hold_s);
+            ep.e->capture.rule = capture_rule(ep.s, bounds, hold_s, contact_m);
+            ep.e->capture.rule.stop = stop;
           },
-          "bounds"_a, "hold_s"_a,
+          "bounds"_a, "hold_s"_a, "contact_m"_a = 0.0, "stop"_a = false,
           "Judge capture at every sample from now on (a commanded approach's episode; docs/model.md §23): bounds on "
-          "position [m], attitude [rad], linear [m/s] and angular velocity [rad/s], held for hold_s [s].")
+          "position [m], attitude [rad], linear [m/s] and angular velocity [rad/s], held for hold_s [s]; contact_m: "
+          "the distance at which the relative speed of first contact is read (0: none); stop: end the episode at "
+          "its capture (a decision's status 5).")
       .def_prop_ro("capture", [](const NativeEpisode& ep) { return judge_dict(ep.e->capture); },
                    "What the capture judge says so far (capture_of's dict).")
       .def_prop_rw(

@@ -112,7 +112,7 @@ inline Out zeros(std::initializer_list<size_t> shape, double*& data) {
 
 // The capture judge's bindings (bind_capture.cpp): a rule from bounds (4) and a hold window [s] at settings.dt (a
 // commanded approach's settings only), what a judge says, and its state as floats and back.
-ffsr::CaptureRule capture_rule(const ffsr::PlannerSettings& s, In bounds, double hold_s);
+ffsr::CaptureRule capture_rule(const ffsr::PlannerSettings& s, In bounds, double hold_s, double contact_m = 0.0);
 nb::dict judge_dict(const ffsr::CaptureJudge& j);
 Out judge_state(const ffsr::CaptureJudge& j);
 void load_judge(ffsr::CaptureJudge& j, In state);

@@ -58,6 +58,7 @@ void add_capture(CaptureJudge& j, const double q[4]) {
     largest = std::isnan(ratio[i]) || std::isnan(largest) ? std::numeric_limits<double>::quiet_NaN()
                                                           : std::max(largest, ratio[i]);
   }
+  if (j.contact_at < 0 && q[0] <= j.rule.contact) j.contact_at = k, j.contact_speed = q[2];
   const double key = std::isnan(largest) ? std::numeric_limits<double>::infinity() : largest;
   while (!j.window.empty() && j.window.back().second <= key) j.window.pop_back();
   j.window.emplace_back(k, key);

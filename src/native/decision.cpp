@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 
+#include "field.hpp"
+
 namespace ffsr {
 namespace {
 
@@ -18,6 +20,30 @@ double observe(const Robot& robot, const PlannerSettings& s, LoopState& st, doub
   plan(robot, s, st.x, t, st.f, st.m, st.p);
   if (!s.obstacles.empty() || s.body_collides) capsule_axes(robot, st.f, st.x, st.axes);
   return nearest_clearance(robot, s, st.f, st.axes, st.x, t, rel);
+}
+
+// The grasp frame as the end-effector sees it, into 17 floats: its position minus the end-effector's (world) [m],
+// the vector 2 sign(η) ε of σ_e* ⊗ σ_h (the rotation from the end-effector to the grasp frame, in the end-effector's
+// frame; its angle for small ones) [rad], its world twist [m/s, rad/s], and the approach's state (u, s, ṡ, w, ẇ).
+void grasp_observation(const PlannerSettings& s, const LoopState& st, double t, float* out) {
+  const Frame& h = frame_at(s, t);
+  const double* pe = st.f.pe[0];
+  double q_e[4];
+  R_to_quat_wxyz(st.f.Re[0], q_e);
+  const double* q_h = h.sigma_d;
+  const double eta = q_e[0] * q_h[0] + q_e[1] * q_h[1] + q_e[2] * q_h[2] + q_e[3] * q_h[3];
+  const double sign = eta < 0.0 ? -2.0 : 2.0;
+  const double eps[3] = {q_e[0] * q_h[1] - q_h[0] * q_e[1] - q_e[2] * q_h[3] + q_e[3] * q_h[2],
+                         q_e[0] * q_h[2] - q_h[0] * q_e[2] - q_e[3] * q_h[1] + q_e[1] * q_h[3],
+                         q_e[0] * q_h[3] - q_h[0] * q_e[3] - q_e[1] * q_h[2] + q_e[2] * q_h[1]};
+  for (int a = 0; a < 3; ++a) {
+    out[a] = static_cast<float>(clip(h.p_d[a] - pe[a], kObsRelative));
+    out[3 + a] = static_cast<float>(clip(sign * eps[a], kObsError));
+  }
+  for (int j = 0; j < 6; ++j) out[6 + j] = static_cast<float>(clip(h.V_ed[j], kObsTwist));
+  const TimingState& g = st.p.timing;
+  const double timing[5] = {g.command, g.s, g.s_dot, g.w, g.w_dot};
+  for (int j = 0; j < 5; ++j) out[12 + j] = static_cast<float>(clip(timing[j], kObsRate));
 }
 
 }  // namespace
@@ -56,6 +82,7 @@ void observation(const Robot& robot, const PlannerSettings& s, EpisodeState& e, 
   const Plan& p = e.loop.p;
   if (n_obs > kObservation)
     for (int j = 0; j < 6; ++j) obs[kObservation + j] = static_cast<float>(clip(p.V_ed[j], kObsTwist));
+  if (n_obs == kObservationCapture) grasp_observation(s, e.loop, static_cast<double>(k) * s.dt, obs + kObservationTwist);
   for (int j = 0; j < kJoints; ++j) {
     obs[j] = static_cast<float>(std::sin(e.loop.x[7 + j]));
     obs[12 + j] = static_cast<float>(std::cos(e.loop.x[7 + j]));
@@ -83,11 +110,14 @@ DecisionResult decide(const Robot& robot, const Robot& plant, PlannerSettings& s
   }
   const double dt = s.dt;
   double residual[kJoints] = {};
+  const int last = d.command_action && mode != ActionMode::kSet ? n_action - 1 : -1;  // the command's entry
   for (int j = 0; j < n_action; ++j) {  // clip, map
     const double raw = action[j];
     const double value = std::min(std::max(raw, -1.0), 1.0);
     result.clipped = result.clipped || value != raw;
-    if (mode == ActionMode::kResidual)
+    if (j == last)
+      e.loop.p.timing.command = value + 1.0;
+    else if (mode == ActionMode::kResidual)
       residual[j] = value;
     else if (mode == ActionMode::kParameters && j == 0)
       s.m = d.m_lo + 0.5 * (value + 1.0) * (d.m_hi - d.m_lo);

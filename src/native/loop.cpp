@@ -97,6 +97,7 @@ Status run(const Robot& robot, const Robot& plant, const PlannerSettings& s, Loo
       double q[4];
       capture_quantities(st.f, x, v, st.p.J, grasp.p_d, grasp.sigma_d, grasp.V_ed, q);
       add_capture(*judge, q);
+      if (judge->rule.stop && judge->captured_at >= 0 && !record_only) return Status::kCaptured;
     }
     if (record_only) return Status::kOk;
     if (s.substeps == 0) {

@@ -11,10 +11,14 @@
 namespace ffsr {
 
 // The rule: a bound on each quantity (position [m], attitude [rad], linear velocity [m/s], angular velocity
-// [rad/s]) and the samples of a hold window (round(hold / dt) + 1); needed = 0: no judge.
+// [rad/s]) and the samples of a hold window (round(hold / dt) + 1); needed = 0: no judge. contact [m]: the
+// distance at which the tool meets the handle (its first sample within it records the relative speed there; 0:
+// none); stop: an episode ends at its capture (capture v1).
 struct CaptureRule {
   double bound[4] = {0.0, 0.0, 0.0, 0.0};
   long needed = 0;
+  double contact = 0.0;
+  bool stop = false;
 };
 
 // What the samples so far say: the first hold window inside every bound (its last sample, −1 while none, and each
@@ -29,6 +33,8 @@ struct CaptureJudge {
   double worst[4] = {0.0, 0.0, 0.0, 0.0};
   double margin = std::numeric_limits<double>::infinity();
   double last[4] = {0.0, 0.0, 0.0, 0.0};
+  long contact_at = -1;  // the first sample within the contact distance (-1: none yet)
+  double contact_speed = std::numeric_limits<double>::quiet_NaN();  // the relative linear speed there [m/s]
   std::deque<std::pair<long, double>> window;  // the last `needed` samples' largest ratios, decreasing (sliding max)
 };
 

@@ -8,6 +8,7 @@ namespace ffsr {
 
 inline constexpr int kObservation = 53;         // sin, cos, rates, EE error, base error, relative, clearance, time
 inline constexpr int kObservationTwist = 59;    // and the desired end-effector twist (a capture spec's)
+inline constexpr int kObservationCapture = 76;  // and the grasp frame's relative pose, its twist, the approach state
 
 enum class ActionMode { kResidual = 0, kParameters = 1, kSet = 2 };
 
@@ -21,6 +22,7 @@ struct DecisionSettings {
   double rate_limit_deg_s = 200.0, clear_scale = 0.01;
   double alpha = 0.35, beta = 0.65, E_ref = 1.0, V_ref = 10.0;
   double danger_rate_deg_s = 0.0, tolerance_m = 0.0;  // the episode totals' settings (ScoreTotals)
+  bool command_action = false;  // the action's last entry a in [-1, 1] commands the approach: u = a + 1 (§23)
 };
 
 // One episode's state between decisions: the loop state, the rates applied last, and which planner step the
@@ -52,15 +54,17 @@ void smoothness_terms(const double* rates, long rows, double dt, const double pr
 // C = α (E₁/E_ref + V₁/V_ref) + β (E₂/E_ref + V₂/V_ref).
 double smoothness_cost(const double terms[4], const DecisionSettings& d);
 
-// The observation at step k of n_total into obs (n_obs floats), with the robot-obstacle clearance [m] and the
+// The observation at step k of n_total into obs (n_obs floats: kObservation, kObservationTwist or
+// kObservationCapture, which needs a commanded approach), with the robot-obstacle clearance [m] and the
 // end-effector position error [m] it shows; the plan it computed serves the next decision from step k.
 void observation(const Robot& robot, const PlannerSettings& s, EpisodeState& e, long k, long n_total, float* obs,
                  int n_obs, double& clearance, double& ee_error);
 
 // One decision from step k (logs written from their row 0, that is the episode's row k, or all over row 0 with
 // stride 0); the episode's totals advance with it. Mode kParameters sets
-// s.m and s.T_c from the action, kResidual adds the faded residual rates, kSet ignores the action. obs:
-// n_obs floats (kObservation or kObservationTwist).
+// s.m and s.T_c from the action, kResidual adds the faded residual rates, kSet ignores the action; with
+// d.command_action (modes kParameters and kResidual) the action's last entry sets the approach's command. obs:
+// n_obs floats (observation).
 DecisionResult decide(const Robot& robot, const Robot& plant, PlannerSettings& s, const DecisionSettings& d,
                       EpisodeState& e, long k, long n_total, long n_max, const double* action, int n_action,
                       ActionMode mode, bool stop, const LogRows& logs, float* obs, int n_obs);

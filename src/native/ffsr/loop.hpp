@@ -9,7 +9,9 @@
 
 namespace ffsr {
 
-enum class Status { kOk = 0, kRate = 1, kCollision = 2, kNonFinite = 3 };
+// kCaptured: a judge whose rule stops at capture saw the capture at the last sample (that sample is the episode's
+// final one: its rates are not applied). 4 is a decision's bad action (decision.hpp).
+enum class Status { kOk = 0, kRate = 1, kCollision = 2, kNonFinite = 3, kCaptured = 5 };
 
 // Robot-obstacle clearance at t (inf without an obstacle; a tumbling target's body is one), the capsule axes
 // already at the state whose frames f holds (not needed without obstacle and body); rel points to the nearest
