@@ -20,6 +20,7 @@ from ffsr_gym.exceptions import InvalidInputError, ScenarioError
 from ffsr_gym.model.benchmark import action_to_parameters, load_benchmark, load_rules
 from ffsr_gym.model.quaternion import from_rotation
 from ffsr_gym.model.resources import envs_dir
+from ffsr_gym.planning.timed_approach import TimingState
 from ffsr_gym.scoring.capture import episode_relative_motion
 from ffsr_gym.scoring.score import score_episode
 from ffsr_gym.sim.setup import prepare
@@ -173,6 +174,11 @@ def test_bad_inputs_are_refused_by_name(task):
     with pytest.raises(ValueError, match="contact_m: allowed"):
         episode.judge_capture(np.ones(4), 1.0, 2.0, True)
     assert isinstance(_native.DecisionSettings().command_action, bool)
+    state = TimingState()
+    state.set_command(np.float32(1.5))  # any real number in [0, 2], numpy's too
+    assert state.command == 1.5
+    with pytest.raises(InvalidInputError, match="approach command True"):
+        state.set_command(True)
 
 
 def test_a_rule_file_whose_weights_do_not_sum_to_one_is_refused(tmp_path):
@@ -182,3 +188,33 @@ def test_a_rule_file_whose_weights_do_not_sum_to_one_is_refused(tmp_path):
     path.write_text(text)
     with pytest.raises(ScenarioError, match="sum to"):
         load_rules(path)
+
+
+def test_step_with_parameters_commands_the_approach_and_a_pickled_env_ends_alike(task):
+    import pickle
+
+    env = gym.make("FFSR-Capture-v1", task=task)
+    env.reset(seed=0)
+    base = env.unwrapped
+    for k in range(600):  # hold until 32 s, then go in: the certificate of (0.3, 4 s) going in at 32 s
+        _, _, terminated, truncated, info = base.step_with_parameters(0.3, 4.0, command=2.0 if k >= 320 else 0.0)
+        if k == 330:
+            clone = pickle.loads(pickle.dumps(base))
+        if terminated or truncated:
+            break
+    expected = replay(task, Certificate("timed", 0.3, 4.0, go_s=32.0), BENCH)
+    assert terminated and info["score"] == expected.score and info["capture_time_s"] == expected.capture_time_s
+    while True:  # the clone, from mid-approach
+        _, _, done, cut, other = clone.step_with_parameters(0.3, 4.0)
+        if done or cut:
+            break
+    assert other["score"] == info["score"] and other["contact_speed_m_s"] == info["contact_speed_m_s"]
+    fresh = gym.make("FFSR-Capture-v1", task=task)
+    fresh.reset(seed=0)
+    with pytest.raises(InvalidInputError, match=r"command = 3.0; allowed: a real number in \[0, 2\]"):
+        fresh.unwrapped.step_with_parameters(0.3, 4.0, command=3.0)
+    plain = gym.make("FFSR-v2", task="easy", split="train")
+    plain.reset(seed=0)
+    with pytest.raises(InvalidInputError, match="no approach command"):
+        plain.unwrapped.step_with_parameters(0.3, 4.0, command=1.0)
+    env.close()

@@ -12,6 +12,7 @@ from typing import Any
 import gymnasium
 
 from ffsr_gym.environments.info import markdown_table
+from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.model.spec import BenchmarkSpec, all_specs, ranked_spec
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.splits import load_pools
@@ -42,14 +43,16 @@ def id_page(env_id: str) -> str:
     spec = next(s for s in all_specs().values() if env_id in s.env_ids)
     with warnings.catch_warnings():  # a frozen version's "out of date" notice
         warnings.simplefilter("ignore", DeprecationWarning)
-        env = gymnasium.make(env_id)
+        # a version whose pools are being built plays its family's scenario (a custom task) until then
+        env = gymnasium.make(env_id, **({"task": load_scenario(spec.rules.tasks.family)}
+                                        if spec.status == "building" else {}))
     try:
         action, observation = env.action_space, env.observation_space
         limit = env.spec.max_episode_steps if env.spec else None
     finally:
         env.close()
-    frozen = spec.status == "frozen"
-    lines = [f"# `{env_id}`", "", f"Benchmark {spec.version}{' (frozen)' if frozen else ''}: {spec.description}.", "",
+    note = {"frozen": " (frozen)", "building": " (its pools are being built)"}.get(spec.status, "")
+    lines = [f"# `{env_id}`", "", f"Benchmark {spec.version}{note}: {spec.description}.", "",
              "| | |", "|---|---|",
              f"| action space | `{_space(action)}` |",
              f"| observation space | `{_space(observation)}` |",
@@ -92,16 +95,26 @@ def _episode_end(spec: BenchmarkSpec, limit: int | None) -> str:
                  "distance, self contact) unless `terminate_on_violation=False`")
     elif spec.score.rule == "paper_objective":  # the paper's objective: an infeasible episode ends at once
         text += "; terminated at a rate-limit violation or a collision"
+    if spec.score.rule == "capture_quality":
+        text += "; terminated at the capture (the sample that completes the hold window)"
     return text
 
 
 def _reward_text(spec: BenchmarkSpec) -> str:
+    if spec.score.rule == "capture_quality":
+        q = spec.rules.quality
+        return (f"the change of the episode's value {q.time_weight:g} (1 - t / T) + {q.contact_weight:g} + "
+                f"{q.smoothness_weight:g} / (1 + C_t) (its score were it captured now, at rest); an episode's "
+                "rewards sum to its score minus 1")
     if spec.reward.kind == "score_change":
         return "the change of the episode's value 1 / (1 + C_t); an episode's rewards sum to its score minus 1"
     return spec.reward.kind.replace("_", " ")
 
 
 def _tasks_text(spec: BenchmarkSpec) -> str:
+    if spec.tasks.kind == "tiers" and spec.status == "building":
+        return (f"tiers {', '.join(f'`{t}`' for t in spec.tasks.tiers)} (their pools are being built; until then a "
+                f"scenario, `{spec.tasks.keyword}=`: a shipped name or a TOML path)")
     if spec.tasks.kind == "tiers":
         tiers = ", ".join(f"[`{t}`](../tiers/{t}.md)" for t in spec.tasks.tiers)
         return f"tiers {tiers}; splits {', '.join(f'`{s}`' for s in spec.tasks.splits)}"
@@ -113,6 +126,8 @@ def _scenario_text(spec: BenchmarkSpec) -> str:
 
 
 def _example_kwargs(spec: BenchmarkSpec) -> str:
+    if spec.status == "building":
+        return f", {spec.tasks.keyword}=\"{spec.rules.tasks.family}\""
     return f", {spec.tasks.keyword}=\"{spec.tasks.default}\", split=\"train\"" if spec.tasks.kind == "tiers" else ""
 
 
@@ -187,13 +202,16 @@ def _outcome(ranked: list[tuple[str, dict[str, Any]]], index: int, version: str)
 
 
 def ids_table() -> str:
-    """The README's table of registered ids: their actions, tasks and whether their version is ranked or frozen."""
+    """The README's table of registered ids: their actions, tasks and whether their version is ranked, frozen or
+    having its pools built."""
     lines = ["| id | action | tasks | status |", "|---|---|---|---|"]
     for spec in sorted(all_specs().values(), key=lambda s: (s.status != "live", s.version != ranked_spec().version)):
-        status = "ranked" if spec.status == "live" else "frozen"
+        status = {"live": "ranked", "building": "pools being built"}.get(spec.status, "frozen")
         for env_id in spec.env_ids:
             action = ("12 residual joint rates added to the reference planner" if spec.is_residual(env_id)
                       else "the planner's (m, T_c)")
+            if spec.actions.command:
+                action += ", and the approach's command"
             tasks = (", ".join(f"`{t}`" for t in spec.tasks.tiers) if spec.tasks.kind == "tiers"
                      else _scenario_text(spec))
             lines.append(f"| [`{env_id}`](docs/ids/{env_id}.md) | {action} | {tasks} | {status} |")

@@ -106,6 +106,22 @@ def physical_parameters(m: Any, T_c: Any) -> tuple[float, float]:
     return values[0], values[1]
 
 
+def physical_command(command: Any, commanded: bool) -> float:
+    """The approach's command u given to ``step_with_parameters`` (capture v1) as a float.
+
+    Raises:
+        InvalidInputError: an env without a commanded approach (``commanded`` False), or not a real number in
+            [0, 2] (0 holds the start pose, 1 the pre-grasp frame, 2 the grasp frame).
+    """
+    if not commanded:
+        raise InvalidInputError("command: this env's action has no approach command; allowed: the capture-v1 ids")
+    if isinstance(command, bool) or not isinstance(command, (int, float, np.integer, np.floating)) \
+            or not 0.0 <= float(command) <= 2.0:
+        raise InvalidInputError(f"command = {command!r}; allowed: a real number in [0, 2] (0 holds the start pose, "
+                                "1 the pre-grasp frame, 2 the grasp frame)")
+    return float(command)
+
+
 def residual_rates(action: np.ndarray, task: Scenario, rule: Any, fades: bool, t: float) -> np.ndarray:
     """Residual joint rates [rad/s] of a (clipped) residual action at time ``t`` [s].
 

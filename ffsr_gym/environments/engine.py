@@ -24,12 +24,12 @@ from ffsr_gym import _native
 from ffsr_gym.environments import actions as act
 from ffsr_gym.environments import info as info_contract
 from ffsr_gym.environments.engine_pickle import PicklableEngine
+from ffsr_gym.environments.engine_settings import EngineSettings
 from ffsr_gym.environments.task_source import TaskSource
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.kernel import layout
 from ffsr_gym.model import portable
 from ffsr_gym.model.scenario import Scenario
-from ffsr_gym.planning import ptsf
 from ffsr_gym.sim.budget import check_run
 from ffsr_gym.sim.compiled import KernelRollout, new_log
 from ffsr_gym.sim.rollout import BACKENDS, STATUS, Rollout
@@ -45,7 +45,7 @@ def _scalars(n: int, kind: type, single: bool) -> Any:
     return [0 if kind is np.int64 else 0.0] if single else np.zeros(n, dtype=kind)
 
 
-class EpisodeEngine(PicklableEngine):
+class EpisodeEngine(EngineSettings, PicklableEngine):
     """``copies`` episodes of ``source``'s tasks under one spec's rule (see the module docstring).
 
     Per-copy state lives in stacked arrays (row i = copy i); ``obs`` (N, 53) float32 holds each
@@ -346,22 +346,6 @@ class EpisodeEngine(PicklableEngine):
         return rewards, terminated, truncated, info_contract.with_masks(info, active)
 
     # ------------------------------------------------------------------------ per copy
-    def _set_parameters(self, i: int, parameters: tuple[float, float]) -> None:
-        """Validated physical (m, T_c [s]) for copy ``i``'s next decisions."""
-        rollout = self.rollouts[i]
-        rollout.set_parameters(*parameters)
-        self.episodes[i].set_parameters(rollout.m, rollout.T_c)
-
-    def _set_parameters_of(self, active: np.ndarray, parameters: tuple[float, float]) -> None:
-        """:meth:`_set_parameters` for every ``active`` copy at once (checked once per predefined-time form; the
-        copies' rollouts read them from their episodes when next asked for, :meth:`rollout`)."""
-        m, T_c = float(parameters[0]), float(parameters[1])
-        chosen = np.flatnonzero(active)
-        for form in {self.scenarios[i].planner.phi_form for i in chosen}:
-            ptsf.check_parameters(T_c, m, form)
-        for i in chosen:
-            self.episodes[i].set_parameters(m, T_c)
-
     def end_copy(self, i: int, captured: bool = False) -> Any:
         """Record copy ``i``'s final sample (``captured``: its last row already is) and score its episode with the
         rule: from its trajectory, or from its native episode's totals when it keeps none (the same numbers)."""

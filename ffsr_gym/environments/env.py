@@ -8,7 +8,12 @@ import gymnasium as gym
 import numpy as np
 
 from ffsr_gym.environments import info as info_contract
-from ffsr_gym.environments.actions import action_to_parameters, observation_bounds, physical_parameters
+from ffsr_gym.environments.actions import (
+    action_to_parameters,
+    observation_bounds,
+    physical_command,
+    physical_parameters,
+)
 from ffsr_gym.environments.engine import EpisodeEngine
 from ffsr_gym.environments.task_source import TaskSource
 from ffsr_gym.exceptions import InvalidInputError, UnknownArgumentError
@@ -138,12 +143,17 @@ class FFSREnv(gym.Env):
             self.render()
         return out
 
-    def step_with_parameters(self, m: float, T_c: float) -> tuple[np.ndarray, float, bool, bool, dict]:
-        """A step of an (m, T_c) env with physical parameters m ∈ (0, 1) and T_c [s] > 0 (no float32 rounding)."""
+    def step_with_parameters(self, m: float, T_c: float,
+                             command: float | None = None) -> tuple[np.ndarray, float, bool, bool, dict]:
+        """A step of an (m, T_c) env with physical parameters m ∈ (0, 1) and T_c [s] > 0 (no float32 rounding);
+        ``command``: capture v1's approach command u ∈ [0, 2] from this step on (None: as it was)."""
         if self.residual:
             raise InvalidInputError("step_with_parameters is for the (m, T_c) envs (FFSR-v0, FFSR-v2), not a residual env")
         self._check_running()
-        out = self.engine.step_one(None, parameters=physical_parameters(m, T_c))
+        parameters = physical_parameters(m, T_c)
+        if command is not None:
+            self.engine.set_command((0,), physical_command(command, self.engine.grasp))
+        out = self.engine.step_one(None, parameters=parameters)
         if self.render_mode == "human":
             self.render()
         return out

@@ -19,7 +19,7 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from ffsr_gym.environments import info as info_contract
-from ffsr_gym.environments.actions import check_action, observation_bounds, physical_parameters
+from ffsr_gym.environments.actions import check_action, observation_bounds, physical_command, physical_parameters
 from ffsr_gym.environments.engine import EpisodeEngine
 from ffsr_gym.environments.env import task_options
 from ffsr_gym.environments.task_source import TaskSource
@@ -168,11 +168,17 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         return self._step(actions, None)
 
-    def step_with_parameters(self, m: float, T_c: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
-        """A step of every copy with physical (m, T_c [s]), no float32 rounding (the (m, T_c) ids only)."""
+    def step_with_parameters(self, m: float, T_c: float,
+                             command: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+        """A step of every copy with physical (m, T_c [s]), no float32 rounding (the (m, T_c) ids only);
+        ``command``: capture v1's approach command u ∈ [0, 2] from this step on (None: as it was)."""
         if self.residual:
             raise InvalidInputError("step_with_parameters is for the (m, T_c) envs (FFSR-v0, FFSR-v2), not a residual env")
-        return self._step(np.zeros((self.num_envs, 2), dtype=np.float32), physical_parameters(m, T_c))
+        parameters = physical_parameters(m, T_c)
+        if command is not None:
+            u = physical_command(command, self.engine.grasp)
+            self.engine.set_command([i for i in range(self.num_envs) if not self._needs_reset[i]], u)
+        return self._step(np.zeros((self.num_envs, self.engine.action_shape[0]), dtype=np.float32), parameters)
 
     def play_out_with_parameters(self, m: float, T_c: float) -> tuple[np.ndarray, np.ndarray, dict]:
         """Every running copy's episode to its end with physical (m, T_c [s]) in one kernel call: the

@@ -144,7 +144,7 @@ class BenchmarkSpec:
     schema_version: int = field(metadata=integer(1))
     version: str = field(metadata=TEXT)
     description: str = field(metadata=TEXT)
-    status: str = field(metadata=choice("live", "frozen"))
+    status: str = field(metadata=choice("live", "frozen", "building"))
     ids: Ids = field(metadata=section(Ids))
     score: ScoreSpec = field(metadata=section(ScoreSpec))
     actions: ActionSpec = field(metadata=section(ActionSpec))

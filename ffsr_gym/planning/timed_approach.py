@@ -24,6 +24,7 @@ kernel's order of operations.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -76,7 +77,8 @@ class TimingState:
         Raises:
             InvalidInputError: u is not a finite number in [0, 2].
         """
-        if not isinstance(command, (int, float)) or not math.isfinite(command) or not 0.0 <= command <= 2.0:
+        if isinstance(command, (bool, np.bool_)) or not isinstance(command, numbers.Real) \
+                or not math.isfinite(command) or not 0.0 <= command <= 2.0:
             raise InvalidInputError(f"approach command {command!r}; allowed: a number in [0, 2] (0: stay at the "
                                     "start, 1: at the pre-grasp frame, 2: inserted)")
         self.command = float(command)

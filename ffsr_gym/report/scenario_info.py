@@ -43,8 +43,10 @@ def registry_lines() -> list[str]:
     for spec in all_specs().values():
         tasks = spec.tasks
         lines.append(f"{spec.version} ({spec.status}): {', '.join(spec.env_ids)}; {spec.description}")
-        lines.append(f"  tasks ({tasks.keyword}=): " + ", ".join([*tasks.scenarios, *tasks.tiers] or ["a scenario"]))
-        for tier in tasks.tiers:
+        lines.append(f"  tasks ({tasks.keyword}=): " + ", ".join([*tasks.scenarios, *tasks.tiers] or ["a scenario"])
+                     + ("; its pools are being built: a scenario (task=) until then" if spec.status == "building"
+                        else ""))
+        for tier in tasks.tiers if spec.status != "building" else ():
             sizes = (f"{split} pool {len(pool(tier, split, version=spec.rules.version))} tasks" for split in tasks.splits)
             lines.append(f"    {tier}: " + ", ".join(sizes))
     lines.append("scenarios (scenario=): " + ", ".join(scenario_names()))

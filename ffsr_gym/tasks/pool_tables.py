@@ -11,6 +11,7 @@ import numpy as np
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.provenance import splice_generated
 from ffsr_gym.tasks.capture_family import CAPTURE_REJECTIONS, CAPTURE_TIERS
+from ffsr_gym.tasks.capture_timed import TIMED_REJECTIONS, TIMED_TIERS
 from ffsr_gym.tasks.perturbation import PERTURBED_TIERS
 from ffsr_gym.tasks.splits import load_pools
 from ffsr_gym.tasks.tiers import PERTURBED_REJECTIONS, REJECTIONS, TIERS
@@ -84,10 +85,11 @@ def _physics_rows(s: dict[str, Any]) -> list[str]:
     return lines
 
 
-def capture_table(files: list[dict[str, Any]]) -> str:
+def capture_table(files: list[dict[str, Any]], rejections: tuple[str, ...] = CAPTURE_REJECTIONS) -> str:
     """Markdown table of capture pool files' counts: per tier and split, the candidates, the tasks admitted, the
-    rejections by cause and the share of the pool the default planner captures."""
-    causes = [cause for cause in CAPTURE_REJECTIONS
+    rejections by cause (of ``rejections``) and the share of the pool the default planner captures (capture v1:
+    going straight in)."""
+    causes = [cause for cause in rejections
               if any(data["splits"][split]["rejection_counts"].get(cause) for data in files for split in data["splits"])]
     lines = ["| tier | split | candidates | admitted | " + " | ".join(f"`{cause}`" for cause in causes)
              + " | default captures, pool |", "|---" * (5 + len(causes)) + "|"]
@@ -121,9 +123,39 @@ def capture_physics_table(files: list[dict[str, Any]], split: str = "test") -> s
     return "\n".join(lines) + "\n"
 
 
+def timed_physics_table(files: list[dict[str, Any]], split: str = "test") -> str:
+    """Markdown table of capture v1's test pools: how the default planner ends going straight in, the screening's
+    earliest capture and how many of its moments capture, the certificates' settings and moments, their worst
+    margins over the ensemble."""
+    lines = ["| tier | tasks | straight in: captures / no capture / rate limit / collision | earliest capture, "
+             "median [s] | moments that capture, median of 12 | certificates at (0.3, 4 s) | certificate's go, "
+             "median (range) [s] | worst clearance [mm] | largest peak rate [deg/s] | largest capture ratio |",
+             "|---" * 10 + "|"]
+    for data in files:
+        tier = data["tiers"][0]
+        s = data["splits"][split]
+        entries = s["pools"][tier]
+        fails = s["default_failures_in_pool"][tier]
+        causes = " / ".join(str(fails.get(c, 0)) for c in ("none", "no_capture", "rate_limit", "collision"))
+        nominal = [e["nominal"] for e in entries]
+        goes = [e["certificate"]["go_s"] for e in entries]
+        default = sum(e["certificate"]["m"] == 0.3 and e["certificate"]["T_c_s"] == 4.0 for e in entries)
+        m = s["pool_margins"][tier]
+        lines.append(f"| {tier} | {len(entries)} | {causes} | "
+                     f"{np.median([n['earliest_capture_s'] for n in nominal]):.1f} | "
+                     f"{np.median([n['timings_captured'] for n in nominal]):.0f} | {default} | "
+                     f"{np.median(goes):.0f} ({min(goes):.0f}-{max(goes):.0f}) | {1000 * m['min_clearance_m']:.1f} | "
+                     f"{m['peak_rate_deg_s']:.1f} | {m['capture_ratio']:.2f} |")
+    return "\n".join(lines) + "\n"
+
+
 def docs_tables(version: str) -> dict[str, str]:
     """The tables docs/envs.md shows of ``version``'s pool files, by marker name (``<!-- <name>:begin -->``; a
     capture version's are ``<version>-tiers`` and ``<version>-physics``)."""
+    if load_benchmark(version).tasks.family == "capture_timed":
+        files = [load_pools(None, (tier,), version) for tier in TIMED_TIERS]
+        return {f"{version}-tiers": capture_table(files, TIMED_REJECTIONS),
+                f"{version}-physics": timed_physics_table(files)}
     if load_benchmark(version).capture is not None:
         files = [load_pools(None, (tier,), version) for tier in CAPTURE_TIERS]
         return {f"{version}-tiers": capture_table(files), f"{version}-physics": capture_physics_table(files)}
