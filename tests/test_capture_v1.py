@@ -218,3 +218,18 @@ def test_step_with_parameters_commands_the_approach_and_a_pickled_env_ends_alike
     with pytest.raises(InvalidInputError, match="no approach command"):
         plain.unwrapped.step_with_parameters(0.3, 4.0, command=1.0)
     env.close()
+
+
+def test_evaluate_plays_a_timed_fixed_policy_and_the_random_residual_commands_too(task):
+    from ffsr_gym import evaluate
+    from ffsr_gym.bench.policies import uniform_random_residual
+
+    report = evaluate((0.3, 4.0, 32.0), "FFSR-Capture-v1", task=task)
+    expected = replay(task, Certificate("timed", 0.3, 4.0, go_s=32.0), BENCH)
+    row = report.episodes[0]
+    assert row["score"] == expected.score and row["capture_time_s"] == expected.capture_time_s
+    assert report.extra["policy"] == {"fixed": [0.3, 4.0, 32.0]}
+    random = evaluate(uniform_random_residual, "FFSR-Capture-Residual-v1", task=task)
+    assert random.extra["trace"]["action_shape"] == [13] and not random.episodes[0]["success"]
+    with pytest.raises(InvalidInputError, match=r"\(m, T_c \[s\], go_s \[s\]\) with go_s in \[0, 60\) s"):
+        evaluate((0.3, 4.0), "FFSR-Capture-v1", task=task)

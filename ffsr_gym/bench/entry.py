@@ -62,7 +62,7 @@ class PredictsActions(Protocol):
     def predict(self, observation: Any, deterministic: bool = True) -> tuple[Any, Any]: ...
 
 
-Policy = Callable[[np.ndarray], np.ndarray] | PredictsActions | tuple[float, float]
+Policy = Callable[[np.ndarray], np.ndarray] | PredictsActions | tuple[float, ...]
 def _json_safe(x: Any) -> Any:
     if isinstance(x, float) and not math.isfinite(x):
         return None
@@ -194,6 +194,10 @@ def stepper(policy: Policy, env: gym.Env) -> Callable[[np.ndarray], tuple]:
     """One env step for ``policy`` given the last observation (fixed (m, T_c) bypass float32 actions; on a residual
     env a tuple is a constant action)."""
     if isinstance(policy, tuple) and not env.unwrapped.residual:
+        if len(policy) == 3:  # timed (m, T_c, go_s): hold the start pose, then the insertion from go_s on
+            base, (m, T_c, go) = env.unwrapped, policy
+            return lambda _obs: base.step_with_parameters(
+                m, T_c, command=2.0 if base.engine.K[0] * base.engine.dt >= go - 1e-9 else 0.0)
         return lambda _obs: env.unwrapped.step_with_parameters(*policy)
     act = actor(policy)  # a tuple on a residual env: a constant action (checked by ``evaluate``)
     return lambda obs: env.step(act(obs))

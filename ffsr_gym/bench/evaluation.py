@@ -100,12 +100,21 @@ def _check_constant(policy: tuple, plan: Plan) -> None:
 
 
 def _check_parameters(policy: tuple, plan: Plan) -> None:
-    """A fixed (m, T_c [s]) must be two real numbers inside the version's action box.
+    """A fixed (m, T_c [s]) must be two real numbers inside the version's action box; on an id whose action
+    commands the approach (capture v1), a timed (m, T_c [s], go_s [s]): the insertion commanded from the first
+    decision at or after go_s, in [0, the episode's duration).
 
     Raises:
         InvalidInputError: naming the value and the box.
     """
     rule = score_rule(plan.spec)
+    if plan.spec.actions.command:
+        duration = rule.duration_s
+        go = policy[2] if isinstance(policy, tuple) and len(policy) == 3 else None
+        if isinstance(go, bool) or not isinstance(go, (int, float, np.floating)) or not 0.0 <= go < duration:
+            raise InvalidInputError(f"fixed policy {policy!r}; allowed on {plan.env_id}: (m, T_c [s], go_s [s]) with "
+                                    f"go_s in [0, {duration:g}) s, when the insertion is commanded")
+        policy = policy[:2]
     if rule.benchmark is not None and plan.spec.actions.boxes == "rules":
         m_box, t_box = rule.benchmark.action.m_bounds, rule.benchmark.action.T_c_bounds_s
     else:
@@ -278,7 +287,8 @@ def _runner(policy: Any, plan: Plan, executor: Executor | None, chunk: int, batc
     """How the plan's episodes run: one batched env, or chunks of single envs (serially or on ``executor``)."""
     pooled = plan.spec.evaluation.protocol == "pool" and "custom_task" not in plan.extra
     residual = plan.spec.is_residual(plan.env_id)
-    fixed = (isinstance(policy, tuple) and pooled and not residual and plan.kwargs.get("terminate_on_violation", True)
+    fixed = (isinstance(policy, tuple) and pooled and not residual and not plan.spec.actions.command
+             and plan.kwargs.get("terminate_on_violation", True)
              is True and set(plan.kwargs) <= {plan.spec.tasks.keyword, "split", "dense_shaping", "terminate_on_violation",
                                               "dt_s"})
     if batched and not fixed:
@@ -319,7 +329,8 @@ def run_plan(policy: Any, plan: Plan, *, name: str = "submission", progress: boo
     if isinstance(policy, tuple):  # what `ffsr-gym leaderboard verify` re-runs
         extra["policy"] = {"fixed": [float(x) for x in policy]}
     else:  # what `ffsr-gym leaderboard verify` replays without running the policy, and what made the policy
-        extra["trace"] = trace_record([text for text, _ in traces], (12 if plan.spec.is_residual(plan.env_id) else 2,),
+        width = (12 if plan.spec.is_residual(plan.env_id) else 2) + int(plan.spec.actions.command)
+        extra["trace"] = trace_record([text for text, _ in traces], (width,),
                                       [clipped for _, clipped in traces])
         prov["policy"] = plan.policy_origin if plan.policy_origin is not None else policy_origin(policy)
     return EvalReport(plan.env_id, plan.kwargs if plan.recorded_kwargs is None else plan.recorded_kwargs,

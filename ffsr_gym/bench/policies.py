@@ -169,7 +169,8 @@ def resolve_recorded(spec: str, sha256: str | None, folder: Path) -> str:
 
 
 def uniform_random_residual(observation: Any) -> Any:
-    """The lower reference of the residual tables: an action drawn uniformly from [-1, 1]^12 at every decision.
+    """The lower reference of the residual tables: an action drawn uniformly from [-1, 1]^12 at every decision
+    (13 values, the approach's command too, for an observation of 76 floats: capture v1's).
 
     The draw is seeded by the observation's bytes (SHA-256), so the policy is a fixed function of
     what it sees: episodes replay exactly whatever order or process they run in
@@ -180,4 +181,5 @@ def uniform_random_residual(observation: Any) -> Any:
     import numpy as np
 
     digest = hashlib.sha256(np.ascontiguousarray(observation, dtype=np.float32).tobytes()).digest()
-    return np.random.default_rng(int.from_bytes(digest[:8], "little")).uniform(-1.0, 1.0, 12).astype(np.float32)
+    size = 13 if np.size(observation) == 76 else 12
+    return np.random.default_rng(int.from_bytes(digest[:8], "little")).uniform(-1.0, 1.0, size).astype(np.float32)
