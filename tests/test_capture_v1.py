@@ -233,3 +233,17 @@ def test_evaluate_plays_a_timed_fixed_policy_and_the_random_residual_commands_to
     assert random.extra["trace"]["action_shape"] == [13] and not random.episodes[0]["success"]
     with pytest.raises(InvalidInputError, match=r"\(m, T_c \[s\], go_s \[s\]\) with go_s in \[0, 60\) s"):
         evaluate((0.3, 4.0), "FFSR-Capture-v1", task=task)
+
+
+def test_the_ensemble_holds_four_spin_members_the_first_as_capture_v0s(task):
+    from ffsr_gym.tasks.certificate import ensemble_members
+
+    members = ensemble_members(task, SEED, BENCH.tasks.ensemble, pinocchio=False)
+    spins = {m.name: np.array(m.task.tumbling_target.omega_body_deg_s) for m in members if m.name.startswith("omega")}
+    assert list(spins) == ["omega", "omega 2", "omega 3", "omega 4"]
+    nominal = np.array(task.tumbling_target.omega_body_deg_s)
+    for spin in spins.values():
+        np.testing.assert_allclose(np.abs(spin - nominal), 0.3, rtol=1e-9)
+    signs = np.random.default_rng([SEED, 8]).choice((-1.0, 1.0), 3)  # capture-v0's one member
+    np.testing.assert_allclose(spins["omega"], nominal + 0.3 * signs, rtol=1e-12)
+    assert len({tuple(np.sign(s - nominal)) for s in spins.values()}) >= 2

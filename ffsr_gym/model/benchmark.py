@@ -76,8 +76,9 @@ class Ensemble:
     Besides the task itself: the same task at ``dt_s / d`` for each ``d`` of ``step_divisors``;
     ``start_draws`` starts whose joints are each ``start_offset_deg`` off, with signs drawn from
     ``default_rng([seed, 4 + draw])``; and, with ``pinocchio``, the task on the Pinocchio backend. With
-    ``omega_offset_deg_s`` > 0, a task with a tumbling target has one more member: its body's initial angular
-    velocity with each component that far off (signs from ``default_rng([seed, 8])``).
+    ``omega_offset_deg_s`` > 0, a task with a tumbling target has ``omega_draws`` more members: its body's initial
+    angular velocity with each component that far off (signs from ``default_rng([seed, 8])``, then
+    ``default_rng([seed, 8, draw])`` for the further draws).
     The worst episode must clear every success threshold by a margin (:meth:`short_margin`).
     """
 
@@ -89,6 +90,7 @@ class Ensemble:
     clearance_margin_m: float = field(default=0.0, metadata=number(0.0, 1.0))
     error_margin: float = field(default=1.0, metadata=number(0.0, 1.0, lo_open=True))
     omega_offset_deg_s: float = field(default=0.0, metadata=number(0.0, 10.0))
+    omega_draws: int = field(default=1, metadata=natural(16))
 
     def short_margin(self, peak_rate_deg_s: float, min_clearance_m: float, min_self_clearance_m: float,
                      final_errors: tuple[float, float], score: ScoreSettings) -> str | None:

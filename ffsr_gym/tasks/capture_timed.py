@@ -162,6 +162,7 @@ def certify_timed(task: Scenario, seed: int, benchmark: Benchmark,
     margins. ``outcomes``: the default planner's :func:`timing_outcomes`, whose failed moments are not tried again."""
     rule, default = benchmark.tasks, benchmark.planner
     members = [] if rule.ensemble is None else ensemble_members(task, seed, rule.ensemble, pinocchio=False)
+    members.sort(key=lambda member: not member.name.startswith("omega"))  # the likeliest to fail, and cheap, first
     failed = {o.go_s for o in outcomes or () if o.capture_time_s is None}
     runs = 0
     settings = [(default.m, default.T_c_s)] + [(m, T_c) for m in rule.grid_m for T_c in rule.grid_T_c_s]

@@ -221,9 +221,12 @@ def ensemble_members(task: Scenario, seed: int, ensemble: Ensemble, *, pinocchio
                 for draw in range(ensemble.start_draws)]
     body = task.tumbling_target
     if body is not None and ensemble.omega_offset_deg_s > 0.0:
-        signs = np.random.default_rng([int(seed), 8]).choice((-1.0, 1.0), 3)
-        spin = tuple(float(w + ensemble.omega_offset_deg_s * s) for w, s in zip(body.omega_body_deg_s, signs))
-        members.append(Member("omega", task.replace(tumbling_target=dataclasses.replace(body, omega_body_deg_s=spin))))
+        for draw in range(ensemble.omega_draws):
+            rng = np.random.default_rng([int(seed), 8] if draw == 0 else [int(seed), 8, draw])
+            spin = tuple(float(w + ensemble.omega_offset_deg_s * s)
+                         for w, s in zip(body.omega_body_deg_s, rng.choice((-1.0, 1.0), 3)))
+            members.append(Member("omega" if draw == 0 else f"omega {draw + 1}",
+                                  task.replace(tumbling_target=dataclasses.replace(body, omega_body_deg_s=spin))))
     if ensemble.pinocchio if pinocchio is None else pinocchio:
         if task.simulation.plant == "servo":
             raise InvalidInputError(f"task {task.name!r}: the servo plant runs on the kernel only, so it has no "
