@@ -163,8 +163,9 @@ class EpisodeEngine(EngineSettings, PicklableEngine):
         The compiled and the reference pipelines give the same numbers bit for bit on the kernel backend:
         this switch is how the tests show it.
         """
-        if not self.single or any(self.K):
-            raise InvalidInputError("the reference pipeline steps one copy, from the start of an episode")
+        if not self.single or any(self.K) or self.grasp:
+            raise InvalidInputError("the reference pipeline steps one copy, from the start of an episode, of a version "
+                                    "whose action does not command an approach")
         self.compiled, self.episodes[0] = False, None
 
     def _potential(self, ee_error: Any) -> Any:
@@ -356,8 +357,12 @@ class EpisodeEngine(EngineSettings, PicklableEngine):
             rollout.rows, rollout.finished = rollout.rows + (not captured), True
         rollout.finish()  # the reference pipeline's
         scenario = self.scenarios[i]
-        self.results[i] = (self.rule.result(rollout.trajectory(), scenario) if self.record
-                           else self.rule.result_of_totals(episode.totals, scenario, *([episode.capture] * self.grasp)))
+        if self.record:
+            self.results[i] = self.rule.result(rollout.trajectory(), scenario)
+        elif self.grasp:  # capture v1: its native judge says when and how it captured
+            self.results[i] = self.rule.result_of_totals(episode.totals, scenario, episode.capture)
+        else:
+            self.results[i] = self.rule.result_of_totals(episode.totals, scenario)
         return self.results[i]
 
     def rollout(self, i: int) -> Rollout:

@@ -41,7 +41,7 @@ from ffsr_gym.model.schema import (
 
 #: The ranked rule files shipped (the newest last: scripts default to it).
 VERSIONS = ("v2",)
-#: The capture families' rule files (beyond the paper; docs/model.md §22, §23), loaded by the same
+#: The capture families' rule files (beyond the paper; docs/model.md §22, §24), loaded by the same
 #: :func:`load_benchmark`.
 CAPTURE_VERSIONS = ("capture-v0", "capture-v1")
 
@@ -126,7 +126,7 @@ class CaptureRule:
 
 @dataclass(frozen=True)
 class CaptureQuality:
-    """What a capture is worth (``[quality]``, capture v1; docs/model.md §23): on capture, the score is
+    """What a capture is worth (``[quality]``, capture v1; docs/model.md §24): on capture, the score is
     ``time_weight`` (1 − t_capture / T) + ``contact_weight`` / (1 + v_contact / ``contact_speed_ref_m_s``)
     + ``smoothness_weight`` / (1 + C), with T the episode's duration, v_contact [m/s] the relative speed when the
     tool first comes within ``[capture] contact_m`` of the grasp frame and C v2's smoothness cost up to the

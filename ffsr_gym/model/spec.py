@@ -55,7 +55,7 @@ class ScoreSpec:
 class ActionSpec:
     """Where the action boxes come from (the scenario's [env] or the rule file's [action]), the residual law, and
     whether the action ends with the commanded approach's command (``command``: one more entry a in [-1, 1],
-    u = a + 1; docs/model.md §23)."""
+    u = a + 1; docs/model.md §24)."""
 
     boxes: str = field(metadata=choice("scenario", "rules"))
     residual_fades: bool = field(metadata=BOOL)

@@ -210,7 +210,7 @@ class CaptureSmoothness(BoundedSmoothness):
 
 
 class CaptureQuality(CaptureSmoothness):
-    """A capture's worth (a rule file with ``[quality]``; ``FFSR-Capture-v1``; docs/model.md §23): on capture,
+    """A capture's worth (a rule file with ``[quality]``; ``FFSR-Capture-v1``; docs/model.md §24): on capture,
     w_t (1 − t / T) + w_v / (1 + v_contact / v_ref) + w_s / (1 + C) (:func:`~ffsr_gym.scoring.score.quality_terms`),
     0 otherwise. The episode ends at its capture (an environment episode there, a longer trajectory is scored up
     to it).

@@ -235,7 +235,7 @@ def score_of_totals(totals: _native.ScoreTotals, task: Scenario, benchmark: Benc
 
 
 def quality_terms(benchmark: Benchmark, judged: Capture, cost: float, duration_s: float) -> tuple[float, float, float]:
-    """The three terms of a capture's worth under ``[quality]`` (capture v1; docs/model.md §23): time, contact
+    """The three terms of a capture's worth under ``[quality]`` (capture v1; docs/model.md §24): time, contact
     and smoothness, each its weight times its factor (:class:`~ffsr_gym.model.benchmark.CaptureQuality`)."""
     q = benchmark.quality
     return (q.time_weight * (1.0 - judged.time_s / duration_s),

@@ -1,4 +1,4 @@
-"""Capture v1's tasks (docs/model.md §23): a handle that sweeps, drawn per seed and tier, screened and certified on
+"""Capture v1's tasks (docs/model.md §24): a handle that sweeps, drawn per seed and tier, screened and certified on
 timings.
 
 A candidate of tier ``sweep`` or ``nutation`` and seed s is capture-v0's draw
