@@ -247,3 +247,27 @@ def test_the_ensemble_holds_four_spin_members_the_first_as_capture_v0s(task):
     signs = np.random.default_rng([SEED, 8]).choice((-1.0, 1.0), 3)  # capture-v0's one member
     np.testing.assert_allclose(spins["omega"], nominal + 0.3 * signs, rtol=1e-12)
     assert len({tuple(np.sign(s - nominal)) for s in spins.values()}) >= 2
+
+
+def test_the_batched_env_is_the_single_env_batched(task):
+    vec = gym.make_vec("FFSR-Capture-Residual-v1", num_envs=2,
+                       vectorization_mode="vector_entry_point", task=task)
+    single = gym.make("FFSR-Capture-Residual-v1", task=task)
+    obs, _ = vec.reset(seed=0)
+    one, _ = single.reset(seed=1)
+    np.testing.assert_array_equal(obs[1], one)
+    rng = np.random.default_rng(5)
+    for k in range(500):
+        actions = rng.uniform(-0.3, 0.3, (2, 13)).astype(np.float32)
+        actions[1, :12] = 0.0  # copy 1: the planner alone, going straight in (it captures at 10.95 s)
+        actions[:, 12] = 1.0
+        obs, rewards, terminated, truncated, info = vec.step(actions)
+        one, reward, done, cut, single_info = single.step(actions[1])
+        assert rewards[1] == pytest.approx(reward, abs=1e-12) and terminated[1] == done and truncated[1] == cut
+        if done or cut:
+            assert info["score"][1] == single_info["score"] and info["failure"][1] == single_info["failure"]
+            break
+        np.testing.assert_array_equal(obs[1], one)
+    assert done and single_info["success"] and single_info["capture_time_s"] == pytest.approx(10.95)
+    vec.close()
+    single.close()
