@@ -271,3 +271,25 @@ def test_the_batched_env_is_the_single_env_batched(task):
     assert done and single_info["success"] and single_info["capture_time_s"] == pytest.approx(10.95)
     vec.close()
     single.close()
+
+
+def _observation(t: float, speed: float) -> np.ndarray:
+    obs = np.zeros(76, dtype=np.float32)
+    obs[52], obs[65] = t / 60.0, speed
+    return obs
+
+
+def test_the_practitioners_timing_goes_in_after_the_slowest_moment():
+    from ffsr_gym.bench.capture_heuristic import SlowestPass
+
+    policy = SlowestPass()
+    dips = [(k / 10, 0.05 + 0.02 * abs(k / 10 - 8.0)) for k in range(200)]  # slowest at 8 s
+    commands = [float(policy(_observation(t, v))[2]) + 1.0 for t, v in dips]
+    first = commands.index(2.0)
+    assert dips[first][0] == pytest.approx(8.1) and all(c == 2.0 for c in commands[first:])
+    steady = [float(policy(_observation(k / 10, 0.05))[2]) + 1.0 for k in range(40)]  # a new episode at t = 0
+    assert steady.index(2.0) == 20  # no slowest moment: in at once after 2 s of watching
+    rising = [float(policy(_observation(k / 10, 0.05 + 0.001 * k))[2]) + 1.0 for k in range(600)]
+    assert rising.index(2.0) == 491  # never slower: in when only the approach's 10.98 s are left
+    m, T_c = action_to_parameters(policy.action(0.0)[:2], draw_timed_task("sweep", SEED, BENCH))
+    assert m == pytest.approx(0.3, abs=1e-7) and T_c == pytest.approx(4.0, abs=1e-6)

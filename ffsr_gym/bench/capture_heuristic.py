@@ -1,0 +1,65 @@
+"""A timing a practitioner would write for capture v1 (docs/model.md §24): watch the handle, go in at its slowest.
+
+:class:`SlowestPass` is a policy of ``FFSR-Capture-v1`` (observation → (m, T_c, command) action) that knows
+nothing of the task beyond what it sees: the default planner's (m, T_c) throughout; the start pose held while it
+watches the handle's speed (its linear speed plus the standoff times its angular speed, from the observation's
+grasp twist); the insertion commanded at the first decision after that speed has passed a minimum (it fell and
+rises again, by more than ``tolerance`` of itself), at once when the first ``watch_s`` seconds show a steady speed
+(a regular sweep has no slowest point), and at the latest when only the approach's time is left. Once going it
+keeps going.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: Where the capture v1 observation holds the elapsed fraction of the episode, the grasp frame's twist and the
+#: approach's state (docs/envs.md).
+TIME_INDEX, TWIST, APPROACH = 52, slice(65, 71), slice(71, 76)
+
+
+@dataclass
+class SlowestPass:
+    """See the module docstring. ``m``, ``T_c_s``: the planner's setting; ``duration_s``: the episode's length (the
+    observation shows its elapsed fraction); ``approach_s``: the time an approach and insertion take from rest
+    (7.49 s + 2.49 s) and the hold (1 s); ``standoff_m``: the lever that weighs the handle's angular speed."""
+
+    m: float = 0.3
+    T_c_s: float = 4.0
+    duration_s: float = 60.0
+    approach_s: float = 10.98
+    standoff_m: float = 0.15
+    watch_s: float = 2.0
+    tolerance: float = 0.005
+    m_bounds: tuple[float, float] = (0.05, 0.6)
+    T_c_bounds_s: tuple[float, float] = (1.0, 10.0)
+    _state: dict = field(default_factory=dict, repr=False)
+
+    def __call__(self, observation: np.ndarray) -> np.ndarray:
+        obs = np.asarray(observation, dtype=np.float64)
+        t = float(obs[TIME_INDEX]) * self.duration_s
+        twist = obs[TWIST]
+        speed = float(np.linalg.norm(twist[:3]) + self.standoff_m * np.linalg.norm(twist[3:]))
+        state = self._state
+        if t == 0.0 or not state:  # a new episode
+            state.clear()
+            state.update(going=False, previous=None, falling=False, low=speed, high=speed)
+        state["low"], state["high"] = min(state["low"], speed), max(state["high"], speed)
+        previous = state["previous"]
+        if not state["going"]:
+            steady = t >= self.watch_s and state["high"] - state["low"] <= self.tolerance * state["high"]
+            rising = previous is not None and speed > previous * (1.0 + self.tolerance)
+            late = t >= self.duration_s - self.approach_s - 1e-9
+            state["going"] = steady or (state["falling"] and rising) or late
+            if previous is not None and speed < previous * (1.0 - self.tolerance):
+                state["falling"] = True
+        state["previous"] = speed
+        return self.action(2.0 if state["going"] else 0.0)
+
+    def action(self, command: float) -> np.ndarray:
+        """The env action of the planner's (m, T_c) and the command u ∈ [0, 2]."""
+        (m_lo, m_hi), (t_lo, t_hi) = self.m_bounds, self.T_c_bounds_s
+        return np.array([2.0 * (self.m - m_lo) / (m_hi - m_lo) - 1.0, 2.0 * (self.T_c_s - t_lo) / (t_hi - t_lo) - 1.0,
+                         command - 1.0], dtype=np.float32)
