@@ -56,7 +56,9 @@ def header(spec: BenchmarkSpec, group: str) -> list[str]:
         return [f"### {group}", "", "| rank | entry | method | feasible rate | score IQM [95% CI] | score mean | episodes "
                 "| commit |", "|---|---|---|---|---|---|---|---|"]
     sha = reference.reference_sha256(spec.rules.version)
-    ending = ("capture time [s], captures | capture ratio, captures" if spec.rules.capture is not None
+    ending = ("capture time [s]: median (10-90 %), captures | contact speed [mm/s], captures"
+              if spec.rules.quality is not None
+              else "capture time [s], captures | capture ratio, captures" if spec.rules.capture is not None
               else "final error [m], successes | convergence [s], successes")
     return [f"### {group} ({spec.evaluation.split} pool)", "",
             (f"| rank | entry | score IQM [95% CI] | {spec.leaderboard.rate_column} | "
@@ -127,7 +129,14 @@ def row(spec: BenchmarkSpec, label: str, e: dict[str, Any]) -> str:
 
 def _ending(spec: BenchmarkSpec, rows: list[dict[str, Any]]) -> str:
     """The last two metric cells: the capture's time and ratio (a capture version), else final error and
-    convergence time; medians over the successful episodes."""
+    convergence time; medians over the successful episodes (capture v1: the capture time's median and 10-90 %
+    range, and the speed of first contact)."""
+    if spec.rules.quality is not None:
+        times = [row["capture_time_s"] for row in rows if row["success"]]
+        spread = f" ({np.percentile(times, 10):.1f}-{np.percentile(times, 90):.1f})" if times else ""
+        contact = _median(rows, "contact_speed_m_s", successes=True)
+        return (f"{_fmt(_median(rows, 'capture_time_s', successes=True), '.1f')}{spread} | "
+                f"{_fmt(None if contact is None else 1000 * contact, '.0f')}")
     if spec.rules.capture is not None:
         return (f"{_fmt(_median(rows, 'capture_time_s', successes=True), '.1f')} | "
                 f"{_fmt(_median(rows, 'capture_ratio', successes=True), '.2g')}")
