@@ -41,7 +41,9 @@ def test_the_capture_ids_pass_gymnasium_and_sb3_checks(env_id):
         env = gym.make(env_id, task="fast", split="test")
         check_env(env.unwrapped, skip_render_check=True)
         sb3_checker.check_env(env.unwrapped, warn=True)
-    assert not caught, [str(w.message) for w in caught]
+    # Gymnasium's notice that a -v1 id exists (capture-v1, docs/envs.md) is the only warning allowed
+    others = [str(w.message) for w in caught if "is out of date" not in str(w.message)]
+    assert not others, others
     assert env.spec.max_episode_steps == 240 and env.observation_space.shape == (59,)
 
 
