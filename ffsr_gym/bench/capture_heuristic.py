@@ -15,16 +15,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-#: Where the capture v1 observation holds the elapsed fraction of the episode, the grasp frame's twist and the
-#: approach's state (docs/envs.md).
-TIME_INDEX, TWIST, APPROACH = 52, slice(65, 71), slice(71, 76)
+#: Where the capture v1 observation holds the elapsed fraction of the episode and the grasp frame's twist
+#: (docs/envs.md).
+TIME_INDEX, TWIST = 52, slice(65, 71)
 
 
 @dataclass
 class SlowestPass:
     """See the module docstring. ``m``, ``T_c_s``: the planner's setting; ``duration_s``: the episode's length (the
     observation shows its elapsed fraction); ``approach_s``: the time an approach and insertion take from rest
-    (7.49 s + 2.49 s) and the hold (1 s); ``standoff_m``: the lever that weighs the handle's angular speed."""
+    (7.49 s + 2.49 s) and the hold (1 s); ``standoff_m``: the lever that weighs the handle's angular speed;
+    ``m_bounds``, ``T_c_bounds_s``: capture-v1's action box (capture-v1.toml [action])."""
 
     m: float = 0.3
     T_c_s: float = 4.0
