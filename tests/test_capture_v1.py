@@ -293,3 +293,13 @@ def test_the_practitioners_timing_goes_in_after_the_slowest_moment():
     assert rising.index(2.0) == 491  # never slower: in when only the approach's 10.98 s are left
     m, T_c = action_to_parameters(policy.action(0.0)[:2], draw_timed_task("sweep", SEED, BENCH))
     assert m == pytest.approx(0.3, abs=1e-7) and T_c == pytest.approx(4.0, abs=1e-6)
+
+
+def test_the_batched_env_refuses_a_command_before_its_reset_by_name(task):
+    vec = gym.make_vec("FFSR-Capture-v1", num_envs=2, vectorization_mode="vector_entry_point", task=task)
+    with pytest.raises(InvalidInputError, match=r"call reset\(\) before step\(\)"):
+        vec.unwrapped.step_with_parameters(0.3, 4.0, command=2.0)
+    vec.reset(seed=0)
+    vec.unwrapped.step_with_parameters(0.3, 4.0, command=2.0)
+    assert [e.timing[0] for e in vec.unwrapped.engine.episodes] == [2.0, 2.0]
+    vec.close()

@@ -175,10 +175,8 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         if self.residual:
             raise InvalidInputError("step_with_parameters is for the (m, T_c) envs (FFSR-v0, FFSR-v2), not a residual env")
         parameters = physical_parameters(m, T_c)
-        if command is not None:
-            u = physical_command(command, self.engine.grasp)
-            self.engine.set_command([i for i in range(self.num_envs) if not self._needs_reset[i]], u)
-        return self._step(np.zeros((self.num_envs, self.engine.action_shape[0]), dtype=np.float32), parameters)
+        u = None if command is None else physical_command(command, self.engine.grasp)
+        return self._step(np.zeros((self.num_envs, self.engine.action_shape[0]), dtype=np.float32), parameters, u)
 
     def play_out_with_parameters(self, m: float, T_c: float) -> tuple[np.ndarray, np.ndarray, dict]:
         """Every running copy's episode to its end with physical (m, T_c [s]) in one kernel call: the
@@ -199,12 +197,14 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
         self._needs_reset |= terminated | truncated
         return terminated, truncated, info
 
-    def _step(self, actions: Any, parameters: tuple[float, float] | None):
+    def _step(self, actions: Any, parameters: tuple[float, float] | None, command: float | None = None):
         check_open(self)
         if not self._started:
             raise InvalidInputError("call reset() before step()")
         a, was_clipped = check_action(actions, self.action_space.shape)
         active = ~self._needs_reset
+        if command is not None:  # the running copies' approach command (a copy reset by this step starts afresh)
+            self.engine.set_command(np.flatnonzero(active), command)
         restarted = self._needs_reset.copy() if self.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP \
             else np.zeros(self.num_envs, dtype=bool)
         self.engine.clipped += was_clipped
