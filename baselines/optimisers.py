@@ -2,12 +2,15 @@
 
     python baselines/optimisers.py --version v2 --leaderboard leaderboards [--tasks 20] [--work runs/optimisers-v2]
     python baselines/optimisers.py --version capture-v0 --leaderboard leaderboards [--tiers slow]
+    python baselines/optimisers.py --version capture-v1 --leaderboard leaderboards
 
 Both minimise the same loss, 1 − the mean score over the first ``--tasks`` tasks of the tier's
 *training* pool (``ffsr_gym.bench.planner_scores.training_loss``), inside the version's (m, T_c)
 action box (m in [0.05, 0.6], T_c in [1, 10] s); the optimum is then scored on the tier's test
-pool. The GA checkpoints every generation in ``--work`` and an existing entry is kept, so a killed
-run resumes. Compute: episodes run during the search (evaluations x tasks) and wall time.
+pool. On a version whose action commands the approach (capture v1) both search a third gene, the go time
+go_s in [0, the last moment of the tier rule's ``go_s``] (the insertion commanded from the first decision at
+or after it), with the same loss. The GA checkpoints every generation in ``--work`` and an existing entry is
+kept, so a killed run resumes. Compute: episodes run during the search (evaluations x tasks) and wall time.
 """
 
 import argparse
@@ -21,31 +24,44 @@ import numpy as np
 
 from ffsr_gym.bench.planner_scores import evaluate_planner, training_loss
 from ffsr_gym.model.benchmark import CAPTURE_VERSIONS, VERSIONS, load_benchmark
+from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.optim import ga
 from ffsr_gym.tasks.splits import version_tiers
+
+
+def go_box(version):
+    """The go time's search box [s] on a version whose action commands the approach (None: no such gene)."""
+    benchmark = load_benchmark(version)
+    return (0.0, float(max(benchmark.tasks.go_s))) if spec_for_version(version).actions.command else None
 
 
 def run_ga(tier, tasks, work, pool, generations, population, version):
     box = load_benchmark(version).action
     config = ga.GAConfig(population=population, generations=generations, m_bounds=tuple(box.m_bounds),
-                         T_c_bounds_s=tuple(box.T_c_bounds_s), seed=0, scenario=f"{version}:{tier}")
+                         T_c_bounds_s=tuple(box.T_c_bounds_s), go_bounds_s=go_box(version), seed=0,
+                         scenario=f"{version}:{tier}")
     state = ga.run(config, executor=pool, checkpoint=Path(work) / f"ga_{tier}.json",
                    fitness=partial(training_loss, tier=tier, tasks=tasks, version=version), progress=True)
     m, T_c, loss = ga.best(state)
-    return (m, T_c), {"objective_evaluations": len(state.cache) * tasks}, loss
+    go = ga.best_go_s(state)
+    return (m, T_c) + (() if go is None else (go,)), {"objective_evaluations": len(state.cache) * tasks}, loss
 
 
 def run_cmaes(tier, tasks, pool, evaluations, version):
-    box = load_benchmark(version).action
-    low, high = np.array([box.m_bounds[0], box.T_c_bounds_s[0]]), np.array([box.m_bounds[1], box.T_c_bounds_s[1]])
+    box, go = load_benchmark(version).action, go_box(version)
+    low = np.array([box.m_bounds[0], box.T_c_bounds_s[0]] + ([go[0]] if go else []))
+    high = np.array([box.m_bounds[1], box.T_c_bounds_s[1]] + ([go[1]] if go else []))
     loss = partial(training_loss, tier=tier, tasks=tasks, version=version)
-    es = cma.CMAEvolutionStrategy([0.45, 0.33], 0.2, {"bounds": [0, 1], "seed": 1, "maxfevals": evaluations, "verbose": -9})
+    start = [0.45, 0.33] + ([0.5] if go else [])
+    es = cma.CMAEvolutionStrategy(start, 0.2, {"bounds": [0, 1], "seed": 1, "maxfevals": evaluations, "verbose": -9})
     while not es.stop():
         candidates = es.ask()
-        params = [tuple(np.clip(low + np.clip(z, 0, 1) * (high - low), low, high)) for z in candidates]  # in the box
+        params = [tuple(float(x) for x in np.clip(low + np.clip(z, 0, 1) * (high - low), low, high))
+                  for z in candidates]  # in the box
         es.tell(candidates, list(pool.map(ga.call_fitness, [loss] * len(params), params)))
-    m, T_c = low + np.clip(es.result.xbest, 0, 1) * (high - low)
-    return (float(m), float(T_c)), {"objective_evaluations": int(es.result.evaluations) * tasks}, float(es.result.fbest)
+    best = low + np.clip(es.result.xbest, 0, 1) * (high - low)
+    compute = {"objective_evaluations": int(es.result.evaluations) * tasks}
+    return tuple(float(x) for x in best), compute, float(es.result.fbest)
 
 
 def main() -> None:
@@ -74,14 +90,15 @@ def main() -> None:
                     print("kept", folder / f"{name}.json")
                     continue
                 start = time.perf_counter()
-                (m, T_c), compute, loss = search()
+                (m, T_c, *go), compute, loss = search()
                 compute["wall_time_s"] = time.perf_counter() - start
-                report = evaluate_planner("predefined_time", task=tier, m=m, T_c=T_c, name=name,
-                                          training_pool=f"{tier}/train (first {args.tasks} tasks)", compute=compute,
-                                          version=version)
-                report.extra["method"] = names[name] + f" over (m, T_c): ({m:.4f}, {T_c:.3f} s)"
+                report = evaluate_planner("predefined_time", task=tier, m=m, T_c=T_c, go_s=go[0] if go else None,
+                                          name=name, training_pool=f"{tier}/train (first {args.tasks} tasks)",
+                                          compute=compute, version=version)
+                found = f"({m:.4f}, {T_c:.3f} s" + (f", {go[0]:.2f} s)" if go else ")")
+                report.extra["method"] = names[name] + (" over (m, T_c, go_s): " if go else " over (m, T_c): ") + found
                 report.extra["best_training_loss"] = loss
-                print(name, tier, f"({m:.4f}, {T_c:.3f} s)", f"IQM {report.metrics['score_iqm']:.3f}", "->", report.save(folder))
+                print(name, tier, found, f"IQM {report.metrics['score_iqm']:.3f}", "->", report.save(folder))
 
 
 if __name__ == "__main__":

@@ -1,10 +1,11 @@
 """The lower reference: a uniformly random residual on every tier's test pool (``random_residual`` entries).
 
-    python baselines/random_residual.py --leaderboard leaderboards [--version capture-v0]
+    python baselines/random_residual.py --leaderboard leaderboards [--version capture-v0|capture-v1]
 
-At every decision the policy draws each of the 12 residual actions of the version's residual id
-uniformly from [-1, 1] (``ffsr_gym.bench.policies.uniform_random_residual``, seeded by the
-observation so that ``ffsr-gym leaderboard verify`` re-runs it exactly). An existing entry is kept.
+At every decision the policy draws each entry of the version's residual action (the 12 residual rates,
+and on capture v1 the approach's command) uniformly from [-1, 1]
+(``ffsr_gym.bench.policies.uniform_random_residual``, seeded by the observation so that ``ffsr-gym
+leaderboard verify`` re-runs it exactly). An existing entry is kept.
 """
 
 import argparse
@@ -20,7 +21,7 @@ CALLABLE = "ffsr_gym.bench.policies:uniform_random_residual"
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--leaderboard", required=True, help="leaderboard root; entries go to <root>/<version>/<tier>/")
-    parser.add_argument("--version", default="v2", help="a pool benchmark version (default: v2; or capture-v0)")
+    parser.add_argument("--version", default="v2", help="a pool benchmark version (default: v2; or capture-v0, capture-v1)")
     args = parser.parse_args()
     spec = spec_for_version(args.version)
     for tier in spec.tasks.tiers:

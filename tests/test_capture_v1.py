@@ -231,7 +231,7 @@ def test_evaluate_plays_a_timed_fixed_policy_and_the_random_residual_commands_to
     assert report.extra["policy"] == {"fixed": [0.3, 4.0, 32.0]}
     random = evaluate(uniform_random_residual, "FFSR-Capture-Residual-v1", task=task)
     assert random.extra["trace"]["action_shape"] == [13] and not random.episodes[0]["success"]
-    with pytest.raises(InvalidInputError, match=r"\(m, T_c \[s\], go_s \[s\]\) with go_s in \[0, 60\) s"):
+    with pytest.raises(InvalidInputError, match=r"\(m, T_c \[s\], go_s \[s\]\), go_s in \[0, 60\) s"):
         evaluate((0.3, 4.0), "FFSR-Capture-v1", task=task)
 
 

@@ -24,7 +24,7 @@ from tqdm.auto import tqdm
 
 from ffsr_gym.bench.entry import EvalReport, Policy, PredictsActions, check_compute, policy_origin
 from ffsr_gym.bench.episodes import play_batched, play_chunk
-from ffsr_gym.bench.planner_scores import check_in_box, objective_for_params
+from ffsr_gym.bench.planner_scores import check_go, check_in_box, objective_for_params
 from ffsr_gym.bench.trace import trace_record
 from ffsr_gym.bench.verify import training_pool_problem
 from ffsr_gym.exceptions import InvalidInputError
@@ -109,11 +109,10 @@ def _check_parameters(policy: tuple, plan: Plan) -> None:
     """
     rule = score_rule(plan.spec)
     if plan.spec.actions.command:
-        duration = rule.duration_s
-        go = policy[2] if isinstance(policy, tuple) and len(policy) == 3 else None
-        if isinstance(go, bool) or not isinstance(go, (int, float, np.floating)) or not 0.0 <= go < duration:
-            raise InvalidInputError(f"fixed policy {policy!r}; allowed on {plan.env_id}: (m, T_c [s], go_s [s]) with "
-                                    f"go_s in [0, {duration:g}) s, when the insertion is commanded")
+        if not (isinstance(policy, tuple) and len(policy) == 3):
+            raise InvalidInputError(f"fixed policy {policy!r}; allowed on {plan.env_id}: (m, T_c [s], go_s [s]), "
+                                    f"go_s in [0, {rule.duration_s:g}) s, when the insertion is commanded")
+        check_go(policy[2], plan.spec, rule)
         policy = policy[:2]
     if rule.benchmark is not None and plan.spec.actions.boxes == "rules":
         m_box, t_box = rule.benchmark.action.m_bounds, rule.benchmark.action.T_c_bounds_s

@@ -65,13 +65,15 @@ def objective_for_params(m: float, T_c: float, *, scenario: str | Scenario = "pa
 
 
 def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | None = None, T_c: float | None = None,
-                     gain_per_s: float | None = None, training_pool: str | None = None, name: str = "planner",
-                     compute: dict | None = None, progress: bool = False, version: str = "v2") -> EvalReport:
+                     gain_per_s: float | None = None, go_s: float | None = None, training_pool: str | None = None,
+                     name: str = "planner", compute: dict | None = None, progress: bool = False,
+                     version: str = "v2") -> EvalReport:
     """Score a reference-planner variant with constant parameters on a tier's pool (one episode per task).
 
     The planner variants that are not an env action (``proportional``) are scored here, from the
     trajectory with the version's score rule, exactly as :func:`ffsr_gym.evaluate` scores env episodes.
-    ``compute``: what tuning the parameters cost (:func:`~ffsr_gym.bench.entry.check_compute`), if anything.
+    ``go_s`` [s]: on a version whose action commands the approach (capture v1), when the insertion is commanded
+    (:func:`check_go`). ``compute``: what tuning the parameters cost (:func:`~ffsr_gym.bench.entry.check_compute`).
     """
     spec = spec_for_version(version)
     if task not in spec.tasks.tiers or split not in spec.tasks.splits:
@@ -79,16 +81,18 @@ def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | 
                                 f"split in {list(spec.tasks.splits)}")
     compute = check_compute(compute) if compute else {}
     rule = score_rule(spec)
+    check_go(go_s, spec, rule)
     benchmark, start, rows, hashes = rule.benchmark, time.perf_counter(), [], {}
     tasks = pool(task, split, version=benchmark.version)
     for index, entry in enumerate(tqdm(tasks, disable=not progress, desc=f"{name} {task}/{split}")):
         played = task_scenario(task, entry.seed, benchmark)
-        result = planner_episode(played, benchmark, method=method, m=m, T_c=T_c, gain_per_s=gain_per_s)
+        result = planner_episode(played, benchmark, method=method, m=m, T_c=T_c, gain_per_s=gain_per_s, go_s=go_s)
         hashes[played.name] = planner_task(played, method, gain_per_s).sha256()
         rows.append({"seed": index, "task_index": index, "task_seed": entry.seed, **result.as_dict()})
     extra = {"training_pool": training_pool, "evaluation_pool": f"{task}/{split}",
              "pool_file_sha256": hashlib.sha256(pool_path(task, benchmark.version).read_bytes()).hexdigest(),
-             "planner": {"method": method, "m": m, "T_c_s": T_c, "gain_per_s": gain_per_s}, "compute": compute,
+             "planner": {"method": method, "m": m, "T_c_s": T_c, "gain_per_s": gain_per_s,
+                         **({} if go_s is None else {"go_s": go_s})}, "compute": compute,
              **reference_record(task, split, benchmark.version)}
     if spec.tasks.step_option:
         extra["dt_s"] = benchmark.dt_s
@@ -112,18 +116,41 @@ def check_in_box(parameters: Any, m_box: tuple[float, float], t_box: tuple[float
                                 "(the action box)")
 
 
-def training_loss(m: float, T_c: float, *, tier: str, tasks: int = 20, version: str = "v2") -> float:
-    """1 − the mean score of the predefined-time planner at constant (m, T_c [s]) on the first
-    ``tasks`` tasks of ``tier``'s **training** pool: the black-box loss optimisers minimise (in [0, 1]).
-    A point outside the action box is refused, as :func:`ffsr_gym.evaluate` refuses it (:func:`check_in_box`).
+def check_go(go_s: Any, spec: Any, rule: Any) -> None:
+    """``go_s`` [s] must be given exactly on a version whose action commands the approach, and lie in [0, the
+    episode's duration), as :func:`ffsr_gym.evaluate` requires of a timed policy.
+
+    Raises:
+        InvalidInputError: naming the value and the range.
+    """
+    if not spec.actions.command:
+        if go_s is not None:
+            raise InvalidInputError(f"go_s = {go_s!r}; allowed: None on version {spec.version!r} (its action does not "
+                                    "command the approach)")
+        return
+    duration_s = rule.duration_s
+    if isinstance(go_s, bool) or not isinstance(go_s, (int, float, np.floating)) or not 0.0 <= go_s < duration_s:
+        raise InvalidInputError(f"go_s = {go_s!r}; allowed on version {spec.version!r}: a number in "
+                                f"[0, {duration_s:g}) s, when the insertion is commanded")
+
+
+def training_loss(m: float, T_c: float, go_s: float | None = None, *, tier: str, tasks: int = 20,
+                  version: str = "v2", method: str = "predefined_time") -> float:
+    """1 − the mean score of the planner at constant (m, T_c [s]) (going in at ``go_s`` [s] on a version whose
+    action commands the approach) on the first ``tasks`` tasks of ``tier``'s **training** pool: the black-box
+    loss optimisers minimise (in [0, 1]). A point outside the action box is refused, as :func:`ffsr_gym.evaluate`
+    refuses it (:func:`check_in_box`, :func:`check_go`).
 
     A module-level function: ``functools.partial(training_loss, tier=..., tasks=...)`` pickles
     for process pools and Dask.
     """
-    benchmark = score_rule(spec_for_version(version)).benchmark
+    spec = spec_for_version(version)
+    rule = score_rule(spec)
+    benchmark = rule.benchmark
     check_in_box((m, T_c), benchmark.action.m_bounds, benchmark.action.T_c_bounds_s)  # what evaluate would refuse
-    episodes = [planner_episode(task_scenario(tier, t.seed, benchmark), benchmark, method="predefined_time", m=m,
-                                T_c=T_c) for t in pool(tier, "train", version=benchmark.version)[:tasks]]
+    check_go(go_s, spec, rule)
+    episodes = [planner_episode(task_scenario(tier, t.seed, benchmark), benchmark, method=method, m=m, T_c=T_c,
+                                go_s=go_s) for t in pool(tier, "train", version=benchmark.version)[:tasks]]
     return 1.0 - float(np.mean([e.score for e in episodes]))
 
 

@@ -42,7 +42,9 @@ MAX_GENERATIONS = 1_000_000
 
 @dataclass(frozen=True)
 class GAConfig:
-    """GA settings (paper values by default). ``T_c_fixed`` [s] set: reproduction mode (m only)."""
+    """GA settings (paper values by default). ``T_c_fixed`` [s] set: reproduction mode (m only). ``go_bounds_s``
+    [s] set: a third gene, when a timed policy commands the insertion (capture v1), and fitness takes (m, T_c, go_s).
+    """
 
     population: int = 100
     generations: int = 100
@@ -51,6 +53,7 @@ class GAConfig:
     m_bounds: tuple[float, float] = (0.05, 0.95)
     T_c_bounds_s: tuple[float, float] = (1.0, 5.0)
     T_c_fixed: float | None = None
+    go_bounds_s: tuple[float, float] | None = None
     selection: str = "inverse"
     seed: int = 0
     scenario: str = "paper"
@@ -67,17 +70,20 @@ class GAConfig:
 
     @property
     def genes(self) -> int:
-        return 1 if self.T_c_fixed is not None else 2
+        return 1 if self.T_c_fixed is not None else 2 if self.go_bounds_s is None else 3
 
 
-def decode(bits: np.ndarray, config: GAConfig) -> tuple[float, float]:
-    """(m, T_c [s]) of a chromosome (genes of 16 bits, most significant first)."""
+def decode(bits: np.ndarray, config: GAConfig) -> tuple[float, ...]:
+    """(m, T_c [s]) of a chromosome (genes of 16 bits, most significant first), and go_s [s] with a third gene."""
     scale = float(2**BITS - 1)
     values = [int("".join(map(str, bits[g * BITS:(g + 1) * BITS])), 2) / scale for g in range(config.genes)]
     m = config.m_bounds[0] + values[0] * (config.m_bounds[1] - config.m_bounds[0])
     if config.T_c_fixed is not None:
         return m, float(config.T_c_fixed)
-    return m, config.T_c_bounds_s[0] + values[1] * (config.T_c_bounds_s[1] - config.T_c_bounds_s[0])
+    T_c = config.T_c_bounds_s[0] + values[1] * (config.T_c_bounds_s[1] - config.T_c_bounds_s[0])
+    if config.go_bounds_s is None:
+        return m, T_c
+    return m, T_c, config.go_bounds_s[0] + values[2] * (config.go_bounds_s[1] - config.go_bounds_s[0])
 
 
 def selection_probabilities(scores: np.ndarray, mode: str) -> np.ndarray:
@@ -113,14 +119,16 @@ class GAState:
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> GAState:
         config = data["config"]
-        config = GAConfig(**{**config, "m_bounds": tuple(config["m_bounds"]), "T_c_bounds_s": tuple(config["T_c_bounds_s"])})
+        go = config.get("go_bounds_s")
+        config = GAConfig(**{**config, "m_bounds": tuple(config["m_bounds"]), "T_c_bounds_s": tuple(config["T_c_bounds_s"]),
+                             "go_bounds_s": None if go is None else tuple(go)})
         cache = {k: (math.inf if v is None else v) for k, v in data["cache"].items()}
         return cls(config, data["generation"], np.array(data["population"], dtype=np.int8), data["rng_state"],
                    data["history"], cache, data.get("wall_time_s", 0.0))
 
 
-def _key(m: float, T_c: float) -> str:
-    return f"{m!r},{T_c!r}"
+def _key(*params: float) -> str:
+    return ",".join(repr(x) for x in params)
 
 
 def _evaluate(state: GAState, fitness: Callable, executor: Executor | None) -> np.ndarray:
@@ -133,8 +141,8 @@ def _evaluate(state: GAState, fitness: Callable, executor: Executor | None) -> n
     return np.array([state.cache[_key(*p)] for p in params])
 
 
-def call_fitness(fitness: Callable, params: tuple[float, float]) -> float:
-    """``fitness(m, T_c)``; a module-level function so that executors can pickle it."""
+def call_fitness(fitness: Callable, params: tuple[float, ...]) -> float:
+    """``fitness(m, T_c)`` (``fitness(m, T_c, go_s)`` with a third gene); module-level, so executors pickle it."""
     return fitness(*params)
 
 
@@ -176,7 +184,7 @@ def _resumed(path: Path) -> GAState:
 
 
 def run(config: GAConfig | None = None, *, executor: Executor | None = None, checkpoint: str | Path | None = None,
-        fitness: Callable[[float, float], float] | None = None, progress: bool = True,
+        fitness: Callable[..., float] | None = None, progress: bool = True,
         stop_after: int | None = None) -> GAState:
     """Run (or resume from ``checkpoint``) the GA to ``config.generations``.
 
@@ -185,7 +193,8 @@ def run(config: GAConfig | None = None, *, executor: Executor | None = None, che
         executor: where evaluations run (any ``concurrent.futures.Executor``; None = in process).
             Results do not depend on it: all randomness stays in this process.
         checkpoint: JSON file written atomically after every generation; resumed if present.
-        fitness: picklable ``(m, T_c) -> score``; default ``objective_for_params`` on ``config.scenario``.
+        fitness: picklable ``(m, T_c) -> score`` (``(m, T_c, go_s)`` with ``go_bounds_s``); default
+            ``objective_for_params`` on ``config.scenario``.
         progress: show a progress bar.
         stop_after: stop after this many generations of this call (to test resuming).
     """
@@ -201,9 +210,10 @@ def run(config: GAConfig | None = None, *, executor: Executor | None = None, che
             scores = _evaluate(state, fitness, executor)
             best = int(np.argmin(scores))
             finite = scores[np.isfinite(scores)]
-            m, T_c = decode(state.population[best], state.config)
+            m, T_c, *go = decode(state.population[best], state.config)
             state.history.append({"generation": state.generation, "best_score": _finite(scores[best]), "best_m": m,
-                                  "best_T_c_s": T_c, "mean_finite_score": _finite(float(finite.mean())) if finite.size else None,
+                                  "best_T_c_s": T_c, **({"best_go_s": go[0]} if go else {}),
+                                  "mean_finite_score": _finite(float(finite.mean())) if finite.size else None,
                                   "feasible_fraction": float(np.isfinite(scores).mean())})
             state.population = _breed(state, scores, rng)
             state.generation += 1
@@ -213,7 +223,8 @@ def run(config: GAConfig | None = None, *, executor: Executor | None = None, che
                 write_json_atomic(path, state.to_json())
             done_here += 1
             bar.update(1)
-            bar.set_postfix_str(f"best B {scores[best]:.4g} at m = {m:.4f}, T_c = {T_c:.3f}")
+            bar.set_postfix_str(f"best B {scores[best]:.4g} at m = {m:.4f}, T_c = {T_c:.3f}"
+                                + (f", go_s = {go[0]:.2f}" if go else ""))
     return state
 
 
@@ -222,6 +233,11 @@ def best(state: GAState) -> tuple[float, float, float]:
     last = state.history[-1]
     score = last["best_score"]
     return last["best_m"], last["best_T_c_s"], math.inf if score is None else score
+
+
+def best_go_s(state: GAState) -> float | None:
+    """The GA optimum's go_s [s] (None: a run without the third gene)."""
+    return state.history[-1].get("best_go_s")
 
 
 def _scenario_fitness(m: float, T_c: float, *, scenario: str) -> float:

@@ -112,14 +112,18 @@ def planner_task(task: Scenario, method: str, gain_per_s: float | None) -> Scena
 
 
 def planner_episode(task: Scenario, benchmark: Benchmark, *, method: str, m: float | None = None,
-                    T_c: float | None = None, gain_per_s: float | None = None, backend: str = "auto") -> EpisodeScore:
+                    T_c: float | None = None, gain_per_s: float | None = None, go_s: float | None = None,
+                    backend: str = "auto") -> EpisodeScore:
     """One episode of a reference-planner variant with constant parameters, scored like every env episode.
 
     ``method`` is one of :data:`ffsr_gym.planning.planner.METHODS` (``predefined_time`` with
     (m, T_c [s]), ``proportional`` with gain K [1/s]); the run stops at the first violation, as
-    the environments do.
+    the environments do. ``go_s`` [s] (a task with a commanded approach): hold the start pose, then command the
+    insertion from the first decision at or after it (:func:`timed_run`).
     """
     played = planner_task(task, method, gain_per_s)
+    if go_s is not None:
+        return score_episode(timed_run(played, m, T_c, go_s, method=method, backend=backend), played, benchmark)
     return score_episode(planner_run(played, method=method, m=m, T_c=T_c, backend=backend), played, benchmark)
 
 
@@ -158,12 +162,16 @@ def replay(task: Scenario, certificate: Certificate, benchmark: Benchmark, *, ba
     return score_episode(rollout.trajectory(), task, benchmark)
 
 
-def timed_run(task: Scenario, m: float, T_c: float, go_s: float, *, backend: str = "auto") -> Trajectory:
+def timed_run(task: Scenario, m: float | None, T_c: float | None, go_s: float, *, method: str = "predefined_time",
+              backend: str = "auto") -> Trajectory:
     """The whole run of a timed certificate on a task with a commanded approach: the planner at (m, T_c [s]) holds
-    the start pose until ``go_s`` [s], then is commanded to the grasp frame (u = 2); it stops at a violation, not
-    at the capture (the score ends the episode there; the run's remainder gives the certificate's margins)."""
-    rollout = make_rollout(task, backend=backend, m=m, T_c=T_c)
-    wait, status = min(int(round(go_s / task.simulation.dt_s)), task.n_steps), "ok"
+    the start pose until the first decision at or after ``go_s`` [s] (as the environments read a timed policy),
+    then is commanded to the grasp frame (u = 2); it stops at a violation, not at the capture (the score ends the
+    episode there; the run's remainder gives the certificate's margins)."""
+    rollout = make_rollout(task, backend=backend, method=method, m=m, T_c=T_c)
+    per_decision = max(1, int(round(task.env.decision_interval_s / task.simulation.dt_s)))
+    decisions = math.ceil((go_s - 1e-9) / task.env.decision_interval_s)  # as the env: t >= go_s - 1e-9
+    wait, status = min(decisions * per_decision, task.n_steps), "ok"
     if wait:
         _, status = rollout.advance(wait, stop_on_violation=True)
     if status == "ok" and rollout.k < rollout.n_steps:

@@ -1,0 +1,78 @@
+"""Capture v1's tuned baselines: a timed policy's go time read as the environments read it (the first decision at
+or after it), the black-box loss refusing a go time by name, and the GA's third gene (resumable, spanning its box,
+finding a closed-form bowl's minimum)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ffsr_gym.bench.evaluation import evaluate
+from ffsr_gym.bench.planner_scores import training_loss
+from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.optim import ga
+from ffsr_gym.tasks.capture_timed import draw_timed_task
+from ffsr_gym.tasks.certificate import planner_episode, timed_run
+
+BENCH = load_benchmark("capture-v1")
+SEED = 41  # a sweep candidate the default planner captures going in at 32 s (tests/test_capture_v1.py)
+
+
+@pytest.fixture(scope="module")
+def task():
+    return draw_timed_task("sweep", SEED, BENCH)
+
+
+def test_a_go_time_between_decisions_goes_at_the_next_decision_as_in_the_env(task):
+    late, on_grid, early = (timed_run(task, 0.3, 4.0, go) for go in (31.95, 32.0, 31.9))
+    assert np.array_equal(late.q, on_grid.q)  # 31.95 s: the decision at 32.0 s
+    assert not np.array_equal(late.q, early.q)  # not the one at 31.9 s
+    report = evaluate((0.3, 4.0, 31.95), "FFSR-Capture-v1", task=task)
+    expected = planner_episode(task, BENCH, method="predefined_time", m=0.3, T_c=4.0, go_s=31.95)
+    assert expected.success and report.episodes[0]["score"] == expected.score
+
+
+def test_the_proportional_planner_takes_a_go_time(task):
+    went = planner_episode(task, BENCH, method="proportional", gain_per_s=1.0, go_s=32.0)
+    held = planner_episode(task, BENCH, method="proportional", gain_per_s=1.0, go_s=59.9)
+    assert went.capture_time_s is not None and went.capture_time_s > 32.0
+    assert held.capture_time_s is None and held.score == 0.0  # 0.1 s left: no capture
+
+
+@pytest.mark.parametrize(("go", "version", "match"), [
+    (None, "capture-v1", r"go_s = None; allowed on version 'capture-v1': a number in \[0, 60\) s"),
+    (60.0, "capture-v1", r"go_s = 60.0; allowed on version 'capture-v1': a number in \[0, 60\) s"),
+    (True, "capture-v1", r"go_s = True; allowed"),
+    (10.0, "v2", r"go_s = 10.0; allowed: None on version 'v2'"),
+])
+def test_the_training_loss_refuses_a_go_time_by_name(go, version, match):
+    with pytest.raises(InvalidInputError, match=match):
+        training_loss(0.3, 4.0, go, tier="sweep" if version == "capture-v1" else "hard", tasks=1, version=version)
+
+
+def _bowl(m: float, T_c: float, go_s: float) -> float:
+    """A closed-form loss with its minimum at (0.3, 4 s, 20 s)."""
+    return (m - 0.3) ** 2 + ((T_c - 4.0) / 10.0) ** 2 + ((go_s - 20.0) / 44.0) ** 2
+
+
+def _config() -> ga.GAConfig:
+    return ga.GAConfig(population=20, generations=25, m_bounds=(0.05, 0.6), T_c_bounds_s=(1.0, 10.0),
+                       go_bounds_s=(0.0, 44.0), seed=5)
+
+
+def test_the_third_gene_spans_its_box():
+    config = _config()
+    assert ga.decode(np.zeros(3 * ga.BITS, dtype=np.int8), config) == (0.05, 1.0, 0.0)
+    assert ga.decode(np.ones(3 * ga.BITS, dtype=np.int8), config) == pytest.approx((0.6, 10.0, 44.0), abs=1e-12)
+
+
+def test_a_timed_ga_resumes_exactly_and_finds_the_bowls_minimum(tmp_path):
+    whole = ga.run(_config(), fitness=_bowl, progress=False)
+    path = tmp_path / "ga.json"
+    ga.run(_config(), fitness=_bowl, checkpoint=path, progress=False, stop_after=7)
+    resumed = ga.run(None, fitness=_bowl, checkpoint=path, progress=False)
+    assert resumed.history == whole.history and resumed.cache == whole.cache
+    m, T_c, loss = ga.best(whole)
+    assert ga.best_go_s(whole) == pytest.approx(20.0, abs=4.0) and m == pytest.approx(0.3, abs=0.1)
+    assert loss == _bowl(m, T_c, ga.best_go_s(whole)) and loss < _bowl(0.3, 4.0, 0.0)
