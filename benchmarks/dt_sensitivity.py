@@ -9,7 +9,8 @@ dt/2 and at dt/4 (the decision interval stays 0.1 s), once under each of two rul
 * ``cdf``: v1's law on the same tasks (μ = min(1, Δ / CDF), collision at contact): the reason for v2.
 
 With ``--version capture-v0`` it plays the capture tiers' test pools (``slow``, ``fast``) under the capture rule
-file's own law, with two more fixed planners (:func:`capture_planners`).
+file's own law, with two more fixed planners (:func:`capture_planners`); with ``--version capture-v1`` its tiers
+(``sweep``, ``nutation``), every planner with a go time (:func:`planners`).
 
 Per (law, tier, planner) it reports the share of tasks whose verdict (success or not) is the
 same at dt and dt/4, the Spearman rank correlation of per-task scores between dt and dt/4, the
@@ -41,10 +42,10 @@ from tqdm.auto import tqdm
 
 from ffsr_gym.model.benchmark import CAPTURE_VERSIONS, VERSIONS, load_benchmark
 from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.provenance import provenance, splice_file, write_json_atomic
 from ffsr_gym.scoring.aggregate import iqm
 from ffsr_gym.tasks.build import build_split
-from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
 from ffsr_gym.tasks.certificate import planner_episode
 from ffsr_gym.tasks.splits import pool, task_scenario
 
@@ -64,7 +65,7 @@ def is_capture(version: str) -> bool:
 
 def study_tiers(version: str) -> tuple[str, ...]:
     """The tiers whose test pools the study plays."""
-    return CAPTURE_TIERS if is_capture(version) else TIERS
+    return tuple(spec_for_version(version).tasks.tiers) if is_capture(version) else TIERS
 
 
 def study_laws(version: str) -> tuple[str, ...]:
@@ -82,21 +83,32 @@ def capture_planners(version: str) -> dict[str, dict]:
 def planners(tier: str, root: Path, version: str = VERSIONS[-1]) -> dict[str, dict]:
     """The fixed planners of a tier: name -> planner_episode keyword arguments (the version's reference default,
     the tier's best constant and tuned proportional from its leaderboard entries, the paper's; a capture tier's
-    :func:`capture_planners` too)."""
+    :func:`capture_planners` too). On a version whose action commands the approach each has a go time: the
+    tuned ones their entry's, the others going straight in (0 s), the two capture planners the best constant's."""
 
     def entry(name: str) -> dict:
         return json.loads((root / version / tier / f"{name}.json").read_text())["extra"]["planner"]
 
+    def go(planner: dict | None = None) -> dict:
+        if not spec_for_version(version).actions.command:
+            return {}
+        return {"go_s": 0.0 if planner is None else planner["go_s"]}
+
+    def at(planner: dict | None) -> str:
+        return f", go {planner['go_s']:g} s" if planner and "go_s" in planner else ""
+
     best, tuned = entry("reference_best_constant"), entry("proportional_tuned")
     default = load_benchmark(version).planner
-    return {f"reference default ({default.m:g}, {default.T_c_s:g} s)": {"method": "predefined_time", "m": default.m,
-                                                                       "T_c": default.T_c_s},
-            f"best constant ({best['m']}, {best['T_c_s']} s)": {"method": "predefined_time", "m": best["m"],
-                                                                 "T_c": best["T_c_s"]},
-            "paper default (0.1, 3 s)": {"method": "predefined_time", "m": 0.1, "T_c": 3.0},
-            f"tuned proportional (K = {tuned['gain_per_s']} 1/s)": {"method": "proportional",
-                                                                    "gain_per_s": tuned["gain_per_s"]},
-            **(capture_planners(version) if is_capture(version) else {})}
+    extra = {f"{name}{at(go(best) or None)}": {**kwargs, **go(best)}
+             for name, kwargs in capture_planners(version).items()} if is_capture(version) else {}
+    return {f"reference default ({default.m:g}, {default.T_c_s:g} s{at(go())})": {
+                "method": "predefined_time", "m": default.m, "T_c": default.T_c_s, **go()},
+            f"best constant ({best['m']}, {best['T_c_s']} s{at(best)})": {
+                "method": "predefined_time", "m": best["m"], "T_c": best["T_c_s"], **go(best)},
+            f"paper default (0.1, 3 s{at(go())})": {"method": "predefined_time", "m": 0.1, "T_c": 3.0, **go()},
+            f"tuned proportional (K = {tuned['gain_per_s']} 1/s{at(tuned)})": {
+                "method": "proportional", "gain_per_s": tuned["gain_per_s"], **go(tuned)},
+            **extra}
 
 
 def test_seeds(tier: str, version: str, tasks: int, work: str | None, chunk: int) -> list[int]:
@@ -145,8 +157,9 @@ def spearman(a: np.ndarray, b: np.ndarray) -> float | None:
     return float(np.corrcoef(ra, rb)[0, 1])
 
 
-def summary(pieces: list[dict]) -> list[dict]:
-    """One row per (law, tier, planner): agreement, Spearman and IQMs between dt and dt/4."""
+def summary(pieces: list[dict], statistic: str = "iqm") -> list[dict]:
+    """One row per (law, tier, planner): agreement, Spearman, IQMs and means between dt and dt/4; the bar's third
+    test on the version's ranking ``statistic`` (``iqm`` or ``mean``)."""
     index = {(p["law"], p["tier"], p["planner"], p["divisor"]): p["rows"] for p in pieces}
     out = []
     for (law, tier, name, divisor), rows in index.items():
@@ -159,6 +172,8 @@ def summary(pieces: list[dict]) -> list[dict]:
         out.append({"law": law, "tier": tier, "planner": name, "tasks": len(rows),
                     "agreement": float(np.mean(v1 == v4)), "spearman": spearman(s1, s4),
                     "iqm": [iqm(s1), None if half is None else iqm([r["score"] for r in half]), iqm(s4)],
+                    "mean": [float(s1.mean()), None if half is None else float(np.mean([r["score"] for r in half])),
+                             float(s4.mean())],
                     "success": [float(v1.mean()), None if half is None else float(np.mean([r["success"] for r in half])),
                                 float(v4.mean())],
                     "median_peak_rate_deg_s": [float(np.median([r["peak_rate_deg_s"] for r in rows])),
@@ -166,7 +181,7 @@ def summary(pieces: list[dict]) -> list[dict]:
                     "median_success_clearance_m": float(np.median(clear)) if clear else None,
                     "largest_peak_change_deg_s": _largest_peak_change(rows, fine)})
     for row in out:
-        spear, gap = row["spearman"], abs(row["iqm"][0] - row["iqm"][2])
+        spear, gap = row["spearman"], abs(row[statistic][0] - row[statistic][2])
         row["meets_bar"] = bool(row["agreement"] >= BAR[0] and spear is not None and spear >= BAR[1] and gap <= BAR[2])
     return out
 
@@ -190,14 +205,15 @@ def _num(x: float | None) -> str:
     return "undefined" if x is None else f"{x:.2f}"
 
 
-def table(rows: list[dict], law: str) -> str:
-    """Markdown of one law's rows."""
-    lines = ["| tier | planner | tasks | verdicts equal dt / dt/4 | Spearman dt / dt/4 | IQM dt, dt/2, dt/4 | "
+def table(rows: list[dict], law: str, statistic: str = "iqm") -> str:
+    """Markdown of one law's rows, with the version's ranking ``statistic`` (``iqm`` or ``mean``)."""
+    label = "IQM" if statistic == "iqm" else "mean"
+    lines = [f"| tier | planner | tasks | verdicts equal dt / dt/4 | Spearman dt / dt/4 | {label} dt, dt/2, dt/4 | "
              "success dt, dt/2, dt/4 | median peak rate dt / dt/4 [deg/s] | largest peak-rate change, successes "
              "[deg/s] | median clearance of successes at dt [m] | meets the bar |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in (r for r in rows if r["law"] == law):
-        iqms = ", ".join("-" if v is None else f"{v:.3f}" for v in r["iqm"])
+        iqms = ", ".join("-" if v is None else f"{v:.3f}" for v in r[statistic])
         rates = ", ".join("-" if v is None else f"{v:.2f}" for v in r["success"])
         clear = "-" if r["median_success_clearance_m"] is None else f"{r['median_success_clearance_m']:.4f}"
         change = "-" if r["largest_peak_change_deg_s"] is None else f"{r['largest_peak_change_deg_s']:.1f}"
@@ -229,8 +245,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.tasks < 1 or args.workers < 1:
         parser.error(f"--tasks {args.tasks} and --workers {args.workers}: each must be >= 1")
     out = Path(args.out or f"runs/dt_sensitivity-{args.version}.json")
-    args.summary = args.summary or ("benchmarks/dt_sensitivity_capture.json" if is_capture(args.version)
-                                    else "benchmarks/dt_sensitivity.json")
+    args.summary = args.summary or summary_path(args.version)
+    statistic = spec_for_version(args.version).leaderboard.statistic
     out.parent.mkdir(parents=True, exist_ok=True)
     data = json.loads(out.read_text()) if out.is_file() else {"pieces": [], "version": args.version}
     if data.get("version") != args.version:
@@ -249,10 +265,10 @@ def main(argv: list[str] | None = None) -> int:
     with ProcessPoolExecutor(args.workers) as executor:
         for piece in tqdm(executor.map(run_piece, todo), total=len(todo), desc="dt sensitivity", unit="piece"):
             data["pieces"].append(piece)
-            data["summary"] = summary(data["pieces"])
+            data["summary"] = summary(data["pieces"], statistic)
             data["provenance"] = provenance(command=" ".join(["python", *sys.argv]))
             write_json_atomic(out, data)
-    data["summary"] = summary(data["pieces"])
+    data["summary"] = summary(data["pieces"], statistic)
     write_json_atomic(Path(args.summary), {"version": args.version, "summary": data["summary"],
                                            "sample": sample(data["pieces"]), "provenance": data.get("provenance", {}),
                                            "tasks_per_tier": args.tasks, "episodes_file": str(out)})
@@ -265,8 +281,15 @@ def main(argv: list[str] | None = None) -> int:
         start, end = markers(args.version)
         splice_file(docs, start, end, text)
     for law in study_laws(args.version):
-        print(f"\n{law}:\n{table(data['summary'], law)}")
+        print(f"\n{law}:\n{table(data['summary'], law, statistic)}")
     return 0
+
+
+def summary_path(version: str) -> str:
+    """The committed summary of ``version``'s study (capture-v0's keeps its first name)."""
+    if version == "capture-v0":
+        return "benchmarks/dt_sensitivity_capture.json"
+    return f"benchmarks/dt_sensitivity_{version}.json" if is_capture(version) else "benchmarks/dt_sensitivity.json"
 
 
 def markers(version: str) -> tuple[str, str]:
@@ -283,10 +306,12 @@ def docs_text(rows: list[dict], source: str, commit: str, tasks: int, version: s
     met = sum(r["meets_bar"] for r in rows if r["law"] == "distance")
     total = sum(r["law"] == "distance" for r in rows)
     if is_capture(version):
+        statistic = spec_for_version(version).leaderboard.statistic
+        label = "IQM" if statistic == "iqm" else "mean"
         return (f"Generated from `{source}` (made at {commit}; {pools}, {tasks} tasks per tier, {version} score: "
                 f"success is a capture). The bar: verdicts equal at dt and dt/4 on >= "
-                f"{BAR[0]:.0%} of the tasks, Spearman >= {BAR[1]}, |IQM(dt) - IQM(dt/4)| <= {BAR[2]}. {met} of "
-                f"{total} rows meet it.\n\n{table(rows, 'distance')}\n")
+                f"{BAR[0]:.0%} of the tasks, Spearman >= {BAR[1]}, |{label}(dt) - {label}(dt/4)| <= {BAR[2]}. "
+                f"{met} of {total} rows meet it.\n\n{table(rows, 'distance', statistic)}\n")
     return (f"Generated from `{source}` (made at {commit}; test pools of the {version} pool files, {tasks} tasks per "
             f"tier, {version} score). The bar: verdicts equal at dt and dt/4 on >= {BAR[0]:.0%} of the tasks, Spearman "
             f">= {BAR[1]}, |IQM(dt) - IQM(dt/4)| <= {BAR[2]}.\n\n"

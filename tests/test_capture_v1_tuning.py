@@ -76,3 +76,19 @@ def test_a_timed_ga_resumes_exactly_and_finds_the_bowls_minimum(tmp_path):
     m, T_c, loss = ga.best(whole)
     assert ga.best_go_s(whole) == pytest.approx(20.0, abs=4.0) and m == pytest.approx(0.3, abs=0.1)
     assert loss == _bowl(m, T_c, ga.best_go_s(whole)) and loss < _bowl(0.3, 4.0, 0.0)
+
+
+def test_capture_v1_ranks_on_the_mean_and_v2_on_the_iqm():
+    from ffsr_gym.bench.tables import header
+    from ffsr_gym.model.spec import spec_for_version
+    from ffsr_gym.scoring.rules import score_rule
+
+    scores = [0.0] * 80 + [0.3] * 20  # captures on 20 % of the tasks: the IQM (middle half, all zeros) is 0
+    rows = [{"score": s, "success": s > 0} for s in scores]
+    v1, v2 = spec_for_version("capture-v1"), spec_for_version("v2")
+    mean = score_rule(v1).aggregate(rows)
+    assert mean["score_mean"] == pytest.approx(0.06) and mean["success_rate"] == pytest.approx(0.2)
+    low, high = mean["score_mean_ci95"]
+    assert 0.0 < low < 0.06 < high < 0.3  # a bootstrap CI of the mean, away from the IQM's 0
+    assert score_rule(v2).aggregate(rows)["score_iqm"] == mean["score_iqm"] == 0.0  # reported, not ranked on
+    assert "score mean [95% CI]" in header(v1, "sweep")[2] and "score IQM [95% CI]" in header(v2, "hard")[2]

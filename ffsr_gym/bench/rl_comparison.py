@@ -3,7 +3,7 @@
 Per tier with RL entries (entries with ``extra.training_seeds``): the best RL entry at its
 best-on-validation checkpoints, the same agents' last checkpoints, the best (m, T_c) planner (an
 untrained entry not on the residual env id), the best entry that is not trained at all, and where the
-selected RL entry stands against each: above or below with the 95 % CIs of the IQM apart, or the
+selected RL entry stands against each: above or below with the 95 % CIs of the spec's statistic apart, or the
 CIs overlapping (the leaderboard's ``ci_separation`` rule). It also gives the largest drop from an
 RL entry's selected checkpoints to its last ones, and how many of the study's RL entry pairs
 (2 algorithms x 2 env ids) the tier has, other trained pairs (Brax's PPO) counted apart. Every cell
@@ -42,7 +42,7 @@ def is_trained(entry: dict[str, Any]) -> bool:
 
 
 def verdict(spec: BenchmarkSpec, a: dict[str, Any], b: dict[str, Any]) -> str:
-    """Where ``a`` stands against ``b``: "above" or "below" when their IQM CIs are apart, else "CIs overlap"."""
+    """Where ``a`` stands against ``b``: "above" or "below" when their CIs (of the spec's statistic) are apart, else "CIs overlap"."""
     (a_lo, a_hi), (b_lo, b_hi) = a["metrics"][spec.leaderboard.ci], b["metrics"][spec.leaderboard.ci]
     if a_lo > b_hi:
         return "above"
@@ -69,8 +69,10 @@ def table(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> str:
     """The markdown table (a line saying there is nothing yet when no tier has RL entries)."""
     suffix = CHECKPOINTS["best_on_validation"]
     iqm = spec.leaderboard.iqm
-    lines = ["| tier | best RL entry, selected on validation: IQM [95% CI], success | the same agents' last checkpoints "
-             "| best (m, T_c) planner | RL against it | best untrained entry | RL against it | largest IQM fall, "
+    label = spec.leaderboard.label
+    lines = [f"| tier | best RL entry, selected on validation: {label} [95% CI], success | the same agents' last "
+             f"checkpoints | best (m, T_c) planner | RL against it | best untrained entry | RL against it | largest "
+             f"{label} fall, "
              "selected to last checkpoints | RL entry pairs |", "|---|---|---|---|---|---|---|---|---|"]
     for tier, items in entries.items():
         trained = [e for e in items if is_trained(e)]

@@ -1,8 +1,8 @@
 """Markdown of the leaderboards: a table's header and rows, and the summary across tiers.
 
 The columns follow the spec's ranking rule: ``feasible_then_iqm`` tables show the feasible rate
-and B's IQM; ``ci_separation`` tables show the score's IQM with its CI, the success rate, the
-normalised score (mean of score / the task's best known score, :mod:`ffsr_gym.bench.normalise`), the
+and B's IQM; ``ci_separation`` tables show the score's IQM (or mean: the spec's statistic) with its CI,
+the success rate, the normalised score (mean of score / the task's best known score, :mod:`ffsr_gym.bench.normalise`), the
 paper's B, peak rates, final error, convergence time, compute and the training pool. Metric
 names come from the spec (``[leaderboard]``).
 """
@@ -61,7 +61,7 @@ def header(spec: BenchmarkSpec, group: str) -> list[str]:
               else "capture time [s], captures | capture ratio, captures" if spec.rules.capture is not None
               else "final error [m], successes | convergence [s], successes")
     return [f"### {group} ({spec.evaluation.split} pool)", "",
-            (f"| rank | entry | score IQM [95% CI] | {spec.leaderboard.rate_column} | "
+            (f"| rank | entry | score {spec.leaderboard.label} [95% CI] | {spec.leaderboard.rate_column} | "
              f"normalised{f' (ref. {sha[:8]})' if sha else ''} | paper B (median) | peak rate mission / "
              f"balance [deg/s] | {ending} | compute | trained on | commit |"), "|---|---|---|---|---|---|---|---|---|---|---|---|"]
 
@@ -169,7 +169,7 @@ def summary(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]],
             cells.setdefault(method, {})[tier] = f"{e['metrics'][names.iqm]:.3f} [{lo:.3f}, {hi:.3f}] #{rank}"
             rank_sum[method] = rank_sum.get(method, 0.0) + rank
     order = sorted(cells, key=lambda method: (rank_sum[method] / len(cells[method]), method))
-    lines = ["| method | " + " | ".join(f"{tier}: IQM [95% CI] #rank" for tier in tiers) + " |",
+    lines = ["| method | " + " | ".join(f"{tier}: {names.label} [95% CI] #rank" for tier in tiers) + " |",
              "|---|" + "---|" * len(tiers)]
     lines += [f"| `{safe(method)}` | " + " | ".join(cells[method].get(tier, "-") for tier in tiers) + " |"
               for method in order]
@@ -185,7 +185,7 @@ def top_three(spec: BenchmarkSpec, ordered_entries: dict[str, list[tuple[str, di
     """Per tier, the first three entries of its table (IQM [95 % CI] and rank), and how many more share the third
     one's rank. ``ordered_entries``: each tier's (rank label, entry) in table order."""
     names = spec.leaderboard
-    lines = ["| tier | first: IQM [95% CI] #rank | second | third |", "|---|---|---|---|"]
+    lines = [f"| tier | first: {names.label} [95% CI] #rank | second | third |", "|---|---|---|---|"]
     for tier, pairs in ordered_entries.items():
         if not pairs:
             continue

@@ -28,6 +28,8 @@ SCORE_RULES = ("paper_objective", "bounded_smoothness", "capture_smoothness", "c
 #: Rankings the leaderboard renderer knows: by feasible rate then IQM (ascending), or by IQM with
 #: ranks that only a non-overlapping bootstrap CI separates.
 RANKINGS = ("feasible_then_iqm", "ci_separation")
+#: What a ``ci_separation`` table summarises an entry's episode scores by.
+STATISTICS = ("iqm", "mean")
 #: The project's pages that hold the live version's generated leaderboard blocks (the top three per tier in the
 #: README; the summary, the RL study and the RL searches in the baselines page), relative to a checkout.
 GENERATED_PAGES = ("README.md", "docs/baselines.md")
@@ -118,16 +120,25 @@ class ReplaySpec:
 
 @dataclass(frozen=True)
 class LeaderboardSpec:
-    """Where entries live (``{env_id}``, ``{task}``, ``{version}`` are filled in), metric names, ranking."""
+    """Where entries live (``{env_id}``, ``{task}``, ``{version}`` are filled in), metric names, ranking.
+
+    ``statistic``: what an entry's episode scores are summarised by, and ranked on with its bootstrap CI: ``iqm``
+    (the interquartile mean) or ``mean``; ``iqm`` names its metric, whichever it is."""
 
     folder: str = field(metadata=TEXT)
     ranking: str = field(metadata=choice(*RANKINGS))
     title: str = field(metadata=TEXT)
+    statistic: str = field(default="iqm", metadata=choice(*STATISTICS))
     iqm: str = field(default="score_iqm", metadata=TEXT)
     ci: str = field(metadata=TEXT, default="score_ci95")
     rate: str = field(metadata=TEXT, default="feasible_rate")
     rate_column: str = field(metadata=TEXT, default="feasible")
     marker: str = field(metadata=TEXT, default="")
+
+    @property
+    def label(self) -> str:
+        """The statistic as the tables name it."""
+        return "IQM" if self.statistic == "iqm" else "mean"
 
     def markers(self, suffix: str = "") -> tuple[str, str]:
         """The markers between which the generated tables go: the leaderboard README's (no suffix), or the blocks

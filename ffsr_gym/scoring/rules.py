@@ -187,11 +187,14 @@ class BoundedSmoothness:
         return (np.array([float(row["score"]) for row in rows]), np.array([bool(row["success"]) for row in rows]))
 
     def aggregate(self, rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
-        """Mean, IQM and its seeded-bootstrap 95 % CI, success rate (metric names of the spec)."""
+        """Mean, the spec's statistic (IQM or mean) and its seeded-bootstrap 95 % CI, success rate (metric names
+        of the spec)."""
         scores, rates = self.row_values(rows)
         names = self.spec.leaderboard
-        return {"score_mean": float(np.mean(scores)), names.iqm: iqm(scores), names.ci: bootstrap_ci(scores, iqm),
-                names.rate: float(np.mean(rates.astype(float))), "episodes": len(scores)}
+        centre = iqm if names.statistic == "iqm" else _mean
+        return {"score_mean": float(np.mean(scores)), "score_iqm": iqm(scores), names.iqm: centre(scores),
+                names.ci: bootstrap_ci(scores, centre), names.rate: float(np.mean(rates.astype(float))),
+                "episodes": len(scores)}
 
 
 class CaptureSmoothness(BoundedSmoothness):
@@ -291,3 +294,8 @@ ScoreRule = PaperObjective | BoundedSmoothness | CaptureSmoothness | CaptureQual
 def score_rule(spec: BenchmarkSpec) -> ScoreRule:
     """The score rule ``spec`` names, with its numbers."""
     return RULES[spec.score.rule](spec)
+
+
+def _mean(values: Array) -> float:
+    """The mean, as a float (the statistic of a spec with ``statistic = "mean"``)."""
+    return float(np.mean(values))
