@@ -92,3 +92,43 @@ def test_capture_v1_ranks_on_the_mean_and_v2_on_the_iqm():
     assert 0.0 < low < 0.06 < high < 0.3  # a bootstrap CI of the mean, away from the IQM's 0
     assert score_rule(v2).aggregate(rows)["score_iqm"] == mean["score_iqm"] == 0.0  # reported, not ranked on
     assert "score mean [95% CI]" in header(v1, "sweep")[2] and "score IQM [95% CI]" in header(v2, "hard")[2]
+
+
+def test_a_timed_schedule_plays_alike_in_the_env_batched_and_as_its_timed_run(task):
+    import gymnasium as gym
+
+    from ffsr_gym.environments.vector_env import FFSRVectorEnv
+    from ffsr_gym.model.benchmark import action_to_parameters
+    from ffsr_gym.tasks.schedule import Schedule, go_value, replay_schedule
+
+    m_a, T_c_a = float(np.float32(2 * 0.25 / 0.55 - 1)), float(np.float32(2 * 3 / 9 - 1))  # ~ (0.3, 4 s)
+    schedules = [Schedule("timed", ((m_a, T_c_a, go_value(k, 600)),)) for k in (0, 320, 200)]
+    m, T_c = action_to_parameters([m_a, T_c_a], task)
+    timed = planner_episode(task, BENCH, method="predefined_time", m=m, T_c=T_c, go_s=32.0)
+    assert replay_schedule(task, schedules[1], BENCH).score == timed.score and timed.success
+    env = gym.make("FFSR-Capture-v1", task=task)
+    env.reset(seed=0)
+    for action in schedules[1].actions(task):
+        _, _, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            break
+    assert info["score"] == timed.score and info["capture_time_s"] == timed.capture_time_s
+    venv = FFSRVectorEnv(3, "capture-v1", False, threads=1, autoreset_mode="Disabled", task=task)
+    venv.reset(seed=[0, 1, 2])
+    actions = np.stack([s.actions(task) for s in schedules], axis=1)
+    for row in actions:
+        if all(venv.engine.finished(i) for i in range(3)):
+            break
+        venv.step(np.ascontiguousarray(row))
+    assert [venv.engine.results[i].score for i in range(3)] == [replay_schedule(task, s, BENCH).score
+                                                               for s in schedules]
+    venv.close()
+
+
+def test_timed_schedules_name_every_decision_and_hold_one_knot():
+    from ffsr_gym.tasks.schedule import Schedule, go_decision, go_value, version_families
+
+    assert all(go_decision(go_value(k, 600), 600) == k for k in range(600))
+    with pytest.raises(InvalidInputError, match="a timed schedule has one knot"):
+        Schedule("timed", ((0.0, 0.0, 0.0), (0.0, 0.0, 0.5)))
+    assert version_families("capture-v1") == ("timed",) and version_families("v2") == ("residual", "parameters")

@@ -1,10 +1,12 @@
 """The best known score of every pool task: a per-task CMA-ES over action schedules.
 
 For one task, CMA-ES (the ``cma`` package) searches each :class:`~ffsr_gym.tasks.schedule.Schedule`
-family: the residual of ``FFSR-Residual-v2`` at :data:`KNOTS` knots per joint, and the (m, T_c)
-action of ``FFSR-v2`` at :data:`KNOTS` knots. A family starts from the task's certificate when the
-certificate is of its kind (a constant residual, or a constant (m, T_c)), else from the default
-planner (a zero residual; (m, T_c) = the default). Each generation is one batched env of the
+family of the version (:func:`~ffsr_gym.tasks.schedule.version_families`): the residual of
+``FFSR-Residual-v2`` at :data:`KNOTS` knots per joint, and the (m, T_c) action of ``FFSR-v2`` at
+:data:`KNOTS` knots; on capture v1 the one-knot ``timed`` schedule (m, T_c and the decision the
+insertion is commanded at). A family starts from the task's certificate when the certificate is of its
+kind (a constant residual, a constant (m, T_c), a timed one), else from the default planner (a zero
+residual; (m, T_c) = the default). Each generation is one batched env of the
 population playing the task (one core). A family's result is its best schedule that also passes
 the certificate test: success in every kernel member of the ensemble (dt/2, dt/4, starts a hair
 off) with the margins outside the hair's-breadth band, trying the search's best candidates in
@@ -26,9 +28,10 @@ import numpy as np
 
 from ffsr_gym.exceptions import InvalidInputError, require
 from ffsr_gym.model.benchmark import Benchmark
+from ffsr_gym.tasks.capture_family import capture_family
 from ffsr_gym.tasks.certificate import Margins, ensemble_members
 from ffsr_gym.tasks.perturbation import confirmation_member
-from ffsr_gym.tasks.schedule import FAMILIES, Schedule, replay_schedule
+from ffsr_gym.tasks.schedule import FAMILIES, Schedule, go_value, replay_schedule, version_families
 from ffsr_gym.tasks.splits import PoolTask, pool, task_scenario
 
 #: Knots per schedule.
@@ -39,6 +42,11 @@ GENERATIONS = 30
 CMA_SEED = 1
 #: Candidates of a search tried against the ensemble, best first, before the start.
 TRIED = 5
+
+
+def knots(family: str) -> int:
+    """Knots of a family's search (a timed schedule has one)."""
+    return 1 if family == "timed" else KNOTS
 
 
 def start(task: PoolTask, family: str, benchmark: Benchmark) -> tuple[Schedule, str]:
@@ -53,7 +61,12 @@ def start(task: PoolTask, family: str, benchmark: Benchmark) -> tuple[Schedule, 
     m, T_c, origin = (cert.m, cert.T_c_s, "certificate") if cert.residual is None else (
         benchmark.planner.m, benchmark.planner.T_c_s, "default")
     action = [2.0 * (m - m_lo) / (m_hi - m_lo) - 1.0, 2.0 * (T_c - t_lo) / (t_hi - t_lo) - 1.0]
-    return Schedule.constant(family, action, KNOTS), origin
+    if family == "timed":  # the certificate's moment: the first decision at or after its go_s
+        played = capture_family(benchmark)  # the family scenario: every task's episode and decisions
+        interval = played.env.decision_interval_s
+        decisions = round(played.simulation.duration_s / interval)
+        action.append(go_value(int(np.ceil((cert.go_s - 1e-9) / interval)), decisions))
+    return Schedule.constant(family, action, knots(family)), origin
 
 
 class Population:
@@ -176,7 +189,7 @@ def best_known(populations: dict[str, Population], task: PoolTask, tier: str, sp
     """One task's record: both families' results and the best known score (confirmed on Pinocchio)."""
     started = time.perf_counter()
     results = {family: search_family(populations[family], task, tier, index, benchmark, generations)
-               for family in FAMILIES}
+               for family in version_families(benchmark.version)}
     best = None
     for result in sorted(results.values(), key=lambda r: -r.score):
         if result.schedule is None:
@@ -196,7 +209,7 @@ def best_known(populations: dict[str, Population], task: PoolTask, tier: str, sp
 
 def popsize(family: str) -> int:
     """cma's default population for the family's search dimension, 4 + floor(3 ln n)."""
-    return 4 + int(3 * np.log(KNOTS * FAMILIES[family]))
+    return 4 + int(3 * np.log(knots(family) * FAMILIES[family]))
 
 
 #: One pool's populations per process, made by the first :func:`search_task` on that pool and kept for the next.
@@ -214,7 +227,8 @@ def search_task(tier: str, split: str, index: int, version: str, generations: in
             for population in populations.values():
                 population.close()
         _POPULATIONS.clear()
-        _POPULATIONS[key] = {family: Population(family, tier, split, popsize(family), version) for family in FAMILIES}
+        _POPULATIONS[key] = {family: Population(family, tier, split, popsize(family), version)
+                             for family in version_families(version)}
     benchmark = spec_for_version(version).rules
     return best_known(_POPULATIONS[key], pool(tier, split, version=version)[index], tier, split, index, benchmark,
                       generations)

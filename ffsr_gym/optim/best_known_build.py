@@ -31,7 +31,7 @@ from ffsr_gym.optim import best_known_check as check
 from ffsr_gym.provenance import provenance, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.best_known import best_known_path, load_best_known, records
-from ffsr_gym.tasks.schedule import FAMILIES, Schedule, replay_schedule
+from ffsr_gym.tasks.schedule import FAMILIES, Schedule, replay_schedule, version_families
 from ffsr_gym.tasks.splits import pool, pool_path, task_scenario
 from ffsr_gym.user_files import nesting_depth, read_text
 
@@ -112,7 +112,8 @@ def run(tier: str, split: str, work: str | Path, *, version: str = "v2", generat
         for piece in tqdm(as_completed(pieces), total=len(pieces), desc=label, unit="task", disable=not progress):
             _append(path, piece.result())
         return path
-    populations = {family: search.Population(family, tier, split, popsize(family), version) for family in FAMILIES}
+    populations = {family: search.Population(family, tier, split, popsize(family), version)
+                   for family in version_families(version)}
     try:
         for index in tqdm(todo, desc=label, unit="task", disable=not progress):
             _append(path, search.best_known(populations, tasks[index], tier, split, index, benchmark, generations))
@@ -125,13 +126,15 @@ def run(tier: str, split: str, work: str | Path, *, version: str = "v2", generat
 def family_env_ids(version: str = "v2") -> dict[str, str]:
     """The registered env id whose actions each schedule family is, in ``version``."""
     ids = spec_for_version(version).ids
-    return {"residual": ids.residual, "parameters": ids.parameters}
+    return {family: ids.residual if family == "residual" else ids.parameters for family in version_families(version)}
 
 
 def budget(version: str = "v2") -> dict[str, Any]:
     """The search budget per task, as the file records it (the env ids: ``version``'s)."""
-    return {"knots": search.KNOTS, "sigma0": search.SIGMA0, "generations": search.GENERATIONS,
-            "popsize": {family: popsize(family) for family in FAMILIES}, "cma_seed": search.CMA_SEED,
+    families = version_families(version)
+    return {"knots": {family: search.knots(family) for family in families} if "timed" in families else search.KNOTS,
+            "sigma0": search.SIGMA0, "generations": search.GENERATIONS,
+            "popsize": {family: popsize(family) for family in families}, "cma_seed": search.CMA_SEED,
             "tried_in_ensemble": search.TRIED, "env_ids": family_env_ids(version)}
 
 

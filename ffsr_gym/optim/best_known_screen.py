@@ -23,7 +23,7 @@ from ffsr_gym.optim import best_known as search
 from ffsr_gym.optim.best_known_build import offer
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.best_known import records
-from ffsr_gym.tasks.schedule import FAMILIES
+from ffsr_gym.tasks.schedule import version_families
 from ffsr_gym.tasks.splits import pool
 
 #: The origin an improvement of this pass is stored with.
@@ -32,7 +32,7 @@ ORIGIN = "screened CMA-ES"
 
 def candidates(tier: str, split: str, version: str = "v2") -> list[tuple[int, str]]:
     """(index, family) of the pool's stored records whose search found a better candidate than the one it kept."""
-    return [(r["index"], family) for r in records(tier, split, version) for family in FAMILIES
+    return [(r["index"], family) for r in records(tier, split, version) for family in version_families(version)
             if r["families"][family]["searched_best"] > r["families"][family]["score"] * (1.0 + 1e-3)]
 
 

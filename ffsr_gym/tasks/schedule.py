@@ -6,7 +6,10 @@ A :class:`Schedule` is the action sequence of one episode of a registered v2 env
   over the decisions that start before the end of the desired motion (after it the fade is 0, so
   the action no longer acts);
 * ``parameters`` (``FFSR-v2``): the (m, T_c) action in [-1, 1]² at ``K`` knots spread evenly over
-  all decisions.
+  all decisions;
+* ``timed`` (``FFSR-Capture-v1``): one knot (m, T_c, g): the (m, T_c) action throughout, the approach's
+  command held (a = -1) before the decision g picks and the insertion commanded (a = +1) from it on; g in
+  [-1, 1] spans the episode's decisions evenly (:func:`go_decision`).
 
 Between knots the action is linear in the decision index, after the last knot it holds; the
 values are computed in float64 and rounded to float32, as the env rounds its actions, so that
@@ -31,9 +34,29 @@ from ffsr_gym.scoring.score import EpisodeScore, score_episode
 from ffsr_gym.sim.simulate import make_rollout
 
 #: Schedule families and the width of their actions.
-FAMILIES = {"residual": 12, "parameters": 2}
-#: The registered v2 env whose actions each family is.
-ENV_IDS = {"residual": "FFSR-Residual-v2", "parameters": "FFSR-v2"}
+FAMILIES = {"residual": 12, "parameters": 2, "timed": 3}
+#: The registered env whose actions each family is (v2's; a version's own ids: ``family_env_ids``).
+ENV_IDS = {"residual": "FFSR-Residual-v2", "parameters": "FFSR-v2", "timed": "FFSR-Capture-v1"}
+
+
+def version_families(version: str) -> tuple[str, ...]:
+    """The schedule families a version's best-known search uses: ``timed`` where the action commands the approach
+    (capture v1: the decision to go in is not a knot to interpolate), else ``residual`` and ``parameters``."""
+    from ffsr_gym.model.spec import spec_for_version
+
+    return ("timed",) if spec_for_version(version).actions.command else ("residual", "parameters")
+
+
+def go_decision(g: float, decisions: int) -> int:
+    """The decision a timed schedule's g ∈ [-1, 1] commands the insertion at: g spans 0 ... ``decisions`` - 1."""
+    return int(round((float(g) + 1.0) / 2.0 * (decisions - 1)))
+
+
+def go_value(decision: int, decisions: int) -> float:
+    """The float32-exact g whose :func:`go_decision` is ``decision`` (its inverse)."""
+    g = float(np.float32(2.0 * decision / (decisions - 1) - 1.0))
+    assert go_decision(g, decisions) == decision
+    return g
 
 
 @dataclass(frozen=True)
@@ -57,6 +80,8 @@ class Schedule:
                                     f"{FAMILIES[self.family]}) for family {self.family!r}")
         if not np.all(np.abs(values) <= 1.0) or np.any(values.astype(np.float32).astype(float) != values):
             raise InvalidInputError("schedule knots must be numbers in [-1, 1], exact in float32 (env actions)")
+        if self.family == "timed" and values.shape[0] != 1:
+            raise InvalidInputError(f"a timed schedule has one knot (m, T_c, g); got {values.shape[0]}")
 
     @classmethod
     def from_vector(cls, family: str, vector: Any) -> Schedule:
@@ -77,7 +102,7 @@ class Schedule:
         """Decisions the knots spread over: those starting before the motion ends (residual), or all."""
         interval = task.env.decision_interval_s
         decisions = round(task.simulation.duration_s / interval)
-        if self.family == "parameters":
+        if self.family != "residual":
             return decisions
         return min(decisions, math.ceil(task.desired_path.motion_time_s / interval - 1e-9))
 
@@ -90,6 +115,8 @@ class Schedule:
         at = np.minimum(np.arange(decisions), span - 1).astype(float)
         where = np.linspace(0.0, span - 1.0, len(values)) if len(values) > 1 else np.zeros(1)
         out = np.stack([np.interp(at, where, values[:, j]) for j in range(values.shape[1])], axis=1)
+        if self.family == "timed":  # hold, then the insertion from the knot's decision on
+            out[:, 2] = np.where(np.arange(decisions) >= go_decision(values[0, 2], decisions), 1.0, -1.0)
         return np.clip(out, -1.0, 1.0).astype(np.float32)
 
     def as_dict(self) -> dict[str, Any]:
@@ -115,8 +142,9 @@ class Schedule:
 
 
 def replay_schedule(task: Scenario, schedule: Schedule, benchmark: Benchmark, *, backend: str = "auto") -> EpisodeScore:
-    """Play ``schedule`` on ``task`` the way the v2 environments step (decisions of the env's interval, stop
-    at the first violation; residuals faded, on top of the default planner), and score the episode."""
+    """Play ``schedule`` on ``task`` the way the environments step (decisions of the env's interval, stop
+    at the first violation; residuals faded, on top of the default planner; a timed schedule's command set before
+    each decision's steps), and score the episode (a capture v1 episode up to its capture)."""
     actions = schedule.actions(task)
     residual = schedule.family == "residual"
     m, T_c = planner_parameters(task, "predefined_time", benchmark.planner.m, benchmark.planner.T_c_s)
@@ -129,7 +157,9 @@ def replay_schedule(task: Scenario, schedule: Schedule, benchmark: Benchmark, *,
         if residual:
             rates = benchmark.residual_fade(rollout.t, motion_time) * residual_rates(action, task.env.residual_rate_deg_s)
         else:
-            rollout.set_parameters(*action_to_parameters(action, task))
+            rollout.set_parameters(*action_to_parameters(action[:2], task))
+            if schedule.family == "timed":
+                rollout.set_command(float(action[2]) + 1.0)
         _, status = rollout.advance(per_decision, rates, stop_on_violation=True)
         k += 1
         if status != "ok":
