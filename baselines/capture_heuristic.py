@@ -12,6 +12,7 @@ from pathlib import Path
 
 import ffsr_gym
 from ffsr_gym.bench.capture_heuristic import slowest_pass
+from ffsr_gym.bench.tables import headline
 from ffsr_gym.model.spec import spec_for_version
 
 CALLABLE = "ffsr_gym.bench.capture_heuristic:slowest_pass"
@@ -32,7 +33,7 @@ def main() -> None:
         report.extra |= {"policy": {"callable": CALLABLE},
                          "method": "timing heuristic: the default planner, insertion commanded after the handle's "
                                    "slowest observed moment (at once on a steady sweep)"}
-        print(tier, f"IQM {report.metrics['score_iqm']:.3f}", "->", report.save(folder))
+        print(tier, headline(spec, report.metrics), "->", report.save(folder))
 
 
 if __name__ == "__main__":

@@ -30,6 +30,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.planner_scores import evaluate_planner
+from ffsr_gym.bench.tables import headline
 from ffsr_gym.model.benchmark import CAPTURE_VERSIONS, VERSIONS, load_benchmark
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.tasks.certificate import planner_episode
@@ -100,7 +101,8 @@ def entries(tier: str, jobs: dict[str, list[dict]], args: argparse.Namespace, ex
                                   compute=compute, version=args.version, **settings)
         report.extra["method"] = f"{setting['method']} planner {settings}"
         report.extra.update(found)
-        print(name, tier, settings, f"IQM {report.metrics['score_iqm']:.3f}", "->", report.save(folder))
+        shown = headline(spec_for_version(args.version), report.metrics)
+        print(name, tier, settings, shown, "->", report.save(folder))
 
 
 if __name__ == "__main__":

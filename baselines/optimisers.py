@@ -23,6 +23,7 @@ import cma
 import numpy as np
 
 from ffsr_gym.bench.planner_scores import evaluate_planner, training_loss
+from ffsr_gym.bench.tables import headline
 from ffsr_gym.model.benchmark import CAPTURE_VERSIONS, VERSIONS, load_benchmark
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.optim import ga
@@ -98,7 +99,8 @@ def main() -> None:
                 found = f"({m:.4f}, {T_c:.3f} s" + (f", {go[0]:.2f} s)" if go else ")")
                 report.extra["method"] = names[name] + (" over (m, T_c, go_s): " if go else " over (m, T_c): ") + found
                 report.extra["best_training_loss"] = loss
-                print(name, tier, found, f"IQM {report.metrics['score_iqm']:.3f}", "->", report.save(folder))
+                shown = headline(spec_for_version(version), report.metrics)
+                print(name, tier, found, shown, "->", report.save(folder))
 
 
 if __name__ == "__main__":

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import ffsr_gym
 from ffsr_gym.bench.policies import uniform_random_residual
+from ffsr_gym.bench.tables import headline
 from ffsr_gym.model.spec import spec_for_version
 
 CALLABLE = "ffsr_gym.bench.policies:uniform_random_residual"
@@ -21,7 +22,8 @@ CALLABLE = "ffsr_gym.bench.policies:uniform_random_residual"
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--leaderboard", required=True, help="leaderboard root; entries go to <root>/<version>/<tier>/")
-    parser.add_argument("--version", default="v2", help="a pool benchmark version (default: v2; or capture-v0, capture-v1)")
+    parser.add_argument("--version", default="v2",
+                        help="a pool benchmark version (default: v2; or capture-v0, capture-v1)")
     args = parser.parse_args()
     spec = spec_for_version(args.version)
     for tier in spec.tasks.tiers:
@@ -33,7 +35,7 @@ def main() -> None:
                                    progress=True)
         report.extra |= {"policy": {"callable": CALLABLE},
                          "method": "uniform random residual in [-1, 1]^12 at every decision (lower reference)"}
-        print(tier, f"IQM {report.metrics['score_iqm']:.3f}", "->", report.save(folder))
+        print(tier, headline(spec, report.metrics), "->", report.save(folder))
 
 
 if __name__ == "__main__":

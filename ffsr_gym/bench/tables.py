@@ -303,3 +303,8 @@ def search_table(folder: Path | None = None) -> str:
                      f"(#{r['best']['number']}) | {cost['env_steps']:,}, {cost['wall_time_s'] / 60:.0f} min, "
                      f"{cost['cores']} |")
     return "\n".join(lines) + "\n"
+
+
+def headline(spec: BenchmarkSpec, metrics: dict[str, Any]) -> str:
+    """An entry's ranking statistic as the baseline scripts print it (``IQM 0.412``, or ``mean 0.123``)."""
+    return f"{spec.leaderboard.label} {metrics[spec.leaderboard.iqm]:.3f}"
