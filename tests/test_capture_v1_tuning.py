@@ -132,3 +132,18 @@ def test_timed_schedules_name_every_decision_and_hold_one_knot():
     with pytest.raises(InvalidInputError, match="a timed schedule has one knot"):
         Schedule("timed", ((0.0, 0.0, 0.0), (0.0, 0.0, 0.5)))
     assert version_families("capture-v1") == ("timed",) and version_families("v2") == ("residual", "parameters")
+
+
+def test_a_timed_schedule_is_judged_on_its_whole_runs_capture_ratio_as_a_timed_certificate(task):
+    from ffsr_gym.model.benchmark import action_to_parameters
+    from ffsr_gym.optim.best_known import replayed
+    from ffsr_gym.tasks.certificate import Certificate, replay_with_margins
+    from ffsr_gym.tasks.schedule import Schedule, go_value, replay_schedule
+
+    m_a, T_c_a = float(np.float32(2 * 0.25 / 0.55 - 1)), float(np.float32(2 * 3 / 9 - 1))
+    schedule = Schedule("timed", ((m_a, T_c_a, go_value(320, 600)),))
+    m, T_c = action_to_parameters([m_a, T_c_a], task)
+    episode, margins = replay_with_margins(task, Certificate("timed", m, T_c, go_s=32.0), BENCH)
+    judged = replayed(task, schedule, BENCH)
+    assert judged.score == episode.score == replay_schedule(task, schedule, BENCH).score
+    assert judged.capture_ratio == margins.capture_ratio < 0.5 < episode.capture_ratio  # the episode's own: ~1

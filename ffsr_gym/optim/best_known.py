@@ -20,6 +20,7 @@ stored with the pools (``envs/benchmark/<version>_best_known.json``).
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -28,10 +29,12 @@ import numpy as np
 
 from ffsr_gym.exceptions import InvalidInputError, require
 from ffsr_gym.model.benchmark import Benchmark
+from ffsr_gym.model.scenario import Scenario
+from ffsr_gym.scoring.score import EpisodeScore, score_episode
 from ffsr_gym.tasks.capture_family import capture_family
-from ffsr_gym.tasks.certificate import Margins, ensemble_members
+from ffsr_gym.tasks.certificate import Margins, ensemble_members, whole_run_ratio
 from ffsr_gym.tasks.perturbation import confirmation_member
-from ffsr_gym.tasks.schedule import FAMILIES, Schedule, go_value, replay_schedule, version_families
+from ffsr_gym.tasks.schedule import FAMILIES, Schedule, go_value, replay_schedule, schedule_run, version_families
 from ffsr_gym.tasks.splits import PoolTask, pool, task_scenario
 
 #: Knots per schedule.
@@ -121,16 +124,25 @@ class FamilyResult:
                 "origin": self.origin, "evaluations": self.evaluations, "searched_best": self.searched_best}
 
 
+def replayed(task: Scenario, schedule: Schedule, benchmark: Benchmark, *, backend: str = "auto") -> EpisodeScore:
+    """:func:`~ffsr_gym.tasks.schedule.replay_schedule`, a timed schedule's capture ratio that of its whole run (the
+    margin its certificate test judges, as a timed certificate's: ``certificate.whole_run_ratio``)."""
+    if schedule.family != "timed":
+        return replay_schedule(task, schedule, benchmark, backend=backend)
+    run = schedule_run(task, schedule, benchmark, backend=backend)
+    return dataclasses.replace(score_episode(run, task, benchmark), capture_ratio=whole_run_ratio(run, task, benchmark))
+
+
 def passes(task: PoolTask, tier: str, schedule: Schedule, benchmark: Benchmark, *, pinocchio: bool) -> Margins | None:
     """The worst margins of ``schedule`` over the task and its ensemble members, or None when an episode fails
     or a margin lies in the hair's-breadth band (the certificate test)."""
     scenario = task_scenario(tier, task.seed, benchmark)
-    results = [replay_schedule(scenario, schedule, benchmark)]
+    results = [replayed(scenario, schedule, benchmark)]
     members = ensemble_members(scenario, task.seed, benchmark.tasks.ensemble, pinocchio=False)
     if pinocchio:  # the Pinocchio backend, or a servo task's finer physics step
         members.append(confirmation_member(scenario, benchmark.version))
     for member in members if results[0].success else []:
-        results.append(replay_schedule(member.task, schedule, benchmark, backend=member.backend))
+        results.append(replayed(member.task, schedule, benchmark, backend=member.backend))
         if not results[-1].success:
             break
     if not all(r.success for r in results):
@@ -144,6 +156,8 @@ def screened_scores(population: Population, index: int, schedules: list[Schedule
     hair's-breadth band (what the certificate test asks of each ensemble member), else its score - 1, so that every
     such candidate ranks above every other and none counts as found (scores <= 0 are never tried)."""
     played = population.episodes(index, schedules)
+    if population.family == "timed":  # an episode ends at its capture: the whole run's ratio is the test's to judge
+        played = [dataclasses.replace(r, capture_ratio=0.0) for r in played]
     return np.array([r.score if r.success and Margins.worst([r]).short(benchmark) is None else r.score - 1.0
                      for r in played])
 

@@ -191,8 +191,13 @@ def replay_with_margins(task: Scenario, certificate: Certificate, benchmark: Ben
         return result, Margins.worst([result])
     run = timed_run(task, certificate.m, certificate.T_c_s, certificate.go_s, backend=backend)
     result = score_episode(run, task, benchmark)
-    whole = native_capture(prepare(task), run, benchmark.capture).margin_ratio
-    return result, Margins.worst([dataclasses.replace(result, capture_ratio=whole)])
+    return result, Margins.worst([dataclasses.replace(result, capture_ratio=whole_run_ratio(run, task, benchmark))])
+
+
+def whole_run_ratio(run: Trajectory, task: Scenario, benchmark: Benchmark) -> float:
+    """The capture ratio of a capture v1 run that goes on past its capture (its episode ends there, with a ratio
+    of about 1): the margin a timed certificate, or any timed schedule, is judged on in the certificate test."""
+    return native_capture(prepare(task), run, benchmark.capture).margin_ratio
 
 
 @dataclass(frozen=True)

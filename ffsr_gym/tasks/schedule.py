@@ -32,6 +32,7 @@ from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.planning.planner import planner_parameters
 from ffsr_gym.scoring.score import EpisodeScore, score_episode
 from ffsr_gym.sim.simulate import make_rollout
+from ffsr_gym.sim.trajectory import Trajectory
 
 #: Schedule families and the width of their actions.
 FAMILIES = {"residual": 12, "parameters": 2, "timed": 3}
@@ -145,6 +146,11 @@ def replay_schedule(task: Scenario, schedule: Schedule, benchmark: Benchmark, *,
     """Play ``schedule`` on ``task`` the way the environments step (decisions of the env's interval, stop
     at the first violation; residuals faded, on top of the default planner; a timed schedule's command set before
     each decision's steps), and score the episode (a capture v1 episode up to its capture)."""
+    return score_episode(schedule_run(task, schedule, benchmark, backend=backend), task, benchmark)
+
+
+def schedule_run(task: Scenario, schedule: Schedule, benchmark: Benchmark, *, backend: str = "auto") -> Trajectory:
+    """The run :func:`replay_schedule` scores: to the end of the episode or its first violation (past a capture)."""
     actions = schedule.actions(task)
     residual = schedule.family == "residual"
     m, T_c = planner_parameters(task, "predefined_time", benchmark.planner.m, benchmark.planner.T_c_s)
@@ -165,4 +171,4 @@ def replay_schedule(task: Scenario, schedule: Schedule, benchmark: Benchmark, *,
         if status != "ok":
             break
     rollout.finish()
-    return score_episode(rollout.trajectory(), task, benchmark)
+    return rollout.trajectory()
