@@ -32,6 +32,11 @@ TIER_MEANING = {
             "0.5 deg/s for 1 s, certified in every member of the ensemble",
     "fast": "capture of a box tumbling at 5-10 deg/s, where the handle's speed brings the arms near the rate "
             "limit, certified in every member of the ensemble",
+    "sweep": "capture of a handle that sweeps a wide cone: a box symmetric about the grasp axis spinning at 6-12 "
+             "deg/s about an axis 60-90 deg off it; the method commands when to close in and when to insert, "
+             "and a timed certificate captures in every member of the ensemble",
+    "nutation": "capture of a handle on an asymmetric box in torque-free nutation (6-12 deg/s, 45-90 deg off the "
+                "grasp axis), whose path does not repeat; the method owns the timing, certified like sweep",
 }
 #: The README's GIF and the tier pages' GIFs: the reference planner on a test task (index), one frame per 8 decisions.
 README_GIF = ("debris", 1)
@@ -153,19 +158,26 @@ def tier_page(tier: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
     data = load_pools(None, (tier,), spec.version)
     index = gif_task(tier)
     default = spec.rules.planner
-    setting = f"({default.m!r}, {default.T_c_s!r})"
+    timed = spec.actions.command  # capture v1: a fixed policy is (m, T_c, go_s); the GIF plays the certificate
+    setting = f"({default.m!r}, {default.T_c_s!r}{', 0.0' if timed else ''})"
     parameters, residual = spec.ids.parameters, spec.ids.residual
     capture = spec.rules.capture is not None  # the tumbling body is an obstacle too; the capture's margin
+    policy = gif_policy(tier)
+    shown = (f"The task's timed certificate ({policy.replace(',', ', ')}: m, T_c [s], go_s [s]) on test task "
+             f"{index}: captures, score {data['splits']['test']['pools'][tier][index]['certificate_score']:.3f}"
+             if timed else f"The reference planner ({default.m:g}, {default.T_c_s:g} s) on test task {index}: "
+             f"{_outcome(ranked, index, spec.version)}")
     lines = [f"# Tier `{tier}`", "", f"Benchmark {spec.version}: {TIER_MEANING[tier]}.", "",
-             f"![The reference planner on test task {index} of {tier}](../_static/tiers/{tier}.gif)", "",
-             f"The reference planner ({default.m:g}, {default.T_c_s:g} s) on test task {index}: "
-             f"{_outcome(ranked, index, spec.version)} (`ffsr-gym render --env-id {parameters} --task {tier} "
-             f"--split test --task-index {index} --every {GIF_EVERY}`).", "",
+             f"![{'The timed certificate' if timed else 'The reference planner'} on test task {index} of {tier}]"
+             f"(../_static/tiers/{tier}.gif)", "",
+             f"{shown} (`ffsr-gym render --env-id {parameters}{'' if policy == 'reference' else ' --policy ' + policy} "
+             f"--task {tier} --split test --task-index {index} --every {GIF_EVERY}`).", "",
              "```python", "import gymnasium as gym, ffsr_gym",
              f"env = gym.make(\"{residual}\", task=\"{tier}\", split=\"train\")   # or {parameters}",
-             f"report = ffsr_gym.evaluate({setting}, \"{parameters}\", task=\"{tier}\")   # its test pool",
+             f"report = ffsr_gym.evaluate({setting}, \"{parameters}\", task=\"{tier}\")   # its test pool"
+             + (": straight in" if timed else ""),
              "```", "", "## Pools", "",
-             "| split | seeds | tasks | certificates: constant / residual | "
+             f"| split | seeds | tasks | certificates: {'timed' if timed else 'constant / residual'} | "
              + ("worst clearance, obstacles and body [mm] | largest peak rate [deg/s] | largest capture ratio |"
                 if capture else "worst obstacle clearance [mm] | largest peak rate [deg/s] |"),
              "|---" * (7 if capture else 6) + "|"]
@@ -174,17 +186,30 @@ def tier_page(tier: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
         kinds = [e["certificate"]["kind"] for e in entries]
         margins = s["pool_margins"][tier]
         first, stop = data["seed_ranges"][split]
-        lines.append(f"| {split} | [{first:,}, {stop:,}) | {len(entries)} | {kinds.count('constant')} / "
-                     f"{kinds.count('residual')} | {1000 * margins['min_clearance_m']:.1f} | "
+        counts = (f"{kinds.count('timed')}" if timed else f"{kinds.count('constant')} / {kinds.count('residual')}")
+        lines.append(f"| {split} | [{first:,}, {stop:,}) | {len(entries)} | {counts} | "
+                     f"{1000 * margins['min_clearance_m']:.1f} | "
                      f"{margins['peak_rate_deg_s']:.1f} |" + (f" {margins['capture_ratio']:.2f} |" if capture else ""))
-    section, spin = (("Capture of a tumbling target", ", with the body's spin perturbed") if capture
-                     else ("Task tiers", ""))
-    lines += ["", "Every task stores a certificate: an action that succeeds at dt, dt/2 and dt/4, from perturbed "
+    section, spin = (("Capture of a sweeping handle" if timed else "Capture of a tumbling target",
+                      ", with the body's spin perturbed") if capture else ("Task tiers", ""))
+    action = "a timed action (m, T_c, go_s)" if timed else "an action"
+    lines += ["", f"Every task stores a certificate: {action} that succeeds at dt, dt/2 and dt/4, from perturbed "
               f"starts{spin} and on the second backend, with margins (the rule, and the counts of rejected candidates: "
               f"[Environments, {section}](../envs.md)).", "",
               f"Its ranked table, with every entry's scores, compute and verification, and how to submit: "
               f"[Leaderboards](../leaderboards.md) (\"{tier} (test pool)\")."]
     return "\n".join(lines) + "\n"
+
+
+def gif_policy(tier: str) -> str:
+    """The ``--policy`` of the tier's GIF: ``reference``, or on capture v1 the GIF task's timed certificate
+    (``m,T_c,go_s``: going straight in fails most of its tasks)."""
+    spec = tier_spec(tier)
+    if not spec.actions.command:
+        return "reference"
+    tasks = load_pools(None, (tier,), spec.version)["splits"]["test"]["pools"][tier]
+    certificate = tasks[gif_task(tier)]["certificate"]
+    return f"{certificate['m']!r},{certificate['T_c_s']!r},{certificate['go_s']!r}"
 
 
 def gif_task(tier: str) -> int:

@@ -47,7 +47,8 @@ def load_model(algo: str, path: str | Path, *, threads: int | None = 1) -> Any:
 
 
 def load_policy(spec: str, algo: str | None, *, trust: bool = False):
-    """A policy from the command line: ``"m,T_c"`` (fixed parameters), an SB3 ``.zip`` (with ``algo``),
+    """A policy from the command line: ``"m,T_c"`` (fixed parameters; ``"m,T_c,go_s"`` a timed one, on an id whose
+    action commands the approach), an SB3 ``.zip`` (with ``algo``),
     or ``module:callable`` / ``path/to/file.py:callable`` (called with an observation, returns an action).
 
     A stable-baselines3 ``.zip`` is unpickled when it loads, so loading one runs code of its maker's
@@ -59,9 +60,9 @@ def load_policy(spec: str, algo: str | None, *, trust: bool = False):
             fails to import (each named).
     """
     parts = spec.split(",")
-    if len(parts) == 2:
+    if len(parts) in (2, 3):
         try:
-            return float(parts[0]), float(parts[1])
+            return tuple(float(part) for part in parts)
         except ValueError:
             pass
     if spec.endswith(".zip"):
@@ -72,8 +73,8 @@ def load_policy(spec: str, algo: str | None, *, trust: bool = False):
         if callable(policy):
             return policy
         raise InvalidInputError(f"--policy {spec!r}: {target!r} has no callable {name!r}")
-    raise InvalidInputError(f"--policy {spec!r}; allowed: 'm,T_c' (e.g. 0.3,4), an SB3 .zip with --algo, "
-                            "module:callable or path/to/file.py:callable")
+    raise InvalidInputError(f"--policy {spec!r}; allowed: 'm,T_c' (e.g. 0.3,4), 'm,T_c,go_s' (e.g. 0.3,4,24: "
+                            "capture v1), an SB3 .zip with --algo, module:callable or path/to/file.py:callable")
 
 
 def _load_zip(spec: str, algo: str | None, trust: bool) -> Any:

@@ -57,7 +57,8 @@ def _generated(root: str, docs: Path) -> dict[Path, str]:
 
 
 def _gifs(docs: Path) -> None:
-    """Each tier's GIF: the reference planner on its page's test task (about 10 s each)."""
+    """Each tier's GIF: the reference planner (capture v1: the task's certificate) on its page's test task (about 10 s
+    each)."""
     from ffsr_gym.bench import doc_pages
     from ffsr_gym.cli.policy_commands import add_policy_commands
 
@@ -66,7 +67,8 @@ def _gifs(docs: Path) -> None:
     for spec in doc_pages.ranked_specs():
         for tier in spec.tasks.tiers:
             args = parser.parse_args(
-                ["render", "--env-id", spec.ids.parameters, "--policy", "reference", "--task", tier, "--split", "test",
+                ["render", "--env-id", spec.ids.parameters, "--policy", doc_pages.gif_policy(tier), "--task", tier,
+                 "--split", "test",
                  "--task-index", str(doc_pages.gif_task(tier)), "--every", str(doc_pages.GIF_EVERY),
                  "--out", str(docs / "_static" / "tiers" / f"{tier}.gif")])
             args.func(args)

@@ -49,8 +49,10 @@ def _load_policy(spec: str, algo: str | None, trust: bool, env: Any = None):
     from ffsr_gym.bench.policies import load_policy
 
     if spec == "reference":  # the reference planner: the zero residual, or the task's own (m, T_c)
-        planner = env.unwrapped.family.planner
-        return (0.0,) * 12 if env.unwrapped.residual else (planner.m, planner.T_c_s)
+        planner, command = env.unwrapped.family.planner, env.unwrapped.benchmark_spec.actions.command
+        if env.unwrapped.residual:  # capture v1: going straight in (a = +1)
+            return (0.0,) * 12 + ((1.0,) if command else ())
+        return (planner.m, planner.T_c_s) + ((0.0,) if command else ())
     return load_policy(spec, algo, trust=trust)
 
 
@@ -60,8 +62,9 @@ def _add_policy_arguments(parser: argparse.ArgumentParser, *, env_id: str | None
     parser.add_argument("--env-id", required=env_id is None, default=env_id, choices=registered_ids(),
                         help="environment id" + (f" (default: {env_id})" if env_id else ""))
     parser.add_argument("--policy", required=policy is None, default=policy,
-                        help="'reference' (the reference planner: the zero residual, or the task's (m, T_c)), 'm,T_c' (fixed "
-                             "parameters, e.g. 0.3,4), an SB3 .zip (with --algo), module:callable or "
+                        help="'reference' (the reference planner: the zero residual, or the task's (m, T_c); capture "
+                             "v1: going straight in), 'm,T_c' (fixed parameters, e.g. 0.3,4), 'm,T_c,go_s' (capture "
+                             "v1: the insertion from go_s on), an SB3 .zip (with --algo), module:callable or "
                              "path/to/file.py:callable" + (f" (default: {policy})" if policy else ""))
     parser.add_argument("--algo", default=None, choices=algorithm_names(), help="the algorithm of an SB3 .zip")
     parser.add_argument("--task", default=None, choices=all_task_names(),
