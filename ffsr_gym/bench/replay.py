@@ -98,7 +98,7 @@ def _replay(path: Path, text: str, run_code: str | None) -> Verdict:
         kwargs = entry["env_kwargs"]
         report = evaluate_planner(planner["method"], task=kwargs.get(spec.tasks.keyword), split=kwargs.get("split"),
                                   m=planner["m"], T_c=planner["T_c_s"], gain_per_s=planner["gain_per_s"],
-                                  version=spec.version)
+                                  go_s=planner.get("go_s"), version=spec.version)
         return _compare(rows, report.to_json()["episodes"], "the planner variant", spec)
     if "trace" in extra:
         verdict = _replay_trace(entry, spec, path)
@@ -211,8 +211,9 @@ def _policy(record: dict[str, Any], path: Path) -> Any:
 
 def _planner(record: Any, path: Path) -> dict[str, Any]:
     keys = ("method", "m", "T_c_s", "gain_per_s")
-    if not isinstance(record, dict) or not set(keys) <= set(record):
-        raise InvalidInputError(f"{path}: extra.planner = {str(record)[:80]!r}; allowed: an object with {list(keys)}")
+    if not isinstance(record, dict) or not set(keys) <= set(record) or not set(record) <= {*keys, "go_s"}:
+        raise InvalidInputError(f"{path}: extra.planner = {str(record)[:80]!r}; allowed: an object with {list(keys)} "
+                                "(and go_s on a version whose action commands the approach)")
     return record
 
 
