@@ -147,3 +147,11 @@ def test_a_timed_schedule_is_judged_on_its_whole_runs_capture_ratio_as_a_timed_c
     judged = replayed(task, schedule, BENCH)
     assert judged.score == episode.score == replay_schedule(task, schedule, BENCH).score
     assert judged.capture_ratio == margins.capture_ratio < 0.5 < episode.capture_ratio  # the episode's own: ~1
+
+
+def test_the_go_decision_is_the_environments_for_every_go_time_on_a_fine_grid():
+    from ffsr_gym.tasks.certificate import go_decision_of
+
+    for go in np.round(np.arange(0.0, 60.0, 0.005), 3):  # the env's test: decision k at k * 0.1 s >= go - 1e-9
+        env = next(k for k in range(601) if k * 0.1 >= go - 1e-9)
+        assert go_decision_of(float(go), 0.1) == env, go

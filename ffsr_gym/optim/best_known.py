@@ -32,7 +32,7 @@ from ffsr_gym.model.benchmark import Benchmark
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.scoring.score import EpisodeScore, score_episode
 from ffsr_gym.tasks.capture_family import capture_family
-from ffsr_gym.tasks.certificate import Margins, ensemble_members, whole_run_ratio
+from ffsr_gym.tasks.certificate import Margins, ensemble_members, go_decision_of, whole_run_ratio
 from ffsr_gym.tasks.perturbation import confirmation_member
 from ffsr_gym.tasks.schedule import FAMILIES, Schedule, go_value, replay_schedule, schedule_run, version_families
 from ffsr_gym.tasks.splits import PoolTask, pool, task_scenario
@@ -68,7 +68,7 @@ def start(task: PoolTask, family: str, benchmark: Benchmark) -> tuple[Schedule, 
         played = capture_family(benchmark)  # the family scenario: every task's episode and decisions
         interval = played.env.decision_interval_s
         decisions = round(played.simulation.duration_s / interval)
-        action.append(go_value(int(np.ceil((cert.go_s - 1e-9) / interval)), decisions))
+        action.append(go_value(go_decision_of(cert.go_s, interval), decisions))
     return Schedule.constant(family, action, knots(family)), origin
 
 

@@ -170,8 +170,7 @@ def timed_run(task: Scenario, m: float | None, T_c: float | None, go_s: float, *
     episode there; the run's remainder gives the certificate's margins)."""
     rollout = make_rollout(task, backend=backend, method=method, m=m, T_c=T_c)
     per_decision = max(1, int(round(task.env.decision_interval_s / task.simulation.dt_s)))
-    decisions = math.ceil((go_s - 1e-9) / task.env.decision_interval_s)  # as the env: t >= go_s - 1e-9
-    wait, status = min(decisions * per_decision, task.n_steps), "ok"
+    wait, status = min(go_decision_of(go_s, task.env.decision_interval_s) * per_decision, task.n_steps), "ok"
     if wait:
         _, status = rollout.advance(wait, stop_on_violation=True)
     if status == "ok" and rollout.k < rollout.n_steps:
@@ -179,6 +178,12 @@ def timed_run(task: Scenario, m: float | None, T_c: float | None, go_s: float, *
         rollout.advance(rollout.n_steps - rollout.k, stop_on_violation=True)
     rollout.finish()
     return rollout.trajectory()
+
+
+def go_decision_of(go_s: float, interval_s: float) -> int:
+    """The decision a timed policy commands the insertion at: the first at or after ``go_s`` [s], as the
+    environments read it (decision k at k ``interval_s``, compared with go_s - 1e-9)."""
+    return math.ceil((go_s - 1e-9) / interval_s)
 
 
 def replay_with_margins(task: Scenario, certificate: Certificate, benchmark: Benchmark, *,
