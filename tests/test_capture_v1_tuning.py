@@ -152,6 +152,6 @@ def test_a_timed_schedule_is_judged_on_its_whole_runs_capture_ratio_as_a_timed_c
 def test_the_go_decision_is_the_environments_for_every_go_time_on_a_fine_grid():
     from ffsr_gym.tasks.certificate import go_decision_of
 
-    for go in np.round(np.arange(0.0, 60.0, 0.005), 3):  # the env's test: decision k at k * 0.1 s >= go - 1e-9
-        env = next(k for k in range(601) if k * 0.1 >= go - 1e-9)
+    for go in np.round(np.arange(0.0, 60.0, 0.005), 3):  # the env's test (bench.entry.stepper): K dt >= go - 1e-9
+        env = next(k for k in range(601) if (10 * k) * 0.01 >= go - 1e-9)  # K physics steps of 0.01 s
         assert go_decision_of(float(go), 0.1) == env, go
