@@ -290,7 +290,9 @@ def test_the_practitioners_timing_goes_in_after_the_slowest_moment():
     steady = [float(policy(_observation(k / 10, 0.05))[2]) + 1.0 for k in range(40)]  # a new episode at t = 0
     assert steady.index(2.0) == 20  # no slowest moment: in at once after 2 s of watching
     rising = [float(policy(_observation(k / 10, 0.05 + 0.001 * k))[2]) + 1.0 for k in range(600)]
-    assert rising.index(2.0) == 491  # never slower: in when only the approach's 10.98 s are left
+    assert rising.index(2.0) == 20  # the slowest moment was the start: in once the watching is over
+    falling = [float(policy(_observation(k / 10, 0.65 - 0.001 * k))[2]) + 1.0 for k in range(600)]
+    assert falling.index(2.0) == 491  # slower and slower: in when only the approach's 10.98 s are left
     m, T_c = action_to_parameters(policy.action(0.0)[:2], draw_timed_task("sweep", SEED, BENCH))
     assert m == pytest.approx(0.3, abs=1e-7) and T_c == pytest.approx(4.0, abs=1e-6)
 

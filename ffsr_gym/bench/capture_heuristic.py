@@ -3,10 +3,10 @@
 :class:`SlowestPass` is a policy of ``FFSR-Capture-v1`` (observation → (m, T_c, command) action) that knows
 nothing of the task beyond what it sees: the default planner's (m, T_c) throughout; the start pose held while it
 watches the handle's speed (its linear speed plus the standoff times its angular speed, from the observation's
-grasp twist); the insertion commanded at the first decision after that speed has passed a minimum (it fell and
-rises again, by more than ``tolerance`` of itself), at once when the first ``watch_s`` seconds show a steady speed
-(a regular sweep has no slowest point), and at the latest when only the approach's time is left. Once going it
-keeps going.
+grasp twist); after the first ``watch_s`` seconds, the insertion commanded at the first decision whose speed lies
+more than ``tolerance`` above the slowest it has seen (the slowest moment is behind: at once when the speed has
+risen since the start), at once when the speed has been steady (a regular sweep has no slowest point), and at the
+latest when only the approach's time is left. Once going it keeps going.
 """
 
 from __future__ import annotations
@@ -46,17 +46,14 @@ class SlowestPass:
         state = self._state
         if t == 0.0 or not state:  # a new episode
             state.clear()
-            state.update(going=False, previous=None, falling=False, low=speed, high=speed)
+            state.update(going=False, low=speed, high=speed)
         state["low"], state["high"] = min(state["low"], speed), max(state["high"], speed)
-        previous = state["previous"]
         if not state["going"]:
-            steady = t >= self.watch_s and state["high"] - state["low"] <= self.tolerance * state["high"]
-            rising = previous is not None and speed > previous * (1.0 + self.tolerance)
+            watched = t >= self.watch_s
+            steady = watched and state["high"] - state["low"] <= self.tolerance * state["high"]
+            passed = watched and speed > state["low"] * (1.0 + self.tolerance)  # the slowest moment is behind
             late = t >= self.duration_s - self.approach_s - 1e-9
-            state["going"] = steady or (state["falling"] and rising) or late
-            if previous is not None and speed < previous * (1.0 - self.tolerance):
-                state["falling"] = True
-        state["previous"] = speed
+            state["going"] = steady or passed or late
         return self.action(2.0 if state["going"] else 0.0)
 
     def action(self, command: float) -> np.ndarray:
