@@ -50,7 +50,8 @@ def add_study_commands(sub: Any) -> None:
                          "version's pool file's tier tasks; slow or fast: that capture tier (--version capture-v0); sweep or "
                          "nutation: that capture v1 tier (--version capture-v1) "
                          "(default: base)")
-    tb.add_argument("--work", default=None, help="folder of the finished chunks (default: runs/tasks-<version>; "
+    tb.add_argument("--work", default=None, help="folder of the finished chunks (default: studies/tasks-<version>, kept "
+                                                 "in git so that a build resumes on any machine; "
                                                  "a perturbed tier uses <work>/<tier>)")
     tb.add_argument("--out", default=None, help="pool file to write (default: the shipped "
                                                 "envs/benchmark/<version>_tasks.json, or <version>_<tier>_tasks.json)")
@@ -142,7 +143,7 @@ def _tasks(args: argparse.Namespace) -> None:
 
     with _executor(args, args.workers) as (executor, workers):
         version = args.version
-        work = args.work or f"runs/tasks-{version}"
+        work = args.work or f"studies/tasks-{version}"
         data = build(work, version=version, target=version if args.tier == "base" else args.tier, out=args.out,
                      chunk=args.chunk, max_candidates=args.max_candidates, executor=executor, workers=workers,
                      progress=not args.no_progress)

@@ -1,6 +1,6 @@
 """Build a benchmark version's task pools: apply the tier rule to candidate seeds, in resumable chunks.
 
-``ffsr-gym tasks build --version v2 --work runs/tasks-v2`` classifies the candidates of each split
+``ffsr-gym tasks build --version v2 --work studies/tasks-v2`` classifies the candidates of each split
 in chunks of consecutive seeds. Every finished chunk is written atomically to the work folder, so a
 killed build resumes where it stopped and never reruns a finished chunk. When the first
 ``<split>_tasks`` candidates of every tier are known, the pools, the label of every candidate
