@@ -135,8 +135,8 @@ def check_go(go_s: Any, spec: Any, rule: Any) -> None:
 
 
 def training_loss(m: float, T_c: float, go_s: float | None = None, *, tier: str, tasks: int = 20,
-                  version: str = "v2", method: str = "predefined_time") -> float:
-    """1 − the mean score of the planner at constant (m, T_c [s]) (going in at ``go_s`` [s] on a version whose
+                  version: str = "v2") -> float:
+    """1 − the mean score of the predefined-time planner at constant (m, T_c [s]) (going in at ``go_s`` [s] on a version whose
     action commands the approach) on the first ``tasks`` tasks of ``tier``'s **training** pool: the black-box
     loss optimisers minimise (in [0, 1]). A point outside the action box is refused, as :func:`ffsr_gym.evaluate`
     refuses it (:func:`check_in_box`, :func:`check_go`).
@@ -149,8 +149,8 @@ def training_loss(m: float, T_c: float, go_s: float | None = None, *, tier: str,
     benchmark = rule.benchmark
     check_in_box((m, T_c), benchmark.action.m_bounds, benchmark.action.T_c_bounds_s)  # what evaluate would refuse
     check_go(go_s, spec, rule)
-    episodes = [planner_episode(task_scenario(tier, t.seed, benchmark), benchmark, method=method, m=m, T_c=T_c,
-                                go_s=go_s) for t in pool(tier, "train", version=benchmark.version)[:tasks]]
+    episodes = [planner_episode(task_scenario(tier, t.seed, benchmark), benchmark, method="predefined_time", m=m,
+                                T_c=T_c, go_s=go_s) for t in pool(tier, "train", version=benchmark.version)[:tasks]]
     return 1.0 - float(np.mean([e.score for e in episodes]))
 
 
