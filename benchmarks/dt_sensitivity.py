@@ -99,7 +99,7 @@ def planners(tier: str, root: Path, version: str = VERSIONS[-1]) -> dict[str, di
 
     best, tuned = entry("reference_best_constant"), entry("proportional_tuned")
     default = load_benchmark(version).planner
-    extra = {f"{name[:-1]}{at(go(best) or None)})": {**kwargs, **go(best)}  # the go time inside the name's brackets
+    extra = {f"{name[:-1]}{at(best)})": {**kwargs, **go(best)}  # the go time inside the name's brackets
              for name, kwargs in capture_planners(version).items()} if is_capture(version) else {}
     return {f"reference default ({default.m:g}, {default.T_c_s:g} s{at(go())})": {
                 "method": "predefined_time", "m": default.m, "T_c": default.T_c_s, **go()},
