@@ -161,14 +161,29 @@ def write_text_atomic(path: str | Path, text: str) -> None:
                          "unchanged") from None
 
 
-def _write_atomic(path: Path, text: str) -> None:
+def write_bytes_atomic(path: str | Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically, as :func:`write_text_atomic` writes text.
+
+    Raises:
+        WriteError: the file cannot be written, naming it.
+    """
+    path = Path(path)
+    try:
+        _write_atomic(path, data)
+    except OSError as exc:
+        raise WriteError(f"{path}: could not be written ({exc.strerror or exc}); the file there before, if any, is "
+                         "unchanged") from None
+
+
+def _write_atomic(path: Path, text: str | bytes) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     for stale in path.parent.glob(f".{glob.escape(path.name)}.*.tmp"):  # left by a writer killed mid-write
         if not _writer_alive(stale, path.name):
             stale.unlink(missing_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.{os.getpid()}.", suffix=".tmp")
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+        binary = isinstance(text, bytes)
+        with os.fdopen(fd, "wb" if binary else "w", **({} if binary else {"encoding": "utf-8"})) as handle:
             handle.write(text)
             handle.flush()
             if hasattr(os, "fchmod"):  # mkstemp makes 0600; files people share follow the umask

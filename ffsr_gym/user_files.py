@@ -43,11 +43,11 @@ def check_regular(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> Path:
     return path
 
 
-def read_text(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> str:
-    """The UTF-8 text of a regular file of at most ``max_bytes``.
+def read_bytes(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> bytes:
+    """The bytes of a regular file of at most ``max_bytes``.
 
     Raises:
-        UserFileError: as :func:`check_regular`, or not UTF-8 text.
+        UserFileError: as :func:`check_regular`.
     """
     path = check_regular(path, max_bytes=max_bytes)
     try:
@@ -57,6 +57,16 @@ def read_text(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> str:
         raise UserFileError(f"{path}: cannot be read ({exc.strerror or exc})") from None
     if len(data) > max_bytes:  # grew since the check
         raise UserFileError(f"{path}: more than {max_bytes:,} bytes; allowed: at most {max_bytes:,}")
+    return data
+
+
+def read_text(path: str | Path, *, max_bytes: int = MAX_FILE_BYTES) -> str:
+    """The UTF-8 text of a regular file of at most ``max_bytes``.
+
+    Raises:
+        UserFileError: as :func:`check_regular`, or not UTF-8 text.
+    """
+    data = read_bytes(path, max_bytes=max_bytes)
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:

@@ -4,7 +4,7 @@ pull-request workflow) replays.
 An entry is any file the tables read (:func:`entry_files`: every ``*.json`` in a table's folder, whatever its name),
 so a file named like a generated one (``aggregates.json``) in a table's folder is replayed like any other. The change
 is git's: files added, copied, modified, renamed (the new name, edited or not) or changed in type since ``REF``, in
-commits and in the working tree, and files not yet tracked.
+commits and in the working tree, and files not yet tracked. A changed trace file (``<name>.trace``) touches its entry.
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ import subprocess
 from pathlib import Path
 
 from ffsr_gym.bench.leaderboard import folder_of, groups, table_files
+from ffsr_gym.bench.trace_file import SUFFIX
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import all_specs
 
@@ -58,6 +59,7 @@ def changed_entries(root: str | Path, since: str) -> list[Path]:
             k += 2
     untracked = _git(top, "ls-files", "-z", "--others", "--exclude-standard", "--", str(root.resolve()))
     touched.update(top / name for name in untracked.split("\0") if name)
+    touched.update(path.with_suffix(".json") for path in list(touched) if path.suffix == SUFFIX)  # its entry's
     return [root / path.relative_to(root.resolve()) for path in entry_files(root) if path in touched]
 
 

@@ -14,7 +14,6 @@ import numpy as np
 
 from ffsr_gym.bench.verify import ENTRY_NAME, entry_problems
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.provenance import write_json_atomic
 from ffsr_gym.scoring.aggregate import BOOTSTRAP_SAMPLES, BOOTSTRAP_SEED
 
 V0_SCORE_RULE = "objective B if feasible else inf (null in JSON)"
@@ -97,7 +96,8 @@ class EvalReport:
         })
 
     def save(self, directory: str | Path, *, overwrite: bool = False) -> Path:
-        """Write the entry atomically to ``directory/<name>.json`` and return its path.
+        """Write the entry atomically to ``directory/<name>.json`` and return its path; a policy's trace of applied
+        actions goes to ``directory/<name>.trace`` beside it (:mod:`ffsr_gym.bench.trace_file`).
 
         An entry already there is replaced only with ``overwrite=True`` (a submitted result is never
         lost to a second run of the same name).
@@ -128,7 +128,11 @@ class EvalReport:
         if path.exists() and not overwrite:
             raise InvalidInputError(f"{path} exists: a previous result would be replaced; choose another name, or pass "
                                     "overwrite=True to replace it")
-        write_json_atomic(path, self.to_json())
+        from ffsr_gym.bench.trace_file import SUFFIX, write_entry_files
+
+        write_entry_files(path, self.to_json())
+        if "trace" not in self.extra:  # a replaced entry's trace file does not outlive it
+            path.with_name(path.stem + SUFFIX).unlink(missing_ok=True)
         return path
 
 

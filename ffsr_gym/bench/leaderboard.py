@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from ffsr_gym.bench import rl_comparison, tables
+from ffsr_gym.bench.trace_file import file_problems, in_file
 from ffsr_gym.bench.verify import entry_problems
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.model.resources import scenario_names
@@ -111,6 +112,10 @@ def _load(path: Path, spec: BenchmarkSpec, group: str) -> dict[str, Any]:
         problems = entry_problems(entry, spec, group)
         if _checked is not None:
             _checked[key] = list(problems)
+    record = entry.get("extra", {}).get("trace") if isinstance(entry.get("extra"), dict) else None
+    if in_file(record):  # checked on every load: the file can change while the entry does not
+        problems += file_problems(record, path, len(entry["episodes"]) if isinstance(entry.get("episodes"), list)
+                                  else 0)
     if isinstance(entry.get("name"), str) and entry["name"] != path.stem:
         problems.append(f"name {entry['name']!r} is not its file's name {path.stem!r}; allowed: <name>.json")
     return entry | {"_file": path.name, "_folder": str(path.parent), "_problems": problems}

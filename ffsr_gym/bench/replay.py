@@ -29,6 +29,7 @@ from ffsr_gym.bench.planner_scores import evaluate_planner
 from ffsr_gym.bench.policies import BUILTIN_POLICIES, load_policy, resolve_recorded
 from ffsr_gym.bench.replay_tolerance import bias_problem, differing_keys
 from ffsr_gym.bench.trace import clipped_counts, decode, trace_episodes
+from ffsr_gym.bench.trace_file import in_file, read_actions
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.model.spec import BenchmarkSpec, ReplaySpec
 from ffsr_gym.user_files import parse_json, read_text
@@ -256,9 +257,13 @@ class _TracePlayer:
 
 def _replay_trace(entry: dict[str, Any], spec: BenchmarkSpec, path: Path) -> Verdict:
     """Play the stored actions and compare the rows and the actions the env applied, exactly."""
-    rows = entry["episodes"]
-    width, texts = trace_episodes(entry["extra"]["trace"], len(rows), where=f"{path}: extra.trace")
-    episodes = [decode(text, width, where=f"{path}: extra.trace.episodes[{k}]") for k, text in enumerate(texts)]
+    rows, record = entry["episodes"], entry["extra"]["trace"]
+    if in_file(record):
+        episodes = read_actions(record, path, len(rows))
+        width = record["action_shape"][0]
+    else:
+        width, texts = trace_episodes(record, len(rows), where=f"{path}: extra.trace")
+        episodes = [decode(text, width, where=f"{path}: extra.trace.episodes[{k}]") for k, text in enumerate(texts)]
     try:
         report = _play(_TracePlayer(episodes), entry, spec, path).to_json()
     except _TraceSpent:

@@ -8,7 +8,9 @@ same rows bit for bit, so an RL or optimiser entry is checked without loading a 
 a file (``ffsr-gym leaderboard verify``).
 
 A trace costs a few bytes a number: a residual policy's entry on the easy test pool (100 tasks of
-200 decisions of 12 numbers) measured 0.72 MB with its trace.
+200 decisions of 12 numbers) measured 0.72 MB with its trace as text. :meth:`ffsr_gym.EvalReport.save` writes the
+trace to a compressed binary file beside the entry (:mod:`ffsr_gym.bench.trace_file`); in memory, and in entries
+written before, it is this text.
 
 The env clips an action outside [-1, 1] and counts it (``info["clipped_actions"]``, the row's
 ``clipped_actions``). The trace keeps the applied, clipped action, and beside it, per row, the
@@ -59,7 +61,15 @@ def decode(text: Any, width: int, *, where: str) -> np.ndarray:
         raise InvalidInputError(f"{where}: more than {MAX_DECISIONS} decisions; allowed: at most {MAX_DECISIONS}")
     if len(raw) % (4 * width):
         raise InvalidInputError(f"{where}: {len(raw)} bytes are not whole actions of {width} float32 values")
-    actions = np.frombuffer(raw, dtype="<f4").reshape(-1, width).astype(np.float32)
+    return check_actions(np.frombuffer(raw, dtype="<f4").reshape(-1, width).astype(np.float32), where=where)
+
+
+def check_actions(actions: np.ndarray, *, where: str) -> np.ndarray:
+    """``actions`` if every value is finite and in [-1, 1] (the env applies clipped actions only).
+
+    Raises:
+        InvalidInputError: naming ``where``.
+    """
     if not np.all(np.isfinite(actions)) or np.any(np.abs(actions) > 1.0):
         raise InvalidInputError(f"{where}: an action value is not finite or outside [-1, 1] (the env applies "
                                 "clipped actions only)")

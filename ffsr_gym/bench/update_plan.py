@@ -8,7 +8,7 @@ pool file, the frozen reference and the code the replay ran. An entry is replaye
   workflow when it changed (or predates it: ``verify`` or ``--full`` replays it), and a frozen v0 entry never
   carries a stamp,
 * its stamp no longer describes it (:func:`~ffsr_gym.bench.stamp.stamp_problems`: the entry, its rows, its pool or
-  the reference changed),
+  the reference changed), or its trace file is not the one it names (:mod:`~ffsr_gym.bench.trace_file`),
 * the code a replay runs changed since (:func:`~ffsr_gym.bench.stamp.code_digest`), or the stamp predates the code's
   digest.
 
@@ -23,6 +23,7 @@ from pathlib import Path
 from ffsr_gym.bench.changes import changed_entries, entry_files
 from ffsr_gym.bench.leaderboard import spec_of_entry
 from ffsr_gym.bench.stamp import code_digest, stamp_problems
+from ffsr_gym.bench.trace_file import file_problems, in_file
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.user_files import parse_json, read_text
 
@@ -73,6 +74,9 @@ def _step(path: Path, changed: set[Path] | None, digest: str) -> Step:
     if stamp is None:
         return _unstamped(path, changed, "no stamp")
     problems = stamp_problems(entry, spec.rules.version)
+    record = extra.get("trace")
+    if not problems and in_file(record) and isinstance(entry.get("episodes"), list):
+        problems = file_problems(record, path, len(entry["episodes"]))  # the trace file can change alone
     if problems:
         return Step(path, True, f"its stamp no longer describes it ({problems[0]})")
     if "code_sha256" not in stamp:

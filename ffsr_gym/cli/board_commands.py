@@ -190,6 +190,19 @@ def _stamp(path: str, replayed: str) -> None:
     print(f"{path}: stamped ({entry['extra']['verified']['verifier']})")
 
 
+def _leaderboard_traces(args: argparse.Namespace) -> int:
+    from ffsr_gym.bench.changes import entry_files
+    from ffsr_gym.bench.trace_file import move_traces
+
+    moved = move_traces(entry_files(args.root))
+    for path, before, after in moved:
+        print(f"{path}: {before / 1e6:.2f} MB -> {after / 1e6:.2f} MB (entry and trace file)")
+    before, after = sum(m[1] for m in moved), sum(m[2] for m in moved)
+    print(f"moved the traces of {len(moved)} entries to trace files: {before / 1e6:.1f} MB -> {after / 1e6:.1f} MB"
+          + ("; their stamps were dropped: 'ffsr-gym leaderboard update' replays and stamps them" if moved else ""))
+    return 0
+
+
 def add_board_commands(sub: Any) -> None:
     """Sub-command leaderboard (render, plot, pareto)."""
     board = sub.add_parser("leaderboard", help="leaderboard tables and figures")
@@ -251,3 +264,8 @@ def add_board_commands(sub: Any) -> None:
                         help="replay every entry, not only those changed since their stamp (entry, pool, reference or "
                              "replayed code)")
     update.set_defaults(func=_leaderboard_update)
+    traces = board_sub.add_parser("traces", help="move the action traces written as text inside entries into trace "
+                                                 "files beside them (<name>.trace, compressed; the entries name them by "
+                                                 "sha256); prints the bytes before and after")
+    traces.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
+    traces.set_defaults(func=_leaderboard_traces)
