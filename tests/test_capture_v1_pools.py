@@ -1,0 +1,133 @@
+"""The shipped capture-v1 pools: full pools built under today's rule, disjoint seeds, ids that pass Gymnasium's and
+SB3's checkers on them, and timed certificates that step through the registered environment to their stored
+capture, and hold in every ensemble member with their stored margins (a spread sample here; all with ``-m slow``)."""
+
+from __future__ import annotations
+
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import ffsr_gym  # noqa: F401  (registers the ids)
+from ffsr_gym.bench.replay_tolerance import tolerance_for
+from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.tasks.build import rule_sha256
+from ffsr_gym.tasks.capture_timed import TIMED_TIERS
+from ffsr_gym.tasks.certificate import Member, ensemble_members, replay_with_margins
+from ffsr_gym.tasks.perturbation import confirmation_member
+from ffsr_gym.tasks.splits import load_pools, pool, task_scenario
+
+VERSION = "capture-v1"
+RULES = load_benchmark(VERSION)
+IDS = ("FFSR-Capture-v1", "FFSR-Capture-Residual-v1")
+TOLERANCE = tolerance_for(VERSION)
+SIZES = (("train", 200), ("validation", 50), ("test", 100))
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_the_ids_pass_gymnasium_and_sb3_checks_on_a_pool(env_id):
+    sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        env = gym.make(env_id, task="nutation", split="test")
+        check_env(env.unwrapped, skip_render_check=True)
+        sb3_checker.check_env(env.unwrapped, warn=True)
+    assert not [str(w.message) for w in caught], [str(w.message) for w in caught]
+    assert env.spec.max_episode_steps == 600 and env.observation_space.shape == (76,)
+
+
+@pytest.mark.parametrize("tier", TIMED_TIERS)
+def test_the_pool_files_hold_full_disjoint_pools_built_under_todays_rule(tier):
+    data = load_pools(tiers=(tier,), version=VERSION)
+    assert data["rule_sha256"] == rule_sha256(tier, VERSION)
+    seeds = {}
+    for split, count in SIZES:
+        tasks = pool(tier, split, version=VERSION)
+        assert len(tasks) == count
+        assert all(t.certificate.kind == "timed" and t.certificate.go_s in RULES.tasks.go_s for t in tasks)
+        assert all(t.margins.capture_ratio <= RULES.tasks.ensemble.error_margin for t in tasks)
+        seeds[split] = {t.seed for t in tasks}
+        assert len(seeds[split]) == count
+    assert not (seeds["train"] & seeds["validation"] or seeds["train"] & seeds["test"]
+                or seeds["validation"] & seeds["test"])
+
+
+def replay_in_env(tier: str, split: str, index: int) -> dict:
+    """A timed certificate stepped through ``FFSR-Capture-v1``: its (m, T_c), the start pose held (u = 0) until the
+    first decision at or after its go time, then the grasp frame commanded (u = 2); the last step's info."""
+    task = pool(tier, split, version=VERSION)[index]
+    c = task.certificate
+    env = gym.make("FFSR-Capture-v1", task=tier, split=split)
+    _, info = env.reset(seed=0, options={"task_index": index})
+    assert info["task_seed"] == task.seed
+    decision = task_scenario(tier, task.seed, RULES).env.decision_interval_s
+    try:
+        for k in range(600):
+            go = k * decision >= c.go_s - 1e-9
+            _, _, terminated, truncated, info = env.unwrapped.step_with_parameters(c.m, c.T_c_s,
+                                                                                   command=2.0 if go else 0.0)
+            if terminated or truncated:
+                return info
+    finally:
+        env.close()
+    raise AssertionError("the episode did not end in 600 decisions")
+
+
+def cases(per_pool: int | None) -> list[tuple]:
+    """(tier, split, index) of ``per_pool`` spread tasks (None: all) of every pool."""
+    out = []
+    for tier in TIMED_TIERS:
+        for split, count in SIZES:
+            picks = range(count) if per_pool is None else np.linspace(0, count - 1, per_pool).round().astype(int)
+            out += [(tier, split, int(i)) for i in picks]
+    return out
+
+
+@pytest.mark.parametrize(("tier", "split", "index"), cases(1))
+def test_a_certificate_steps_through_the_env_to_its_stored_capture(tier, split, index):
+    info = replay_in_env(tier, split, index)
+    assert info["success"] and info["capture_time_s"] > pool(tier, split, version=VERSION)[index].certificate.go_s
+    stored = pool(tier, split, version=VERSION)[index].certificate_score
+    assert info["score"] == pytest.approx(stored, rel=TOLERANCE.score_rel_tol, abs=0.0)
+
+
+def ensemble_problems(tier: str, split: str, index: int) -> list[str]:
+    """Replay a certificate at dt and in every ensemble member (the four spin members and Pinocchio included); what
+    fails, or what differs from the worst margins the pool file stores."""
+    entry = pool(tier, split, version=VERSION)[index]
+    task = task_scenario(tier, entry.seed, RULES)
+    members = [Member("dt", task), *ensemble_members(task, entry.seed, RULES.tasks.ensemble, pinocchio=False),
+               confirmation_member(task, VERSION)]
+    assert sum(m.name.startswith("omega") for m in members) == 4
+    where, worst = f"{tier}/{split}[{index}]", None
+    for member in members:  # a timed certificate's capture ratio is its whole run's (replay_with_margins)
+        result, margins = replay_with_margins(member.task, entry.certificate, RULES, backend=member.backend)
+        if not result.success:
+            return [f"{where}: fails at {member.name} ({result.failure})"]
+        worst = margins if worst is None else worst.merge(margins)
+    stored = entry.margins
+    problems = [] if worst.short(RULES) is None else [f"{where}: {worst.short(RULES)}"]
+    for key in ("min_clearance_m", "min_self_clearance_m", "peak_rate_deg_s", "capture_ratio"):
+        if getattr(stored, key) != pytest.approx(getattr(worst, key), rel=TOLERANCE.margin_rel_tol):
+            problems.append(f"{where}: stored {key} {getattr(stored, key)} != {getattr(worst, key)}")
+    return problems
+
+
+@pytest.mark.parametrize("tier", TIMED_TIERS)
+def test_a_test_certificate_holds_in_every_ensemble_member_with_its_stored_margins(tier):
+    assert not ensemble_problems(tier, "test", 0)
+
+
+@pytest.mark.slow
+def test_every_certificate_steps_through_the_env_to_its_capture():
+    failed = [(case, info["failure"]) for case in cases(None) if not (info := replay_in_env(*case))["success"]]
+    assert not failed
+
+
+@pytest.mark.slow
+def test_every_certificate_holds_in_every_ensemble_member():
+    problems = [p for case in cases(None) for p in ensemble_problems(*case)]
+    assert not problems, problems[:20]
