@@ -101,11 +101,12 @@ def provenance(*, scenarios: dict[str, str] | None = None, seeds: list[int] | No
     """
     tree, source = _git_tree()
     commit = None if tree is None else _git("rev-parse", "HEAD", cwd=tree)
-    # Generated results (leaderboard entries and tables, the long studies' records, the best known scores) do not
-    # make the code dirty.
+    # Generated results (leaderboard entries and tables, the long studies' records, the best known scores) and what
+    # no run executes (the docs, the tests, Markdown pages) do not make the code dirty.
     dirty = None if commit is None else bool(_git("status", "--porcelain", "--untracked-files=no", "--", ".",
                                                  ":(exclude)leaderboards", ":(exclude)studies",
-                                                 ":(exclude)envs/benchmark/*_best_known*.json", cwd=tree))
+                                                 ":(exclude)envs/benchmark/*_best_known*.json", ":(exclude)docs",
+                                                 ":(exclude)tests", ":(exclude)*.md", cwd=tree))
     return {
         "git_commit": commit,
         "git_dirty": dirty,
@@ -159,6 +160,17 @@ def write_text_atomic(path: str | Path, text: str) -> None:
     except OSError as exc:
         raise WriteError(f"{path}: could not be written ({exc.strerror or exc}); the file there before, if any, is "
                          "unchanged") from None
+
+
+#: Set to 1, a leaderboard table takes entries of a checkout with uncommitted code changes without being asked each
+#: time (``EvalReport.save(allow_dirty=None)``; the test suite sets it: a developer's tree is dirty by nature).
+ALLOW_DIRTY_VARIABLE = "FFSR_GYM_ALLOW_DIRTY"
+
+
+def dirty_allowed(flag: bool | None) -> bool:
+    """Whether a dirty checkout's entry may go into a leaderboard table: ``flag``, or when None the variable
+    :data:`ALLOW_DIRTY_VARIABLE` set to 1."""
+    return flag if flag is not None else os.environ.get(ALLOW_DIRTY_VARIABLE) == "1"
 
 
 def write_bytes_atomic(path: str | Path, data: bytes) -> None:

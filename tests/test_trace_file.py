@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -74,7 +73,8 @@ def test_a_swapped_or_missing_trace_file_is_refused_by_name(tmp_path, report):
     trace.write_bytes(pack(actions, 12))  # one action one float32 step away
     with pytest.raises(InvalidInputError, match="not the file the entry was written with"):
         replay_entry(path)
-    problems = [p for e in load_entries(tmp_path / "leaderboards", spec_for_version("v2"))["easy"] for p in e["_problems"]]
+    loaded = load_entries(tmp_path / "leaderboards", spec_for_version("v2"))["easy"]
+    problems = [p for e in loaded for p in e["_problems"]]
     assert any("not the file the entry was written with" in p for p in problems)
     trace.unlink()
     with pytest.raises(InvalidInputError, match="extra.trace.file"):
@@ -96,9 +96,10 @@ def test_moving_a_text_trace_keeps_every_action_and_the_replay(tmp_path, report)
     assert moved == path and after < before
     assert move_traces([path]) == []  # done once
     stored = json.loads(path.read_text())
-    assert "verified" not in stored["extra"] and stored["extra"]["trace"]["clipped"] == entry["extra"]["trace"]["clipped"]
+    texts, clipped = entry["extra"]["trace"]["episodes"], entry["extra"]["trace"]["clipped"]
+    assert "verified" not in stored["extra"] and stored["extra"]["trace"]["clipped"] == clipped
     back = unpack((tmp_path / "mine.trace").read_bytes(), 12, 2, where="test")
-    assert [a.tobytes() for a in back] == [decode(t, 12, where="t").tobytes() for t in entry["extra"]["trace"]["episodes"]]
+    assert [a.tobytes() for a in back] == [decode(t, 12, where="t").tobytes() for t in texts]
     assert replay_entry(path).status == "reproduced"
 
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from ffsr_gym.bench.verify import ENTRY_NAME, entry_problems
 from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.provenance import dirty_allowed
 from ffsr_gym.scoring.aggregate import BOOTSTRAP_SAMPLES, BOOTSTRAP_SEED
 
 V0_SCORE_RULE = "objective B if feasible else inf (null in JSON)"
@@ -95,7 +96,7 @@ class EvalReport:
             "metrics": self.metrics, "episodes": self.episodes, "extra": self.extra, "provenance": self.provenance,
         })
 
-    def save(self, directory: str | Path, *, overwrite: bool = False) -> Path:
+    def save(self, directory: str | Path, *, overwrite: bool = False, allow_dirty: bool | None = None) -> Path:
         """Write the entry atomically to ``directory/<name>.json`` and return its path; a policy's trace of applied
         actions goes to ``directory/<name>.trace`` beside it (:mod:`ffsr_gym.bench.trace_file`).
 
@@ -105,11 +106,15 @@ class EvalReport:
         A folder that is a leaderboard table by its path (``<version>/<tier>`` of a version with
         tiers, or a ``<env id>`` folder of one scored on seeds) only takes an entry that the
         leaderboard would rank there: the same checks as ``ffsr-gym leaderboard render``
-        (:func:`ffsr_gym.bench.verify.entry_problems`). Any other folder takes any entry.
+        (:func:`ffsr_gym.bench.verify.entry_problems`), and, unless ``allow_dirty=True`` (None: the
+        variable ``FFSR_GYM_ALLOW_DIRTY=1``), not one made by a source checkout with uncommitted changes to
+        its code (``provenance.git_dirty``: nobody could run that code again; an installed package records
+        None and is taken). Any other folder takes any entry.
 
         Raises:
             InvalidInputError: a name that is not a plain file name, an entry of that name already there
-                (without ``overwrite``), or an entry that the table folder would refuse (every reason named).
+                (without ``overwrite``), or an entry that the table folder would refuse (every reason named),
+                or a dirty checkout's entry in a table folder (without ``allow_dirty``).
         """
         if not isinstance(self.name, str) or not ENTRY_NAME.fullmatch(self.name):
             raise InvalidInputError(f"entry name {self.name!r}; allowed: 1-128 characters of letters, digits, '.', '_', "
@@ -120,6 +125,9 @@ class EvalReport:
         if table is not None:
             spec, group = table
             problems = entry_problems(self.to_json(), spec, group)
+            if self.provenance.get("git_dirty") is True and not dirty_allowed(allow_dirty):
+                problems.append("it was made by a checkout with uncommitted code changes (provenance.git_dirty); "
+                                "commit them and run again, or pass allow_dirty=True (the table marks it +dirty)")
             if problems:
                 raise InvalidInputError(f"{directory} is the {spec.version} leaderboard table {group!r}, which would refuse "
                                         f"this entry: {'; '.join(problems)} (save elsewhere, e.g. "

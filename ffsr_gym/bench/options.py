@@ -89,12 +89,23 @@ def writable_folder(path: str | Path, option: str) -> Path:
     return path
 
 
-def free_entry(folder: str | Path, name: str, *, force: bool, option: str = "--leaderboard") -> Path:
+def free_entry(folder: str | Path, name: str, *, force: bool, option: str = "--leaderboard",
+               allow_dirty: bool | None = True) -> Path:
     """The path an entry named ``name`` would take in ``folder``, checked before any work.
 
     Raises:
-        InvalidInputError: an entry of that name exists (and ``force`` is off), or the folder cannot be written.
+        InvalidInputError: an entry of that name exists (and ``force`` is off), the folder cannot be written, or
+            (``allow_dirty`` off) the folder is a leaderboard table and the code runs from a checkout with
+            uncommitted changes, which :meth:`ffsr_gym.EvalReport.save` would refuse after the run.
     """
+    from ffsr_gym.bench.leaderboard import leaderboard_table
+    from ffsr_gym.provenance import dirty_allowed, provenance
+
+    table = leaderboard_table(Path(folder)) is not None
+    if table and not dirty_allowed(allow_dirty) and provenance(command="")["git_dirty"]:
+        raise InvalidInputError(f"{folder} is a leaderboard table and this checkout has uncommitted code changes "
+                                "(git status): commit them first, or pass --allow-dirty (the table marks the entry "
+                                "+dirty)")
     folder = writable_folder(folder, option)
     path = folder / f"{name}.json"
     if path.exists() and not force:

@@ -264,8 +264,8 @@ def add_board_commands(sub: Any) -> None:
                         help="replay every entry, not only those changed since their stamp (entry, pool, reference or "
                              "replayed code)")
     update.set_defaults(func=_leaderboard_update)
-    traces = board_sub.add_parser("traces", help="move the action traces written as text inside entries into trace "
-                                                 "files beside them (<name>.trace, compressed; the entries name them by "
-                                                 "sha256); prints the bytes before and after")
+    traces = board_sub.add_parser("traces", help="move the action traces written as text inside entries into "
+                                                 "trace files beside them (<name>.trace, compressed; the entries name "
+                                                 "them by sha256); prints the bytes before and after")
     traces.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
     traces.set_defaults(func=_leaderboard_traces)

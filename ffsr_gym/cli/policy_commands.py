@@ -32,6 +32,9 @@ def add_policy_commands(sub: Any) -> None:
                     help="write the entry under this leaderboard root: <root>/<version>/<tier>/ (a custom --scenario: "
                          "<root>/<version>/custom/, unranked) (default: do not write)")
     ev.add_argument("--force", action="store_true", help="replace an entry of the same name (default: refuse)")
+    ev.add_argument("--allow-dirty", action="store_true", default=None,
+                    help="save into a leaderboard table from a checkout with uncommitted code changes "
+                         "(default: refuse, unless FFSR_GYM_ALLOW_DIRTY=1)")
     ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ev.set_defaults(func=_evaluate)
     rd = sub.add_parser("render", help="an episode of a policy as an animated GIF")
@@ -139,7 +142,7 @@ def _evaluate(args: argparse.Namespace) -> None:
                                               else spec.folder(args.env_id, (args.task or args.default_task) if pooled
                                                                else ""))
     if args.leaderboard:
-        free_entry(folder, args.name, force=args.force)  # before any work: a late error would lose the run
+        free_entry(folder, args.name, force=args.force, allow_dirty=args.allow_dirty)  # before any work
     compute = _compute(args.compute)
     if args.policy == "reference":
         import gymnasium
@@ -159,7 +162,7 @@ def _evaluate(args: argparse.Namespace) -> None:
         report.extra["policy"] = policy_record(args.policy, args.algo)
     print(f"{report.name}: {report.metrics}")
     if args.leaderboard:
-        print("wrote", report.save(folder, overwrite=args.force))
+        print("wrote", report.save(folder, overwrite=args.force, allow_dirty=args.allow_dirty))
 
 
 def _render(args: argparse.Namespace) -> None:

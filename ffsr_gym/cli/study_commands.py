@@ -38,6 +38,9 @@ def add_study_commands(sub: Any) -> None:
     tr.add_argument("--out", default="runs/rl", help="folder of the models and records (default: runs/rl)")
     tr.add_argument("--leaderboard", default=None, help="write the entry under this folder")
     tr.add_argument("--force", action="store_true", help="replace an entry of the same name (default: refuse)")
+    tr.add_argument("--allow-dirty", action="store_true", default=None,
+                    help="save into a leaderboard table from a checkout with uncommitted code changes "
+                         "(default: refuse, unless FFSR_GYM_ALLOW_DIRTY=1)")
     tr.add_argument("--no-progress", action="store_true")
     tr.set_defaults(func=_train)
     tasks = sub.add_parser("tasks", help="a benchmark version's task tiers")
@@ -118,14 +121,15 @@ def _train(args: argparse.Namespace) -> None:
     checkpoints = list(CHECKPOINTS) if spec.evaluation.protocol == "pool" else ["last"]
     if args.leaderboard:  # before any training: a committed entry is never replaced by accident
         for checkpoint in checkpoints:
-            free_entry(folder, entry_name(args.algo, spec, args.env_id, task) + CHECKPOINTS[checkpoint], force=args.force)
+            free_entry(folder, entry_name(args.algo, spec, args.env_id, task) + CHECKPOINTS[checkpoint],
+                       force=args.force, allow_dirty=args.allow_dirty)
     reports = train_and_evaluate(args.algo, args.env_id, task=task, seeds=args.seeds, out=args.out,
                                  timesteps=args.timesteps, hyperparams=args.hyperparams, curve_every=args.curve_every,
                                  progress=not args.no_progress, n_envs=args.n_envs, vec_env=args.vec_env)
     for report in reports.values():
         print(f"{report.name}: {report.metrics}")
         if args.leaderboard:
-            print("wrote", report.save(folder, overwrite=args.force))
+            print("wrote", report.save(folder, overwrite=args.force, allow_dirty=args.allow_dirty))
 
 
 @contextmanager
