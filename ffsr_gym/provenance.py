@@ -154,12 +154,7 @@ def write_text_atomic(path: str | Path, text: str) -> None:
     Raises:
         WriteError: the file cannot be written (a full disk, no permission), naming it.
     """
-    path = Path(path)
-    try:
-        _write_atomic(path, text)
-    except OSError as exc:
-        raise WriteError(f"{path}: could not be written ({exc.strerror or exc}); the file there before, if any, is "
-                         "unchanged") from None
+    _write_named(Path(path), text)
 
 
 #: Set to 1, a leaderboard table takes entries of a checkout with uncommitted code changes without being asked each
@@ -179,7 +174,11 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
     Raises:
         WriteError: the file cannot be written, naming it.
     """
-    path = Path(path)
+    _write_named(Path(path), data)
+
+
+def _write_named(path: Path, data: str | bytes) -> None:
+    """:func:`_write_atomic`, its failure named."""
     try:
         _write_atomic(path, data)
     except OSError as exc:

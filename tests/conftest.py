@@ -145,3 +145,27 @@ def random_states(rng, n):
         quat = rng.normal(size=4)
         out.append(np.concatenate((rng.uniform(-0.5, 0.5, 3), quat / np.linalg.norm(quat), rng.uniform(-1.5, 1.5, 12))))
     return out
+
+
+def pool_cases(version: str, tiers: tuple[str, ...], per_pool: int | None,
+               splits: tuple[str, ...] = ("train", "validation", "test")) -> list[tuple[str, str, int]]:
+    """(tier, split, index) of ``per_pool`` tasks spread over each of ``version``'s pools (None: every task)."""
+    from ffsr_gym.tasks.splits import pool
+
+    out = []
+    for tier in tiers:
+        for split in splits:
+            n = len(pool(tier, split, version=version))
+            picks = range(n) if per_pool is None else np.linspace(0, n - 1, per_pool).round().astype(int)
+            out += [(tier, split, int(i)) for i in picks]
+    return out
+
+
+def margin_problems(where: str, stored, worst, rules, tolerance) -> list[str]:
+    """What differs between the worst margins a replay found and those the pool file stores (besides a worst
+    margin inside the hair's-breadth band)."""
+    problems = [] if worst.short(rules) is None else [f"{where}: {worst.short(rules)}"]
+    for key in ("min_clearance_m", "min_self_clearance_m", "peak_rate_deg_s", "capture_ratio"):
+        if getattr(stored, key) != pytest.approx(getattr(worst, key), rel=tolerance.margin_rel_tol):
+            problems.append(f"{where}: stored {key} {getattr(stored, key)} != {getattr(worst, key)}")
+    return problems

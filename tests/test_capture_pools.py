@@ -13,9 +13,8 @@ from __future__ import annotations
 import warnings
 
 import gymnasium as gym
-import numpy as np
 import pytest
-from conftest import replay_certificate
+from conftest import margin_problems, pool_cases, replay_certificate
 from gymnasium.utils.env_checker import check_env
 
 import ffsr_gym  # noqa: F401  (registers the ids)
@@ -61,15 +60,9 @@ def replay_in_env(tier: str, split: str, index: int) -> dict:
     return replay_certificate(VERSION, tier, split, index)
 
 
-def cases(per_pool: int | None, splits: tuple[str, ...] = ("train", "validation", "test")) -> list[tuple]:
+def cases(per_pool: int | None) -> list[tuple]:
     """(tier, split, index) of ``per_pool`` spread tasks (None: all) of every capture pool."""
-    out = []
-    for tier in CAPTURE_TIERS:
-        for split in splits:
-            n = len(pool(tier, split, version=VERSION))
-            picks = range(n) if per_pool is None else np.linspace(0, n - 1, per_pool).round().astype(int)
-            out += [(tier, split, int(i)) for i in picks]
-    return out
+    return pool_cases(VERSION, CAPTURE_TIERS, per_pool)
 
 
 @pytest.mark.parametrize(("tier", "split", "index"), cases(1))
@@ -93,13 +86,9 @@ def ensemble_problems(tier: str, split: str, index: int) -> list[str]:
     if failed is not None:
         return [f"{where}: fails at {failed} ({results[-1].failure})"]
     worst, stored = Margins.worst(results), entry.margins
-    problems = [] if worst.short(RULES) is None else [f"{where}: {worst.short(RULES)}"]
     if stored is None or stored.episodes != worst.episodes:
-        return [*problems, f"{where}: stored margins {stored} for {worst.episodes} episodes"]
-    for key in ("min_clearance_m", "min_self_clearance_m", "peak_rate_deg_s", "capture_ratio"):
-        if getattr(stored, key) != pytest.approx(getattr(worst, key), rel=TOLERANCE.margin_rel_tol):
-            problems.append(f"{where}: stored {key} {getattr(stored, key)} != {getattr(worst, key)}")
-    return problems
+        return [f"{where}: stored margins {stored} for {worst.episodes} episodes"]
+    return margin_problems(where, stored, worst, RULES, TOLERANCE)
 
 
 @pytest.mark.parametrize("tier", CAPTURE_TIERS)

@@ -7,8 +7,8 @@ from __future__ import annotations
 import warnings
 
 import gymnasium as gym
-import numpy as np
 import pytest
+from conftest import margin_problems, pool_cases
 from gymnasium.utils.env_checker import check_env
 
 import ffsr_gym  # noqa: F401  (registers the ids)
@@ -78,12 +78,7 @@ def replay_in_env(tier: str, split: str, index: int) -> dict:
 
 def cases(per_pool: int | None) -> list[tuple]:
     """(tier, split, index) of ``per_pool`` spread tasks (None: all) of every pool."""
-    out = []
-    for tier in TIMED_TIERS:
-        for split, count in SIZES:
-            picks = range(count) if per_pool is None else np.linspace(0, count - 1, per_pool).round().astype(int)
-            out += [(tier, split, int(i)) for i in picks]
-    return out
+    return pool_cases(VERSION, TIMED_TIERS, per_pool)
 
 
 @pytest.mark.parametrize(("tier", "split", "index"), cases(1))
@@ -108,12 +103,7 @@ def ensemble_problems(tier: str, split: str, index: int) -> list[str]:
         if not result.success:
             return [f"{where}: fails at {member.name} ({result.failure})"]
         worst = margins if worst is None else worst.merge(margins)
-    stored = entry.margins
-    problems = [] if worst.short(RULES) is None else [f"{where}: {worst.short(RULES)}"]
-    for key in ("min_clearance_m", "min_self_clearance_m", "peak_rate_deg_s", "capture_ratio"):
-        if getattr(stored, key) != pytest.approx(getattr(worst, key), rel=TOLERANCE.margin_rel_tol):
-            problems.append(f"{where}: stored {key} {getattr(stored, key)} != {getattr(worst, key)}")
-    return problems
+    return margin_problems(where, entry.margins, worst, RULES, TOLERANCE)
 
 
 @pytest.mark.parametrize("tier", TIMED_TIERS)
