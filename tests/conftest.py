@@ -161,10 +161,33 @@ def pool_cases(version: str, tiers: tuple[str, ...], per_pool: int | None,
     return out
 
 
-def margin_problems(where: str, stored, worst, rules, tolerance) -> list[str]:
-    """What differs between the worst margins a replay found and those the pool file stores (besides a worst
-    margin inside the hair's-breadth band)."""
+def ensemble_problems(version: str, tier: str, split: str, index: int) -> list[str]:
+    """Replay pool task ``index``'s certificate at dt and in every member of its ensemble (the spin members and the
+    confirmation backend included); what fails, or what differs from the worst margins the pool file stores. Each
+    member's margins are :func:`~ffsr_gym.tasks.certificate.replay_with_margins`' (a timed certificate's capture
+    ratio is its whole run's), merged over the members as the build merges them."""
+    from ffsr_gym.bench.replay_tolerance import tolerance_for
+    from ffsr_gym.model.benchmark import load_benchmark
+    from ffsr_gym.tasks.certificate import Member, ensemble_members, replay_with_margins
+    from ffsr_gym.tasks.perturbation import confirmation_member
+    from ffsr_gym.tasks.splits import pool, task_scenario
+
+    rules = load_benchmark(version)
+    entry = pool(tier, split, version=version)[index]
+    task = task_scenario(tier, entry.seed, rules)
+    members = [Member("dt", task), *ensemble_members(task, entry.seed, rules.tasks.ensemble, pinocchio=False),
+               confirmation_member(task, version)]
+    where, worst = f"{version} {tier}/{split}[{index}]", None
+    for member in members:
+        result, margins = replay_with_margins(member.task, entry.certificate, rules, backend=member.backend)
+        if not result.success:
+            return [f"{where}: fails at {member.name} ({result.failure})"]
+        worst = margins if worst is None else worst.merge(margins)
+    stored = entry.margins
+    if stored is None or stored.episodes != worst.episodes:
+        return [f"{where}: stored margins {stored} for {worst.episodes} episodes"]
     problems = [] if worst.short(rules) is None else [f"{where}: {worst.short(rules)}"]
+    tolerance = tolerance_for(version)
     for key in ("min_clearance_m", "min_self_clearance_m", "peak_rate_deg_s", "capture_ratio"):
         if getattr(stored, key) != pytest.approx(getattr(worst, key), rel=tolerance.margin_rel_tol):
             problems.append(f"{where}: stored {key} {getattr(stored, key)} != {getattr(worst, key)}")

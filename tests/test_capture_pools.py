@@ -14,7 +14,7 @@ import warnings
 
 import gymnasium as gym
 import pytest
-from conftest import margin_problems, pool_cases, replay_certificate
+from conftest import ensemble_problems, pool_cases, replay_certificate
 from gymnasium.utils.env_checker import check_env
 
 import ffsr_gym  # noqa: F401  (registers the ids)
@@ -22,9 +22,7 @@ from ffsr_gym.bench.replay_tolerance import tolerance_for
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.tasks.build import rule_sha256
 from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
-from ffsr_gym.tasks.certificate import Margins, Member, ensemble_members, replay_members
-from ffsr_gym.tasks.perturbation import confirmation_member
-from ffsr_gym.tasks.splits import load_pools, pool, task_scenario
+from ffsr_gym.tasks.splits import load_pools, pool
 
 VERSION = "capture-v0"
 RULES = load_benchmark(VERSION)
@@ -74,26 +72,9 @@ def test_a_certificate_replays_to_its_capture_in_the_env(tier, split, index):
     assert info["capture_ratio"] <= RULES.tasks.ensemble.error_margin
 
 
-def ensemble_problems(tier: str, split: str, index: int) -> list[str]:
-    """Replay a certificate at dt and in every ensemble member (the perturbed spin and Pinocchio included); what
-    fails, or what differs from the worst margins the pool file stores."""
-    entry = pool(tier, split, version=VERSION)[index]
-    task = task_scenario(tier, entry.seed, RULES)
-    members = [Member("dt", task), *ensemble_members(task, entry.seed, RULES.tasks.ensemble, pinocchio=False),
-               confirmation_member(task, VERSION)]
-    failed, results = replay_members(members, entry.certificate, RULES)
-    where = f"{tier}/{split}[{index}]"
-    if failed is not None:
-        return [f"{where}: fails at {failed} ({results[-1].failure})"]
-    worst, stored = Margins.worst(results), entry.margins
-    if stored is None or stored.episodes != worst.episodes:
-        return [f"{where}: stored margins {stored} for {worst.episodes} episodes"]
-    return margin_problems(where, stored, worst, RULES, TOLERANCE)
-
-
 @pytest.mark.parametrize("tier", CAPTURE_TIERS)
 def test_a_test_certificate_holds_in_every_ensemble_member_with_its_stored_margins(tier):
-    assert not ensemble_problems(tier, "test", 0)
+    assert not ensemble_problems(VERSION, tier, "test", 0)
 
 
 @pytest.mark.slow
@@ -104,5 +85,5 @@ def test_every_capture_certificate_replays_to_its_capture_in_the_env():
 
 @pytest.mark.slow
 def test_every_capture_certificate_holds_in_every_ensemble_member():
-    problems = [p for case in cases(None) for p in ensemble_problems(*case)]
+    problems = [p for case in cases(None) for p in ensemble_problems(VERSION, *case)]
     assert not problems, problems[:20]

@@ -8,7 +8,7 @@ import warnings
 
 import gymnasium as gym
 import pytest
-from conftest import margin_problems, pool_cases
+from conftest import ensemble_problems, pool_cases
 from gymnasium.utils.env_checker import check_env
 
 import ffsr_gym  # noqa: F401  (registers the ids)
@@ -16,8 +16,6 @@ from ffsr_gym.bench.replay_tolerance import tolerance_for
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.tasks.build import rule_sha256
 from ffsr_gym.tasks.capture_timed import TIMED_TIERS
-from ffsr_gym.tasks.certificate import Member, ensemble_members, replay_with_margins
-from ffsr_gym.tasks.perturbation import confirmation_member
 from ffsr_gym.tasks.splits import load_pools, pool, task_scenario
 
 VERSION = "capture-v1"
@@ -89,26 +87,9 @@ def test_a_certificate_steps_through_the_env_to_its_stored_capture(tier, split, 
     assert info["score"] == pytest.approx(stored, rel=TOLERANCE.score_rel_tol, abs=0.0)
 
 
-def ensemble_problems(tier: str, split: str, index: int) -> list[str]:
-    """Replay a certificate at dt and in every ensemble member (the four spin members and Pinocchio included); what
-    fails, or what differs from the worst margins the pool file stores."""
-    entry = pool(tier, split, version=VERSION)[index]
-    task = task_scenario(tier, entry.seed, RULES)
-    members = [Member("dt", task), *ensemble_members(task, entry.seed, RULES.tasks.ensemble, pinocchio=False),
-               confirmation_member(task, VERSION)]
-    assert sum(m.name.startswith("omega") for m in members) == 4
-    where, worst = f"{tier}/{split}[{index}]", None
-    for member in members:  # a timed certificate's capture ratio is its whole run's (replay_with_margins)
-        result, margins = replay_with_margins(member.task, entry.certificate, RULES, backend=member.backend)
-        if not result.success:
-            return [f"{where}: fails at {member.name} ({result.failure})"]
-        worst = margins if worst is None else worst.merge(margins)
-    return margin_problems(where, entry.margins, worst, RULES, TOLERANCE)
-
-
 @pytest.mark.parametrize("tier", TIMED_TIERS)
 def test_a_test_certificate_holds_in_every_ensemble_member_with_its_stored_margins(tier):
-    assert not ensemble_problems(tier, "test", 0)
+    assert not ensemble_problems(VERSION, tier, "test", 0)
 
 
 @pytest.mark.slow
@@ -119,5 +100,5 @@ def test_every_certificate_steps_through_the_env_to_its_capture():
 
 @pytest.mark.slow
 def test_every_certificate_holds_in_every_ensemble_member():
-    problems = [p for case in cases(None) for p in ensemble_problems(*case)]
+    problems = [p for case in cases(None) for p in ensemble_problems(VERSION, *case)]
     assert not problems, problems[:20]
