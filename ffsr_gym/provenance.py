@@ -85,6 +85,19 @@ def _version() -> str:
         return "unknown"
 
 
+def checkout_state() -> tuple[str | None, bool | None, str]:
+    """(commit, dirty, where the tree comes from) of the git work tree that describes this run (commit and dirty
+    None outside a checkout). Generated results (leaderboard entries and tables, the long studies' records, the best
+    known scores) and what no run executes (the docs, the tests, Markdown pages) do not make the code dirty."""
+    tree, source = _git_tree()
+    commit = None if tree is None else _git("rev-parse", "HEAD", cwd=tree)
+    dirty = None if commit is None else bool(_git("status", "--porcelain", "--untracked-files=no", "--", ".",
+                                                 ":(exclude)leaderboards", ":(exclude)studies",
+                                                 ":(exclude)envs/benchmark/*_best_known*.json", ":(exclude)docs",
+                                                 ":(exclude)tests", ":(exclude)*.md", cwd=tree))
+    return commit, dirty, source
+
+
 def provenance(*, scenarios: dict[str, str] | None = None, seeds: list[int] | None = None,
                command: str | None = None, wall_time_s: float | None = None) -> dict[str, Any]:
     """Describe where a result comes from.
@@ -99,14 +112,7 @@ def provenance(*, scenarios: dict[str, str] | None = None, seeds: list[int] | No
         A JSON-ready dict: git commit and dirty flag (None outside a git checkout), package
         versions, platform, command, seeds, scenario hashes, wall time and a UTC timestamp.
     """
-    tree, source = _git_tree()
-    commit = None if tree is None else _git("rev-parse", "HEAD", cwd=tree)
-    # Generated results (leaderboard entries and tables, the long studies' records, the best known scores) and what
-    # no run executes (the docs, the tests, Markdown pages) do not make the code dirty.
-    dirty = None if commit is None else bool(_git("status", "--porcelain", "--untracked-files=no", "--", ".",
-                                                 ":(exclude)leaderboards", ":(exclude)studies",
-                                                 ":(exclude)envs/benchmark/*_best_known*.json", ":(exclude)docs",
-                                                 ":(exclude)tests", ":(exclude)*.md", cwd=tree))
+    commit, dirty, source = checkout_state()
     return {
         "git_commit": commit,
         "git_dirty": dirty,

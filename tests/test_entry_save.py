@@ -36,10 +36,11 @@ def test_a_dirty_checkouts_entry_is_refused_by_a_table_unless_asked_for(tmp_path
 
 def test_the_command_line_refuses_before_any_work(tmp_path, monkeypatch, capsys):
     from ffsr_gym.cli.main import main
-    from ffsr_gym.provenance import provenance
+    from ffsr_gym.provenance import checkout_state
 
     monkeypatch.delenv("FFSR_GYM_ALLOW_DIRTY", raising=False)
-    monkeypatch.setattr("ffsr_gym.provenance.provenance", lambda **kw: {**provenance(**kw), "git_dirty": True})
+    commit, _, source = checkout_state()
+    monkeypatch.setattr("ffsr_gym.provenance.checkout_state", lambda: (commit, True, source))
     started = []
     monkeypatch.setattr("ffsr_gym.bench.evaluation.evaluate", lambda *a, **k: started.append(1))
     code = main(["evaluate", "--env-id", "FFSR-v2", "--policy", "0.3,4", "--task", "easy", "--name", "mine",

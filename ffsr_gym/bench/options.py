@@ -99,10 +99,10 @@ def free_entry(folder: str | Path, name: str, *, force: bool, option: str = "--l
             uncommitted changes, which :meth:`ffsr_gym.EvalReport.save` would refuse after the run.
     """
     from ffsr_gym.bench.leaderboard import leaderboard_table
-    from ffsr_gym.provenance import dirty_allowed, provenance
+    from ffsr_gym.provenance import checkout_state, dirty_allowed
 
     table = leaderboard_table(Path(folder)) is not None
-    if table and not dirty_allowed(allow_dirty) and provenance(command="")["git_dirty"]:
+    if table and not dirty_allowed(allow_dirty) and checkout_state()[1]:
         raise InvalidInputError(f"{folder} is a leaderboard table and this checkout has uncommitted code changes "
                                 "(git status): commit them first, or pass --allow-dirty (the table marks the entry "
                                 "+dirty)")

@@ -136,10 +136,10 @@ def check_go(go_s: Any, spec: Any, rule: Any) -> None:
 
 def training_loss(m: float, T_c: float, go_s: float | None = None, *, tier: str, tasks: int = 20,
                   version: str = "v2") -> float:
-    """1 − the mean score of the predefined-time planner at constant (m, T_c [s]) (going in at ``go_s`` [s] on a version whose
-    action commands the approach) on the first ``tasks`` tasks of ``tier``'s **training** pool: the black-box
-    loss optimisers minimise (in [0, 1]). A point outside the action box is refused, as :func:`ffsr_gym.evaluate`
-    refuses it (:func:`check_in_box`, :func:`check_go`).
+    """1 − the mean score of the predefined-time planner at constant (m, T_c [s]) (going in at ``go_s`` [s] on a
+    version whose action commands the approach) on the first ``tasks`` tasks of ``tier``'s **training** pool: the
+    black-box loss optimisers minimise (in [0, 1]). A point outside the action box is refused, as
+    :func:`ffsr_gym.evaluate` refuses it (:func:`check_in_box`, :func:`check_go`).
 
     A module-level function: ``functools.partial(training_loss, tier=..., tasks=...)`` pickles
     for process pools and Dask.

@@ -92,12 +92,12 @@ def _reference_sha(entry: dict[str, Any], version: str) -> str | None:
 def make_stamp(entry: dict[str, Any], version: str) -> dict[str, Any]:
     """The stamp of an entry that ``verify`` has just reproduced. Its commit is the ffsr-gym checkout's when the
     verifier ran from a clean one (generated results aside), else null: an installed package, or uncommitted code."""
-    from ffsr_gym.provenance import is_source_checkout, provenance
+    from ffsr_gym.provenance import checkout_state, is_source_checkout
 
-    prov = provenance(command="")
-    clean = is_source_checkout() and prov["git_dirty"] is False
+    commit, dirty, _ = checkout_state()
+    clean = is_source_checkout() and dirty is False
     return {"status": "reproduced", "verifier": f"ffsr-gym {metadata.version('ffsr-gym')}",
-            "commit": prov["git_commit"] if clean else None,
+            "commit": commit if clean else None,
             "pool_file_sha256": entry["extra"].get("pool_file_sha256"),
             "reference_sha256": _reference_sha(entry, version),
             "rows_sha256": rows_digest(entry["episodes"]), "entry_sha256": entry_digest(entry),

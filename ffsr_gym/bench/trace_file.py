@@ -112,9 +112,13 @@ def externalise(entry: dict[str, Any], path: Path) -> tuple[dict[str, Any], byte
 
 def write_entry_files(path: Path, entry: dict[str, Any]) -> None:
     """Write ``entry`` at ``path``: its trace file first, then the JSON that names it (each atomically)."""
+    _write(path, *externalise(entry, path))
+
+
+def _write(path: Path, stored: dict[str, Any], data: bytes | None) -> None:
+    """Write what :func:`externalise` returned: the trace file (when there is one), then the JSON."""
     from ffsr_gym.provenance import write_json_atomic
 
-    stored, data = externalise(entry, path)
     if data is not None:
         write_bytes_atomic(path.with_name(path.stem + SUFFIX), data)
     write_json_atomic(path, stored)
@@ -128,21 +132,26 @@ def in_file(record: Any) -> bool:
 def file_problems(record: dict[str, Any], entry_path: Path, rows: int) -> list[str]:
     """Why the trace file an entry names is not the one it was written with (empty: it is): a name other than
     ``<entry name>.trace``, a missing or unreadable file, another size or sha256, another number of episodes."""
+    return _checked_file(record, entry_path, rows)[1]
+
+
+def _checked_file(record: dict[str, Any], entry_path: Path, rows: int) -> tuple[bytes | None, list[str]]:
+    """(the trace file's bytes, none when it has a problem; :func:`file_problems`), the file read once."""
     name = record.get("file")
     if name != entry_path.stem + SUFFIX:
-        return [f"extra.trace.file {str(name)[:80]!r}; allowed: {entry_path.stem + SUFFIX!r}, beside the entry"]
+        return None, [f"extra.trace.file {str(name)[:80]!r}; allowed: {entry_path.stem + SUFFIX!r}, beside the entry"]
     if record.get("episodes_count") != rows:
-        return [f"extra.trace.episodes_count {str(record.get('episodes_count'))[:20]!r}; allowed: {rows}, one "
-                "episode a row"]
+        return None, [f"extra.trace.episodes_count {str(record.get('episodes_count'))[:20]!r}; allowed: {rows}, one "
+                      "episode a row"]
     if not (isinstance(record.get("sha256"), str) and _SHA256.fullmatch(record["sha256"])):
-        return ["extra.trace.sha256: allowed: the trace file's 64-digit hexadecimal sha256"]
+        return None, ["extra.trace.sha256: allowed: the trace file's 64-digit hexadecimal sha256"]
     try:
         data = read_bytes(entry_path.with_name(name), max_bytes=MAX_FILE_BYTES)
     except FFSRError as exc:
-        return [f"extra.trace.file: {exc}"]
+        return None, [f"extra.trace.file: {exc}"]
     if hashlib.sha256(data).hexdigest() != record["sha256"] or len(data) != record.get("bytes"):
-        return [f"extra.trace: {name} is not the file the entry was written with (its sha256 or size differs)"]
-    return []
+        return None, [f"extra.trace: {name} is not the file the entry was written with (its sha256 or size differs)"]
+    return data, []
 
 
 def read_actions(record: dict[str, Any], entry_path: Path, rows: int) -> list[np.ndarray]:
@@ -154,10 +163,9 @@ def read_actions(record: dict[str, Any], entry_path: Path, rows: int) -> list[np
     shape = record.get("action_shape")
     if not (isinstance(shape, list) and len(shape) == 1 and type(shape[0]) is int and 1 <= shape[0] <= 64):
         raise InvalidInputError(f"{entry_path}: extra.trace.action_shape = {shape!r}; allowed: [n] with 1 <= n <= 64")
-    problems = file_problems(record, entry_path, rows)
+    data, problems = _checked_file(record, entry_path, rows)
     if problems:
         raise InvalidInputError(f"{entry_path}: {problems[0]}")
-    data = read_bytes(entry_path.with_name(record["file"]), max_bytes=MAX_FILE_BYTES)
     return unpack(data, shape[0], rows, where=f"{entry_path.with_name(record['file'])}")
 
 
@@ -185,7 +193,7 @@ def move_traces(paths: list[Path]) -> list[tuple[Path, int, int]]:
         back = unpack(data, width, len(record["episodes"]), where=str(path))
         if any(a.tobytes() != decode(t, width, where=str(path)).tobytes() for a, t in zip(back, record["episodes"])):
             raise InvalidInputError(f"{path}: its trace file does not read back as its text trace; nothing written")
-        write_entry_files(path, entry)
+        _write(path, stored, data)
         after = len(read_bytes(path)) + len(data)
         moved.append((path, len(text.encode("utf-8")), after))
     return moved
