@@ -256,6 +256,31 @@ def save_result(path: str | Path, data: Any) -> Any:
     return json.loads(json.dumps(data))
 
 
-def write_json_atomic(path: str | Path, data: Any) -> None:
-    """Write ``data`` as indented JSON, atomically (see :func:`write_text_atomic`)."""
-    write_text_atomic(path, json.dumps(data, indent=2, sort_keys=False, allow_nan=False) + "\n")
+def json_text(data: Any, *, compact: bool = False) -> str:
+    """``data`` as indented JSON text. ``compact`` (leaderboard entries) keeps the nesting of objects but writes a
+    list of numbers or strings on one line and a list of objects one object per line, without spaces: an entry's
+    thousands of episode rows and learning curves stay a few thousand lines, not a few hundred thousand. Either
+    way the text parses to ``data``."""
+    if not compact:
+        return json.dumps(data, indent=2, sort_keys=False, allow_nan=False) + "\n"
+    return _compact(data, 0) + "\n"
+
+
+def _compact(value: Any, level: int) -> str:
+    inner, outer = "  " * (level + 1), "  " * level
+    if isinstance(value, dict) and value:
+        items = (f"{inner}{json.dumps(key)}: {_compact(item, level + 1)}" for key, item in value.items())
+        return "{\n" + ",\n".join(items) + f"\n{outer}}}"
+    if isinstance(value, list) and value and not all(isinstance(v, dict | list) for v in value):
+        if not any(isinstance(v, dict | list) for v in value):
+            return json.dumps(value, allow_nan=False)
+    if isinstance(value, list) and value:
+        lines = (inner + (json.dumps(v, separators=(",", ":"), allow_nan=False) if isinstance(v, dict)
+                          else _compact(v, level + 1)) for v in value)
+        return "[\n" + ",\n".join(lines) + f"\n{outer}]"
+    return json.dumps(value, allow_nan=False)
+
+
+def write_json_atomic(path: str | Path, data: Any, *, compact: bool = False) -> None:
+    """Write ``data`` as indented JSON (:func:`json_text`), atomically (see :func:`write_text_atomic`)."""
+    write_text_atomic(path, json_text(data, compact=compact))

@@ -12,7 +12,8 @@ import ffsr_gym
 from ffsr_gym.bench.leaderboard import load_entries
 from ffsr_gym.bench.replay import replay_entry
 from ffsr_gym.bench.trace import decode
-from ffsr_gym.bench.trace_file import FILE_FORMAT, SUFFIX, move_traces, pack, unpack
+from ffsr_gym.bench.stamp import entry_digest
+from ffsr_gym.bench.trace_file import FILE_FORMAT, SUFFIX, pack, store_entries, unpack
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import spec_for_version
 
@@ -92,14 +93,27 @@ def test_moving_a_text_trace_keeps_every_action_and_the_replay(tmp_path, report)
     entry = report.to_json()
     entry["extra"]["verified"] = {"status": "reproduced"}  # a stamp of the text: it no longer holds
     path.write_text(json.dumps(entry, indent=2))
-    [(moved, before, after)] = move_traces([path, path])[:1]
-    assert moved == path and after < before
-    assert move_traces([path]) == []  # done once
+    [(moved, before, after, traced)] = store_entries([path, path])
+    assert moved == path and after < before and traced
+    assert store_entries([path]) == []  # done once
     stored = json.loads(path.read_text())
     texts, clipped = entry["extra"]["trace"]["episodes"], entry["extra"]["trace"]["clipped"]
     assert "verified" not in stored["extra"] and stored["extra"]["trace"]["clipped"] == clipped
     back = unpack((tmp_path / "mine.trace").read_bytes(), 12, 2, where="test")
     assert [a.tobytes() for a in back] == [decode(t, 12, where="t").tobytes() for t in texts]
+    assert replay_entry(path).status == "reproduced"
+
+
+def test_an_indented_entry_is_stored_compact_with_its_content_and_stamp(tmp_path, report):
+    report.save(tmp_path)
+    path = tmp_path / "mine.json"
+    saved = path.read_text()
+    entry = json.loads(saved)
+    assert sum(line.lstrip().startswith('{"seed":') for line in saved.splitlines()) == len(entry["episodes"])
+    path.write_text(json.dumps(entry, indent=2) + "\n")  # how entries were written before
+    [(stored, before, after, traced)] = store_entries([path])
+    assert stored == path and not traced and after < before
+    assert path.read_text() == saved and json.loads(saved) == entry and entry_digest(json.loads(saved)) == entry_digest(entry)
     assert replay_entry(path).status == "reproduced"
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from ffsr_gym.bench import rl_comparison, tables
+from ffsr_gym.bench.separation import levels_line
 from ffsr_gym.bench.trace_file import file_problems, in_file
 from ffsr_gym.bench.verify import entry_problems
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
@@ -226,6 +227,8 @@ def render_tables(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]])
         out += tables.header(spec, group)
         out += [tables.row(spec, label, e) for label, e in ordered(spec, ranked)]
         out.append("")
+        if not every and ranked:
+            out += [levels_line(ranked, spec.leaderboard.ci, spec.leaderboard.iqm, spec.leaderboard.label), ""]
         for e in items:
             if e.get("_problems"):
                 reasons = tables.free_text("; ".join(e["_problems"]), limit=400)

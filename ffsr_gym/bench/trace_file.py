@@ -121,7 +121,7 @@ def _write(path: Path, stored: dict[str, Any], data: bytes | None) -> None:
 
     if data is not None:
         write_bytes_atomic(path.with_name(path.stem + SUFFIX), data)
-    write_json_atomic(path, stored)
+    write_json_atomic(path, stored, compact=True)
 
 
 def in_file(record: Any) -> bool:
@@ -169,31 +169,45 @@ def read_actions(record: dict[str, Any], entry_path: Path, rows: int) -> list[np
     return unpack(data, shape[0], rows, where=f"{entry_path.with_name(record['file'])}")
 
 
-def move_traces(paths: list[Path]) -> list[tuple[Path, int, int]]:
-    """Rewrite each entry whose trace is text with its trace in a file beside it (the stamp dropped: the entry's
-    text changed, ``ffsr-gym leaderboard update`` replays and stamps it again); (entry, bytes before, bytes after:
-    the entry and its trace file) of each entry moved. The actions are read back from the file and compared with
-    the text's, bit for bit, before the entry is rewritten.
+def store_entries(paths: list[Path]) -> list[tuple[Path, int, int, bool]]:
+    """Rewrite each entry not yet in the storage format (:func:`write_entry_files`): a trace written as text moves
+    to a trace file beside it (the stamp dropped: the entry's content changed, ``ffsr-gym leaderboard update``
+    replays and stamps it again; the actions are read back from the file and compared with the text's, bit for bit,
+    before the entry is rewritten), and the JSON is written compact (its content, and so its stamp, unchanged: the
+    text is parsed back and compared before it replaces the file). (entry, bytes before, bytes after: the entry and
+    its trace file, whether its trace moved) of each entry rewritten.
 
     Raises:
         InvalidInputError: an entry that is not readable JSON, or a trace that does not decode (named).
     """
+    from ffsr_gym.provenance import json_text, write_text_atomic
     from ffsr_gym.user_files import parse_json, read_text
 
-    moved = []
+    changed = []
     for path in paths:
         text = read_text(path)
         entry = parse_json(text, str(path))
-        record = (entry.get("extra") or {}).get("trace") if isinstance(entry, dict) else None
-        if not isinstance(record, dict) or "episodes" not in record:
+        if not isinstance(entry, dict):
             continue
-        entry["extra"].pop("verified", None)
-        stored, data = externalise(entry, path)
-        width = record["action_shape"][0]
-        back = unpack(data, width, len(record["episodes"]), where=str(path))
-        if any(a.tobytes() != decode(t, width, where=str(path)).tobytes() for a, t in zip(back, record["episodes"])):
-            raise InvalidInputError(f"{path}: its trace file does not read back as its text trace; nothing written")
-        _write(path, stored, data)
-        after = len(read_bytes(path)) + len(data)
-        moved.append((path, len(text.encode("utf-8")), after))
-    return moved
+        record = (entry.get("extra") or {}).get("trace")
+        if isinstance(record, dict) and "episodes" in record:
+            entry["extra"].pop("verified", None)
+            stored, data = externalise(entry, path)
+            width = record["action_shape"][0]
+            back = unpack(data, width, len(record["episodes"]), where=str(path))
+            if any(a.tobytes() != decode(t, width, where=str(path)).tobytes()
+                   for a, t in zip(back, record["episodes"])):
+                raise InvalidInputError(f"{path}: its trace file does not read back as its text trace; nothing written")
+            _write(path, stored, data)
+            changed.append((path, len(text.encode("utf-8")), len(read_bytes(path)) + len(data), True))
+            continue
+        compact = json_text(entry, compact=True)
+        if compact == text:
+            continue
+        if json.loads(compact) != entry:
+            raise InvalidInputError(f"{path}: its compact text does not parse back to the entry; nothing written")
+        write_text_atomic(path, compact)
+        beside = path.with_name(path.stem + SUFFIX)
+        extra = beside.stat().st_size if in_file(record) and beside.is_file() else 0
+        changed.append((path, len(text.encode("utf-8")) + extra, len(compact.encode("utf-8")) + extra, False))
+    return changed

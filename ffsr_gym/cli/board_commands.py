@@ -186,20 +186,23 @@ def _stamp(path: str, replayed: str) -> None:
         print(f"{path}: {spec.version} entries carry no stamp", file=sys.stderr)
         return
     entry["extra"]["verified"] = make_stamp(entry, spec.rules.version)
-    write_json_atomic(path, entry)
+    write_json_atomic(path, entry, compact=True)
     print(f"{path}: stamped ({entry['extra']['verified']['verifier']})")
 
 
-def _leaderboard_traces(args: argparse.Namespace) -> int:
+def _leaderboard_store(args: argparse.Namespace) -> int:
     from ffsr_gym.bench.changes import entry_files
-    from ffsr_gym.bench.trace_file import move_traces
+    from ffsr_gym.bench.trace_file import store_entries
 
-    moved = move_traces(entry_files(args.root))
-    for path, before, after in moved:
-        print(f"{path}: {before / 1e6:.2f} MB -> {after / 1e6:.2f} MB (entry and trace file)")
-    before, after = sum(m[1] for m in moved), sum(m[2] for m in moved)
-    print(f"moved the traces of {len(moved)} entries to trace files: {before / 1e6:.1f} MB -> {after / 1e6:.1f} MB"
-          + ("; their stamps were dropped: 'ffsr-gym leaderboard update' replays and stamps them" if moved else ""))
+    changed = store_entries(entry_files(args.root))
+    for path, before, after, moved in changed:
+        what = "trace moved to its file, " if moved else ""
+        print(f"{path}: {what}{before / 1e6:.3f} MB -> {after / 1e6:.3f} MB (entry and trace file)")
+    before, after = sum(c[1] for c in changed), sum(c[2] for c in changed)
+    moved = sum(c[3] for c in changed)
+    print(f"rewrote {len(changed)} entries in the storage format: {before / 1e6:.1f} MB -> {after / 1e6:.1f} MB"
+          + (f"; the stamps of the {moved} whose trace moved were dropped: 'ffsr-gym leaderboard update' replays and "
+             "stamps them" if moved else ""))
     return 0
 
 
@@ -264,8 +267,10 @@ def add_board_commands(sub: Any) -> None:
                         help="replay every entry, not only those changed since their stamp (entry, pool, reference or "
                              "replayed code)")
     update.set_defaults(func=_leaderboard_update)
-    traces = board_sub.add_parser("traces", help="move the action traces written as text inside entries into "
-                                                 "trace files beside them (<name>.trace, compressed; the entries name "
-                                                 "them by sha256); prints the bytes before and after")
-    traces.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
-    traces.set_defaults(func=_leaderboard_traces)
+    store = board_sub.add_parser("store", help="rewrite every entry in the storage format: an action trace written "
+                                               "as text inside the entry moves to a trace file beside it (<name>.trace, "
+                                               "compressed, named by sha256), and the JSON is written compact (a row "
+                                               "per line); the content and stamps are kept (the stamp is dropped where a "
+                                               "trace moved); prints the bytes before and after")
+    store.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
+    store.set_defaults(func=_leaderboard_store)
