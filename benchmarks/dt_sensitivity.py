@@ -84,7 +84,8 @@ def planners(tier: str, root: Path, version: str = VERSIONS[-1]) -> dict[str, di
     """The fixed planners of a tier: name -> planner_episode keyword arguments (the version's reference default,
     the tier's best constant and tuned proportional from its leaderboard entries, the paper's; a capture tier's
     :func:`capture_planners` too). On a version whose action commands the approach each has a go time: the
-    tuned ones their entry's, the others going straight in (0 s), the two capture planners the best constant's."""
+    tuned ones their entry's, the others going straight in (0 s), the two capture planners the best constant's. A
+    planner that equals an earlier one is listed once."""
 
     def entry(name: str) -> dict:
         return json.loads((root / version / tier / f"{name}.json").read_text())["extra"]["planner"]
@@ -101,7 +102,7 @@ def planners(tier: str, root: Path, version: str = VERSIONS[-1]) -> dict[str, di
     default = load_benchmark(version).planner
     extra = {f"{name[:-1]}{at(best)})": {**kwargs, **go(best)}  # the go time inside the name's brackets
              for name, kwargs in capture_planners(version).items()} if is_capture(version) else {}
-    return {f"reference default ({default.m:g}, {default.T_c_s:g} s{at(go())})": {
+    named = {f"reference default ({default.m:g}, {default.T_c_s:g} s{at(go())})": {
                 "method": "predefined_time", "m": default.m, "T_c": default.T_c_s, **go()},
             f"best constant ({best['m']}, {best['T_c_s']} s{at(best)})": {
                 "method": "predefined_time", "m": best["m"], "T_c": best["T_c_s"], **go(best)},
@@ -109,6 +110,11 @@ def planners(tier: str, root: Path, version: str = VERSIONS[-1]) -> dict[str, di
             f"tuned proportional (K = {tuned['gain_per_s']} 1/s{at(tuned)})": {
                 "method": "proportional", "gain_per_s": tuned["gain_per_s"], **go(tuned)},
             **extra}
+    out: dict[str, dict] = {}  # a planner the tier's tuning already chose (nutation's K = 1 1/s) once, first name
+    for name, kwargs in named.items():
+        if kwargs not in out.values():
+            out[name] = kwargs
+    return out
 
 
 def test_seeds(tier: str, version: str, tasks: int, work: str | None, chunk: int) -> list[int]:
