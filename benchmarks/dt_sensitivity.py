@@ -258,7 +258,7 @@ def main(argv: list[str] | None = None) -> int:
     if data.get("version") != args.version:
         parser.error(f"{out} holds a {data.get('version')} study; use another --out for {args.version}")
     done = {(p["law"], p["tier"], p["planner"], p["divisor"]) for p in data["pieces"]}
-    todo = []
+    todo, wanted = [], set()
     tiers = study_tiers(args.version)
     if args.tiers is not None and not set(args.tiers) <= set(tiers):
         parser.error(f"--tiers {args.tiers}; allowed: {list(tiers)}")
@@ -266,6 +266,7 @@ def main(argv: list[str] | None = None) -> int:
         seeds = test_seeds(tier, args.version, args.tasks, args.pool_work, args.chunk)
         for law in study_laws(args.version):
             for name, kwargs in planners(tier, Path(args.root), args.version).items():
+                wanted.add((law, tier, name))
                 todo += [(law, tier, name, kwargs, d, seeds, args.version) for d in DIVISORS
                          if (law, tier, name, d) not in done]
     with ProcessPoolExecutor(args.workers) as executor:
@@ -274,7 +275,7 @@ def main(argv: list[str] | None = None) -> int:
             data["summary"] = summary(data["pieces"], statistic)
             data["provenance"] = provenance(command=" ".join(["python", *sys.argv]))
             write_json_atomic(out, data)
-    data["summary"] = summary(data["pieces"], statistic)
+    data["summary"] = summary([p for p in data["pieces"] if (p["law"], p["tier"], p["planner"]) in wanted], statistic)
     write_json_atomic(Path(args.summary), {"version": args.version, "summary": data["summary"],
                                            "sample": sample(data["pieces"]), "provenance": data.get("provenance", {}),
                                            "tasks_per_tier": args.tasks, "episodes_file": str(out)})

@@ -68,3 +68,34 @@ def test_v2_rows_meet_the_bar_and_v1s_rule_misses_it():
             assert r["spearman"] >= 0.95 and r["meets_bar"], (r["tier"], r["planner"])
     assert sum(r["meets_bar"] for r in v2) >= 19
     assert sum(not r["meets_bar"] for r in rows if r["law"] == "cdf") >= 10
+
+
+CAPTURE_V1 = json.loads((ROOT / "benchmarks" / "dt_sensitivity_capture-v1.json").read_text())
+
+
+@pytest.mark.parametrize("index", [0, 7, 20, 32])  # both tiers, several planners and steps
+def test_capture_v1_sampled_episodes_replay(index):
+    entry = CAPTURE_V1["sample"][index]
+    kwargs = study.planners(entry["tier"], ROOT / "leaderboards", "capture-v1")[entry["planner"]]
+    piece = study.run_piece((entry["law"], entry["tier"], entry["planner"], kwargs, entry["divisor"],
+                             entry["seeds"][:1], "capture-v1"))
+    assert [row["score"] for row in piece["rows"]] == entry["scores"][:1]
+
+
+def test_capture_v1_docs_and_verdicts():
+    """docs/model.md §24 holds the generated table; every planner keeps its verdict on >= 98 % of the tasks and its
+    mean within 0.01 between dt and dt/4; the two rows below v2's Spearman bar are the two the docs name."""
+    text = (ROOT / "docs" / "model.md").read_text(encoding="utf-8")
+    start, end = study.markers("capture-v1")
+    block = text[text.index(start) + len(start):text.index(end)]
+    commit = CAPTURE_V1["provenance"]["git_commit"][:8]
+    assert block.strip() == study.docs_text(CAPTURE_V1["summary"], "benchmarks/dt_sensitivity_capture-v1.json", commit,
+                                            CAPTURE_V1["tasks_per_tier"], "capture-v1",
+                                            "test pools of the capture-v1 pool files").strip()
+    rows = CAPTURE_V1["summary"]
+    assert len(rows) == 11 and {r["tasks"] for r in rows} == {100}
+    assert len({(r["tier"], json.dumps(r["planner"])) for r in rows}) == 11
+    for r in rows:
+        assert r["agreement"] >= 0.98 and abs(r["mean"][0] - r["mean"][2]) <= 0.01, (r["tier"], r["planner"])
+    below = sorted((r["tier"], r["planner"].split(" (")[0]) for r in rows if not r["meets_bar"])
+    assert below == [("nutation", "paper default"), ("sweep", "reference default")]
