@@ -32,6 +32,7 @@ from tqdm.auto import tqdm
 
 from ffsr_gym.bench.entry import EvalReport
 from ffsr_gym.bench.evaluation import evaluate
+from ffsr_gym.bench.trace_file import read_entry, write_entry_files
 from ffsr_gym.jax.brax_env import FFSRBraxEnv
 from ffsr_gym.jax.physics import jax, jnp
 from ffsr_gym.jax.replay import play_policy, pool_tasks
@@ -122,14 +123,14 @@ def main() -> None:
             for checkpoint, policy in policies.items():
                 report = evaluate(policy, ENV_ID, task=args.tier, training_pool=f"{args.tier}/train",
                                   policy_library=library)
-                write_json_atomic(files[checkpoint], report.to_json())
+                write_entry_files(files[checkpoint], report.to_json())  # its trace in a file beside it
             write_json_atomic(folder / "train_record.json", record)
         record = json.loads((folder / "train_record.json").read_text())
         # the validation curve as the other RL entries hold it (their points also keep each task's score)
         runs.append(record | {"curve": {"split": "validation", "indices": validation_indices, "points": [
             {"env_steps": p["steps"], "validation_mean": p["validation_mean"]} for p in record["curve"]]}})
         for checkpoint, path in files.items():
-            scored = json.loads(path.read_text())
+            scored = read_entry(path)
             rows[checkpoint] += [row | {"train_seed": seed} for row in scored["episodes"]]
             traces[checkpoint].append(scored["extra"].get("trace"))
             same_scoring(pools, checkpoint, scored, path, args.seeds[0])

@@ -169,6 +169,28 @@ def read_actions(record: dict[str, Any], entry_path: Path, rows: int) -> list[np
     return unpack(data, shape[0], rows, where=f"{entry_path.with_name(record['file'])}")
 
 
+def read_entry(path: Path) -> Any:
+    """An entry (or a study's evaluation) as its :meth:`EvalReport.to_json` gave it: the JSON at ``path`` with the
+    actions of a trace file beside it read back (checked against its sha256) into trace text.
+
+    Raises:
+        InvalidInputError: unreadable JSON, or a trace file that is missing, changed or does not decode (named).
+    """
+    from ffsr_gym.bench.trace import TRACE_FORMAT, encode
+    from ffsr_gym.user_files import parse_json, read_text
+
+    entry = parse_json(read_text(path), str(path))
+    record = (entry.get("extra") or {}).get("trace") if isinstance(entry, dict) else None
+    if in_file(record):
+        actions = read_actions(record, path, len(entry.get("episodes") or []))
+        inline = {"format": TRACE_FORMAT, "action_shape": record["action_shape"],
+                  "episodes": [encode(a) for a in actions]}
+        if "clipped" in record:
+            inline["clipped"] = record["clipped"]
+        entry["extra"]["trace"] = inline
+    return entry
+
+
 def store_entries(paths: list[Path]) -> list[tuple[Path, int, int, bool]]:
     """Rewrite each entry not yet in the storage format (:func:`write_entry_files`): a trace written as text moves
     to a trace file beside it (the stamp dropped: the entry's content changed, ``ffsr-gym leaderboard update``

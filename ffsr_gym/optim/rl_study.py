@@ -17,12 +17,13 @@ from ffsr_gym.bench.entry import EvalReport
 from ffsr_gym.bench.evaluation import evaluate, spec_of
 from ffsr_gym.bench.policies import SB3_CLASSES, sb3_modules
 from ffsr_gym.bench.rl_comparison import entry_name
+from ffsr_gym.bench.trace_file import read_entry, write_entry_files
 from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.optim.rl import BEST_MODEL, curve_split, train
-from ffsr_gym.provenance import provenance, write_json_atomic, write_text_atomic
+from ffsr_gym.provenance import provenance, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
 
 
@@ -128,7 +129,7 @@ def _scored_seed(folder: Path, checkpoints: list[str]) -> tuple[dict[str, Any] |
     if not scored_seed_files(folder, checkpoints):
         return None, None
     return (json.loads((folder / "train_record.json").read_text()),
-            {c: json.loads(_evaluation_file(folder, c).read_text()) for c in checkpoints})
+            {c: read_entry(_evaluation_file(folder, c)) for c in checkpoints})
 
 
 def _evaluation(model: Any, spec: BenchmarkSpec, env_id: str, task: str, folder: Path,
@@ -136,12 +137,12 @@ def _evaluation(model: Any, spec: BenchmarkSpec, env_id: str, task: str, folder:
     """A trained agent's test scores (cached in ``folder``: a resumed study never rescores)."""
     scored = _evaluation_file(folder, checkpoint)
     if scored.is_file():
-        return json.loads(scored.read_text())
+        return read_entry(scored)
     if spec.evaluation.protocol == "pool":
         evaluation = evaluate(model, env_id, task=task, training_pool=f"{task}/train").to_json()
     else:
         evaluation = evaluate(model, env_id, seeds=eval_seeds, env_kwargs={spec.tasks.keyword: task}).to_json()
-    write_json_atomic(scored, evaluation)
+    write_entry_files(scored, evaluation)  # its trace in a file beside it, as an entry's
     return evaluation
 
 
@@ -169,15 +170,20 @@ def seed_piece(algo: str, env_id: str, task: str, seed: int, timesteps: int, cur
             train_and_evaluate(algo, env_id, task=task, seeds=[seed], out=tmp, timesteps=timesteps,
                                curve_every=curve_every, progress=False)
             folder = seed_folder(tmp, algo, env_id, task, seed)
-            return {p.name: p.read_text(encoding="utf-8") for p in sorted(folder.glob("*.json"))}
+            return {p.name: json.dumps(read_entry(p)) if p.name.startswith("evaluation") else p.read_text(encoding="utf-8")
+                    for p in sorted(folder.glob("*.json"))}
     finally:
         sys.argv = asked
 
 
 def write_seed(out: str | Path, algo: str, env_id: str, task: str, seed: int, files: dict[str, str]) -> Path:
     """Write a :func:`seed_piece`'s records into the seed's folder of the study at ``out``, each atomically, the
-    training record last (a folder is a finished seed once all are there)."""
+    training record last (a folder is a finished seed once all are there); an evaluation's trace goes to a trace
+    file beside it (:func:`ffsr_gym.bench.trace_file.write_entry_files`)."""
     folder = seed_folder(out, algo, env_id, task, seed)
     for name in sorted(files, key=lambda n: n == "train_record.json"):
-        write_text_atomic(folder / Path(name).name, files[name])
+        if name.startswith("evaluation"):  # its trace to a file beside it
+            write_entry_files(folder / Path(name).name, json.loads(files[name]))
+        else:
+            write_text_atomic(folder / Path(name).name, files[name])
     return folder
