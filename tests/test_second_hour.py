@@ -15,7 +15,7 @@ import pytest
 from ffsr_gym import failure_name
 
 import ffsr_gym
-from ffsr_gym.bench.leaderboard import leaderboard_table
+from ffsr_gym.bench.board_layout import leaderboard_table
 from ffsr_gym.cli.main import build_parser, main
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.benchmark import load_benchmark

@@ -119,7 +119,7 @@ class EvalReport:
         if not isinstance(self.name, str) or not ENTRY_NAME.fullmatch(self.name):
             raise InvalidInputError(f"entry name {self.name!r}; allowed: 1-128 characters of letters, digits, '.', '_', "
                                     "'-', not starting with '.' (it becomes a file name in the entry's folder)")
-        from ffsr_gym.bench.leaderboard import leaderboard_table
+        from ffsr_gym.bench.board_layout import leaderboard_table
 
         table = leaderboard_table(Path(directory))
         if table is not None:

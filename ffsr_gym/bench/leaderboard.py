@@ -23,41 +23,18 @@ from pathlib import Path
 from typing import Any
 
 from ffsr_gym.bench import rl_comparison, tables
+from ffsr_gym.bench.board_layout import folder_of, groups, spec_of_entry
 from ffsr_gym.bench.separation import levels_line
 from ffsr_gym.bench.trace_file import file_problems, in_file
 from ffsr_gym.bench.verify import entry_problems
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.model.resources import scenario_names
 from ffsr_gym.model.scenario import load_scenario
-from ffsr_gym.model.spec import GENERATED_PAGES, BenchmarkSpec, all_specs, ranked_spec, spec_for_env_id
+from ffsr_gym.model.spec import GENERATED_PAGES, BenchmarkSpec, all_specs, ranked_spec
 from ffsr_gym.provenance import splice_generated, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.reference import reference_sha256
 from ffsr_gym.user_files import parse_json, read_text
-
-
-def groups(spec: BenchmarkSpec) -> list[str]:
-    """The tables of a version: one per env id (``{env_id}`` folders) or per tier (``{task}`` folders)."""
-    return list(spec.tasks.tiers) if "{task}" in spec.leaderboard.folder else sorted(spec.env_ids)
-
-
-def folder_of(spec: BenchmarkSpec, root: str | Path, group: str) -> Path:
-    """The folder of one table's entries."""
-    if "{task}" in spec.leaderboard.folder:
-        return Path(root) / spec.folder(spec.ids.parameters, group)
-    return Path(root) / spec.folder(group, "")
-
-
-def leaderboard_table(directory: str | Path) -> tuple[BenchmarkSpec, str] | None:
-    """(spec, table) when ``directory`` is a leaderboard table folder by its path (it ends in the folder
-    :func:`folder_of` gives that table under any root), else None."""
-    parts = Path(directory).absolute().parts
-    for spec in all_specs().values():
-        for group in groups(spec):
-            tail = folder_of(spec, "", group).parts
-            if parts[-len(tail):] == tail:
-                return spec, group
-    return None
 
 
 def load_entries(root: str | Path, spec: BenchmarkSpec) -> dict[str, list[dict[str, Any]]]:
@@ -141,24 +118,6 @@ def verified(entries: dict[str, list[dict[str, Any]]]) -> dict[str, list[dict[st
 def refused(entries: dict[str, list[dict[str, Any]]]) -> list[tuple[str, str, list[str]]]:
     """(table, file, reasons) of every refused entry."""
     return [(group, e["_file"], e["_problems"]) for group, items in entries.items() for e in items if e["_problems"]]
-
-
-def spec_of_entry(entry: dict[str, Any]) -> BenchmarkSpec:
-    """The version an entry belongs to: by its env id, else by the score rule its protocol names.
-
-    Raises:
-        InvalidInputError: neither names a known version.
-    """
-    spec = spec_for_env_id(str(entry.get("env_id", "")))
-    if spec is not None:
-        return spec
-    protocol = entry.get("protocol")
-    text = protocol.get("score") if isinstance(protocol, dict) else None
-    for candidate in all_specs().values():
-        if candidate.score.text == text:
-            return candidate
-    raise InvalidInputError(f"entry {entry.get('name')!r}: env_id {entry.get('env_id')!r} and score rule {text!r} "
-                            "name no known benchmark version")
 
 
 def recompute(entry: dict[str, Any]) -> dict[str, Any]:

@@ -98,7 +98,7 @@ def free_entry(folder: str | Path, name: str, *, force: bool, option: str = "--l
             (``allow_dirty`` off) the folder is a leaderboard table and the code runs from a checkout with
             uncommitted changes, which :meth:`ffsr_gym.EvalReport.save` would refuse after the run.
     """
-    from ffsr_gym.bench.leaderboard import leaderboard_table
+    from ffsr_gym.bench.board_layout import leaderboard_table
     from ffsr_gym.provenance import checkout_state, dirty_allowed
 
     table = leaderboard_table(Path(folder)) is not None
