@@ -93,7 +93,7 @@ def test_a_stamp_on_a_version_that_carries_none_is_refused(stamped):
 
 def test_verify_stamps_the_bytes_it_replayed_and_never_a_link(stamped, monkeypatch, capsys):
     from ffsr_gym.bench import replay
-    from ffsr_gym.cli import board_commands
+    from ffsr_gym.cli import verify_commands
 
     _, path = stamped
     genuine = path.read_text()
@@ -115,7 +115,7 @@ def test_verify_stamps_the_bytes_it_replayed_and_never_a_link(stamped, monkeypat
     link = path.parent / "linked.json"
     link.symlink_to(path)
     with pytest.raises(InvalidInputError, match="symbolic link"):
-        board_commands._stamp(str(link), genuine)
+        verify_commands.write_stamp(str(link), genuine)
     assert link.is_symlink()
 
 

@@ -35,19 +35,17 @@ ALLOWED = {
 }
 #: The lab: the benchmark's maintenance (leaderboard storage, rendering and aggregates, pool builds, best-known
 #: searches, studies, docs pages), which users do not import. The library never imports it (docs/layout.md).
-LAB = ({f"ffsr_gym.bench.{n}" for n in ("aggregates", "changes", "dataset", "doc_pages", "leaderboard", "normalise",
-                                        "pareto", "rl_comparison", "separation", "tables", "update_plan")}
+LAB = ({f"ffsr_gym.bench.{n}" for n in ("aggregates", "dataset", "doc_pages", "leaderboard", "normalise", "pareto",
+                                        "rl_comparison", "separation", "tables", "update_plan")}
        | {f"ffsr_gym.optim.{n}" for n in ("best_known", "best_known_build", "best_known_check", "best_known_screen",
-                                          "rl_study", "study_plan", "tune_loop", "tuning")}
+                                          "study_plan", "tune_loop", "tuning")}
        | {f"ffsr_gym.tasks.{n}" for n in ("build", "best_known", "pool_tables")}
        | {"ffsr_gym.report.leaderboard_plots"}
-       | {f"ffsr_gym.cli.{n}" for n in ("board_commands", "docs_commands", "study_commands")})
+       | {f"ffsr_gym.cli.{n}" for n in ("board_commands", "docs_commands", "lab_commands", "study_commands")})
 #: The library's imports of the lab that remain until the lab moves to a package of its own (each named in
-#: docs/layout.md): the front door's sub-commands, and two imports in files whose bytes the leaderboard's stamps
-#: bind (editing them restamps the whole board, which the move will do once).
-LAB_EDGES_LEFT = {("ffsr_gym.cli.main", "ffsr_gym.bench.leaderboard"), ("ffsr_gym.cli.main", "ffsr_gym.cli.board_commands"),
-                  ("ffsr_gym.cli.main", "ffsr_gym.cli.docs_commands"), ("ffsr_gym.cli.main", "ffsr_gym.cli.study_commands"),
-                  ("ffsr_gym.bench.replay", "ffsr_gym.bench.leaderboard"),
+#: docs/layout.md): two imports in files whose bytes the leaderboard's stamps bind (editing them restamps the whole
+#: board, which the move will do once).
+LAB_EDGES_LEFT = {("ffsr_gym.bench.replay", "ffsr_gym.bench.leaderboard"),
                   ("ffsr_gym.tasks.reference", "ffsr_gym.tasks.best_known")}
 PHYSICS_STAGES = ("model", "planning", "kernel", "sim", "scoring", "tasks")
 FORBIDDEN_IN_PHYSICS = ("gymnasium", "stable_baselines3", "matplotlib", "torch")

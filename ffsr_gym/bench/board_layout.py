@@ -22,6 +22,11 @@ def folder_of(spec: BenchmarkSpec, root: str | Path, group: str) -> Path:
     return Path(root) / spec.folder(group, "")
 
 
+def table_files(folder: Path) -> list[Path]:
+    """The files a table reads as its entries: every ``*.json`` in its folder, whatever its name (sorted)."""
+    return sorted(folder.glob("*.json"))
+
+
 def leaderboard_table(directory: str | Path) -> tuple[BenchmarkSpec, str] | None:
     """(spec, table) when ``directory`` is a leaderboard table folder by its path (it ends in the folder
     :func:`folder_of` gives that table under any root), else None."""

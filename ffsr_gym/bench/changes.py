@@ -12,7 +12,7 @@ from __future__ import annotations
 import subprocess
 from pathlib import Path
 
-from ffsr_gym.bench.leaderboard import folder_of, groups, table_files
+from ffsr_gym.bench.board_layout import folder_of, groups, table_files
 from ffsr_gym.bench.trace_file import SUFFIX
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import all_specs
@@ -22,7 +22,7 @@ GIT_TIMEOUT_S = 60.0
 
 
 def entry_files(root: str | Path) -> list[Path]:
-    """Every file a leaderboard table under ``root`` reads as an entry (:func:`~ffsr_gym.bench.leaderboard.table_files`
+    """Every file a leaderboard table under ``root`` reads as an entry (:func:`~ffsr_gym.bench.board_layout.table_files`
     of each table's folder, in resolved folders, sorted)."""
     found: set[Path] = set()
     for spec in all_specs().values():

@@ -14,6 +14,7 @@ import numpy as np
 
 from ffsr_gym.bench.verify import ENTRY_NAME, entry_problems
 from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.provenance import dirty_allowed
 from ffsr_gym.scoring.aggregate import BOOTSTRAP_SAMPLES, BOOTSTRAP_SEED
 
@@ -142,6 +143,11 @@ class EvalReport:
         if "trace" not in self.extra:  # a replaced entry's trace file does not outlive it
             path.with_name(path.stem + SUFFIX).unlink(missing_ok=True)
         return path
+
+
+def entry_name(algo: str, spec: BenchmarkSpec, env_id: str, task: str) -> str:
+    """The leaderboard entry name of a training study (``ppo_residual_easy``)."""
+    return f"{algo}_{'residual_' if spec.is_residual(env_id) else ''}{task}"
 
 
 class _Recurrent:

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from ffsr_gym.bench import rl_comparison, tables
-from ffsr_gym.bench.board_layout import folder_of, groups, spec_of_entry
+from ffsr_gym.bench.board_layout import folder_of, groups, spec_of_entry, table_files
 from ffsr_gym.bench.separation import levels_line
 from ffsr_gym.bench.trace_file import file_problems, in_file
 from ffsr_gym.bench.verify import entry_problems
@@ -50,11 +50,6 @@ def load_entries(root: str | Path, spec: BenchmarkSpec) -> dict[str, list[dict[s
             continue  # an env id's table is shown once its folder exists
         out[group] = _refuse_duplicates([_load(path, spec, group) for path in table_files(folder)], group)
     return out
-
-
-def table_files(folder: Path) -> list[Path]:
-    """The files a table reads as its entries: every ``*.json`` in its folder, whatever its name (sorted)."""
-    return sorted(folder.glob("*.json"))
 
 
 #: Within :func:`checks_once`: each entry's problems by (content digest, version, table).

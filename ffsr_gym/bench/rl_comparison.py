@@ -14,17 +14,13 @@ from __future__ import annotations
 
 from typing import Any
 
+from ffsr_gym.bench.entry import entry_name
 from ffsr_gym.bench.tables import method_name, safe
 from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.model.spec import BenchmarkSpec
 
 #: The study's algorithms: its grid per tier is each of them on each of the version's two env ids.
 STUDY_ALGOS = ("ppo", "sac")
-
-
-def entry_name(algo: str, spec: BenchmarkSpec, env_id: str, task: str) -> str:
-    """The leaderboard entry name of a training study (``ppo_residual_easy``)."""
-    return f"{algo}_{'residual_' if spec.is_residual(env_id) else ''}{task}"
 
 
 def _pairs(spec: BenchmarkSpec, tier: str, selected: list[dict[str, Any]]) -> str:

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from ffsr_gym.cli.verify_commands import write_stamp
 from ffsr_gym.exceptions import InvalidInputError
 
 
@@ -111,7 +114,7 @@ def _replay_changed(root: str, *, full: bool) -> int:
         print(f"{step.path}: {verdict.status} (replayed: {step.reason}): {verdict.text}",
               file=sys.stdout if verdict.exit_code == 0 else sys.stderr)
         if verdict.status == "reproduced":
-            _stamp(str(step.path), verdict.entry_text)
+            write_stamp(str(step.path), verdict.entry_text)
         worst = max(worst, 1 if verdict.exit_code == 1 else 0)
     return worst
 
@@ -145,51 +148,6 @@ def _leaderboard_pareto(args: argparse.Namespace) -> None:
                                command=" ".join(["ffsr-gym", *args.argv]), trust_model=args.trust_model))
 
 
-def _verify(args: argparse.Namespace) -> int:
-    from ffsr_gym.bench.changes import changed_entries
-    from ffsr_gym.bench.replay import replay_entry
-
-    if args.changed_since is not None:
-        if args.entry:
-            raise InvalidInputError("verify: give entry files or --changed-since, not both")
-        paths = [str(path) for path in changed_entries(args.root, args.changed_since)]
-        print(f"{len(paths)} entries added, changed or renamed since {args.changed_since}", file=sys.stderr)
-    elif not args.entry:
-        raise InvalidInputError("verify: no entry; allowed: one or more entry files, or --changed-since REF")
-    else:
-        paths = args.entry
-    codes = {0}
-    for path in paths:
-        verdict = replay_entry(path, run_code=args.run_code)
-        print(f"{path}: {verdict.status}: {verdict.text}", file=sys.stdout if verdict.exit_code == 0 else sys.stderr)
-        if args.stamp and verdict.status == "reproduced":
-            _stamp(path, verdict.entry_text)
-        codes.add(verdict.exit_code)
-    return 1 if 1 in codes else max(codes)  # one that differs outweighs one skipped
-
-
-def _stamp(path: str, replayed: str) -> None:
-    """Write the verification stamp into the entry just reproduced: into the text that was replayed, and only if the
-    file still holds exactly that text (atomically; the rest of the file as it was)."""
-    from ffsr_gym.bench.leaderboard import spec_of_entry
-    from ffsr_gym.bench.stamp import make_stamp
-    from ffsr_gym.provenance import write_json_atomic
-    from ffsr_gym.user_files import parse_json, read_text
-
-    if Path(path).is_symlink():
-        raise InvalidInputError(f"{path}: a symbolic link; allowed: stamp the entry file itself (nothing stamped)")
-    if read_text(path) != replayed:
-        raise InvalidInputError(f"{path}: the file changed while it was replayed; nothing stamped (verify it again)")
-    entry = parse_json(replayed, path)
-    spec = spec_of_entry(entry)
-    if spec.rules is None:
-        print(f"{path}: {spec.version} entries carry no stamp", file=sys.stderr)
-        return
-    entry["extra"]["verified"] = make_stamp(entry, spec.rules.version)
-    write_json_atomic(path, entry, compact=True)
-    print(f"{path}: stamped ({entry['extra']['verified']['verifier']})")
-
-
 def _leaderboard_store(args: argparse.Namespace) -> int:
     from ffsr_gym.bench.changes import entry_files
     from ffsr_gym.bench.trace_file import store_entries
@@ -206,20 +164,33 @@ def _leaderboard_store(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_board_commands(sub: Any) -> None:
-    """Sub-command leaderboard (render, plot, pareto)."""
-    board = sub.add_parser("leaderboard", help="leaderboard tables and figures")
-    board_sub = board.add_subparsers(dest="action", required=True)
+def _once(func: Callable[[argparse.Namespace], Any]) -> Callable[[argparse.Namespace], Any]:
+    """``func`` run inside :func:`~ffsr_gym.bench.leaderboard.checks_once`: a command that loads the entries several
+    times verifies each file once."""
+
+    @functools.wraps(func)
+    def run(args: argparse.Namespace) -> Any:
+        from ffsr_gym.bench.leaderboard import checks_once
+
+        with checks_once():
+            return func(args)
+    return run
+
+
+def add_board_commands(sub: Any, groups: dict[str, Any]) -> None:
+    """The leaderboard's maintenance sub-commands, in its group (``leaderboard``, whose ``verify`` is the library's):
+    plot, aggregates, pareto, render, update, store."""
+    board_sub = groups["leaderboard"]
     plot = board_sub.add_parser("plot", help="the ranked version's figures (IQM with CIs, performance profiles, learning "
                                              "curves, the Pareto plot) under <root>/<version>/, from the JSON only")
     plot.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
-    plot.set_defaults(func=_leaderboard_plot)
+    plot.set_defaults(func=_once(_leaderboard_plot))
     agg = board_sub.add_parser("aggregates", help="rliable aggregates across tiers (IQM of score / best known score with "
                                                   "bootstrap CIs over tasks and runs, probability of improvement over the "
                                                   "reference planner, performance profiles): "
                                                   "<root>/<version>/aggregates.json and .png")
     agg.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
-    agg.set_defaults(func=_leaderboard_aggregates)
+    agg.set_defaults(func=_once(_leaderboard_aggregates))
     pareto = board_sub.add_parser("pareto", help="run the planner grid and every baseline on the first easy test task; "
                                                  "writes <root>/<version>/pareto.json")
     pareto.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
@@ -230,23 +201,7 @@ def add_board_commands(sub: Any) -> None:
                         help="consent to unpickle the SB3 models under --models (unpickling runs code of their "
                              "maker's choosing)")
     pareto.add_argument("--no-progress", action="store_true", help="hide the progress bars")
-    pareto.set_defaults(func=_leaderboard_pareto)
-    verify = board_sub.add_parser("verify", help="replay an entry's trace (or planner, fixed parameters) and compare "
-                                                 "its rows exactly (exit 0: reproduced, 1: differ, 3: skipped code; "
-                                                 "over several: 1 if any differs)")
-    verify.add_argument("entry", nargs="*", help="the entries' JSON files")
-    verify.add_argument("--changed-since", default=None, metavar="REF",
-                        help="replay every entry the tables read that was added, changed, renamed or copied since the "
-                             "git commit REF (what the pull-request workflow replays), whatever its name")
-    verify.add_argument("--root", default="leaderboards",
-                        help="leaderboard root, for --changed-since (default: leaderboards)")
-    verify.add_argument("--run-code", default=None, metavar="TEXT",
-                        help="consent to run the code the entry names: exactly its extra.policy callable or SB3 .zip "
-                             "(importing a file or unpickling a model runs code of its maker's choosing)")
-    verify.add_argument("--stamp", action="store_true",
-                        help="when reproduced, write the verification stamp (verifier, commit, pool, reference and "
-                             "rows hashes) into the entry; the tables show it")
-    verify.set_defaults(func=_verify)
+    pareto.set_defaults(func=_once(_leaderboard_pareto))
     render = board_sub.add_parser("render", help="regenerate the tables in <root>/README.md from the JSON entries")
     render.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
     render.add_argument("--check", action="store_true",
@@ -255,7 +210,7 @@ def add_board_commands(sub: Any) -> None:
     render.add_argument("--readme", nargs="+", default=None, metavar="PAGE",
                         help="also regenerate the generated leaderboard blocks between their markers in these "
                              "Markdown files (in a checkout: README.md docs/baselines.md)")
-    render.set_defaults(func=_leaderboard)
+    render.set_defaults(func=_once(_leaderboard))
     update = board_sub.add_parser("update", help="replay the entries changed since they were last verified (and "
                                                  "stamp them), regenerate everything a submission changes (tables, the "
                                                  "pages' generated blocks, aggregates, figures), then check it all "
@@ -266,11 +221,11 @@ def add_board_commands(sub: Any) -> None:
     update.add_argument("--full", action="store_true",
                         help="replay every entry, not only those changed since their stamp (entry, pool, reference or "
                              "replayed code)")
-    update.set_defaults(func=_leaderboard_update)
+    update.set_defaults(func=_once(_leaderboard_update))
     store = board_sub.add_parser("store", help="rewrite every entry in the storage format: an action trace written "
                                                "as text inside the entry moves to a trace file beside it (<name>.trace, "
                                                "compressed, named by sha256), and the JSON is written compact (a row "
                                                "per line); the content and stamps are kept (the stamp is dropped where a "
                                                "trace moved); prints the bytes before and after")
     store.add_argument("--root", default="leaderboards", help="leaderboard root (default: leaderboards)")
-    store.set_defaults(func=_leaderboard_store)
+    store.set_defaults(func=_once(_leaderboard_store))

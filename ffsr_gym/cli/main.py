@@ -1,5 +1,7 @@
 """The ``ffsr-gym`` parser and entry point (:data:`DESCRIPTION` is what ``ffsr-gym --help`` says); the sub-commands
-live in one module per group: the model and the paper, the policies, the long studies, the leaderboards."""
+live in one module per group: the model and the paper, a user's policies, the verification of an entry. The lab's
+sub-commands (the leaderboard's maintenance, the pools and studies, the docs pages) join from the entry point group
+:data:`COMMANDS` (``ffsr_gym.cli.lab_commands``): the library never imports them."""
 
 from __future__ import annotations
 
@@ -8,14 +10,14 @@ import os
 import sys
 from typing import Any
 
-from ffsr_gym.cli.board_commands import add_board_commands
-from ffsr_gym.cli.docs_commands import add_docs_commands
 from ffsr_gym.cli.model_commands import add_model_commands
 from ffsr_gym.cli.policy_commands import add_policy_commands
-from ffsr_gym.cli.study_commands import add_study_commands
+from ffsr_gym.cli.verify_commands import add_verify_commands
 from ffsr_gym.exceptions import FFSRError
 from ffsr_gym.model.spec import registered_ids
 
+#: The entry point group whose callables ``add(sub, groups)`` add sub-commands (the lab's).
+COMMANDS = "ffsr_gym.commands"
 DESCRIPTION = ("Dual-arm free-floating space robot: reproduce the paper's predefined-time planner, play and score "
                "the Gymnasium benchmark ({ids}), train baselines, build task pools and render leaderboards.")
 
@@ -43,15 +45,18 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``ffsr-gym`` argument parser, every sub-command on it."""
-    from importlib.metadata import version
+    from importlib.metadata import entry_points, version
 
     parser = _Parser(prog="ffsr-gym", description=DESCRIPTION.format(ids=", ".join(registered_ids())),
                      epilog="Each command has its own --help. Documentation: README.md, the docs site (docs/, e.g. "
                             "docs/envs.md, docs/model.md, docs/tutorials/) and leaderboards/README.md.")
     parser.add_argument("--version", action="version", version=f"ffsr-gym {version('ffsr-gym')}")
     sub = parser.add_subparsers(dest="command", required=True)
-    for add in (add_model_commands, add_policy_commands, add_study_commands, add_board_commands, add_docs_commands):
-        add(sub)
+    add_model_commands(sub)
+    add_policy_commands(sub)
+    groups = add_verify_commands(sub)
+    for point in sorted(entry_points(group=COMMANDS), key=lambda p: p.name):
+        point.load()(sub, groups)
     return parser
 
 
@@ -66,11 +71,8 @@ def main(argv: list[str] | None = None) -> int:
             raise  # --help, --version
         return int(stop.code)
     args.argv = argv
-    from ffsr_gym.bench.leaderboard import checks_once
-
     try:
-        with checks_once():  # a command that loads the entries several times verifies each file once
-            code = args.func(args)
+        code = args.func(args)
     except FFSRError as exc:
         print(f"ffsr-gym: error: {exc}", file=sys.stderr)
         return 2

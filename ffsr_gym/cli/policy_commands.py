@@ -1,4 +1,5 @@
-"""Sub-commands that play a policy: ``evaluate`` (an entry) and ``render`` (a GIF)."""
+"""Sub-commands of a user's policy: ``evaluate`` (an entry), ``render`` (a GIF) and ``train`` (stable-baselines3
+agents, scored as entries)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from ffsr_gym.model.spec import all_splits, all_task_names, registered_ids
 
 
 def add_policy_commands(sub: Any) -> None:
-    """Sub-commands evaluate and render."""
+    """Sub-commands evaluate, render and train."""
     ev = sub.add_parser("evaluate", help="score a policy with ffsr_gym.evaluate and optionally write a leaderboard entry")
     _add_policy_arguments(ev, env_id=None, policy=None, task="easy", split="test", split_help="pool scored")
     ev.add_argument("--training-pool", default=None, help="pool versions: what the policy was trained or tuned on (recorded)")
@@ -46,6 +47,34 @@ def add_policy_commands(sub: Any) -> None:
     rd.add_argument("--speed", type=positive_float, default=2.0, help="playback speed over real time (default: 2)")
     rd.add_argument("--out", default="runs/episode.gif", help="GIF file (default: runs/episode.gif)")
     rd.set_defaults(func=_render)
+    tr = sub.add_parser("train", help="train stable-baselines3 agents and score them with ffsr_gym.evaluate")
+    tr.add_argument("--algo", required=True, choices=algorithm_names(),
+                    help="a stable-baselines3 algorithm with a shipped hyperparameter file")
+    tr.add_argument("--env-id", default="FFSR-v0", choices=registered_ids(), help="environment id (default: FFSR-v0)")
+    tr.add_argument("--scenario", default="paper",
+                    help="versions scored on seeds: scenario name or TOML path (default: paper)")
+    tr.add_argument("--task", default="easy", choices=all_task_names(),
+                    help="versions with tiers: the tier; trains on its training pool, scores its test pool (default: easy)")
+    tr.add_argument("--curve-every", type=positive_int, default=5000,
+                    help="versions with tiers: env steps between scorings on the validation pool (the learning curve "
+                         "and the checkpoint selection; default: 5000)")
+    tr.add_argument("--seeds", type=natural, nargs="+", default=[0, 1, 2, 3, 4], help="training seeds (default: 0 1 2 3 4)")
+    tr.add_argument("--timesteps", type=positive_int, default=None,
+                    help="env steps per seed (default: n_timesteps of the hyperparameter file)")
+    tr.add_argument("--n-envs", type=positive_int, default=None,
+                    help="environment copies stepped together (default: n_envs of the hyperparameter file)")
+    tr.add_argument("--vec-env", default="batched", choices=["batched", "single"],
+                    help="batched: all copies in one batched-kernel env (SB3 VecEnv adapter); single: SB3's make_vec_env "
+                         "over single envs; the same episodes either way (default: batched)")
+    tr.add_argument("--hyperparams", default=None, help="folder with <algo>.yml (default: the shipped ffsr_gym/hyperparams)")
+    tr.add_argument("--out", default="runs/rl", help="folder of the models and records (default: runs/rl)")
+    tr.add_argument("--leaderboard", default=None, help="write the entry under this folder")
+    tr.add_argument("--force", action="store_true", help="replace an entry of the same name (default: refuse)")
+    tr.add_argument("--allow-dirty", action="store_true", default=None,
+                    help="save into a leaderboard table from a checkout with uncommitted code changes "
+                         "(default: refuse, unless FFSR_GYM_ALLOW_DIRTY=1)")
+    tr.add_argument("--no-progress", action="store_true")
+    tr.set_defaults(func=_train)
 
 def _load_policy(spec: str, algo: str | None, trust: bool, env: Any = None):
     """``--policy``; ``reference`` needs the env (its action mode and task defaults)."""
@@ -186,3 +215,28 @@ def _render(args: argparse.Namespace) -> None:
     outcome = {k: info.get(k) for k in ("score", "success", "failure") if k in info}
     print(f"wrote {out}: task {played}, {len(frames)} frames, {decisions} decisions, {outcome}")
     print(f"last frame: {end.text}")
+
+
+def _train(args: argparse.Namespace) -> None:
+    from ffsr_gym.bench.entry import entry_name
+    from ffsr_gym.bench.evaluation import spec_of
+    from ffsr_gym.bench.options import free_entry, unique_seeds
+    from ffsr_gym.bench.verify import CHECKPOINTS
+    from ffsr_gym.optim.rl_study import train_and_evaluate
+
+    spec = spec_of(args.env_id)
+    task = args.task if spec.evaluation.protocol == "pool" else args.scenario
+    folder = Path(args.leaderboard or ".") / spec.folder(args.env_id, task)
+    unique_seeds(args.seeds)
+    checkpoints = list(CHECKPOINTS) if spec.evaluation.protocol == "pool" else ["last"]
+    if args.leaderboard:  # before any training: a committed entry is never replaced by accident
+        for checkpoint in checkpoints:
+            free_entry(folder, entry_name(args.algo, spec, args.env_id, task) + CHECKPOINTS[checkpoint],
+                       force=args.force, allow_dirty=args.allow_dirty)
+    reports = train_and_evaluate(args.algo, args.env_id, task=task, seeds=args.seeds, out=args.out,
+                                 timesteps=args.timesteps, hyperparams=args.hyperparams, curve_every=args.curve_every,
+                                 progress=not args.no_progress, n_envs=args.n_envs, vec_env=args.vec_env)
+    for report in reports.values():
+        print(f"{report.name}: {report.metrics}")
+        if args.leaderboard:
+            print("wrote", report.save(folder, overwrite=args.force, allow_dirty=args.allow_dirty))

@@ -1,4 +1,4 @@
-"""Sub-commands of the long studies: ``train``, ``tasks`` (build, best-known, tables), ``dataset``."""
+"""Sub-commands of the long studies: ``tasks`` (build, best-known, tables, freeze-reference), ``dataset``."""
 
 from __future__ import annotations
 
@@ -8,41 +8,12 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from ffsr_gym.bench.options import add_scheduler_option, natural, positive_int
-from ffsr_gym.cli.choices import algorithm_names, all_task_tiers, build_targets, capture_tiers, tier_versions
-from ffsr_gym.model.spec import all_task_names, registered_ids
+from ffsr_gym.bench.options import add_scheduler_option, positive_int
+from ffsr_gym.cli.choices import all_task_tiers, build_targets, capture_tiers, tier_versions
 
 
-def add_study_commands(sub: Any) -> None:
-    """Sub-commands train, tasks and dataset."""
-    tr = sub.add_parser("train", help="train stable-baselines3 agents and score them with ffsr_gym.evaluate")
-    tr.add_argument("--algo", required=True, choices=algorithm_names(),
-                    help="a stable-baselines3 algorithm with a shipped hyperparameter file")
-    tr.add_argument("--env-id", default="FFSR-v0", choices=registered_ids(), help="environment id (default: FFSR-v0)")
-    tr.add_argument("--scenario", default="paper",
-                    help="versions scored on seeds: scenario name or TOML path (default: paper)")
-    tr.add_argument("--task", default="easy", choices=all_task_names(),
-                    help="versions with tiers: the tier; trains on its training pool, scores its test pool (default: easy)")
-    tr.add_argument("--curve-every", type=positive_int, default=5000,
-                    help="versions with tiers: env steps between scorings on the validation pool (the learning curve "
-                         "and the checkpoint selection; default: 5000)")
-    tr.add_argument("--seeds", type=natural, nargs="+", default=[0, 1, 2, 3, 4], help="training seeds (default: 0 1 2 3 4)")
-    tr.add_argument("--timesteps", type=positive_int, default=None,
-                    help="env steps per seed (default: n_timesteps of the hyperparameter file)")
-    tr.add_argument("--n-envs", type=positive_int, default=None,
-                    help="environment copies stepped together (default: n_envs of the hyperparameter file)")
-    tr.add_argument("--vec-env", default="batched", choices=["batched", "single"],
-                    help="batched: all copies in one batched-kernel env (SB3 VecEnv adapter); single: SB3's make_vec_env "
-                         "over single envs; the same episodes either way (default: batched)")
-    tr.add_argument("--hyperparams", default=None, help="folder with <algo>.yml (default: the shipped ffsr_gym/hyperparams)")
-    tr.add_argument("--out", default="runs/rl", help="folder of the models and records (default: runs/rl)")
-    tr.add_argument("--leaderboard", default=None, help="write the entry under this folder")
-    tr.add_argument("--force", action="store_true", help="replace an entry of the same name (default: refuse)")
-    tr.add_argument("--allow-dirty", action="store_true", default=None,
-                    help="save into a leaderboard table from a checkout with uncommitted code changes "
-                         "(default: refuse, unless FFSR_GYM_ALLOW_DIRTY=1)")
-    tr.add_argument("--no-progress", action="store_true")
-    tr.set_defaults(func=_train)
+def add_study_commands(sub: Any, groups: dict[str, Any]) -> None:
+    """Sub-commands tasks and dataset (``groups``: the library's groups; none is joined)."""
     tasks = sub.add_parser("tasks", help="a benchmark version's task tiers")
     tasks_sub = tasks.add_subparsers(dest="action", required=True)
     tb = tasks_sub.add_parser("build", help="apply the tier rule to candidate seeds and write the pool file "
@@ -106,31 +77,6 @@ def add_study_commands(sub: Any) -> None:
     ds.add_argument("--author", default=None, help="who builds it (default: git's user.name, where set)")
     ds.add_argument("--author-email", default=None, help="their contact (default: git's user.email, where set)")
     ds.set_defaults(func=_dataset)
-
-def _train(args: argparse.Namespace) -> None:
-    from ffsr_gym.bench.evaluation import spec_of
-    from ffsr_gym.bench.options import free_entry, unique_seeds
-    from ffsr_gym.bench.rl_comparison import entry_name
-    from ffsr_gym.bench.verify import CHECKPOINTS
-    from ffsr_gym.optim.rl_study import train_and_evaluate
-
-    spec = spec_of(args.env_id)
-    task = args.task if spec.evaluation.protocol == "pool" else args.scenario
-    folder = Path(args.leaderboard or ".") / spec.folder(args.env_id, task)
-    unique_seeds(args.seeds)
-    checkpoints = list(CHECKPOINTS) if spec.evaluation.protocol == "pool" else ["last"]
-    if args.leaderboard:  # before any training: a committed entry is never replaced by accident
-        for checkpoint in checkpoints:
-            free_entry(folder, entry_name(args.algo, spec, args.env_id, task) + CHECKPOINTS[checkpoint],
-                       force=args.force, allow_dirty=args.allow_dirty)
-    reports = train_and_evaluate(args.algo, args.env_id, task=task, seeds=args.seeds, out=args.out,
-                                 timesteps=args.timesteps, hyperparams=args.hyperparams, curve_every=args.curve_every,
-                                 progress=not args.no_progress, n_envs=args.n_envs, vec_env=args.vec_env)
-    for report in reports.values():
-        print(f"{report.name}: {report.metrics}")
-        if args.leaderboard:
-            print("wrote", report.save(folder, overwrite=args.force, allow_dirty=args.allow_dirty))
-
 
 @contextmanager
 def _executor(args: argparse.Namespace, local_workers: int = 1) -> Iterator[tuple[Any, int]]:

@@ -13,10 +13,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ffsr_gym.bench.entry import EvalReport
+from ffsr_gym.bench.entry import EvalReport, entry_name
 from ffsr_gym.bench.evaluation import evaluate, spec_of
 from ffsr_gym.bench.policies import SB3_CLASSES, sb3_modules
-from ffsr_gym.bench.rl_comparison import entry_name
 from ffsr_gym.bench.trace_file import read_entry, write_entry_files
 from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.exceptions import InvalidInputError
