@@ -8,7 +8,9 @@ constant actions of the tier's entries (``<leaderboard>/<version>/<tier>/``): an
 residual (``extra.policy.fixed`` on the version's residual id), and a predefined-time planner
 entry's constant (m, T_c) (``extra.planner``), as the action of the version's (m, T_c) id that
 maps onto it (rounded to float32, as the env rounds actions; an (m, T_c) outside the action box is
-skipped, named). With ``--models``, it also plays every trained model of the RL study for that
+skipped, named). On capture v1 a planner entry's (m, T_c, go_s) is offered as the search's one-knot timed
+schedule, and the RL study's models are not played (a command is not a timed schedule's decision).
+With ``--models``, it also plays every trained model of the RL study for that
 tier (``<algo>_<env id>_<tier>_seed<s>/{model.zip, best_on_validation.zip}``). An episode that
 beats the stored score of its family and passes the certificate test is kept as that family's
 schedule; the file is then assembled again. A policy finished on a pool is recorded with a hash
@@ -35,6 +37,8 @@ from ffsr_gym.model.spec import all_specs, spec_for_version
 from ffsr_gym.optim import best_known_build as build
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.best_known import records
+from ffsr_gym.tasks.certificate import go_decision_of
+from ffsr_gym.tasks.schedule import Schedule, go_value
 from ffsr_gym.tasks.splits import pool, task_scenario, version_tiers
 
 
@@ -56,6 +60,45 @@ def parameters_action(entry: dict, tier: str, version: str) -> tuple[float, floa
     return tuple(float(x) for x in action)
 
 
+def timed_schedules(leaderboard: Path, tier: str, version: str) -> list[tuple[str, str, Schedule]]:
+    """(origin, key, schedule) of a tier's predefined-time planner entries on a version whose action commands the
+    approach (capture v1): each entry's (m, T_c, go_s) as the one-knot ``timed`` schedule the best-known search
+    searches (the insertion commanded from the first decision at or after go_s), whatever its go time."""
+    benchmark = score_rule(spec_for_version(version)).benchmark
+    played = task_scenario(tier, pool(tier, "test", version=version)[0].seed, benchmark)
+    interval = played.env.decision_interval_s
+    decisions = round(played.simulation.duration_s / interval)
+    out = []
+    for path in sorted((leaderboard / version / tier).glob("*.json")):
+        entry = json.loads(path.read_text())
+        planner = (entry.get("extra") or {}).get("planner") or {}
+        action = parameters_action(entry, tier, version)
+        if action is None or planner.get("go_s") is None:
+            continue
+        knot = (*action, go_value(go_decision_of(planner["go_s"], interval), decisions))
+        digest = hashlib.sha256(json.dumps(list(knot)).encode()).hexdigest()
+        origin = f"entry {entry['name']}"
+        out.append((origin, f"{origin} {digest}", Schedule("timed", (tuple(float(x) for x in knot),))))
+    return out
+
+
+def absorb_timed(leaderboard: Path, tier: str, splits: list[str], work: str, version: str,
+                 only: list[str] | None) -> None:
+    """Offer each timed planner entry's schedule on every stored task of the pools (``build.offer``: kept where it
+    beats the stored score and passes the certificate test)."""
+    for origin, key, schedule in timed_schedules(leaderboard, tier, version):
+        if only and not any(fnmatch.fnmatch(origin, pattern) for pattern in only):
+            continue
+        for split in splits:
+            if build.is_absorbed(work, tier, split, key):
+                print(f"{tier}/{split}: {origin}: already absorbed")
+                continue
+            kept = sum(build.offer(schedule, tier, split, r["index"], work, origin, version=version) is not None
+                       for r in records(tier, split, version))
+            build.mark_absorbed(work, tier, split, key)
+            print(f"{tier}/{split}: {origin}: {kept} tasks improved")
+
+
 def policies(leaderboard: Path, models: Path | None, tier: str, version: str = "v2",
              only: list[str] | None = None) -> list[tuple[str, str, str, object]]:
     """(origin, key, env id, policy loader) of a tier: constant entries (fixed residuals, planner constants), then
@@ -65,6 +108,7 @@ def policies(leaderboard: Path, models: Path | None, tier: str, version: str = "
         return not only or any(fnmatch.fnmatch(origin, pattern) for pattern in only)
 
     ids = spec_for_version(version).ids
+    timed = spec_for_version(version).actions.command  # its planners are absorbed as timed schedules
     out = []
     for path in sorted((leaderboard / version / tier).glob("*.json")):
         entry = json.loads(path.read_text())
@@ -72,14 +116,17 @@ def policies(leaderboard: Path, models: Path | None, tier: str, version: str = "
         origin = f"entry {entry['name']}"
         if entry["env_id"] == ids.residual and fixed is not None:
             constant, env_id = fixed, ids.residual
-        elif entry["env_id"] == "planner" and (constant := parameters_action(entry, tier, version)) is not None:
+        elif (entry["env_id"] == "planner" and not timed
+              and (constant := parameters_action(entry, tier, version)) is not None):
             env_id = ids.parameters
         else:
             continue
         if wanted(origin):
             digest = hashlib.sha256(json.dumps(list(constant)).encode()).hexdigest()
             out.append((origin, f"{origin} {digest}", env_id, lambda constant=constant: tuple(constant)))
-    for folder in sorted(models.glob(f"*_{tier}_seed*")) if models else []:
+    if timed and models:  # an action's last entry is a command there, a timed schedule's a decision: not the same
+        print(f"{tier}: the RL study's models are not absorbed on {version} (their actions are no timed schedule)")
+    for folder in sorted(models.glob(f"*_{tier}_seed*")) if models and not timed else []:
         algo, env_id = folder.name.split("_")[:2]
         for checkpoint in ("model.zip", "best_on_validation.zip"):
             origin = f"{folder.name}/{checkpoint}"
@@ -110,6 +157,8 @@ def main() -> None:
         splits = [s for s in args.splits if records(tier, s, args.version)]
         if not splits:
             continue
+        if spec_for_version(args.version).actions.command:  # timed planners: schedules of the search's family
+            absorb_timed(Path(args.leaderboard), tier, splits, args.work, args.version, args.only)
         for origin, key, env_id, load in policies(Path(args.leaderboard), models, tier, args.version, args.only):
             left = [s for s in splits if not build.is_absorbed(args.work, tier, s, key)]
             policy = load() if left else None

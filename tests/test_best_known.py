@@ -264,6 +264,30 @@ def test_a_planner_entrys_constants_become_the_action_that_maps_onto_them():
     assert absorb.parameters_action(entry, "slow", "capture-v0") is None
 
 
+def test_a_timed_planner_entry_becomes_the_timed_schedule_that_replays_its_episodes():
+    """Capture v1's planner entries (m, T_c, go_s), offered to the best-known file as the search's one-knot timed
+    schedule: replayed, the schedule gives each entry's own episodes (its verdict, and its score but for the
+    float32 rounding of (m, T_c) as an action)."""
+    from pathlib import Path
+
+    from conftest import benchmark_script
+
+    absorb = benchmark_script("absorb_best_known", "baselines")
+    root = Path(__file__).resolve().parents[1] / "leaderboards"
+    schedules = {origin: schedule for origin, _, schedule in absorb.timed_schedules(root, "sweep", "capture-v1")}
+    assert {"entry reference_best_constant", "entry ga_capture-v1", "entry reference_paper_default"} <= set(schedules)
+    assert "entry proportional_tuned" not in schedules  # no action of the ids
+    benchmark = score_rule(spec_for_version("capture-v1")).benchmark
+    tasks = pool("sweep", "test", version="capture-v1")
+    for name in ("reference_best_constant", "ga_capture-v1"):  # going in at once, and at 0.21 s (decision 3)
+        entry = json.loads((root / "capture-v1" / "sweep" / f"{name}.json").read_text())
+        rows = [r for r in entry["episodes"] if r["success"]][:2] + [r for r in entry["episodes"] if not r["success"]][:1]
+        for row in rows:
+            played = replay_schedule(task_scenario("sweep", tasks[row["task_index"]].seed, benchmark),
+                                     schedules[f"entry {name}"], benchmark)
+            assert played.success == row["success"] and played.score == pytest.approx(row["score"], abs=2e-3), name
+
+
 def test_training_records_are_assembled_into_a_file_of_their_own(small, tmp_path, monkeypatch):
     import shutil
 

@@ -316,11 +316,16 @@ def absorb(policy: Any, env_id: str, tier: str, split: str, work: str | Path, or
         improved += offer(schedule, tier, split, index, work, origin, version=version, score=info["score"]) is not None
     env.close()
     if key is not None:
-        with _done_path(work, tier, split).open("a", encoding="utf-8") as handle:
-            handle.write(key + "\n")
-            handle.flush()
-            os.fsync(handle.fileno())
+        mark_absorbed(work, tier, split, key)
     return improved
+
+
+def mark_absorbed(work: str | Path, tier: str, split: str, key: str) -> None:
+    """Record that the policy with this ``key`` was played on every stored task of the pool (:func:`is_absorbed`)."""
+    with _done_path(work, tier, split).open("a", encoding="utf-8") as handle:
+        handle.write(key + "\n")
+        handle.flush()
+        os.fsync(handle.fileno())
 
 
 def offer(schedule: Schedule, tier: str, split: str, index: int, work: str | Path, origin: str, *,
