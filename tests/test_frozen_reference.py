@@ -13,7 +13,7 @@ from ffsr_gym.bench import leaderboard, tables
 from ffsr_gym.bench.normalise import normalised_mean
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import spec_for_version
-from ffsr_gym.tasks import best_known, reference
+from ffsr_gym.tasks import best_known, freeze, reference
 from ffsr_gym.tasks.splits import pool
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -40,7 +40,7 @@ def test_a_better_best_known_score_is_a_record_and_moves_no_normalised_score(tmp
     assert before and before["cmaes_v2"] == f"{mean_before:.3f}" and entry["episodes"][0]["task_index"] == 0
     assert "ref. " + reference.reference_sha256("v2")[:8] in leaderboard.render_readme(root)
 
-    earlier = {(r["tier"], r["index"]): r["gain"] for r in reference.records_since("v2")}  # records shipped so far
+    earlier = {(r["tier"], r["index"]): r["gain"] for r in freeze.records_since("v2")}  # records shipped so far
     improved = json.loads(best_known.best_known_path("v2").read_text())  # the search finds a better score on task 0
     task = next(r for r in improved["tasks"]["easy"]["test"] if r["index"] == 0)
     task["best"]["score"] *= 1.5
@@ -51,7 +51,7 @@ def test_a_better_best_known_score_is_a_record_and_moves_no_normalised_score(tmp
 
     assert _normalised_column(root) == before  # ... and no published normalised score did
     assert f"{normalised_mean(entry, 'v2'):.17g}" == f"{mean_before:.17g}"
-    found = {(r["tier"], r["index"]): r["gain"] for r in reference.records_since("v2")}
+    found = {(r["tier"], r["index"]): r["gain"] for r in freeze.records_since("v2")}
     frozen = reference.reference_scores("easy", "test", "v2")[0]
     assert set(found) == set(earlier) | {("easy", 0)}
     assert found[("easy", 0)] == pytest.approx(task["best"]["score"] / frozen - 1.0)  # against the frozen score
@@ -79,6 +79,6 @@ def test_the_reference_covers_every_scored_pool_and_is_written_once(tmp_path):
             assert len(values) == len(pool(tier, split, version="v2")) and min(values) > 0.0, (tier, split)
     assert set(data["scores"]) == {"easy", "medium", "hard", "debris", "robust", "servo"}
     with pytest.raises(InvalidInputError, match="frozen"):
-        reference.freeze("v2")
-    out = reference.freeze("v2", out=tmp_path / "again.json")
+        freeze.freeze("v2")
+    out = freeze.freeze("v2", out=tmp_path / "again.json")
     assert json.loads(out.read_text())["frozen_from"]["file"] == "v2_best_known.json"

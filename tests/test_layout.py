@@ -39,14 +39,9 @@ LAB = ({f"ffsr_gym.bench.{n}" for n in ("aggregates", "dataset", "doc_pages", "l
                                         "rl_comparison", "separation", "tables", "update_plan")}
        | {f"ffsr_gym.optim.{n}" for n in ("best_known", "best_known_build", "best_known_check", "best_known_screen",
                                           "study_plan", "tune_loop", "tuning")}
-       | {f"ffsr_gym.tasks.{n}" for n in ("build", "best_known", "pool_tables")}
+       | {f"ffsr_gym.tasks.{n}" for n in ("build", "best_known", "freeze", "pool_tables")}
        | {"ffsr_gym.report.leaderboard_plots"}
        | {f"ffsr_gym.cli.{n}" for n in ("board_commands", "docs_commands", "lab_commands", "study_commands")})
-#: The library's imports of the lab that remain until the lab moves to a package of its own (each named in
-#: docs/layout.md): two imports in files whose bytes the leaderboard's stamps bind (editing them restamps the whole
-#: board, which the move will do once).
-LAB_EDGES_LEFT = {("ffsr_gym.bench.replay", "ffsr_gym.bench.leaderboard"),
-                  ("ffsr_gym.tasks.reference", "ffsr_gym.tasks.best_known")}
 PHYSICS_STAGES = ("model", "planning", "kernel", "sim", "scoring", "tasks")
 FORBIDDEN_IN_PHYSICS = ("gymnasium", "stable_baselines3", "matplotlib", "torch")
 
@@ -178,11 +173,11 @@ def test_the_layout_page_lists_every_module_of_every_sub_package():
             assert listed.get(package.name) == modules, f"docs/layout.md: ffsr_gym.{package.name}"
 
 
-def test_the_library_imports_no_lab_module_but_the_edges_left():
+def test_the_library_imports_no_lab_module():
     assert LAB <= set(MODULES)
     edges = {(name, imported) for name in MODULES if name not in LAB for imported in project_imports(name)
              if imported in LAB}
-    assert edges == LAB_EDGES_LEFT, f"new: {sorted(edges - LAB_EDGES_LEFT)}, gone: {sorted(LAB_EDGES_LEFT - edges)}"
+    assert edges == set()
 
 
 def test_the_layout_page_lists_the_lab():

@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from ffsr_gym.bench.board_layout import spec_of_entry
 from ffsr_gym.bench.evaluation import NEUTRAL_KWARGS, plan_evaluation, run_plan
-from ffsr_gym.bench.leaderboard import spec_of_entry
 from ffsr_gym.bench.planner_scores import evaluate_planner
 from ffsr_gym.bench.policies import BUILTIN_POLICIES, load_policy, resolve_recorded
 from ffsr_gym.bench.replay_tolerance import bias_problem, differing_keys

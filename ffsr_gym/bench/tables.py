@@ -23,6 +23,7 @@ from ffsr_gym.bench.stamp import stamp_text
 from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.tasks import best_known, reference
+from ffsr_gym.tasks.freeze import records_since
 
 
 def safe(text: Any) -> str:
@@ -232,7 +233,7 @@ def headroom(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]]) -> s
 
 def records_text(version: str) -> str:
     """The best known scores found since the reference was frozen: records, shown apart, never the reference."""
-    found = reference.records_since(version)
+    found = records_since(version)
     if not found:
         return "Records since the reference was frozen: none (no test task's best known score has improved)."
     tiers = sorted({r["tier"] for r in found})

@@ -186,7 +186,7 @@ def _dataset(args: argparse.Namespace) -> None:
 
 
 def _tasks_freeze_reference(args: argparse.Namespace) -> None:
-    from ffsr_gym.tasks.reference import freeze
+    from ffsr_gym.tasks.freeze import freeze
 
     print("wrote", freeze(args.version, out=args.out, command=" ".join(["ffsr-gym", *args.argv])))
 
