@@ -76,9 +76,5 @@ def test_at_least_four_planners_per_capture_tier_meet_the_dt_bar():
 
 def test_the_docs_hold_the_dt_study():
     text = (ROOT / "docs" / "model.md").read_text(encoding="utf-8")
-    start, end = dt_study.markers("capture-v0")
-    block = text[text.index(start) + len(start):text.index(end)]
-    commit = DT_STUDY["provenance"]["git_commit"][:8]
-    assert block.strip() == dt_study.docs_text(DT_STUDY["summary"], "benchmarks/dt_sensitivity_capture.json", commit,
-                                               DT_STUDY["tasks_per_tier"], "capture-v0",
-                                               "test pools of the capture-v0 pool files").strip()
+    assert dt_study.docs_block(text, "capture-v0").strip() == \
+        dt_study.stored_docs_text(DT_STUDY, "benchmarks/dt_sensitivity_capture.json").strip()

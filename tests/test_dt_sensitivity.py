@@ -19,10 +19,10 @@ STUDY = json.loads((ROOT / "benchmarks" / "dt_sensitivity.json").read_text())
 study = benchmark_script("dt_sensitivity")
 
 
-def _replay(entry: dict, count: int) -> None:
-    kwargs = study.planners(entry["tier"], ROOT / "leaderboards", STUDY["version"])[entry["planner"]]
+def _replay(entry: dict, count: int, version: str = STUDY["version"]) -> None:
+    kwargs = study.planners(entry["tier"], ROOT / "leaderboards", version)[entry["planner"]]
     piece = study.run_piece((entry["law"], entry["tier"], entry["planner"], kwargs, entry["divisor"],
-                             entry["seeds"][:count], STUDY["version"]))
+                             entry["seeds"][:count], version))
     assert [row["score"] for row in piece["rows"]] == entry["scores"][:count]
 
 
@@ -39,10 +39,8 @@ def test_every_sampled_episode_replays():
 
 def test_docs_hold_the_generated_tables():
     text = (ROOT / "docs" / "model.md").read_text(encoding="utf-8")
-    block = text[text.index(study.START) + len(study.START):text.index(study.END)]
-    commit = STUDY["provenance"]["git_commit"][:8]
-    assert block.strip() == study.docs_text(STUDY["summary"], "benchmarks/dt_sensitivity.json", commit,
-                                            STUDY["tasks_per_tier"], STUDY["version"]).strip()
+    assert study.docs_block(text, "v2").strip() == \
+        study.stored_docs_text(STUDY, "benchmarks/dt_sensitivity.json").strip()
 
 
 def test_spearman_against_an_independent_computation():
@@ -75,23 +73,15 @@ CAPTURE_V1 = json.loads((ROOT / "benchmarks" / "dt_sensitivity_capture-v1.json")
 
 @pytest.mark.parametrize("index", [0, 7, 20, 32])  # both tiers, several planners and steps
 def test_capture_v1_sampled_episodes_replay(index):
-    entry = CAPTURE_V1["sample"][index]
-    kwargs = study.planners(entry["tier"], ROOT / "leaderboards", "capture-v1")[entry["planner"]]
-    piece = study.run_piece((entry["law"], entry["tier"], entry["planner"], kwargs, entry["divisor"],
-                             entry["seeds"][:1], "capture-v1"))
-    assert [row["score"] for row in piece["rows"]] == entry["scores"][:1]
+    _replay(CAPTURE_V1["sample"][index], 1, "capture-v1")
 
 
 def test_capture_v1_docs_and_verdicts():
     """docs/model.md §24 holds the generated table; every planner keeps its verdict on >= 98 % of the tasks and its
     mean within 0.01 between dt and dt/4; the two rows below v2's Spearman bar are the two the docs name."""
     text = (ROOT / "docs" / "model.md").read_text(encoding="utf-8")
-    start, end = study.markers("capture-v1")
-    block = text[text.index(start) + len(start):text.index(end)]
-    commit = CAPTURE_V1["provenance"]["git_commit"][:8]
-    assert block.strip() == study.docs_text(CAPTURE_V1["summary"], "benchmarks/dt_sensitivity_capture-v1.json", commit,
-                                            CAPTURE_V1["tasks_per_tier"], "capture-v1",
-                                            "test pools of the capture-v1 pool files").strip()
+    assert study.docs_block(text, "capture-v1").strip() == \
+        study.stored_docs_text(CAPTURE_V1, "benchmarks/dt_sensitivity_capture-v1.json").strip()
     rows = CAPTURE_V1["summary"]
     assert len(rows) == 11 and {r["tasks"] for r in rows} == {100}
     assert len({(r["tier"], json.dumps(r["planner"])) for r in rows}) == 11
