@@ -263,7 +263,7 @@ def json_text(data: Any, *, compact: bool = False) -> str:
     way the text parses to ``data``."""
     if not compact:
         return json.dumps(data, indent=2, sort_keys=False, allow_nan=False) + "\n"
-    return _compact(data, 0) + "\n"
+    return _compact(json.loads(json.dumps(data, allow_nan=False)), 0) + "\n"  # as JSON has it: text keys, lists
 
 
 def _compact(value: Any, level: int) -> str:
