@@ -35,10 +35,10 @@ import numpy as np
 from ffsr_gym.bench.policies import load_model
 from ffsr_gym.model.spec import all_specs, spec_for_version
 from ffsr_gym.optim import best_known_build as build
+from ffsr_gym.optim.best_known import timed_go
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.best_known import records
-from ffsr_gym.tasks.certificate import go_decision_of
-from ffsr_gym.tasks.schedule import Schedule, go_value
+from ffsr_gym.tasks.schedule import Schedule
 from ffsr_gym.tasks.splits import pool, task_scenario, version_tiers
 
 
@@ -65,9 +65,6 @@ def timed_schedules(leaderboard: Path, tier: str, version: str) -> list[tuple[st
     approach (capture v1): each entry's (m, T_c, go_s) as the one-knot ``timed`` schedule the best-known search
     searches (the insertion commanded from the first decision at or after go_s), whatever its go time."""
     benchmark = score_rule(spec_for_version(version)).benchmark
-    played = task_scenario(tier, pool(tier, "test", version=version)[0].seed, benchmark)
-    interval = played.env.decision_interval_s
-    decisions = round(played.simulation.duration_s / interval)
     out = []
     for path in sorted((leaderboard / version / tier).glob("*.json")):
         entry = json.loads(path.read_text())
@@ -75,7 +72,7 @@ def timed_schedules(leaderboard: Path, tier: str, version: str) -> list[tuple[st
         action = parameters_action(entry, tier, version)
         if action is None or planner.get("go_s") is None:
             continue
-        knot = (*action, go_value(go_decision_of(planner["go_s"], interval), decisions))
+        knot = (*action, timed_go(planner["go_s"], benchmark))
         digest = hashlib.sha256(json.dumps(list(knot)).encode()).hexdigest()
         origin = f"entry {entry['name']}"
         out.append((origin, f"{origin} {digest}", Schedule("timed", (tuple(float(x) for x in knot),))))

@@ -64,12 +64,18 @@ def start(task: PoolTask, family: str, benchmark: Benchmark) -> tuple[Schedule, 
     m, T_c, origin = (cert.m, cert.T_c_s, "certificate") if cert.residual is None else (
         benchmark.planner.m, benchmark.planner.T_c_s, "default")
     action = [2.0 * (m - m_lo) / (m_hi - m_lo) - 1.0, 2.0 * (T_c - t_lo) / (t_hi - t_lo) - 1.0]
-    if family == "timed":  # the certificate's moment: the first decision at or after its go_s
-        played = capture_family(benchmark)  # the family scenario: every task's episode and decisions
-        interval = played.env.decision_interval_s
-        decisions = round(played.simulation.duration_s / interval)
-        action.append(go_value(go_decision_of(cert.go_s, interval), decisions))
+    if family == "timed":  # the certificate's moment
+        action.append(timed_go(cert.go_s, benchmark))
     return Schedule.constant(family, action, knots(family)), origin
+
+
+def timed_go(go_s: float, benchmark: Benchmark) -> float:
+    """A timed schedule's g for a go time ``go_s`` [s]: the first decision at or after it, in the family scenario's
+    decisions (every task's episode)."""
+    played = capture_family(benchmark)
+    interval = played.env.decision_interval_s
+    decisions = round(played.simulation.duration_s / interval)
+    return go_value(go_decision_of(go_s, interval), decisions)
 
 
 class Population:
