@@ -6,6 +6,7 @@ from __future__ import annotations
 import hashlib
 import math
 import time
+from collections.abc import Sequence
 from functools import lru_cache
 from typing import Any
 
@@ -65,15 +66,17 @@ def objective_for_params(m: float, T_c: float, *, scenario: str | Scenario = "pa
 
 
 def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | None = None, T_c: float | None = None,
-                     gain_per_s: float | None = None, go_s: float | None = None, training_pool: str | None = None,
-                     name: str = "planner", compute: dict | None = None, progress: bool = False,
-                     version: str = "v2") -> EvalReport:
+                     gain_per_s: float | None = None, go_s: float | Sequence[float] | None = None,
+                     training_pool: str | None = None, name: str = "planner", compute: dict | None = None,
+                     progress: bool = False, version: str = "v2", lookahead: dict | None = None) -> EvalReport:
     """Score a reference-planner variant with constant parameters on a tier's pool (one episode per task).
 
     The planner variants that are not an env action (``proportional``) are scored here, from the
     trajectory with the version's score rule, exactly as :func:`ffsr_gym.evaluate` scores env episodes.
     ``go_s`` [s]: on a version whose action commands the approach (capture v1), when the insertion is commanded
-    (:func:`check_go`). ``compute``: what tuning the parameters cost (:func:`~ffsr_gym.bench.entry.check_compute`).
+    (:func:`check_go`): one moment for every task, or a list of one per pool task (a method that times each task,
+    :mod:`ffsr_gym.bench.lookahead`; each row then records its own, and ``lookahead`` says how they were chosen).
+    ``compute``: what tuning the parameters cost (:func:`~ffsr_gym.bench.entry.check_compute`).
     """
     spec = spec_for_version(version)
     if task not in spec.tasks.tiers or split not in spec.tasks.splits:
@@ -81,18 +84,26 @@ def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | 
                                 f"split in {list(spec.tasks.splits)}")
     compute = check_compute(compute) if compute else {}
     rule = score_rule(spec)
-    check_go(go_s, spec, rule)
     benchmark, start, rows, hashes = rule.benchmark, time.perf_counter(), [], {}
     tasks = pool(task, split, version=benchmark.version)
+    per_task = go_s is not None and not isinstance(go_s, (int, float, np.floating))
+    if not per_task:
+        check_go(go_s, spec, rule)
+    moments = per_task_go(go_s, len(tasks), spec, rule) if per_task else [go_s] * len(tasks)
+    if lookahead is not None and not per_task:
+        raise InvalidInputError("lookahead: allowed only with go_s of one moment per task (the moments it chose)")
     for index, entry in enumerate(tqdm(tasks, disable=not progress, desc=f"{name} {task}/{split}")):
         played = task_scenario(task, entry.seed, benchmark)
-        result = planner_episode(played, benchmark, method=method, m=m, T_c=T_c, gain_per_s=gain_per_s, go_s=go_s)
+        result = planner_episode(played, benchmark, method=method, m=m, T_c=T_c, gain_per_s=gain_per_s,
+                                 go_s=moments[index])
         hashes[played.name] = planner_task(played, method, gain_per_s).sha256()
-        rows.append({"seed": index, "task_index": index, "task_seed": entry.seed, **result.as_dict()})
+        rows.append({"seed": index, "task_index": index, "task_seed": entry.seed, **result.as_dict(),
+                     **({"go_s": moments[index]} if per_task else {})})
     extra = {"training_pool": training_pool, "evaluation_pool": f"{task}/{split}",
              "pool_file_sha256": hashlib.sha256(pool_path(task, benchmark.version).read_bytes()).hexdigest(),
              "planner": {"method": method, "m": m, "T_c_s": T_c, "gain_per_s": gain_per_s,
-                         **({} if go_s is None else {"go_s": go_s})}, "compute": compute,
+                         **({} if go_s is None else {"go_s": list(moments) if per_task else go_s}),
+                         **({} if lookahead is None else {"lookahead": lookahead})}, "compute": compute,
              **reference_record(task, split, benchmark.version)}
     if spec.tasks.step_option:
         extra["dt_s"] = benchmark.dt_s
@@ -114,6 +125,23 @@ def check_in_box(parameters: Any, m_box: tuple[float, float], t_box: tuple[float
         raise InvalidInputError(f"fixed parameters (m, T_c) = {shown!r}; allowed: "
                                 f"two numbers with m in [{m_box[0]}, {m_box[1]}] and T_c in [{t_box[0]}, {t_box[1]}] s "
                                 "(the action box)")
+
+
+def per_task_go(go_s: Any, tasks: int, spec: Any, rule: Any) -> list[float]:
+    """A list of one insertion moment [s] per pool task (each as :func:`check_go` requires), as floats.
+
+    Raises:
+        InvalidInputError: not a list of ``tasks`` moments, or a moment outside the range (its index named).
+    """
+    if isinstance(go_s, (str, bytes, dict)) or not hasattr(go_s, "__len__") or len(go_s) != tasks:
+        raise InvalidInputError(f"go_s = {str(go_s)[:60]!r}; allowed: one number, or a list of {tasks} (one per task "
+                                "of the pool)")
+    for index, moment in enumerate(go_s):
+        try:
+            check_go(moment, spec, rule)
+        except InvalidInputError as exc:
+            raise InvalidInputError(f"go_s[{index}]: {exc}") from None
+    return [float(moment) for moment in go_s]
 
 
 def check_go(go_s: Any, spec: Any, rule: Any) -> None:
