@@ -23,7 +23,7 @@ ROW = {"seed": 0, "task_index": 3, "task_seed": 1000006, "score": 0.4, "success"
 def test_v0_and_v2_replay_exactly_and_capture_states_its_tolerance():
     assert tolerance_for("v2") == ReplaySpec(0.0, 0.0) and tolerance_for("v0") == ReplaySpec(0.0, 0.0)
     capture = tolerance_for("capture-v0")
-    assert 0.0 < capture.score_rel_tol <= 0.05 and capture.margin_rel_tol > 0.0
+    assert 0.0 < capture.score_rel_tol <= 0.05 and capture.margin_rel_tol > 0.0 and capture.margin_abs_tol <= 1e-6
 
 
 def test_a_row_agrees_within_the_tolerance_and_never_with_another_verdict():
@@ -38,6 +38,19 @@ def test_a_row_agrees_within_the_tolerance_and_never_with_another_verdict():
     assert differing_keys(ROW, ROW | {"task_seed": 1000007}, tolerance) == ["task_seed"]
     assert differing_keys(ROW, {k: v for k, v in ROW.items() if k != "capture_time_s"}, tolerance) == ["capture_time_s"]
     assert differing_keys(ROW, ROW | {"capture_ratio": 0.0021}, tolerance) == ["capture_ratio"]
+
+
+def test_the_score_and_c_keep_the_score_bound_their_terms_and_near_zero_numbers_the_margins():
+    """The four capture-v0 residual RL rows that replayed outside the old bound (docs/model.md §17): one arm's rate
+    variation 6 % off with C 1.1 % off, and final attitude errors of a few 1e-9 rad, twice or half the stored."""
+    tolerance = ReplaySpec(score_rel_tol=0.05, margin_rel_tol=1.0, margin_abs_tol=1e-6)
+    row = ROW | {"rate_variation": [2.2330, 2.5806], "smoothness_cost": 1.1756, "final_ee_attitude_error": 4.6e-9}
+    replayed = row | {"rate_variation": [2.2968, 2.7359], "smoothness_cost": 1.1879, "final_ee_attitude_error": 9.7e-9}
+    assert differing_keys(row, replayed, tolerance) == []
+    assert differing_keys(row, replayed, ReplaySpec(0.05, 1.0)) == ["final_ee_attitude_error"]
+    assert differing_keys(row, replayed | {"smoothness_cost": 1.1756 * 1.06}, tolerance) == ["smoothness_cost"]
+    assert differing_keys(row, replayed | {"final_ee_attitude_error": 2e-6}, tolerance) == ["final_ee_attitude_error"]
+    assert numbers_agree(0.0, 5e-7, 0.0, 1e-6) and not numbers_agree(0.0, 5e-7, 0.0)
 
 
 @pytest.mark.parametrize(("stored", "replayed", "agree"), [

@@ -328,7 +328,8 @@ def _compare(stored: list[dict], rerun: list[dict], what: str, spec: BenchmarkSp
 
 def _within(tolerance: ReplaySpec) -> str:
     """The tolerance a comparison allowed, as text ('' when exact)."""
-    if tolerance.score_rel_tol == 0.0 and tolerance.margin_rel_tol == 0.0:
+    if tolerance.score_rel_tol == 0.0 and tolerance.margin_rel_tol == 0.0 and tolerance.margin_abs_tol == 0.0:
         return ""
-    return (f" (allowed: the score and its terms within a relative {tolerance.score_rel_tol:g}, other numbers within "
-            f"{tolerance.margin_rel_tol:g}, verdicts exactly; this version's [replay])")
+    return (f" (allowed: the score, C and B within a relative {tolerance.score_rel_tol:g}, other numbers within "
+            f"{tolerance.margin_rel_tol:g} or {tolerance.margin_abs_tol:g} absolute, verdicts exactly; this version's "
+            "[replay])")

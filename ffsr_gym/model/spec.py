@@ -110,12 +110,15 @@ class EvaluationSpec:
 @dataclass(frozen=True)
 class ReplaySpec:
     """How a replayed episode must agree with the row stored for it (the tests, ``leaderboard verify``;
-    :mod:`ffsr_gym.bench.replay_tolerance`): seeds, indices, counts, success and failure always exactly; the score and
-    its terms within ``score_rel_tol`` (relative; 0: bit for bit); every other number (margins, times) within
-    ``margin_rel_tol`` of its stored value (relative)."""
+    :mod:`ffsr_gym.bench.replay_tolerance`): seeds, indices, counts, success and failure always exactly; the score,
+    the smoothness cost C and the paper's B within ``score_rel_tol`` (relative; 0: bit for bit); every other number
+    (C's terms, margins, times) within ``margin_rel_tol`` of its stored value (relative) or within ``margin_abs_tol``
+    of it (absolute: a number that is physically nothing, a final attitude error of 1e-9 rad, meets no relative
+    tolerance)."""
 
     score_rel_tol: float = field(default=0.0, metadata=number(0.0, 0.05))
     margin_rel_tol: float = field(default=0.0, metadata=number(0.0, 1.0))
+    margin_abs_tol: float = field(default=0.0, metadata=number(0.0, 1e-3))
 
 
 @dataclass(frozen=True)
