@@ -1,0 +1,170 @@
+"""A timing learned from simulated outcomes on capture v1 (``learned_go``): supervised learning of when to go in.
+
+    python baselines/learned_go.py --leaderboard leaderboards [--tiers sweep] [--workers 2]
+
+1. **Data** (training and validation pools): for every task, the observations of the episode that holds the start
+   pose, at every moment of a 0.5 s grid, and the score that going in at that moment earns (the default planner
+   (0.3, 4 s), simulated as the env plays it: ``ffsr_gym.bench.lookahead``). Resumable: one file per task in
+   ``--work``.
+2. **Fit** a network (76 -> 128 -> 128 -> 1, ReLU; torch, seeded) from observation to that score on the training
+   pool's samples (mean squared error, Adam).
+3. **Tune** the threshold on the validation pool: the policy (``ffsr_gym.bench.learned_go.LearnedGo``) decides at the
+   grid's moments, so its validation score for a threshold is read exactly off the validation data.
+4. **Evaluate** the policy on the test pool through ``ffsr_gym.evaluate`` (a trace of its actions is stored, which
+   the board replays) and write the entry. An existing entry is kept.
+
+The test pool is never simulated here but by ``evaluate``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+from tqdm.auto import tqdm
+
+import ffsr_gym
+from ffsr_gym.bench.learned_go import LearnedGo, Regressor
+from ffsr_gym.bench.lookahead import Lookahead
+from ffsr_gym.bench.tables import headline
+from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.model.spec import spec_for_version
+from ffsr_gym.provenance import write_json_atomic
+from ffsr_gym.scoring.rules import score_rule
+from ffsr_gym.tasks.splits import pool, task_scenario
+
+VERSION, NAME, STEP_S, SEED = "capture-v1", "learned_go", 0.5, 0
+HIDDEN, EPOCHS, BATCH, LEARNING_RATE = (128, 128), 60, 512, 1e-3
+THRESHOLDS = np.round(np.arange(0.05, 0.451, 0.01), 3)
+
+
+def task_data(tier: str, split: str, index: int) -> tuple[np.ndarray, np.ndarray]:
+    """(observations at the grid's moments while holding the start pose, the score of going in at each)."""
+    spec = spec_for_version(VERSION)
+    benchmark, duration_s = load_benchmark(VERSION), score_rule(spec).duration_s
+    lookahead = Lookahead(step_s=STEP_S)
+    scores = lookahead.scores(task_scenario(tier, pool(tier, split, version=VERSION)[index].seed, benchmark), benchmark,
+                              duration_s)
+    env = gym.make(spec.ids.parameters, task=tier, split=split)
+    obs, _ = env.reset(seed=0, options={"task_index": index})
+    every = int(round(STEP_S / 0.1))
+    seen = [obs]
+    for _ in range(len(scores) * every - 1):
+        obs, _, terminated, truncated, _ = env.unwrapped.step_with_parameters(lookahead.m, lookahead.T_c_s, command=0.0)
+        if terminated or truncated:
+            break
+        seen.append(obs)
+    env.close()
+    observations = np.asarray(seen[::every], dtype=np.float64)
+    return observations, scores[:len(observations)]
+
+
+def _collect_one(job: tuple[str, str, int, str]) -> str:
+    tier, split, index, path = job
+    observations, scores = task_data(tier, split, index)
+    part = Path(path).with_suffix(".part.npz")
+    np.savez(part, observations=observations, scores=scores)
+    os.replace(part, path)
+    return path
+
+
+def collect(tier: str, split: str, work: Path, workers: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Every task's data of a pool, computing what ``work`` does not hold yet."""
+    tasks = len(pool(tier, split, version=VERSION))
+    paths = [work / f"{tier}-{split}-{index:03d}.npz" for index in range(tasks)]
+    jobs = [(tier, split, index, str(path)) for index, path in enumerate(paths) if not path.exists()]
+    with ProcessPoolExecutor(workers) as executor:
+        for _ in tqdm(executor.map(_collect_one, jobs), total=len(jobs), desc=f"data {tier}/{split}", unit="task"):
+            pass
+    out = []
+    for path in paths:
+        with np.load(path) as data:
+            out.append((data["observations"], data["scores"]))
+    return out
+
+
+def fit(data: list[tuple[np.ndarray, np.ndarray]]) -> Regressor:
+    """The network fitted to every (observation, score) sample of ``data`` (module docstring)."""
+    import torch
+
+    torch.manual_seed(SEED)
+    x = np.concatenate([obs for obs, _ in data])
+    y = np.concatenate([scores for _, scores in data])
+    mean, scale = x.mean(axis=0), np.maximum(x.std(axis=0), 1e-6)
+    inputs = torch.tensor((x - mean) / scale, dtype=torch.float32)
+    targets = torch.tensor(y, dtype=torch.float32)[:, None]
+    layers, width = [], x.shape[1]
+    for hidden in HIDDEN:
+        layers += [torch.nn.Linear(width, hidden), torch.nn.ReLU()]
+        width = hidden
+    network = torch.nn.Sequential(*layers, torch.nn.Linear(width, 1))
+    optimiser = torch.optim.Adam(network.parameters(), lr=LEARNING_RATE)
+    generator = torch.Generator().manual_seed(SEED)
+    for _ in tqdm(range(EPOCHS), desc="fit", unit="epoch"):
+        for batch in torch.randperm(len(inputs), generator=generator).split(BATCH):
+            optimiser.zero_grad()
+            torch.nn.functional.mse_loss(network(inputs[batch]), targets[batch]).backward()
+            optimiser.step()
+    linear = [layer for layer in network if isinstance(layer, torch.nn.Linear)]
+    return Regressor(mean, scale, tuple(layer.weight.detach().double().numpy().T.copy() for layer in linear),
+                     tuple(layer.bias.detach().double().numpy().copy() for layer in linear))
+
+
+def offline_score(regressor: Regressor, threshold: float, data: list[tuple[np.ndarray, np.ndarray]],
+                  late_s: float) -> float:
+    """The mean score of the policy over ``data``'s tasks: it goes in at the first grid moment whose prediction
+    reaches ``threshold``, else at the first at or after ``late_s``."""
+    total = 0.0
+    for observations, scores in data:
+        moments = np.arange(len(scores)) * STEP_S
+        chosen = np.flatnonzero((regressor(observations) >= threshold) | (moments >= late_s - 1e-9))
+        total += float(scores[chosen[0]]) if len(chosen) else 0.0
+    return total / len(data)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--leaderboard", required=True, help="leaderboard root; entries go to <root>/<version>/<tier>/")
+    parser.add_argument("--tiers", nargs="+", default=None, help="tiers (default: every tier of capture-v1)")
+    parser.add_argument("--work", default="runs/learned_go", help="the data, one file per task (resumable)")
+    parser.add_argument("--workers", type=int, default=1, help="processes for the data (default: 1)")
+    args = parser.parse_args()
+    spec, work = spec_for_version(VERSION), Path(args.work)
+    work.mkdir(parents=True, exist_ok=True)
+    for tier in args.tiers or spec.tasks.tiers:
+        folder = Path(args.leaderboard) / VERSION / tier
+        if (folder / f"{NAME}.json").exists():
+            print("kept", folder / f"{NAME}.json")
+            continue
+        start = time.perf_counter()
+        train, validation = (collect(tier, split, work, args.workers) for split in ("train", "validation"))
+        regressor = fit(train)
+        policy = LearnedGo(regressor, 0.0, every_s=STEP_S)
+        late_s = policy.duration_s - policy.approach_s
+        tuned = {float(t): offline_score(regressor, float(t), validation, late_s) for t in THRESHOLDS}
+        threshold = max(tuned, key=lambda t: (tuned[t], -t))
+        simulated = sum(len(scores) for _, scores in train + validation)
+        compute = {"objective_evaluations": simulated, "wall_time_s": time.perf_counter() - start,
+                   "hardware": f"{args.workers} CPU core(s)"}
+        policy = LearnedGo(regressor, threshold, every_s=STEP_S)
+        report = ffsr_gym.evaluate(policy, spec.ids.parameters, task=tier, name=NAME, progress=True, compute=compute,
+                                   training_pool=f"{tier}/train (threshold: {tier}/validation)",
+                                   policy_library=f"torch {__import__('torch').__version__}")
+        report.extra |= {"method": (
+            f"learned timing: the default planner, the insertion commanded at the first 0.5 s moment whose predicted "
+            f"score of going in reaches {threshold:g} (a 76-128-128-1 network fitted to the simulated outcomes of "
+            f"going in at every moment of the training tasks; the threshold tuned on the validation pool)"),
+            "learned_go": {"threshold": threshold, "validation_by_threshold": tuned, "hidden": list(HIDDEN),
+                           "epochs": EPOCHS, "seed": SEED, "samples": int(sum(len(s) for _, s in train))}}
+        write_json_atomic(work / f"{tier}-regressor.json", {"threshold": threshold, **regressor.as_dict()})
+        print(tier, f"threshold {threshold:g}: validation {tuned[threshold]:.3f};", headline(spec, report.metrics),
+              "->", report.save(folder))
+
+
+if __name__ == "__main__":
+    main()

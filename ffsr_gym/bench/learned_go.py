@@ -1,0 +1,96 @@
+"""A timing learned from simulated outcomes (capture v1; docs/baselines.md): go in when a regressor says it pays.
+
+:class:`LearnedGo` is a policy of ``FFSR-Capture-v1`` that acts on the observation alone. It holds the start pose
+with the default planner's (m, T_c) and, at every decision, predicts from the 76 observed floats the score that
+going in now would earn (a small network, :class:`Regressor`, fitted to the outcomes of going in at every moment
+of a grid on the tier's *training* tasks, simulated; ``baselines/learned_go.py``); it commands the insertion at the
+first decision whose prediction reaches ``threshold`` (tuned on the validation pool), and at the latest when only
+the approach's time is left; it decides only every ``every_s`` seconds (the grid its data were simulated on, so that
+its validation score is read exactly off those data). Once going it keeps going. It is supervised learning of the
+one decision the tuned constants and PPO never make per task: when.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ffsr_gym.bench.capture_heuristic import TIME_INDEX, SlowestPass
+from ffsr_gym.exceptions import InvalidInputError
+
+
+@dataclass(frozen=True)
+class Regressor:
+    """A fully connected network with ReLU hidden layers, on inputs standardised by ``mean`` and ``scale``:
+    ``weights[i]`` of shape (inputs, outputs), ``biases[i]`` (outputs,); one output."""
+
+    mean: np.ndarray
+    scale: np.ndarray
+    weights: tuple[np.ndarray, ...]
+    biases: tuple[np.ndarray, ...]
+
+    def __post_init__(self) -> None:
+        width = len(self.mean)
+        if self.scale.shape != (width,) or not np.all(self.scale > 0) or len(self.weights) != len(self.biases):
+            raise InvalidInputError("Regressor: mean and scale of one width, scale > 0, a bias per weight matrix")
+        for w, b in zip(self.weights, self.biases):
+            if w.ndim != 2 or w.shape[0] != width or b.shape != (w.shape[1],):
+                raise InvalidInputError(f"Regressor: a layer of shape {w.shape} after width {width}")
+            width = w.shape[1]
+        if width != 1:
+            raise InvalidInputError(f"Regressor: {width} outputs; allowed: 1")
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """The predictions for the rows of ``x`` (or one observation)."""
+        h = (np.atleast_2d(np.asarray(x, dtype=np.float64)) - self.mean) / self.scale
+        for k, (w, b) in enumerate(zip(self.weights, self.biases)):
+            h = h @ w + b
+            if k < len(self.weights) - 1:
+                h = np.maximum(h, 0.0)
+        return h[:, 0]
+
+    def as_dict(self) -> dict:
+        return {"mean": self.mean.tolist(), "scale": self.scale.tolist(),
+                "weights": [w.tolist() for w in self.weights], "biases": [b.tolist() for b in self.biases]}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> Regressor:
+        try:
+            return cls(np.asarray(data["mean"], float), np.asarray(data["scale"], float),
+                       tuple(np.asarray(w, float) for w in data["weights"]),
+                       tuple(np.asarray(b, float) for b in data["biases"]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InvalidInputError(f"Regressor: {exc}; allowed: mean, scale, weights, biases as lists") from None
+
+
+@dataclass
+class LearnedGo:
+    """See the module docstring. ``duration_s``, ``approach_s``, (m, T_c): as :class:`SlowestPass`;
+    ``interval_s``: the env's decision interval."""
+
+    regressor: Regressor
+    threshold: float
+    every_s: float = 0.5
+    interval_s: float = 0.1
+    m: float = 0.3
+    T_c_s: float = 4.0
+    duration_s: float = 60.0
+    approach_s: float = 10.98
+    _state: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        self._actions = SlowestPass(m=self.m, T_c_s=self.T_c_s)
+
+    def __call__(self, observation: np.ndarray) -> np.ndarray:
+        obs = np.asarray(observation, dtype=np.float64)
+        t = float(obs[TIME_INDEX]) * self.duration_s
+        state = self._state
+        if t == 0.0 or not state:  # a new episode
+            state.clear()
+            state["going"] = False
+        decision = int(round(t / self.interval_s))
+        if not state["going"] and decision % int(round(self.every_s / self.interval_s)) == 0:
+            late = t >= self.duration_s - self.approach_s - 1e-9
+            state["going"] = late or float(self.regressor(obs)[0]) >= self.threshold
+        return self._actions.action(2.0 if state["going"] else 0.0)
