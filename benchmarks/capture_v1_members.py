@@ -15,17 +15,15 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import sys
 from collections import Counter
-from pathlib import Path
 
 import numpy as np
-from tqdm.auto import tqdm
+from study_rows import publish, resumable_rows  # noqa: E402  (benchmarks/study_rows.py)
 
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.scenario import Scenario
-from ffsr_gym.provenance import provenance, save_result, splice_file, write_json_atomic
+from ffsr_gym.provenance import provenance
 from ffsr_gym.tasks.capture_timed import TIMED_TIERS
 from ffsr_gym.tasks.certificate import offset_start, replay
 from ffsr_gym.tasks.splits import pool, task_scenario
@@ -107,19 +105,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default="benchmarks/capture_v1_members.json", help="summary with provenance")
     parser.add_argument("--docs", default=None, help="write the table between the markers of this file")
     args = parser.parse_args(argv)
-    work = Path(args.work)
-    done = {(r["tier"], r["seed"]): r for r in json.loads(work.read_text())["rows"]} if work.exists() else {}
     jobs = [(tier, t.seed, t.certificate) for tier in TIMED_TIERS for t in pool(tier, args.split, version=VERSION)]
-    for tier, seed, certificate in tqdm(jobs, desc="certificates", unit="task"):
-        if (tier, seed) not in done:
-            done[(tier, seed)] = task_row(tier, seed, certificate)
-            write_json_atomic(work, {"rows": list(done.values())})
-    rows = [done[(tier, seed)] for tier, seed, _ in jobs]
-    data = save_result(args.out, {"split": args.split, "rows": rows, "summary": summary(rows),
-                                  "provenance": provenance(command=" ".join(["python", *sys.argv]))})
-    if args.docs:
-        splice_file(args.docs, START, END, docs_text(data))
-    print(docs_text(data))
+    rows = resumable_rows(args.work, jobs, task_row, "certificates")
+    publish(args.out, {"split": args.split, "rows": rows, "summary": summary(rows),
+                       "provenance": provenance(command=" ".join(["python", *sys.argv]))}, args.docs, (START, END),
+            docs_text)
     return 0
 
 

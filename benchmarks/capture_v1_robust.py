@@ -21,19 +21,17 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import itertools
-import json
 import sys
-from pathlib import Path
 
 import numpy as np
 from capture_v1_members import members  # noqa: E402  (benchmarks/capture_v1_members.py)
-from tqdm.auto import tqdm
+from study_rows import publish, resumable_rows  # noqa: E402  (benchmarks/study_rows.py)
 
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.scenario import Scenario
-from ffsr_gym.provenance import provenance, save_result, splice_file, write_json_atomic
-from ffsr_gym.tasks.capture_timed import TIMED_TIERS
-from ffsr_gym.tasks.certificate import Certificate, ensemble_members, replay, replay_with_margins
+from ffsr_gym.provenance import provenance
+from ffsr_gym.tasks.capture_timed import TIMED_TIERS, try_timed
+from ffsr_gym.tasks.certificate import Certificate, Member, ensemble_members, replay
 from ffsr_gym.tasks.splits import pool, task_scenario
 
 VERSION = "capture-v1"
@@ -64,24 +62,15 @@ def robust_certificate(task: Scenario, seed: int, stored: Certificate) -> tuple[
     settings at its 12 moments costs up to 1,700 runs a task, and windows are narrower than its 4 s)."""
     benchmark = load_benchmark(VERSION)
     rule, default = benchmark.tasks, benchmark.planner
-    tasks = [m.task for m in ensemble_members(task, seed, rule.ensemble, pinocchio=False)] + wider(task)
+    tried = ensemble_members(task, seed, rule.ensemble, pinocchio=False)
+    tried += [Member(f"wider {k}", member) for k, member in enumerate(wider(task))]
     runs = 0
     for m, T_c in dict.fromkeys([(stored.m, stored.T_c_s), (default.m, default.T_c_s)]):
         for go in np.arange(0.0, max(rule.go_s) + GO_STEP_S / 2, GO_STEP_S):
-            certificate = Certificate("timed", float(m), float(T_c), go_s=float(go))
-            result, margins = replay_with_margins(task, certificate, benchmark)
-            runs += 1
-            if not result.success:
-                continue
-            for member in tasks:
-                other, more = replay_with_margins(member, certificate, benchmark)
-                runs += 1
-                margins = margins.merge(more)
-                if not other.success:
-                    break
-            else:
-                if margins.short(benchmark) is None:
-                    return certificate, result.score, runs
+            found = try_timed(task, Certificate("timed", float(m), float(T_c), go_s=float(go)), tried, benchmark)
+            runs += found.rollouts
+            if found.certificate is not None:
+                return found.certificate, found.score, runs
     return None, 0.0, runs
 
 
@@ -143,20 +132,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--docs", default=None, help="write the table between the markers of this file")
     parser.add_argument("--tasks", type=int, default=100, help="the first N tasks of each test pool (default: all)")
     args = parser.parse_args(argv)
-    work = Path(args.work)
-    done = {(r["tier"], r["seed"]): r for r in json.loads(work.read_text())["rows"]} if work.exists() else {}
     jobs = [(tier, t.seed, t.certificate, t.certificate_score) for tier in TIMED_TIERS
             for t in pool(tier, "test", version=VERSION)[:args.tasks]]
-    for tier, seed, certificate, score in tqdm(jobs, desc="certify", unit="task"):
-        if (tier, seed) not in done:
-            done[(tier, seed)] = task_row(tier, seed, certificate, score)
-            write_json_atomic(work, {"rows": list(done.values())})
-    rows = [done[(tier, seed)] for tier, seed, _, _ in jobs]
-    data = save_result(args.out, {"tasks": args.tasks, "rows": rows, "summary": summary(rows),
-                                  "provenance": provenance(command=" ".join(["python", *sys.argv]))})
-    if args.docs:
-        splice_file(args.docs, START, END, docs_text(data))
-    print(docs_text(data))
+    rows = resumable_rows(args.work, jobs, task_row, "certify")
+    publish(args.out, {"tasks": args.tasks, "rows": rows, "summary": summary(rows),
+                       "provenance": provenance(command=" ".join(["python", *sys.argv]))}, args.docs, (START, END),
+            docs_text)
     return 0
 
 

@@ -15,7 +15,7 @@ import ffsr_gym  # noqa: F401  (registers the ids)
 from ffsr_gym.bench.replay_tolerance import tolerance_for
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.tasks.build import rule_sha256
-from ffsr_gym.tasks.capture_timed import TIMED_TIERS
+from ffsr_gym.tasks.capture_timed import TIMED_TIERS, certify_timed
 from ffsr_gym.tasks.splits import load_pools, pool, task_scenario
 
 VERSION = "capture-v1"
@@ -102,3 +102,17 @@ def test_every_certificate_steps_through_the_env_to_its_capture():
 def test_every_certificate_holds_in_every_ensemble_member():
     problems = [p for case in cases(None) for p in ensemble_problems(VERSION, *case)]
     assert not problems, problems[:20]
+
+
+@pytest.mark.parametrize("tier", TIMED_TIERS)
+def test_the_certification_finds_the_stored_certificate_again(tier):
+    """The certificate search (its order of timed settings, its kernel members and margins) run again on the first test
+    task whose certificate it reaches within the default (m, T_c) at go <= 8 s finds that certificate, its score
+    and its kernel margins (the stored margins also hold the Pinocchio member's, which this search does not run)."""
+    index, task = next((k, t) for k, t in enumerate(pool(tier, "test", version=VERSION))
+                       if (t.certificate.m, t.certificate.T_c_s) == (0.3, 4.0) and t.certificate.go_s <= 8.0)
+    found = certify_timed(task_scenario(tier, task.seed, RULES), task.seed, RULES)
+    assert found.certificate == task.certificate, index
+    assert found.score == pytest.approx(task.certificate_score, rel=TOLERANCE.score_rel_tol, abs=0.0)
+    assert found.margins.peak_rate_deg_s <= task.margins.peak_rate_deg_s + 1e-9
+    assert found.margins.min_clearance_m >= task.margins.min_clearance_m - 1e-12

@@ -20,6 +20,7 @@ member of the ensemble with the ensemble's margins (the Pinocchio member is repl
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from functools import lru_cache
@@ -31,7 +32,7 @@ from ffsr_gym.model.benchmark import Benchmark, SpinTier
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.scoring.score import score_episode
 from ffsr_gym.tasks.capture_family import BodyDraw, box_inertia, capture_family, sample_capture, tilted_spin
-from ffsr_gym.tasks.certificate import Certificate, Margins, ensemble_members, replay_with_margins, timed_run
+from ffsr_gym.tasks.certificate import Certificate, Margins, Member, ensemble_members, replay_with_margins, timed_run
 from ffsr_gym.tasks.generator import MAX_SEED
 from ffsr_gym.tasks.tiers import Verdict
 
@@ -170,21 +171,30 @@ def certify_timed(task: Scenario, seed: int, benchmark: Benchmark,
         for go in rule.go_s:
             if index == 0 and go in failed:
                 continue
-            certificate = Certificate("timed", float(m), float(T_c), go_s=float(go))
-            result, margins = replay_with_margins(task, certificate, benchmark)
-            runs += 1
-            if not result.success:
-                continue
-            for member in members:
-                other, more = replay_with_margins(member.task, certificate, benchmark, backend=member.backend)
-                runs += 1
-                margins = margins.merge(more)
-                if not other.success:
-                    break
-            else:
-                if margins.short(benchmark) is None:
-                    return TimedCertification(certificate, result.score, margins, runs)
+            found = try_timed(task, Certificate("timed", float(m), float(T_c), go_s=float(go)), members, benchmark)
+            runs += found.rollouts
+            if found.certificate is not None:
+                return dataclasses.replace(found, rollouts=runs)
     return TimedCertification(None, 0.0, None, runs)
+
+
+def try_timed(task: Scenario, certificate: Certificate, members: list[Member],
+              benchmark: Benchmark) -> TimedCertification:
+    """One timed setting tried as a certificate: it is one (``certificate`` not None) when it captures in ``task``
+    and in every member with the ensemble's margins; the members are replayed in order until one fails."""
+    result, margins = replay_with_margins(task, certificate, benchmark)
+    runs = 1
+    if not result.success:
+        return TimedCertification(None, 0.0, None, runs)
+    for member in members:
+        other, more = replay_with_margins(member.task, certificate, benchmark, backend=member.backend)
+        runs += 1
+        margins = margins.merge(more)
+        if not other.success:
+            return TimedCertification(None, 0.0, None, runs)
+    if margins.short(benchmark) is not None:
+        return TimedCertification(None, 0.0, None, runs)
+    return TimedCertification(certificate, result.score, margins, runs)
 
 
 def classify_timed(tier: str, seed: int, benchmark: Benchmark) -> Verdict:
