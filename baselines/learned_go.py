@@ -144,14 +144,14 @@ def main() -> None:
         start = time.perf_counter()
         train, validation = (collect(tier, split, work, args.workers) for split in ("train", "validation"))
         regressor = fit(train)
-        policy = LearnedGo(regressor, 0.0, every_s=STEP_S)
+        policy = LearnedGo(regressor=regressor, threshold=0.0, every_s=STEP_S)
         late_s = policy.duration_s - policy.approach_s
         tuned = {float(t): offline_score(regressor, float(t), validation, late_s) for t in THRESHOLDS}
         threshold = max(tuned, key=lambda t: (tuned[t], -t))
         simulated = sum(len(scores) for _, scores in train + validation)
         compute = {"objective_evaluations": simulated, "wall_time_s": time.perf_counter() - start,
                    "hardware": f"{args.workers} CPU core(s)"}
-        policy = LearnedGo(regressor, threshold, every_s=STEP_S)
+        policy = LearnedGo(regressor=regressor, threshold=threshold, every_s=STEP_S)
         report = ffsr_gym.evaluate(policy, spec.ids.parameters, task=tier, name=NAME, progress=True, compute=compute,
                                    training_pool=f"{tier}/train (threshold: {tier}/validation)",
                                    policy_library=f"torch {__import__('torch').__version__}")

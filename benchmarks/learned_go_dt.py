@@ -34,7 +34,7 @@ def tier_row(tier: str, work: Path) -> dict:
     path = work / f"{tier}-regressor.json"
     text = path.read_bytes()
     data = json.loads(text)
-    policy = LearnedGo(Regressor.from_dict(data), float(data["threshold"]))
+    policy = LearnedGo(regressor=Regressor.from_dict(data), threshold=float(data["threshold"]))
     coarse, fine = (ffsr_gym.evaluate(policy, "FFSR-Capture-v1", task=tier, progress=True, name=f"dt {dt}",
                                       env_kwargs=None if dt is None else {"dt_s": dt}).episodes
                     for dt in (None, FINE_DT_S))

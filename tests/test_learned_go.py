@@ -53,8 +53,8 @@ def test_the_tuned_score_read_off_the_data_is_what_the_env_plays():
     assert observations[:, TIME_INDEX] * 60.0 == pytest.approx(np.arange(120) * 0.5, abs=1e-4)
     for threshold in (float(np.argmax(scores)) * 0.5 - 0.2, 3.0):
         offline = script.offline_score(clock(), threshold, [(observations, scores)], 49.02)
-        report = ffsr_gym.evaluate(LearnedGo(clock(), threshold), "FFSR-Capture-v1", task=tier, split="validation",
-                                   indices=[index])
+        policy = LearnedGo(regressor=clock(), threshold=threshold)
+        report = ffsr_gym.evaluate(policy, "FFSR-Capture-v1", task=tier, split="validation", indices=[index])
         assert report.episodes[0]["score"] == pytest.approx(offline, rel=1e-6, abs=0.0)
         assert report.episodes[0]["success"] == (offline > 0.0)
     assert scores.max() > 0.0

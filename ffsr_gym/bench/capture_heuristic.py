@@ -21,21 +21,38 @@ TIME_INDEX, TWIST = 52, slice(65, 71)
 
 
 @dataclass
-class SlowestPass:
-    """See the module docstring. ``m``, ``T_c_s``: the planner's setting; ``duration_s``: the episode's length (the
-    observation shows its elapsed fraction); ``approach_s``: the time an approach and insertion take from rest
-    (7.49 s + 2.49 s) and the hold (1 s); ``standoff_m``: the lever that weighs the handle's angular speed;
-    ``m_bounds``, ``T_c_bounds_s``: capture-v1's action box (capture-v1.toml [action])."""
+class PlannerTiming:
+    """What a policy of ``FFSR-Capture-v1`` that only times the insertion needs: ``m``, ``T_c_s``: the planner's
+    setting; ``duration_s``: the episode's length (the observation shows its elapsed fraction); ``approach_s``: the
+    time an approach and insertion take from rest (7.49 s + 2.49 s) and the hold (1 s); ``m_bounds``,
+    ``T_c_bounds_s``: capture-v1's action box (capture-v1.toml [action])."""
 
     m: float = 0.3
     T_c_s: float = 4.0
     duration_s: float = 60.0
     approach_s: float = 10.98
+    m_bounds: tuple[float, float] = (0.05, 0.6)
+    T_c_bounds_s: tuple[float, float] = (1.0, 10.0)
+
+    def late(self, t: float) -> bool:
+        """Whether only the approach's time is left at ``t`` [s]: the latest moment to go in."""
+        return t >= self.duration_s - self.approach_s - 1e-9
+
+    def action(self, command: float) -> np.ndarray:
+        """The env action of the planner's (m, T_c) and the command u ∈ [0, 2]."""
+        (m_lo, m_hi), (t_lo, t_hi) = self.m_bounds, self.T_c_bounds_s
+        return np.array([2.0 * (self.m - m_lo) / (m_hi - m_lo) - 1.0, 2.0 * (self.T_c_s - t_lo) / (t_hi - t_lo) - 1.0,
+                         command - 1.0], dtype=np.float32)
+
+
+@dataclass
+class SlowestPass(PlannerTiming):
+    """See the module docstring and :class:`PlannerTiming`. ``standoff_m``: the lever that weighs the handle's
+    angular speed."""
+
     standoff_m: float = 0.15
     watch_s: float = 2.0
     tolerance: float = 0.005
-    m_bounds: tuple[float, float] = (0.05, 0.6)
-    T_c_bounds_s: tuple[float, float] = (1.0, 10.0)
     _state: dict = field(default_factory=dict, repr=False)
 
     def __call__(self, observation: np.ndarray) -> np.ndarray:
@@ -52,15 +69,8 @@ class SlowestPass:
             watched = t >= self.watch_s
             steady = watched and state["high"] - state["low"] <= self.tolerance * state["high"]
             passed = watched and speed > state["low"] * (1.0 + self.tolerance)  # the slowest moment is behind
-            late = t >= self.duration_s - self.approach_s - 1e-9
-            state["going"] = steady or passed or late
+            state["going"] = steady or passed or self.late(t)
         return self.action(2.0 if state["going"] else 0.0)
-
-    def action(self, command: float) -> np.ndarray:
-        """The env action of the planner's (m, T_c) and the command u ∈ [0, 2]."""
-        (m_lo, m_hi), (t_lo, t_hi) = self.m_bounds, self.T_c_bounds_s
-        return np.array([2.0 * (self.m - m_lo) / (m_hi - m_lo) - 1.0, 2.0 * (self.T_c_s - t_lo) / (t_hi - t_lo) - 1.0,
-                         command - 1.0], dtype=np.float32)
 
 
 #: The policy the leaderboard records and replays (``ffsr_gym.bench.capture_heuristic:slowest_pass``): one

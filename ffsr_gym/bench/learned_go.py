@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ffsr_gym.bench.capture_heuristic import TIME_INDEX, SlowestPass
+from ffsr_gym.bench.capture_heuristic import TIME_INDEX, PlannerTiming
 from ffsr_gym.exceptions import InvalidInputError
 
 
@@ -64,23 +64,16 @@ class Regressor:
             raise InvalidInputError(f"Regressor: {exc}; allowed: mean, scale, weights, biases as lists") from None
 
 
-@dataclass
-class LearnedGo:
-    """See the module docstring. ``duration_s``, ``approach_s``, (m, T_c): as :class:`SlowestPass`;
-    ``interval_s``: the env's decision interval."""
+@dataclass(kw_only=True)
+class LearnedGo(PlannerTiming):
+    """See the module docstring and :class:`~ffsr_gym.bench.capture_heuristic.PlannerTiming`; ``interval_s``: the
+    env's decision interval."""
 
     regressor: Regressor
     threshold: float
     every_s: float = 0.5
     interval_s: float = 0.1
-    m: float = 0.3
-    T_c_s: float = 4.0
-    duration_s: float = 60.0
-    approach_s: float = 10.98
     _state: dict = field(default_factory=dict, repr=False)
-
-    def __post_init__(self) -> None:
-        self._actions = SlowestPass(m=self.m, T_c_s=self.T_c_s)
 
     def __call__(self, observation: np.ndarray) -> np.ndarray:
         obs = np.asarray(observation, dtype=np.float64)
@@ -91,6 +84,5 @@ class LearnedGo:
             state["going"] = False
         decision = int(round(t / self.interval_s))
         if not state["going"] and decision % int(round(self.every_s / self.interval_s)) == 0:
-            late = t >= self.duration_s - self.approach_s - 1e-9
-            state["going"] = late or float(self.regressor(obs)[0]) >= self.threshold
-        return self._actions.action(2.0 if state["going"] else 0.0)
+            state["going"] = self.late(t) or float(self.regressor(obs)[0]) >= self.threshold
+        return self.action(2.0 if state["going"] else 0.0)
