@@ -76,7 +76,7 @@ def summary(rows: list[dict], lookahead: Lookahead) -> list[dict]:
         families = sorted({f for r in captured for f in r["member_failures"]})
         out.append({"tier": tier, "tasks": len(mine), "metrics": report.metrics,
                     "normalised_mean": float(np.mean(ratios)),
-                    "beats_reference": sum(r["score"] > b + 1e-9 for r, b in zip(mine, ref)),
+                    "beats_reference": int(sum(r["score"] > b + 1e-9 for r, b in zip(mine, ref))),
                     "reference_mean": float(np.mean(ref)),
                     "go_s_median": float(np.median([r["go_s"] for r in captured])) if captured else None,
                     "captured": len(captured), "survive_every_member": sum(not r["member_failures"] for r in captured),
