@@ -7,7 +7,10 @@
    (0.3, 4 s), simulated as the env plays it: ``ffsr_gym.bench.lookahead``). Resumable: one file per task in
    ``--work``.
 2. **Fit** a network (76 -> 128 -> 128 -> 1, ReLU; torch, seeded) from observation to that score on the training
-   pool's samples (mean squared error, Adam).
+   pool's samples (mean squared error, Adam), on inputs standardised by their training mean and spread; a feature
+   constant over the samples (the held start pose) is centred, not scaled, so that the policy does not read a
+   rounding difference at another time step as a signal (with the spread floored at 1e-6 instead, the first fit's
+   verdicts at dt/4 agreed with dt's on 69 % and 51 % of the test tasks).
 3. **Tune** the threshold on the validation pool: the policy (``ffsr_gym.bench.learned_go.LearnedGo``) decides at the
    grid's moments, so its validation score for a threshold is read exactly off the validation data.
 4. **Evaluate** the policy on the test pool through ``ffsr_gym.evaluate`` (a trace of its actions is stored, which
@@ -40,6 +43,8 @@ from ffsr_gym.tasks.splits import pool, task_scenario
 
 VERSION, NAME, STEP_S, SEED = "capture-v1", "learned_go", 0.5, 0
 HIDDEN, EPOCHS, BATCH, LEARNING_RATE = (128, 128), 60, 512, 1e-3
+#: Below this spread over the training samples a feature counts as constant (module docstring, step 2).
+CONSTANT_SPREAD = 1e-6
 THRESHOLDS = np.round(np.arange(0.05, 0.451, 0.01), 3)
 
 
@@ -95,7 +100,10 @@ def fit(data: list[tuple[np.ndarray, np.ndarray]]) -> Regressor:
     torch.manual_seed(SEED)
     x = np.concatenate([obs for obs, _ in data])
     y = np.concatenate([scores for _, scores in data])
-    mean, scale = x.mean(axis=0), np.maximum(x.std(axis=0), 1e-6)
+    # a feature constant over the training samples (the start pose, held) is left unscaled: divided by its zero
+    # spread it would turn a rounding difference (another time step) into a large input the network never saw
+    mean, spread = x.mean(axis=0), x.std(axis=0)
+    scale = np.where(spread > CONSTANT_SPREAD, spread, 1.0)
     inputs = torch.tensor((x - mean) / scale, dtype=torch.float32)
     targets = torch.tensor(y, dtype=torch.float32)[:, None]
     layers, width = [], x.shape[1]
