@@ -11,8 +11,9 @@
    constant over the samples (the held start pose) is centred, not scaled, so that the policy does not read a
    rounding difference at another time step as a signal (with the spread floored at 1e-6 instead, the first fit's
    verdicts at dt/4 agreed with dt's on 69 % and 51 % of the test tasks).
-3. **Tune** the threshold on the validation pool: the policy (``ffsr_gym.bench.learned_go.LearnedGo``) decides at the
-   grid's moments, so its validation score for a threshold is read exactly off the validation data.
+3. **Tune** the threshold and how many consecutive moments must reach it (1-3) on the validation pool: the policy
+   (``ffsr_gym.bench.learned_go.LearnedGo``) decides at the grid's moments, so its validation score for a setting is
+   read exactly off the validation data.
 4. **Evaluate** the policy on the test pool through ``ffsr_gym.evaluate`` (a trace of its actions is stored, which
    the board replays) and write the entry. An existing entry is kept.
 
@@ -46,6 +47,8 @@ HIDDEN, EPOCHS, BATCH, LEARNING_RATE = (128, 128), 60, 512, 1e-3
 #: Below this spread over the training samples a feature counts as constant (module docstring, step 2).
 CONSTANT_SPREAD = 1e-6
 THRESHOLDS = np.round(np.arange(0.05, 0.451, 0.01), 3)
+#: Consecutive moments above the threshold before going in, tuned with it.
+CONFIRMS = (1, 2, 3)
 
 
 def task_data(tier: str, split: str, index: int) -> tuple[np.ndarray, np.ndarray]:
@@ -130,13 +133,15 @@ def fit(data: list[tuple[np.ndarray, np.ndarray]]) -> Regressor:
 
 
 def offline_score(regressor: Regressor, threshold: float, data: list[tuple[np.ndarray, np.ndarray]],
-                  late_s: float) -> float:
-    """The mean score of the policy over ``data``'s tasks: it goes in at the first grid moment whose prediction
-    reaches ``threshold``, else at the first at or after ``late_s``."""
+                  late_s: float, confirm: int = 1) -> float:
+    """The mean score of the policy over ``data``'s tasks: it goes in at the first grid moment that ends ``confirm``
+    consecutive moments whose prediction reaches ``threshold``, else at the first at or after ``late_s``."""
     total = 0.0
     for observations, scores in data:
         moments = np.arange(len(scores)) * STEP_S
-        chosen = np.flatnonzero((regressor(observations) >= threshold) | (moments >= late_s - 1e-9))
+        above = (regressor(observations) >= threshold).astype(int)
+        confirmed = np.convolve(above, np.ones(confirm, dtype=int))[:len(above)] >= confirm
+        chosen = np.flatnonzero(confirmed | (moments >= late_s - 1e-9))
         total += float(scores[chosen[0]]) if len(chosen) else 0.0
     return total / len(data)
 
@@ -161,25 +166,31 @@ def main() -> None:
         regressor = fit(train)
         policy = LearnedGo(regressor=regressor, threshold=0.0, every_s=STEP_S)
         late_s = policy.duration_s - policy.approach_s
-        tuned = {float(t): offline_score(regressor, float(t), validation, late_s) for t in THRESHOLDS}
-        threshold = max(tuned, key=lambda t: (tuned[t], -t))
+        tuned = {(float(t), c): offline_score(regressor, float(t), validation, late_s, c)
+                 for c in CONFIRMS for t in THRESHOLDS}
+        threshold, confirm = max(tuned, key=lambda key: (tuned[key], -key[1], -key[0]))
         simulated = sum(len(scores) for _, scores in train + validation)
         untimed = timed[1] + more[1]
         compute = {"objective_evaluations": simulated, "wall_time_s": timed[0] + more[0] + time.perf_counter() - start,
                    "hardware": "1 CPU core per task" + (f"; the wall time leaves out {untimed} tasks' data, simulated "
                                                         "by an earlier run that kept no time" if untimed else "")}
-        policy = LearnedGo(regressor=regressor, threshold=threshold, every_s=STEP_S)
+        policy = LearnedGo(regressor=regressor, threshold=threshold, confirm=confirm, every_s=STEP_S)
         report = ffsr_gym.evaluate(policy, spec.ids.parameters, task=tier, name=NAME, progress=True, compute=compute,
                                    training_pool=f"{tier}/train (threshold: {tier}/validation)",
                                    policy_library=f"torch {__import__('torch').__version__}")
         report.extra |= {"method": (
-            f"learned timing: the default planner, the insertion commanded at the first 0.5 s moment whose predicted "
-            f"score of going in reaches {threshold:g} (a 76-128-128-1 network fitted to the simulated outcomes of "
-            f"going in at every moment of the training tasks; the threshold tuned on the validation pool)"),
-            "learned_go": {"threshold": threshold, "validation_by_threshold": tuned, "hidden": list(HIDDEN),
-                           "epochs": EPOCHS, "seed": SEED, "samples": int(sum(len(s) for _, s in train))}}
-        write_json_atomic(work / f"{tier}-regressor.json", {"threshold": threshold, **regressor.as_dict()})
-        print(tier, f"threshold {threshold:g}: validation {tuned[threshold]:.3f};", headline(spec, report.metrics),
+            "learned timing: the default planner, the insertion commanded at the first 0.5 s moment that ends "
+            f"{confirm} consecutive moments whose predicted score of going in reaches {threshold:g} (a 76-128-128-1 "
+            "network fitted to the simulated outcomes of going in at every moment of the training tasks; the "
+            "threshold and the count tuned on the validation pool)"),
+            "learned_go": {"threshold": threshold, "confirm": confirm, "hidden": list(HIDDEN), "epochs": EPOCHS,
+                           "seed": SEED, "samples": int(sum(len(s) for _, s in train)),
+                           "validation_by_setting": [{"threshold": t, "confirm": c, "validation_mean": v}
+                                                     for (t, c), v in tuned.items()]}}
+        write_json_atomic(work / f"{tier}-regressor.json", {"threshold": threshold, "confirm": confirm,
+                                                            **regressor.as_dict()})
+        print(tier, f"threshold {threshold:g}, confirm {confirm}: validation {tuned[threshold, confirm]:.3f};",
+              headline(spec, report.metrics),
               "->", report.save(folder))
 
 

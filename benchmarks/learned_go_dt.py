@@ -35,7 +35,8 @@ def tier_row(tier: str, work: Path) -> dict:
     path = work / f"{tier}-regressor.json"
     text = path.read_bytes()
     data = json.loads(text)
-    policy = LearnedGo(regressor=Regressor.from_dict(data), threshold=float(data["threshold"]))
+    policy = LearnedGo(regressor=Regressor.from_dict(data), threshold=float(data["threshold"]),
+                       confirm=int(data.get("confirm", 1)))
     coarse, fine = (ffsr_gym.evaluate(policy, "FFSR-Capture-v1", task=tier, progress=True, name=f"dt {dt}",
                                       env_kwargs=None if dt is None else {"dt_s": dt}).episodes
                     for dt in (None, FINE_DT_S))
@@ -43,6 +44,7 @@ def tier_row(tier: str, work: Path) -> dict:
     agreement = float(np.mean([x["success"] == y["success"] for x, y in zip(coarse, fine)]))
     rho = spearman(a, b)
     return {"tier": tier, "regressor_sha256": hashlib.sha256(text).hexdigest(), "threshold": data["threshold"],
+            "confirm": data.get("confirm", 1),
             "tasks": len(a), "agreement": agreement, "spearman": rho, "mean_dt": float(a.mean()),
             "mean_dt4": float(b.mean()), "meets_bar": agreement >= 0.98 and rho is not None and rho >= 0.95}
 

@@ -42,8 +42,8 @@ def test_a_malformed_network_is_refused_by_name(data):
 
 
 def test_the_tuned_score_read_off_the_data_is_what_the_env_plays():
-    """With a network that predicts the elapsed time, the policy goes in at the first 0.5 s moment at or after the
-    threshold [s]: the score ``offline_score`` reads off one validation task's simulated data must be the score of
+    """With a network that predicts the elapsed time, the policy goes in at the ``confirm``-th 0.5 s moment at or after
+    the threshold [s]: the score ``offline_score`` reads off one validation task's simulated data must be the score of
     the episode ``ffsr_gym.evaluate`` plays with the policy (its own decisions, stepped through the env), up to the
     env action's float32 rounding of (m, T_c) (the data are simulated with (0.3, 4 s) exactly: 3e-7 relative)."""
     script = benchmark_script("learned_go", "baselines")
@@ -51,9 +51,10 @@ def test_the_tuned_score_read_off_the_data_is_what_the_env_plays():
     observations, scores = script.task_data(tier, "validation", index)
     assert observations.shape == (120, 76) and scores.shape == (120,)
     assert observations[:, TIME_INDEX] * 60.0 == pytest.approx(np.arange(120) * 0.5, abs=1e-4)
-    for threshold in (float(np.argmax(scores)) * 0.5 - 0.2, 3.0):
-        offline = script.offline_score(clock(), threshold, [(observations, scores)], 49.02)
-        policy = LearnedGo(regressor=clock(), threshold=threshold)
+    best = float(np.argmax(scores)) * 0.5
+    for threshold, confirm in ((best - 0.2, 1), (3.0, 1), (best - 0.7, 2)):
+        offline = script.offline_score(clock(), threshold, [(observations, scores)], 49.02, confirm)
+        policy = LearnedGo(regressor=clock(), threshold=threshold, confirm=confirm)
         report = ffsr_gym.evaluate(policy, "FFSR-Capture-v1", task=tier, split="validation", indices=[index])
         assert report.episodes[0]["score"] == pytest.approx(offline, rel=1e-6, abs=0.0)
         assert report.episodes[0]["success"] == (offline > 0.0)

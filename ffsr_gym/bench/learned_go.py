@@ -3,11 +3,12 @@
 :class:`LearnedGo` is a policy of ``FFSR-Capture-v1`` that acts on the observation alone. It holds the start pose
 with the default planner's (m, T_c) and, at every decision, predicts from the 76 observed floats the score that
 going in now would earn (a small network, :class:`Regressor`, fitted to the outcomes of going in at every moment
-of a grid on the tier's *training* tasks, simulated; ``baselines/learned_go.py``); it commands the insertion at the
-first decision whose prediction reaches ``threshold`` (tuned on the validation pool), and at the latest when only
-the approach's time is left; it decides only every ``every_s`` seconds (the grid its data were simulated on, so that
-its validation score is read exactly off those data). Once going it keeps going. It is supervised learning of the
-one decision the tuned constants and PPO never make per task: when.
+of a grid on the tier's *training* tasks, simulated; ``baselines/learned_go.py``). It commands the insertion at the
+first decision whose prediction has reached ``threshold`` at ``confirm`` consecutive decisions (with more than one,
+not a window's first moment, whose edge another time step moves; both tuned on the validation pool), and at the latest
+when only the approach's time is left. It decides only every ``every_s`` seconds, the grid its data were simulated
+on, so that its validation score is read exactly off those data. Once going it keeps going. It is supervised
+learning of the one decision the tuned constants and PPO never make per task: when.
 """
 
 from __future__ import annotations
@@ -71,6 +72,7 @@ class LearnedGo(PlannerTiming):
 
     regressor: Regressor
     threshold: float
+    confirm: int = 1
     every_s: float = 0.5
     interval_s: float = 0.1
     _state: dict = field(default_factory=dict, repr=False)
@@ -81,8 +83,9 @@ class LearnedGo(PlannerTiming):
         state = self._state
         if t == 0.0 or not state:  # a new episode
             state.clear()
-            state["going"] = False
+            state.update(going=False, above=0)
         decision = int(round(t / self.interval_s))
         if not state["going"] and decision % int(round(self.every_s / self.interval_s)) == 0:
-            state["going"] = self.late(t) or float(self.regressor(obs)[0]) >= self.threshold
+            state["above"] = state["above"] + 1 if float(self.regressor(obs)[0]) >= self.threshold else 0
+            state["going"] = self.late(t) or state["above"] >= self.confirm
         return self.action(2.0 if state["going"] else 0.0)
