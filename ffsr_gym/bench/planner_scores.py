@@ -68,14 +68,14 @@ def objective_for_params(m: float, T_c: float, *, scenario: str | Scenario = "pa
 def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | None = None, T_c: float | None = None,
                      gain_per_s: float | None = None, go_s: float | Sequence[float] | None = None,
                      training_pool: str | None = None, name: str = "planner", compute: dict | None = None,
-                     progress: bool = False, version: str = "v2", lookahead: dict | None = None) -> EvalReport:
+                     progress: bool = False, version: str = "v2") -> EvalReport:
     """Score a reference-planner variant with constant parameters on a tier's pool (one episode per task).
 
     The planner variants that are not an env action (``proportional``) are scored here, from the
     trajectory with the version's score rule, exactly as :func:`ffsr_gym.evaluate` scores env episodes.
     ``go_s`` [s]: on a version whose action commands the approach (capture v1), when the insertion is commanded
     (:func:`check_go`): one moment for every task, or a list of one per pool task (a method that times each task,
-    :mod:`ffsr_gym.bench.lookahead`; each row then records its own, and ``lookahead`` says how they were chosen).
+    :mod:`ffsr_gym.bench.lookahead`; each row then records its own).
     ``compute``: what tuning the parameters cost (:func:`~ffsr_gym.bench.entry.check_compute`).
     """
     spec = spec_for_version(version)
@@ -90,8 +90,6 @@ def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | 
     if not per_task:
         check_go(go_s, spec, rule)
     moments = per_task_go(go_s, len(tasks), spec, rule) if per_task else [go_s] * len(tasks)
-    if lookahead is not None and not per_task:
-        raise InvalidInputError("lookahead: allowed only with go_s of one moment per task (the moments it chose)")
     for index, entry in enumerate(tqdm(tasks, disable=not progress, desc=f"{name} {task}/{split}")):
         played = task_scenario(task, entry.seed, benchmark)
         result = planner_episode(played, benchmark, method=method, m=m, T_c=T_c, gain_per_s=gain_per_s,
@@ -102,8 +100,8 @@ def evaluate_planner(method: str, *, task: str, split: str = "test", m: float | 
     extra = {"training_pool": training_pool, "evaluation_pool": f"{task}/{split}",
              "pool_file_sha256": hashlib.sha256(pool_path(task, benchmark.version).read_bytes()).hexdigest(),
              "planner": {"method": method, "m": m, "T_c_s": T_c, "gain_per_s": gain_per_s,
-                         **({} if go_s is None else {"go_s": list(moments) if per_task else go_s}),
-                         **({} if lookahead is None else {"lookahead": lookahead})}, "compute": compute,
+                         **({} if go_s is None else {"go_s": list(moments) if per_task else go_s})},
+             "compute": compute,
              **reference_record(task, split, benchmark.version)}
     if spec.tasks.step_option:
         extra["dt_s"] = benchmark.dt_s
