@@ -112,8 +112,8 @@ def fit(data: list[tuple[np.ndarray, np.ndarray]]) -> Regressor:
     torch.manual_seed(SEED)
     x = np.concatenate([obs for obs, _ in data])
     y = np.concatenate([scores for _, scores in data])
-    # a feature constant over the training samples (the start pose, held) is left unscaled: divided by its zero
-    # spread it would turn a rounding difference (another time step) into a large input the network never saw
+    # a feature that barely varies over the training samples (the held pose, its joint rates: CONSTANT_SPREAD) is
+    # centred, not scaled: divided by its spread, a difference of another time step would be a large input
     mean, spread = x.mean(axis=0), x.std(axis=0)
     scale = np.where(spread > CONSTANT_SPREAD, spread, 1.0)
     inputs = torch.tensor((x - mean) / scale, dtype=torch.float32)
