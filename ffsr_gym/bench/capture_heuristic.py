@@ -33,6 +33,17 @@ class PlannerTiming:
     approach_s: float = 10.98
     m_bounds: tuple[float, float] = (0.05, 0.6)
     T_c_bounds_s: tuple[float, float] = (1.0, 10.0)
+    _state: dict = field(default_factory=dict, repr=False)
+
+    def episode(self, observation: np.ndarray, **fresh: object) -> tuple[np.ndarray, float, dict]:
+        """The observation as float64, its moment t [s] (the episode's elapsed fraction times ``duration_s``) and the
+        episode's state, which starts as ``fresh`` at an episode's first observation (t = 0)."""
+        obs = np.asarray(observation, dtype=np.float64)
+        t = float(obs[TIME_INDEX]) * self.duration_s
+        if t == 0.0 or not self._state:  # a new episode
+            self._state.clear()
+            self._state.update(fresh)
+        return obs, t, self._state
 
     def late(self, t: float) -> bool:
         """Whether only the approach's time is left at ``t`` [s]: the latest moment to go in."""
@@ -53,17 +64,11 @@ class SlowestPass(PlannerTiming):
     standoff_m: float = 0.15
     watch_s: float = 2.0
     tolerance: float = 0.005
-    _state: dict = field(default_factory=dict, repr=False)
 
     def __call__(self, observation: np.ndarray) -> np.ndarray:
-        obs = np.asarray(observation, dtype=np.float64)
-        t = float(obs[TIME_INDEX]) * self.duration_s
-        twist = obs[TWIST]
+        twist = np.asarray(observation, dtype=np.float64)[TWIST]
         speed = float(np.linalg.norm(twist[:3]) + self.standoff_m * np.linalg.norm(twist[3:]))
-        state = self._state
-        if t == 0.0 or not state:  # a new episode
-            state.clear()
-            state.update(going=False, low=speed, high=speed)
+        _, t, state = self.episode(observation, going=False, low=speed, high=speed)
         state["low"], state["high"] = min(state["low"], speed), max(state["high"], speed)
         if not state["going"]:
             watched = t >= self.watch_s

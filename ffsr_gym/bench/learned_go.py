@@ -13,11 +13,11 @@ learning of the one decision the tuned constants and PPO never make per task: wh
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from ffsr_gym.bench.capture_heuristic import TIME_INDEX, PlannerTiming
+from ffsr_gym.bench.capture_heuristic import PlannerTiming
 from ffsr_gym.exceptions import InvalidInputError
 
 
@@ -75,15 +75,9 @@ class LearnedGo(PlannerTiming):
     confirm: int = 1
     every_s: float = 0.5
     interval_s: float = 0.1
-    _state: dict = field(default_factory=dict, repr=False)
 
     def __call__(self, observation: np.ndarray) -> np.ndarray:
-        obs = np.asarray(observation, dtype=np.float64)
-        t = float(obs[TIME_INDEX]) * self.duration_s
-        state = self._state
-        if t == 0.0 or not state:  # a new episode
-            state.clear()
-            state.update(going=False, above=0)
+        obs, t, state = self.episode(observation, going=False, above=0)
         decision = int(round(t / self.interval_s))
         if not state["going"] and decision % int(round(self.every_s / self.interval_s)) == 0:
             state["above"] = state["above"] + 1 if float(self.regressor(obs)[0]) >= self.threshold else 0
