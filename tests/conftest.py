@@ -192,3 +192,29 @@ def ensemble_problems(version: str, tier: str, split: str, index: int) -> list[s
         if getattr(stored, key) != pytest.approx(getattr(worst, key), rel=tolerance.margin_rel_tol):
             problems.append(f"{where}: stored {key} {getattr(stored, key)} != {getattr(worst, key)}")
     return problems
+
+
+def timed_episode(tier: str, split: str, index: int, m: float, T_c: float, go_s: float) -> dict:
+    """Capture-v1 pool task ``index`` stepped through ``FFSR-Capture-v1``: the planner at (m, T_c [s]), the start pose
+    held (u = 0) until the first decision at or after ``go_s`` [s], then the grasp frame commanded (u = 2); the
+    last step's info."""
+    import gymnasium as gym
+
+    from ffsr_gym.model.benchmark import load_benchmark
+    from ffsr_gym.tasks.splits import pool, task_scenario
+
+    rules = load_benchmark("capture-v1")
+    task = pool(tier, split, version="capture-v1")[index]
+    env = gym.make("FFSR-Capture-v1", task=tier, split=split)
+    _, info = env.reset(seed=0, options={"task_index": index})
+    assert info["task_seed"] == task.seed
+    decision = task_scenario(tier, task.seed, rules).env.decision_interval_s
+    try:
+        for k in range(600):
+            command = 2.0 if k * decision >= go_s - 1e-9 else 0.0
+            _, _, terminated, truncated, info = env.unwrapped.step_with_parameters(m, T_c, command=command)
+            if terminated or truncated:
+                return info
+    finally:
+        env.close()
+    raise AssertionError("the episode did not end in 600 decisions")

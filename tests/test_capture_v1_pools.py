@@ -8,7 +8,7 @@ import warnings
 
 import gymnasium as gym
 import pytest
-from conftest import ensemble_problems, pool_cases
+from conftest import ensemble_problems, pool_cases, timed_episode
 from gymnasium.utils.env_checker import check_env
 
 import ffsr_gym  # noqa: F401  (registers the ids)
@@ -54,24 +54,10 @@ def test_the_pool_files_hold_full_disjoint_pools_built_under_todays_rule(tier):
 
 
 def replay_in_env(tier: str, split: str, index: int) -> dict:
-    """A timed certificate stepped through ``FFSR-Capture-v1``: its (m, T_c), the start pose held (u = 0) until the
-    first decision at or after its go time, then the grasp frame commanded (u = 2); the last step's info."""
-    task = pool(tier, split, version=VERSION)[index]
-    c = task.certificate
-    env = gym.make("FFSR-Capture-v1", task=tier, split=split)
-    _, info = env.reset(seed=0, options={"task_index": index})
-    assert info["task_seed"] == task.seed
-    decision = task_scenario(tier, task.seed, RULES).env.decision_interval_s
-    try:
-        for k in range(600):
-            go = k * decision >= c.go_s - 1e-9
-            _, _, terminated, truncated, info = env.unwrapped.step_with_parameters(c.m, c.T_c_s,
-                                                                                   command=2.0 if go else 0.0)
-            if terminated or truncated:
-                return info
-    finally:
-        env.close()
-    raise AssertionError("the episode did not end in 600 decisions")
+    """A timed certificate stepped through ``FFSR-Capture-v1`` (:func:`conftest.timed_episode`); the last step's
+    info."""
+    c = pool(tier, split, version=VERSION)[index].certificate
+    return timed_episode(tier, split, index, c.m, c.T_c_s, c.go_s)
 
 
 def cases(per_pool: int | None) -> list[tuple]:

@@ -3,9 +3,9 @@ simulates is what ``FFSR-Capture-v1`` plays when stepped, and its choice is the 
 
 from __future__ import annotations
 
-import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import timed_episode
 
 import ffsr_gym  # noqa: F401  (registers the ids)
 from ffsr_gym.bench.lookahead import Lookahead
@@ -18,19 +18,8 @@ VERSION = "capture-v1"
 
 
 def stepped(tier: str, index: int, m: float, T_c: float, go_s: float) -> dict:
-    """The last info of test task ``index`` stepped through the env: (m, T_c), the start pose held until the first
-    decision at or after ``go_s``, then the grasp frame commanded."""
-    env = gym.make("FFSR-Capture-v1", task=tier, split="test")
-    env.reset(seed=0, options={"task_index": index})
-    try:
-        for k in range(600):
-            command = 2.0 if k * 0.1 >= go_s - 1e-9 else 0.0
-            _, _, terminated, truncated, info = env.unwrapped.step_with_parameters(m, T_c, command=command)
-            if terminated or truncated:
-                return info
-    finally:
-        env.close()
-    raise AssertionError("the episode did not end in 600 decisions")
+    """Test task ``index`` stepped through the env (:func:`conftest.timed_episode`); the last step's info."""
+    return timed_episode(tier, "test", index, m, T_c, go_s)
 
 
 @pytest.mark.parametrize(("scores", "chosen"), [
