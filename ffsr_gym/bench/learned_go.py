@@ -52,11 +52,17 @@ class Regressor:
         return h[:, 0]
 
     def as_dict(self) -> dict:
+        """The network as JSON-ready lists (what :meth:`from_dict` reads back)."""
         return {"mean": self.mean.tolist(), "scale": self.scale.tolist(),
                 "weights": [w.tolist() for w in self.weights], "biases": [b.tolist() for b in self.biases]}
 
     @classmethod
     def from_dict(cls, data: dict) -> Regressor:
+        """The network :meth:`as_dict` wrote.
+
+        Raises:
+            InvalidInputError: a key missing, a value that is no list of numbers, or shapes that do not chain.
+        """
         try:
             return cls(np.asarray(data["mean"], float), np.asarray(data["scale"], float),
                        tuple(np.asarray(w, float) for w in data["weights"]),
