@@ -1,4 +1,4 @@
-"""Raise the best known scores with the baselines' own episodes (``ffsr_gym.optim.best_known_build.absorb``).
+"""Raise the best known scores with the baselines' own episodes (``ffsr_gym_lab.best_known.build.absorb``).
 
     python baselines/absorb_best_known.py --leaderboard leaderboards [--version v2] [--models studies/rl-v2]
                                           [--tiers easy hard] [--splits test validation] [--work studies/best-known]
@@ -31,13 +31,13 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from ffsr_gym_lab.best_known import build
+from ffsr_gym_lab.best_known.records import records
+from ffsr_gym_lab.best_known.search import timed_go
 
 from ffsr_gym.bench.policies import load_model
 from ffsr_gym.model.spec import all_specs, spec_for_version
-from ffsr_gym.optim import best_known_build as build
-from ffsr_gym.optim.best_known import timed_go
 from ffsr_gym.scoring.rules import score_rule
-from ffsr_gym.tasks.best_known import records
 from ffsr_gym.tasks.schedule import Schedule
 from ffsr_gym.tasks.splits import pool, task_scenario, version_tiers
 

@@ -10,9 +10,10 @@ not tuned on any pool. An existing entry is kept.
 import argparse
 from pathlib import Path
 
+from ffsr_gym_lab.board.tables import headline
+
 import ffsr_gym
 from ffsr_gym.bench.capture_heuristic import slowest_pass
-from ffsr_gym.bench.tables import headline
 from ffsr_gym.model.spec import spec_for_version
 
 CALLABLE = "ffsr_gym.bench.capture_heuristic:slowest_pass"

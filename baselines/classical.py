@@ -27,10 +27,10 @@ from functools import partial
 from pathlib import Path
 
 import numpy as np
+from ffsr_gym_lab.board.tables import headline
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.planner_scores import evaluate_planner
-from ffsr_gym.bench.tables import headline
 from ffsr_gym.model.benchmark import CAPTURE_VERSIONS, VERSIONS, load_benchmark
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.tasks.certificate import planner_episode

@@ -30,12 +30,12 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+from ffsr_gym_lab.board.tables import headline
 from tqdm.auto import tqdm
 
 import ffsr_gym
 from ffsr_gym.bench.learned_go import LearnedGo, Regressor
 from ffsr_gym.bench.lookahead import Lookahead
-from ffsr_gym.bench.tables import headline
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.provenance import write_json_atomic

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import cma
 import numpy as np
+from ffsr_gym_lab.board.tables import headline
 
 from ffsr_gym.bench.planner_scores import evaluate_planner, training_loss
-from ffsr_gym.bench.tables import headline
 from ffsr_gym.model.benchmark import CAPTURE_VERSIONS, VERSIONS, load_benchmark
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.optim import ga

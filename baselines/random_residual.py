@@ -11,9 +11,10 @@ leaderboard verify`` re-runs it exactly). An existing entry is kept.
 import argparse
 from pathlib import Path
 
+from ffsr_gym_lab.board.tables import headline
+
 import ffsr_gym
 from ffsr_gym.bench.policies import uniform_random_residual
-from ffsr_gym.bench.tables import headline
 from ffsr_gym.model.spec import spec_for_version
 
 CALLABLE = "ffsr_gym.bench.policies:uniform_random_residual"

@@ -6,12 +6,12 @@
 
 Runs trials until the study holds ``--trials`` finished (complete or pruned) ones, then writes
 ``ffsr_gym/hyperparams/search/<algo>_<env id>.json``: the search space, every trial, the best
-trial's hyperparameters and what the search cost (``ffsr_gym.optim.tuning``). The study is an
+trial's hyperparameters and what the search cost (``ffsr_gym_lab.studies.tuning``). The study is an
 SQLite file in ``--work``, so a killed search resumes with the trials it finished. The shipped
 ``<algo>.yml`` takes the best trial's values (a test checks that they agree).
 
 ``--batch K`` asks K trials at a time and ``--scheduler`` trains them on a Dask cluster (docs/cluster.md); this
-process keeps the study and prunes nothing itself (``ffsr_gym.optim.tune_loop``). The result depends on K, never on
+process keeps the study and prunes nothing itself (``ffsr_gym_lab.studies.tune_loop``). The result depends on K, never on
 the cluster: ``--batch 1`` is the sequential search, and the same K gives the same trials here and on any cluster.
 """
 
@@ -21,10 +21,11 @@ import sys
 from functools import partial
 from pathlib import Path
 
+from ffsr_gym_lab.studies.tune_loop import default_space, search, train_trial
+from ffsr_gym_lab.studies.tuning import make_pruner, make_sampler, optuna_module, summary
+
 from ffsr_gym.bench.options import add_scheduler_option, positive_int
 from ffsr_gym.cluster import study_executor
-from ffsr_gym.optim.tune_loop import default_space, search, train_trial
-from ffsr_gym.optim.tuning import make_pruner, make_sampler, optuna_module, summary
 from ffsr_gym.provenance import write_json_atomic
 
 SEARCH = Path(__file__).resolve().parents[1] / "ffsr_gym" / "hyperparams" / "search"

@@ -24,9 +24,9 @@ import sys
 from collections import Counter
 from pathlib import Path
 
+from ffsr_gym_lab.board.leaderboard import load_entries, ordered, verified
 from tqdm.auto import tqdm
 
-from ffsr_gym.bench.leaderboard import load_entries, ordered, verified
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.provenance import provenance, splice_file, write_json_atomic

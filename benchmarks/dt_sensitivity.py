@@ -38,6 +38,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from ffsr_gym_lab.pools.build import build_split
 from tqdm.auto import tqdm
 
 from ffsr_gym.model.benchmark import CAPTURE_VERSIONS, VERSIONS, load_benchmark
@@ -45,7 +46,6 @@ from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.provenance import provenance, splice_file, write_json_atomic
 from ffsr_gym.scoring.aggregate import iqm
-from ffsr_gym.tasks.build import build_split
 from ffsr_gym.tasks.certificate import planner_episode
 from ffsr_gym.tasks.splits import pool, task_scenario
 

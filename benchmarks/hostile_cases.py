@@ -63,12 +63,12 @@ def forged(field_path, source="v2/easy/cmaes_v2.json", folder="v2/easy"):
     return any(l.startswith("| 1 | `forged_winner`") for l in readme_rows(root).splitlines())
 
 def readme_rows(root):
-    from ffsr_gym.bench import leaderboard
+    from ffsr_gym_lab.board import leaderboard
     leaderboard.write_readme(root)
     return (root / "README.md").read_text()
 
 def summary(root):
-    from ffsr_gym.bench import leaderboard
+    from ffsr_gym_lab.board import leaderboard
     return leaderboard.splice_summary((REPO / "README.md").read_text(), root)
 
 def custom(old, new, extra=""):
@@ -171,37 +171,37 @@ result("wrong" if summary(root) != before else "handled")'''),
 root = board(); before = summary(root)
 e = json.loads((root / "v2/easy/ppo_residual_easy.json").read_text()); e["name"] = "ppo_residual"
 write(root / "v2/easy/ppo_residual.json", e)
-from ffsr_gym.bench import leaderboard
+from ffsr_gym_lab.board import leaderboard
 result("wrong" if summary(root) != before and not leaderboard.check(root) else "handled")'''),
     ("best-known-work", 5, "assemble from another work folder", r'''
-from ffsr_gym.optim import best_known_build as build
+from ffsr_gym_lab.best_known import build
 shipped = REPO / "envs/benchmark/v2_best_known.json"; before = shipped.read_bytes()
 build.run("easy", "test", "w", generations=1, indices=[0], progress=False)
 build.assemble("w", generations=1, splits=["test"])
 result("loss" if shipped.read_bytes() != before else "handled")'''),
     ("best-known-torn", 6, "resume after a torn last line", r'''
-from ffsr_gym.optim import best_known_build as build
+from ffsr_gym_lab.best_known import build
 build.run("easy", "train", "w", generations=1, indices=[0], progress=False)
 with open("w/easy_train.jsonl", "a") as f: f.write('{"tier": "easy", "spl')
 build.run("easy", "train", "w", generations=1, indices=[0, 1], progress=False)
 got = sorted(r["index"] for r in build.read_lines(pathlib.Path("w/easy_train.jsonl")))
 result("handled" if got == [0, 1] else "loss", got)'''),
     ("best-known-budget", 6, "records of another generation budget", r'''
-from ffsr_gym.optim import best_known_build as build
+from ffsr_gym_lab.best_known import build
 build.run("easy", "train", "w", generations=1, indices=[0], progress=False)
 build.run("easy", "train", "w", generations=2, indices=[0], progress=False)
 [out] = build.assemble("w", out="bk.json", generations=2)
 n = len(json.loads(pathlib.Path(out).read_text())["tasks"].get("easy", {}).get("train", []))
 result("handled" if n == 1 else "loss", n)'''),
     ("best-known-corrupt", 6, "work lines 42, \"hello\", {\"tier\": \"easy\"}", r'''
-from ffsr_gym.optim import best_known_build as build
+from ffsr_gym_lab.best_known import build
 write("w/easy_train.jsonl", '42\n"hello"\n{"tier": "easy"}\n')
 build.run("easy", "train", "w", generations=1, indices=[0], progress=False)
 got = [r["index"] for r in build.read_lines(pathlib.Path("w/easy_train.jsonl"))]
 result("handled" if got == [0] else "wrong", got)'''),
     ("dataset-failed-write", 7, "a dataset write that fails mid-way", r'''
 import minari
-from ffsr_gym.bench import dataset
+from ffsr_gym_lab.publish import dataset
 real = minari.create_dataset_from_buffers
 def fail(*a, **k):
     real(*a, **k); raise OSError(28, "No space left on device")
@@ -214,7 +214,7 @@ os.environ["MINARI_DATASETS_PATH"] = str(pathlib.Path("ds").resolve())
 result("wrong" if dataset.dataset_id("easy", "FFSR-Residual-v2") in minari.list_local_datasets() else "handled")'''),
     ("dataset-root-file", 7, "--root naming a file", r'''
 pathlib.Path("afile").write_text("x")
-from ffsr_gym.bench import dataset
+from ffsr_gym_lab.publish import dataset
 dataset.write_dataset("easy", "FFSR-Residual-v2", root="afile")
 result("wrong")'''),
     ("length-make", 8, "a 40 s custom task through gymnasium.make", r'''
@@ -291,7 +291,7 @@ BatchedVecEnv("FFSR-v2", 1_000_000, task="easy")
 result("handled")'''),
     ("hang-fifo", 12, "a FIFO named *.json in a tier folder", r'''
 root = board(); os.mkfifo(root / "v2/easy/fifo.json")
-from ffsr_gym.bench import leaderboard
+from ffsr_gym_lab.board import leaderboard
 problems = leaderboard.check(root)
 result("named" if problems else "wrong")'''),
     ("hang-render-mode", 12, "an entry with render_mode human", r'''

@@ -6,7 +6,7 @@ on the episode's smoothness cost C by :func:`ffsr_gym.jax.gradient.descend`, acc
 episode it leads to succeeds with the certificate margins of the rule file's ensemble (rate, clearance, final
 error), for as long as the CMA-ES search spent on that task (its record's wall time, both families; the JAX
 compilation, once per tier, is timed apart). The best knots, rounded to float32 as env actions are, are then
-offered to the best-known records (:func:`ffsr_gym.optim.best_known_build.offer`: replayed on the kernel, kept
+offered to the best-known records (:func:`ffsr_gym_lab.best_known.build.offer`: replayed on the kernel, kept
 only when they beat the stored residual score and pass the certificate test, as an absorbed line of
 ``--best-known-work``; ``assemble`` or ``absorb_best_known.py`` writes them into the file, never into the frozen
 reference). A task improves when its certified score beats the task's best known score. One line per task in
@@ -27,6 +27,8 @@ from functools import cache
 from pathlib import Path
 
 import numpy as np
+from ffsr_gym_lab.best_known import build
+from ffsr_gym_lab.best_known.records import load_best_known, records
 from tqdm.auto import tqdm
 
 from ffsr_gym.jax.collision import shapes_of
@@ -35,10 +37,8 @@ from ffsr_gym.jax.physics import jax, jnp
 from ffsr_gym.jax.scenario import episode_task
 from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.obstacles import obstacle_field
-from ffsr_gym.optim import best_known_build as build
 from ffsr_gym.provenance import provenance, save_result, splice_file
 from ffsr_gym.sim.setup import robot_assets
-from ffsr_gym.tasks.best_known import load_best_known, records
 from ffsr_gym.tasks.schedule import Schedule, replay_schedule
 from ffsr_gym.tasks.splits import pool, task_scenario
 

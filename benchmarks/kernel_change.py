@@ -25,8 +25,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from ffsr_gym_lab.board.leaderboard import load_entries, ordered
 
-from ffsr_gym.bench.leaderboard import load_entries, ordered
 from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic, write_text_atomic
 

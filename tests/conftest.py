@@ -15,7 +15,7 @@ import pytest
 # the kernel's first-use notices (a compilation's progress bar) stay out of tests that read stderr
 os.environ.setdefault("FFSR_GYM_QUIET_COMPILE", "1")
 # A developer runs the tests on uncommitted code: the tables the tests write take its entries
-# (tests/test_entry_save.py checks the refusal without it).
+# (tests/library/bench/test_entry_save.py checks the refusal without it).
 os.environ.setdefault("FFSR_GYM_ALLOW_DIRTY", "1")
 
 from ffsr_gym.model.collision import CollisionModel  # noqa: E402

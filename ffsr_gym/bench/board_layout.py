@@ -1,5 +1,5 @@
 """Where a leaderboard's tables live and which version an entry belongs to: what saving or replaying one entry needs
-to know of the board (the board's rendering, storage and maintenance are :mod:`ffsr_gym.bench.leaderboard`'s)."""
+to know of the board (the board's rendering, storage and maintenance are :mod:`ffsr_gym_lab.board.leaderboard`'s)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """The ``ffsr-gym`` parser and entry point (:data:`DESCRIPTION` is what ``ffsr-gym --help`` says); the sub-commands
 live in one module per group: the model and the paper, a user's policies, the verification of an entry. The lab's
 sub-commands (the leaderboard's maintenance, the pools and studies, the docs pages) join from the entry point group
-:data:`COMMANDS` (``ffsr_gym.cli.lab_commands``): the library never imports them."""
+:data:`COMMANDS` (``ffsr_gym_lab.cli.lab_commands``): the library never imports them."""
 
 from __future__ import annotations
 
@@ -56,7 +56,14 @@ def build_parser() -> argparse.ArgumentParser:
     add_policy_commands(sub)
     groups = add_verify_commands(sub)
     for point in sorted(entry_points(group=COMMANDS), key=lambda p: p.name):
-        point.load()(sub, groups)
+        try:
+            add = point.load()
+        except (ImportError, AttributeError, OSError) as exc:  # a package left over from another version: say so, go on
+            owner = point.dist.name if point.dist is not None else "a package"
+            print(f"ffsr-gym: warning: {owner}'s commands ({COMMANDS} entry point {point.name} = {point.value}) "
+                  f"could not be loaded ({type(exc).__name__}: {exc}); reinstall it to use them", file=sys.stderr)
+            continue
+        add(sub, groups)
     return parser
 
 

@@ -27,7 +27,6 @@ def _list(args: argparse.Namespace) -> None:
 
 def _reproduce(args: argparse.Namespace) -> None:
     from ffsr_gym.report.reproduction import reproduce
-
     from ffsr_gym.user_files import read_text
 
     if args.readme:

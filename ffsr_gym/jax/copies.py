@@ -6,7 +6,7 @@ block until its pieces are done. In the closed loop's step, with several such ca
 two-thread pool wedges: every thread waits on a piece that no thread is free to run (a native stack shows both in
 ``ParallelBatchMap``; no CPU is used from then on). One step of 1,024 copies hung on every try here; 512 never did. A
 ``lax.map`` over slices of ``COPIES_PER_CALL`` copies, each slice one ``vmap``, keeps every LAPACK call's batch at
-that size and gives each copy the result of ``fn`` on that copy alone (``tests/test_jax_copies.py``). docs/jax.md
+that size and gives each copy the result of ``fn`` on that copy alone (``tests/library/jax/test_jax_copies.py``). docs/jax.md
 has the measurements.
 """
 

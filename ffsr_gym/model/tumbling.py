@@ -14,7 +14,7 @@ motion is a function of time alone, so an episode computes it once, at every phy
 Integration: classical RK4 on ``(q, ω)`` with ``substeps`` steps per physics step, the quaternion renormalised after
 each (a projection back onto the unit sphere, of the size of RK4's local error). At the benchmark's step (0.01 s)
 and 4 substeps, a 60 s tumble of a body spinning at up to 1 rad/s keeps its kinetic energy and its angular momentum
-in the world frame to about 1e-12 relative (tests/test_tumbling.py states the tolerances it checks).
+in the world frame to about 1e-12 relative (tests/library/model/test_tumbling.py states the tolerances it checks).
 """
 
 from __future__ import annotations

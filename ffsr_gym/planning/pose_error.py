@@ -1,7 +1,7 @@
 """Pose errors of the end-effector and the base (docs/model.md §4, reconstructed eqs. R6-R7).
 
 Quaternions are scalar-first. The attitude error has two variants, both verified against finite
-differences (``tests/test_pose_error.py``):
+differences (``tests/library/planning/test_pose_error.py``):
 
 * ``"world"`` (default): δσ = σ ⊗ σ_d*, e_o = δε,
   :math:`\\dot e_o = J_o \\omega - J_{od} \\omega_d`, J_o = ½(δη I − S(δε)), J_od = ½(δη I + S(δε)).

@@ -239,7 +239,7 @@ def check_start(setup: ScenarioSetup) -> None:
 def compiled_body_motion(body: TumblingTarget, *, dt_s: float, steps: int) -> TargetMotion:
     """The motion of a ``[tumbling_target]``'s body at every step of ``dt_s`` [s] over ``steps`` steps:
     :func:`ffsr_gym.model.tumbling.propagate` on the native integrator (the same RK4, agreeing to 1e-13;
-    ``tests/test_tumbling.py``), so a 20 s episode at dt / 4 costs milliseconds instead of seconds."""
+    ``tests/library/model/test_tumbling.py``), so a 20 s episode at dt / 4 costs milliseconds instead of seconds."""
     quats, omegas = _native.propagate_tumbling(np.array(body.quaternion_wxyz, dtype=float),
                                                np.deg2rad(np.array(body.omega_body_deg_s, dtype=float)),
                                                np.array(body.inertia_kg_m2, dtype=float), dt_s, 4, steps)

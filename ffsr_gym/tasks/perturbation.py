@@ -15,7 +15,7 @@ within the ranges of ``envs/benchmark/<version>_perturbed.toml`` (docs/envs.md "
   plant does not have, becomes the task at a finer physics step (:func:`confirmation_member`).
 
 With every range collapsed to zero (:meth:`PerturbedRule.zero`) a perturbed task moves exactly as
-its base task (``tests/test_tiers_perturbed.py``).
+its base task (``tests/library/tasks/test_tiers_perturbed.py``).
 """
 
 from __future__ import annotations
@@ -38,7 +38,6 @@ from ffsr_gym.model.schema import count, interval, load_table, number, section, 
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.tasks.certificate import Member
 from ffsr_gym.tasks.generator import draw_task
-
 
 #: The perturbed tiers whose perturbation is drawn per task.
 DRAWN_TIERS = ("debris", "robust")

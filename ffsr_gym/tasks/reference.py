@@ -1,15 +1,15 @@
 """The frozen reference of a benchmark version: the scores the leaderboard's normalised column divides by.
 
 The best-known search goes on after a version is released, and its file
-(:mod:`ffsr_gym.tasks.best_known`) keeps improving. If the normalised column read that file, a
+(:mod:`ffsr_gym_lab.best_known.records`) keeps improving. If the normalised column read that file, a
 published entry's normalised score would fall every time the search improved a task. So each
 version has one **frozen reference** (``envs/benchmark/<version>_reference.json``): the best
 known score of every task of its test and validation pools as of the version's release, with the
 hash of the best-known file it was taken from. ``ffsr-gym tasks freeze-reference`` writes it once
 and refuses to write it again; every entry records its sha256, the table header names it, and an
 entry scored against another reference is refused by name. Later improvements are *records*,
-listed apart (:func:`ffsr_gym.tasks.freeze.records_since`), never folded into the reference. Writing the
-reference and finding the records read the best-known files: the lab's (:mod:`ffsr_gym.tasks.freeze`).
+listed apart (:func:`ffsr_gym_lab.pools.freeze.records_since`), never folded into the reference. Writing the
+reference and finding the records read the best-known files: the lab's (:mod:`ffsr_gym_lab.pools.freeze`).
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ For a candidate that passes screening (:mod:`ffsr_gym.tasks.generator`):
 
 With an ensemble (``[tasks.ensemble]``, v2), "succeeds" means: at the task's step and in every
 kernel member of :func:`~ffsr_gym.tasks.certificate.ensemble_members` (the Pinocchio member is
-replayed by the build on the pool tasks only, :mod:`ffsr_gym.tasks.build`), with the worst
+replayed by the build on the pool tasks only, :mod:`ffsr_gym_lab.pools.build`), with the worst
 episode clearing every threshold by the ensemble's margins. A setting that succeeds at the
 task's step but fails in a member, or by a hair, is no certificate, and the search goes on. The
 default planner's verdict must not depend on the step or a hair: when it succeeds at the task's
