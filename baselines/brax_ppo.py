@@ -36,11 +36,11 @@ from ffsr_gym.bench.trace_file import read_entry, write_entry_files
 from ffsr_gym.jax.brax_env import FFSRBraxEnv
 from ffsr_gym.jax.physics import jax, jnp
 from ffsr_gym.jax.replay import play_policy, pool_tasks
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.optim.rl_study import merged_traces, same_scoring
 from ffsr_gym.provenance import provenance, splice_file, write_json_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.splits import pool
+from ffsr_gym.versions.registry import spec_for_version
 
 ENV_ID = "FFSR-Residual-v2"
 HYPERPARAMS = {"num_envs": 16, "unroll_length": 16, "batch_size": 16, "num_minibatches": 16,

@@ -14,7 +14,7 @@ from ffsr_gym_lab.board.tables import headline
 
 import ffsr_gym
 from ffsr_gym.bench.capture_heuristic import slowest_pass
-from ffsr_gym.model.spec import spec_for_version
+from ffsr_gym.versions.registry import spec_for_version
 
 CALLABLE = "ffsr_gym.bench.capture_heuristic:slowest_pass"
 

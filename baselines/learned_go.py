@@ -36,11 +36,10 @@ from tqdm.auto import tqdm
 import ffsr_gym
 from ffsr_gym.bench.learned_go import LearnedGo, Regressor
 from ffsr_gym.bench.lookahead import Lookahead
-from ffsr_gym.model.benchmark import load_benchmark
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.provenance import write_json_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.splits import pool, task_scenario
+from ffsr_gym.versions.registry import load_benchmark, spec_for_version
 
 VERSION, NAME, STEP_S, SEED = "capture-v1", "learned_go", 0.5, 0
 HIDDEN, EPOCHS, BATCH, LEARNING_RATE = (128, 128), 60, 512, 1e-3

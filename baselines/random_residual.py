@@ -15,7 +15,7 @@ from ffsr_gym_lab.board.tables import headline
 
 import ffsr_gym
 from ffsr_gym.bench.policies import uniform_random_residual
-from ffsr_gym.model.spec import spec_for_version
+from ffsr_gym.versions.registry import spec_for_version
 
 CALLABLE = "ffsr_gym.bench.policies:uniform_random_residual"
 

@@ -22,8 +22,8 @@ import numpy as np
 
 import ffsr_gym
 from ffsr_gym.bench.planner_scores import residual_training_loss
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.tasks.splits import version_tiers
+from ffsr_gym.versions.registry import spec_for_version
 
 
 def search(tier: str, tasks: int, evaluations: int, pool: ProcessPoolExecutor, version: str) -> tuple[tuple, dict, float]:

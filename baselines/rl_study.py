@@ -29,10 +29,10 @@ from tqdm.auto import tqdm
 
 from ffsr_gym.bench.options import add_scheduler_option
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.optim.rl import load_hyperparams
 from ffsr_gym.optim.rl_study import scored_seed_files, seed_folder, seed_piece, train_and_evaluate, write_seed
 from ffsr_gym.tasks.splits import version_tiers
+from ffsr_gym.versions.registry import spec_for_version
 
 ALGOS = ("ppo", "sac")
 

@@ -27,13 +27,12 @@ from pathlib import Path
 from ffsr_gym_lab.board.leaderboard import load_entries, ordered, verified
 from tqdm.auto import tqdm
 
-from ffsr_gym.model.benchmark import load_benchmark
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.provenance import provenance, splice_file, write_json_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
 from ffsr_gym.tasks.certificate import planner_episode
 from ffsr_gym.tasks.splits import load_pools, pool, task_scenario
+from ffsr_gym.versions.registry import load_benchmark, spec_for_version
 
 VERSION = "capture-v0"
 SCALES = (0.5, 1.0, 2.0)

@@ -27,12 +27,12 @@ import numpy as np
 from capture_v1_members import members  # noqa: E402  (benchmarks/capture_v1_members.py)
 from study_rows import publish, resumable_rows  # noqa: E402  (benchmarks/study_rows.py)
 
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.scenario import Scenario
 from ffsr_gym.provenance import provenance
 from ffsr_gym.tasks.capture_timed import TIMED_TIERS, try_timed
 from ffsr_gym.tasks.certificate import Certificate, Member, ensemble_members, replay
 from ffsr_gym.tasks.splits import pool, task_scenario
+from ffsr_gym.versions.registry import load_benchmark
 
 VERSION = "capture-v1"
 SPIN_DEG_S, DRIFT_M_S, GO_STEP_S = 0.4, 0.002, 1.0

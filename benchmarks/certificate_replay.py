@@ -33,11 +33,10 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.replay_tolerance import tolerance_for
-from ffsr_gym.model.benchmark import load_benchmark
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.provenance import cpu_description, provenance, splice_file, write_text_atomic
 from ffsr_gym.tasks.certificate import Member, replay_members
 from ffsr_gym.tasks.splits import pool, task_scenario
+from ffsr_gym.versions.registry import load_benchmark, spec_for_version
 
 OUT = Path(__file__).with_name("certificate_replay.json")
 CONDITIONS = {"host": {}, "no-fma-libm": {"GLIBC_TUNABLES": "glibc.cpu.hwcaps=-AVX2_Usable,-FMA_Usable,-AVX2,-FMA"}}

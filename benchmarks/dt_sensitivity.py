@@ -41,13 +41,12 @@ import numpy as np
 from ffsr_gym_lab.pools.build import build_split
 from tqdm.auto import tqdm
 
-from ffsr_gym.model.benchmark import CAPTURE_VERSIONS, VERSIONS, load_benchmark
 from ffsr_gym.model.scenario import Scenario
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.provenance import provenance, splice_file, write_json_atomic
 from ffsr_gym.scoring.aggregate import iqm
 from ffsr_gym.tasks.certificate import planner_episode
 from ffsr_gym.tasks.splits import pool, task_scenario
+from ffsr_gym.versions.registry import CAPTURE_VERSIONS, VERSIONS, load_benchmark, spec_for_version
 
 LAWS = ("distance", "cdf")
 #: v2's bar for a verdict that belongs to the planner: agreement, Spearman, |IQM(dt) - IQM(dt/4)|.

@@ -24,11 +24,10 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
-from ffsr_gym.model.benchmark import load_benchmark
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.provenance import provenance, splice_file, write_text_atomic
 from ffsr_gym.tasks.certificate import replay
 from ffsr_gym.tasks.splits import pool, task_scenario
+from ffsr_gym.versions.registry import load_benchmark, spec_for_version
 
 ROOT = Path(__file__).resolve().parent.parent
 PARTS, OUT = ROOT / "runs" / "native_agreement", ROOT / "benchmarks" / "native_agreement.json"

@@ -35,7 +35,6 @@ from tqdm.auto import tqdm
 from ffsr_gym import _native
 from ffsr_gym.kernel.layout import N_STATE
 from ffsr_gym.kernel.robot import native_plant
-from ffsr_gym.model.benchmark import VERSIONS, load_benchmark
 from ffsr_gym.model.scenario import Scenario, ServoSettings, load_scenario
 from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic, write_text_atomic
 from ffsr_gym.scoring.score import score_episode
@@ -45,6 +44,7 @@ from ffsr_gym.sim.trajectory import Trajectory
 from ffsr_gym.tasks.certificate import planner_run
 from ffsr_gym.tasks.splits import pool, task_scenario
 from ffsr_gym.tasks.tiers import TIERS
+from ffsr_gym.versions.registry import VERSIONS, load_benchmark
 
 STEPS_S = (0.01, 0.005, 0.002, 0.001, 0.0005, 0.0002)
 REFERENCE_STEP_S = 0.00002

@@ -76,7 +76,7 @@ def retired_v1_rules():
     retired). For the tests that keep v1's documented history regenerable; no environment plays v1."""
     import dataclasses
 
-    from ffsr_gym.model.benchmark import load_benchmark
+    from ffsr_gym.versions.registry import load_benchmark
 
     v2 = load_benchmark("v2")
     return dataclasses.replace(v2, version="v1", score=dataclasses.replace(v2.score, keep_out_m=0.0),
@@ -116,8 +116,8 @@ def replay_certificate(version: str, tier: str, split: str, index: int) -> dict:
     step's info."""
     import gymnasium as gym
 
-    from ffsr_gym.model.spec import spec_for_version
     from ffsr_gym.tasks.splits import pool
+    from ffsr_gym.versions.registry import spec_for_version
 
     task = pool(tier, split, version=version)[index]
     certificate, ids = task.certificate, spec_for_version(version).ids
@@ -167,10 +167,10 @@ def ensemble_problems(version: str, tier: str, split: str, index: int) -> list[s
     member's margins are :func:`~ffsr_gym.tasks.certificate.replay_with_margins`' (a timed certificate's capture
     ratio is its whole run's), merged over the members as the build merges them."""
     from ffsr_gym.bench.replay_tolerance import tolerance_for
-    from ffsr_gym.model.benchmark import load_benchmark
     from ffsr_gym.tasks.certificate import Member, ensemble_members, replay_with_margins
     from ffsr_gym.tasks.perturbation import confirmation_member
     from ffsr_gym.tasks.splits import pool, task_scenario
+    from ffsr_gym.versions.registry import load_benchmark
 
     rules = load_benchmark(version)
     entry = pool(tier, split, version=version)[index]
@@ -200,8 +200,8 @@ def timed_episode(tier: str, split: str, index: int, m: float, T_c: float, go_s:
     last step's info."""
     import gymnasium as gym
 
-    from ffsr_gym.model.benchmark import load_benchmark
     from ffsr_gym.tasks.splits import pool, task_scenario
+    from ffsr_gym.versions.registry import load_benchmark
 
     rules = load_benchmark("capture-v1")
     task = pool(tier, split, version="capture-v1")[index]

@@ -7,7 +7,8 @@ from pathlib import Path
 from typing import Any
 
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.spec import BenchmarkSpec, all_specs, spec_for_env_id
+from ffsr_gym.model.spec import BenchmarkSpec
+from ffsr_gym.versions.registry import all_specs, spec_for_env_id
 
 
 def groups(spec: BenchmarkSpec) -> list[str]:

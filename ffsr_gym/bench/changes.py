@@ -15,7 +15,7 @@ from pathlib import Path
 from ffsr_gym.bench.board_layout import folder_of, groups, table_files
 from ffsr_gym.bench.trace_file import SUFFIX
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.spec import all_specs
+from ffsr_gym.versions.registry import all_specs
 
 #: The longest a git query may take [s] (a hung repository is an error, not a wait).
 GIT_TIMEOUT_S = 60.0

@@ -28,11 +28,12 @@ from ffsr_gym.bench.planner_scores import check_go, check_in_box, objective_for_
 from ffsr_gym.bench.trace import trace_record
 from ffsr_gym.bench.verify import training_pool_problem
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.spec import BenchmarkSpec, spec_for_env_id
+from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.provenance import provenance
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.reference import reference_record
 from ffsr_gym.tasks.splits import pool, pool_path
+from ffsr_gym.versions.registry import spec_for_env_id
 
 __all__ = ["EvalReport", "Policy", "PredictsActions", "evaluate", "objective_for_params"]
 
@@ -58,7 +59,7 @@ def spec_of(env_id: Any) -> BenchmarkSpec:
     """
     spec = spec_for_env_id(env_id) if isinstance(env_id, str) else None
     if spec is None:
-        from ffsr_gym.model.spec import all_specs
+        from ffsr_gym.versions.registry import all_specs
 
         known = [i for s in all_specs().values() for i in s.env_ids]
         raise InvalidInputError(f"env_id {env_id!r}; allowed: {known}")

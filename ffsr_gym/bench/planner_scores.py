@@ -17,7 +17,6 @@ from tqdm.auto import tqdm
 from ffsr_gym.bench.entry import EvalReport, check_compute
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.scenario import Scenario, load_scenario
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.provenance import provenance
 from ffsr_gym.scoring.objective import objective_terms
 from ffsr_gym.scoring.rules import score_rule
@@ -26,6 +25,7 @@ from ffsr_gym.tasks.certificate import Certificate, planner_episode, planner_tas
 from ffsr_gym.tasks.random_family import sample_scenario
 from ffsr_gym.tasks.reference import reference_record
 from ffsr_gym.tasks.splits import pool, pool_path, task_scenario
+from ffsr_gym.versions.registry import spec_for_version
 
 
 def scenario_for_seed(scenario: str | Scenario, seed: int | None) -> Scenario:

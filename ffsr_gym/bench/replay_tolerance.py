@@ -15,7 +15,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from ffsr_gym.model.spec import ReplaySpec, spec_for_version
+from ffsr_gym.model.spec import ReplaySpec
+from ffsr_gym.versions.registry import spec_for_version
 
 #: Row fields the score is read from (the score, the smoothness cost C, the paper's B).
 SCORE_FIELDS = frozenset({"score", "smoothness_cost", "paper_B"})

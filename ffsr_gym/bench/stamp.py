@@ -29,7 +29,7 @@ KEYS_WITHOUT_CODE = tuple(key for key in KEYS if key != "code_sha256")
 #: The package's modules a replay runs (the physics, the planner, the scoring, the tasks, the envs and the replay
 #: itself), relative to the package; with every file of the robot, scenario, rule and pool data (``envs``) they make
 #: :func:`code_digest`. A change elsewhere (the CLI, the tables, the docs) leaves a stamp's code standing.
-REPLAYED_CODE = ("kernel", "model", "planning", "sim", "scoring", "tasks", "environments", "bench/replay.py",
+REPLAYED_CODE = ("kernel", "model", "planning", "sim", "scoring", "versions", "tasks", "environments", "bench/replay.py",
                  "bench/replay_tolerance.py", "bench/policies.py", "bench/episodes.py", "bench/evaluation.py")
 _HEX = re.compile(r"[0-9a-f]{40}|[0-9a-f]{64}")
 _VERIFIER = re.compile(r"ffsr-gym [0-9A-Za-z.+-]{1,40}")

@@ -30,7 +30,7 @@ def capture_tiers() -> list[str]:
 
 def tier_versions() -> list[str]:
     """The benchmark versions with task tiers (a rule file): the ranked v2 first, then the capture family's."""
-    from ffsr_gym.model.benchmark import CAPTURE_VERSIONS, VERSIONS
+    from ffsr_gym.versions.registry import CAPTURE_VERSIONS, VERSIONS
 
     return list(VERSIONS + CAPTURE_VERSIONS)
 

@@ -14,7 +14,7 @@ from ffsr_gym.cli.model_commands import add_model_commands
 from ffsr_gym.cli.policy_commands import add_policy_commands
 from ffsr_gym.cli.verify_commands import add_verify_commands
 from ffsr_gym.exceptions import FFSRError
-from ffsr_gym.model.spec import registered_ids
+from ffsr_gym.versions.registry import registered_ids
 
 #: The entry point group whose callables ``add(sub, groups)`` add sub-commands (the lab's).
 COMMANDS = "ffsr_gym.commands"

@@ -9,7 +9,7 @@ from typing import Any
 
 from ffsr_gym.bench.options import add_scheduler_option, natural, positive_float, positive_int
 from ffsr_gym.cli.choices import algorithm_names
-from ffsr_gym.model.spec import all_splits, all_task_names, registered_ids
+from ffsr_gym.versions.registry import all_splits, all_task_names, registered_ids
 
 
 def add_policy_commands(sub: Any) -> None:

@@ -17,10 +17,11 @@ from ffsr_gym.environments.actions import (
 from ffsr_gym.environments.engine import EpisodeEngine
 from ffsr_gym.environments.task_source import TaskSource
 from ffsr_gym.exceptions import InvalidInputError, UnknownArgumentError
-from ffsr_gym.model.spec import BenchmarkSpec, spec_for_version
+from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.sim.rollout import Rollout
 from ffsr_gym.sim.trajectory import Trajectory
+from ffsr_gym.versions.registry import spec_for_version
 
 
 def task_options(spec: BenchmarkSpec, options: dict[str, Any]) -> dict[str, Any]:

@@ -125,8 +125,8 @@ def markdown_table(rule: Any) -> str:
 
 def docs_section() -> str:
     """The info tables of every version's envs (docs/envs.md, between the ``info-keys`` markers)."""
-    from ffsr_gym.model.spec import all_specs
     from ffsr_gym.scoring.rules import score_rule
+    from ffsr_gym.versions.registry import all_specs
 
     parts = []
     for spec in sorted(all_specs().values(), key=lambda s: s.version, reverse=True):

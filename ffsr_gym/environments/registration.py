@@ -9,7 +9,8 @@ import gymnasium
 from gymnasium.wrappers import TimeLimit
 
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.spec import BenchmarkSpec, add_spec, all_specs, read_spec, remove_spec
+from ffsr_gym.model.spec import BenchmarkSpec, read_spec
+from ffsr_gym.versions.registry import add_spec, all_specs, remove_spec
 
 SINGLE = "ffsr_gym.environments.registration:make_single"
 BATCHED = "ffsr_gym.environments.registration:make_batched"

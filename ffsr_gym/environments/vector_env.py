@@ -25,9 +25,9 @@ from ffsr_gym.environments.env import task_options
 from ffsr_gym.environments.task_source import TaskSource
 from ffsr_gym.environments.vector_inputs import check_open, check_options, copy_seeds, reset_mask, task_indices
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.sim.trajectory import Trajectory
+from ffsr_gym.versions.registry import spec_for_version
 
 _MODES = {mode.value: mode for mode in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP, AutoresetMode.DISABLED)}
 

@@ -16,10 +16,10 @@ from ffsr_gym.jax.collision import shapes_of
 from ffsr_gym.jax.episode import EpisodeTask, reset, stacked, step
 from ffsr_gym.jax.physics import jax, jnp
 from ffsr_gym.jax.scenario import episode_task
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.obstacles import obstacle_field
 from ffsr_gym.sim.setup import robot_assets
 from ffsr_gym.tasks.splits import pool, task_scenario
+from ffsr_gym.versions.registry import load_benchmark
 
 
 def pool_tasks(tier: str, split: str, *, residual: bool = True, version: str = "v2",

@@ -87,8 +87,8 @@ def episode_task(scenario: Scenario, *, residual: bool = True, version: str = "v
     for :mod:`ffsr_gym.jax.episode`: residual actions (``FFSR-Residual-v2``) or (m, T_c) actions (``FFSR-v2``).
     ``m``, ``T_c``: the planner's (a certificate's), default the task's; ``obstacles``: see :func:`from_scenario`."""
     from ffsr_gym.environments.actions import decision_settings
-    from ffsr_gym.model.spec import spec_for_version
     from ffsr_gym.scoring.rules import score_rule
+    from ffsr_gym.versions.registry import spec_for_version
 
     spec = spec_for_version(version)
     rule = score_rule(spec)

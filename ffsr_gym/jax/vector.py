@@ -27,8 +27,8 @@ from ffsr_gym.jax.copies import over_copies
 from ffsr_gym.jax.episode import STATUS_COLLISION, STATUS_RATE
 from ffsr_gym.jax.physics import jax, jnp
 from ffsr_gym.jax.pool_env import PoolEnv
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.rules import score_rule
+from ffsr_gym.versions.registry import spec_for_version
 
 
 class FFSRJaxVectorEnv(gymnasium.vector.VectorEnv):

@@ -19,7 +19,6 @@ from typing import Any
 import numpy as np
 
 from ffsr_gym.exceptions import ScenarioError
-from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.scenario import Randomization, Scenario, load_scenario
 from ffsr_gym.model.schema import (
     BOOL,
@@ -38,12 +37,6 @@ from ffsr_gym.model.schema import (
     section,
     vector,
 )
-
-#: The ranked rule files shipped (the newest last: scripts default to it).
-VERSIONS = ("v2",)
-#: The capture families' rule files (beyond the paper; docs/model.md §22, §24), loaded by the same
-#: :func:`load_benchmark`.
-CAPTURE_VERSIONS = ("capture-v0", "capture-v1")
 
 
 @dataclass(frozen=True)
@@ -287,17 +280,6 @@ class Benchmark:
         if t >= motion_time_s:
             return 0.0
         return 0.5 * (1.0 + math.cos(math.pi * (t - start) / fade))
-
-
-def load_benchmark(version: str = VERSIONS[-1]) -> Benchmark:
-    """The rule file of benchmark ``version`` shipped in ``envs/benchmark`` (``<version>.toml``).
-
-    Raises:
-        ScenarioError: unknown version, unreadable file or an invalid key (named).
-    """
-    if version not in VERSIONS + CAPTURE_VERSIONS:
-        raise ScenarioError(f"benchmark version {version!r}; allowed: {list(VERSIONS + CAPTURE_VERSIONS)}")
-    return load_rules(envs_dir() / "benchmark" / f"{version}.toml")
 
 
 def residual_rates(action: Any, rate_deg_s: float) -> Any:

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from functools import lru_cache
 from pathlib import Path
 
 from ffsr_gym.exceptions import ScenarioError
@@ -263,94 +262,3 @@ def _check(spec: BenchmarkSpec, path: Path) -> None:
     if spec.grasp_observation != spec.actions.command or (spec.grasp_observation and not spec.target_twist):
         raise ScenarioError(f"{path}: keys 'actions.command' and 'observation.grasp' go together (with "
                             "'observation.target_twist'): a method that commands the approach sees its state")
-
-
-def shipped_spec_paths() -> list[Path]:
-    """The spec files shipped in ``envs/benchmark``, in version order."""
-    return sorted((envs_dir() / "benchmark").glob("spec_*.toml"))
-
-
-_REGISTERED: dict[str, BenchmarkSpec] = {}
-
-
-@lru_cache(maxsize=1)
-def _shipped() -> dict[str, BenchmarkSpec]:
-    specs = [read_spec(path) for path in shipped_spec_paths()]
-    return {spec.version: spec for spec in specs}
-
-
-def all_specs() -> dict[str, BenchmarkSpec]:
-    """Every known version: the shipped specs, then those added with :func:`add_spec`."""
-    return {**_shipped(), **_REGISTERED}
-
-
-def add_spec(spec: BenchmarkSpec) -> None:
-    """Make ``spec`` known (its ids resolve through :func:`spec_for_env_id`).
-
-    Raises:
-        ScenarioError: its version or one of its ids is taken by another spec.
-    """
-    for other in all_specs().values():
-        if other.version == spec.version and other.source != spec.source:
-            raise ScenarioError(f"{spec.source}: version {spec.version!r} is taken by {other.source}")
-        taken = set(other.env_ids) & set(spec.env_ids)
-        if taken and other.version != spec.version:
-            raise ScenarioError(f"{spec.source}: env ids {sorted(taken)} are taken by version {other.version!r}")
-    _REGISTERED[spec.version] = spec
-
-
-def spec_for_version(version: str) -> BenchmarkSpec:
-    """The spec of ``version``.
-
-    Raises:
-        ScenarioError: unknown version (the known ones are listed).
-    """
-    specs = all_specs()
-    if version not in specs:
-        raise ScenarioError(f"benchmark version {version!r}; allowed: {sorted(specs)}")
-    return specs[version]
-
-
-def registered_ids() -> list[str]:
-    """Every id of every known version, in version order."""
-    return [env_id for spec in all_specs().values() for env_id in spec.env_ids]
-
-
-def all_task_names() -> list[str]:
-    """Every task name a version takes besides scenario paths: its named scenarios and tiers."""
-    names: list[str] = []
-    for spec in all_specs().values():
-        names += [n for n in (*spec.tasks.scenarios, *spec.tasks.tiers) if n not in names]
-    return names
-
-
-def all_splits() -> list[str]:
-    """Every split of a version's pools."""
-    return sorted({split for spec in all_specs().values() for split in spec.tasks.splits})
-
-
-def ranked_spec() -> BenchmarkSpec:
-    """The newest live version ranked by CI separation: the one the generated summary, the leaderboard
-    figures and the Pareto study show."""
-    live = [s for s in all_specs().values() if s.leaderboard.ranking == "ci_separation" and s.status == "live"]
-    return sorted(live, key=lambda s: s.version)[-1]
-
-
-def spec_for_env_id(env_id: str) -> BenchmarkSpec | None:
-    """The spec that registers ``env_id`` (a ``module:`` prefix is ignored), or None."""
-    key = env_id.split(":")[-1]
-    for spec in all_specs().values():
-        if key in spec.env_ids:
-            return spec
-    return None
-
-
-def remove_spec(version: str) -> BenchmarkSpec:
-    """Forget a version added with :func:`add_spec` (shipped versions stay).
-
-    Raises:
-        ScenarioError: ``version`` was not added.
-    """
-    if version not in _REGISTERED:
-        raise ScenarioError(f"benchmark version {version!r} was not added; added: {sorted(_REGISTERED)}")
-    return _REGISTERED.pop(version)

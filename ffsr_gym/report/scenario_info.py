@@ -9,9 +9,9 @@ import numpy as np
 from ffsr_gym.model.quaternion import from_rotation
 from ffsr_gym.model.resources import envs_dir, scenario_names
 from ffsr_gym.model.scenario import Scenario
-from ffsr_gym.model.spec import all_specs, registered_ids
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.tasks.splits import pool
+from ffsr_gym.versions.registry import all_specs, registered_ids
 
 
 def initial_state_rows(scenario: Scenario) -> list[tuple[str, Any]]:

@@ -1,6 +1,6 @@
 """The closed-loop interface that both backends implement, and its status codes.
 
-:class:`~ffsr_gym.sim.reference.ReferenceRollout` (Pinocchio, the readable reference) and
+:class:`~ffsr_gym.sim.pinocchio_backend.PinocchioRollout` (Pinocchio, the readable reference) and
 :class:`~ffsr_gym.sim.compiled.KernelRollout` (the compiled kernel, equal to 1e-9) both satisfy
 :class:`Rollout`; :func:`ffsr_gym.sim.simulate.make_rollout` picks one.
 """

@@ -10,7 +10,7 @@ from tqdm.auto import tqdm
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.scenario import Scenario, load_scenario
 from ffsr_gym.sim.compiled import KernelRollout
-from ffsr_gym.sim.reference import ReferenceRollout
+from ffsr_gym.sim.pinocchio_backend import PinocchioRollout
 from ffsr_gym.sim.rollout import BACKENDS, Rollout
 from ffsr_gym.sim.trajectory import Trajectory
 from ffsr_gym.types import Array
@@ -28,7 +28,7 @@ def make_rollout(scenario: Scenario, *, backend: str = "auto", **kwargs: Any) ->
         raise InvalidInputError(f"scenario {scenario.name!r}: the servo plant (simulation.plant = 'servo') runs on the "
                                 "kernel backend only; backend 'kernel' or 'auto'")
     if backend == "pinocchio":
-        return ReferenceRollout(scenario, **kwargs)
+        return PinocchioRollout(scenario, **kwargs)
     return KernelRollout(scenario, **kwargs)
 
 

@@ -43,7 +43,7 @@ ENV_IDS = {"residual": "FFSR-Residual-v2", "parameters": "FFSR-v2", "timed": "FF
 def version_families(version: str) -> tuple[str, ...]:
     """The schedule families a version's best-known search uses: ``timed`` where the action commands the approach
     (capture v1: the decision to go in is not a knot to interpolate), else ``residual`` and ``parameters``."""
-    from ffsr_gym.model.spec import spec_for_version
+    from ffsr_gym.versions.registry import spec_for_version
 
     return ("timed",) if spec_for_version(version).actions.command else ("residual", "parameters")
 

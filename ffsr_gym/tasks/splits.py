@@ -9,7 +9,7 @@ perturbed tiers (:mod:`ffsr_gym.tasks.perturbation`) have one such file each,
 ``<version>_<tier>_tasks.json``, over the same seed ranges. A rule file without validation tasks
 has train and test splits only.
 
-``version`` defaults to the live ranked benchmark (:func:`ffsr_gym.model.spec.ranked_spec`).
+``version`` defaults to the live ranked benchmark (:func:`ffsr_gym.versions.registry.ranked_spec`).
 """
 
 from __future__ import annotations
@@ -21,16 +21,16 @@ from pathlib import Path
 from typing import Any
 
 from ffsr_gym.exceptions import InvalidInputError, ScenarioError
-from ffsr_gym.model.benchmark import Benchmark, load_benchmark
+from ffsr_gym.model.benchmark import Benchmark
 from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.scenario import Scenario
-from ffsr_gym.model.spec import ranked_spec
 from ffsr_gym.tasks.capture_family import CAPTURE_REJECTIONS, CAPTURE_TIERS, draw_capture_task
 from ffsr_gym.tasks.capture_timed import TIMED_REJECTIONS, TIMED_TIERS, draw_timed_task
 from ffsr_gym.tasks.certificate import Certificate, Margins
 from ffsr_gym.tasks.generator import draw_task
 from ffsr_gym.tasks.perturbation import PERTURBED_TIERS, load_perturbed_rule, perturbed_task
 from ffsr_gym.tasks.tiers import ALL_TIERS, PERTURBED_REJECTIONS, REJECTIONS, TIERS
+from ffsr_gym.versions.registry import load_benchmark, ranked_spec
 
 #: Every split a version may have (:attr:`ffsr_gym.model.benchmark.TaskRule.splits`: its own).
 SPLITS = ("train", "validation", "test")

@@ -25,13 +25,16 @@ ALLOWED = {
     "kernel": {"model"},
     "sim": {"model", "planning", "kernel"},
     "scoring": {"model", "kernel", "sim"},  # kernel: the score's smoothness terms
-    "tasks": {"model", "planning", "sim", "scoring"},
-    "environments": {"model", "planning", "kernel", "sim", "scoring", "tasks"},
-    "bench": {"model", "planning", "kernel", "sim", "scoring", "tasks", "environments"},  # kernel: its source digest
-    "report": {"model", "planning", "sim", "scoring", "tasks"},  # tasks: the tier names the figures order
-    "optim": {"model", "planning", "sim", "scoring", "tasks", "environments", "bench", "report"},
-    "jax": {"model", "planning", "kernel", "sim", "scoring", "tasks", "environments"},  # the loop in JAX
-    "cli": {"model", "planning", "sim", "scoring", "tasks", "environments", "bench", "report", "optim"},  # the front
+    "versions": {"model"},  # the version policy: which versions exist, which is ranked
+    "tasks": {"model", "versions", "planning", "sim", "scoring"},
+    "environments": {"model", "versions", "planning", "kernel", "sim", "scoring", "tasks"},
+    # kernel: its source digest
+    "bench": {"model", "versions", "planning", "kernel", "sim", "scoring", "tasks", "environments"},
+    "report": {"model", "versions", "planning", "sim", "scoring", "tasks"},  # tasks: the tier names the figures order
+    "optim": {"model", "versions", "planning", "sim", "scoring", "tasks", "environments", "bench", "report"},
+    "jax": {"model", "versions", "planning", "kernel", "sim", "scoring", "tasks", "environments"},  # the loop in JAX
+    # the front door
+    "cli": {"model", "versions", "planning", "sim", "scoring", "tasks", "environments", "bench", "report", "optim"},
 }
 #: The lab (``lab/ffsr_gym_lab``, a distribution of its own): the benchmark's maintenance (leaderboard storage,
 #: rendering and aggregates, pool builds, best-known searches, studies, docs pages), which users do not import. It
@@ -45,7 +48,7 @@ LAB_ALLOWED = {
     "publish": {"best_known", "board"},
     "cli": {"best_known", "pools", "studies", "board", "publish"},
 }
-PHYSICS_STAGES = ("model", "planning", "kernel", "sim", "scoring", "tasks")
+PHYSICS_STAGES = ("model", "planning", "kernel", "sim", "scoring", "versions", "tasks")
 FORBIDDEN_IN_PHYSICS = ("gymnasium", "stable_baselines3", "matplotlib", "torch")
 
 

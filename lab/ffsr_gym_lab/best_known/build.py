@@ -25,12 +25,12 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.provenance import provenance, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.schedule import FAMILIES, Schedule, replay_schedule, version_families
 from ffsr_gym.tasks.splits import pool, pool_path, task_scenario
 from ffsr_gym.user_files import nesting_depth, read_text
+from ffsr_gym.versions.registry import spec_for_version
 from ffsr_gym_lab.best_known import check, search
 from ffsr_gym_lab.best_known.records import best_known_path, load_best_known, records
 

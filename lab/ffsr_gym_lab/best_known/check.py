@@ -18,11 +18,11 @@ from typing import Any
 from tqdm.auto import tqdm
 
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.scoring.score import Benchmark
 from ffsr_gym.tasks.schedule import FAMILIES, Schedule, replay_schedule
 from ffsr_gym.tasks.splits import SPLITS, PoolTask, pool, task_scenario
+from ffsr_gym.versions.registry import spec_for_version
 
 #: A record's best may be a searched family's schedule or the task's own certificate.
 BEST_FAMILIES = (*FAMILIES, "certificate")

@@ -18,10 +18,10 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.schedule import version_families
 from ffsr_gym.tasks.splits import pool
+from ffsr_gym.versions.registry import spec_for_version
 from ffsr_gym_lab.best_known import search
 from ffsr_gym_lab.best_known.build import offer
 from ffsr_gym_lab.best_known.records import records

@@ -239,7 +239,7 @@ _POPULATIONS: dict[tuple[str, str, str], dict[str, Population]] = {}
 def search_task(tier: str, split: str, index: int, version: str, generations: int = GENERATIONS) -> dict[str, Any]:
     """:func:`best_known` of pool task ``index`` as a piece of its own (a cluster worker runs it; picklable), with
     the populations of its pool made once per process."""
-    from ffsr_gym.model.spec import spec_for_version
+    from ffsr_gym.versions.registry import spec_for_version
 
     key = (tier, split, version)
     if key not in _POPULATIONS:

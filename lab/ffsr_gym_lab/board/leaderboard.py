@@ -28,11 +28,12 @@ from ffsr_gym.bench.verify import entry_problems
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
 from ffsr_gym.model.resources import scenario_names
 from ffsr_gym.model.scenario import load_scenario
-from ffsr_gym.model.spec import GENERATED_PAGES, BenchmarkSpec, all_specs, ranked_spec
+from ffsr_gym.model.spec import GENERATED_PAGES, BenchmarkSpec
 from ffsr_gym.provenance import splice_generated, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.reference import reference_sha256
 from ffsr_gym.user_files import parse_json, read_text
+from ffsr_gym.versions.registry import all_specs, ranked_spec
 from ffsr_gym_lab.board import rl_comparison, tables
 from ffsr_gym_lab.board.separation import levels_line
 

@@ -25,12 +25,12 @@ from tqdm.auto import tqdm
 from ffsr_gym.bench.evaluation import evaluate
 from ffsr_gym.bench.policies import SB3_CLASSES
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.spec import ranked_spec
 from ffsr_gym.provenance import provenance, write_json_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.scoring.score import EpisodeScore
 from ffsr_gym.tasks.certificate import planner_episode, planner_task
 from ffsr_gym.tasks.splits import pool, task_scenario
+from ffsr_gym.versions.registry import ranked_spec
 from ffsr_gym_lab.board.leaderboard import load_entries, verified
 from ffsr_gym_lab.board.tables import method_name
 

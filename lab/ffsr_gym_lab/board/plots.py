@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ffsr_gym.model.spec import ranked_spec
 from ffsr_gym.report.plotting import _pyplot, _save
 from ffsr_gym.scoring.aggregate import iqm, iqm_rows
 from ffsr_gym.tasks.tiers import ALL_TIERS
+from ffsr_gym.versions.registry import ranked_spec
 
 TIER_ORDER = ALL_TIERS
 #: Tier panels side by side before a figure starts a new row.

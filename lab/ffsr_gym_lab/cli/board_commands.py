@@ -34,7 +34,7 @@ def _leaderboard(args: argparse.Namespace) -> int:
 def _check_leaderboard(root: str, readme: list[Path]) -> int:
     """``leaderboard render --check``: 1 when an entry is refused, or a table, the aggregates or a figure is out of
     date."""
-    from ffsr_gym.model.spec import all_specs, ranked_spec
+    from ffsr_gym.versions.registry import all_specs, ranked_spec
     from ffsr_gym_lab.board.leaderboard import check, load_entries, verified
     from ffsr_gym_lab.board.plots import stale_figures
 
@@ -51,7 +51,7 @@ def _check_leaderboard(root: str, readme: list[Path]) -> int:
 
 def _verified(root: str) -> dict:
     """The ranked version's entries that verify, by tier (what the figures draw)."""
-    from ffsr_gym.model.spec import ranked_spec
+    from ffsr_gym.versions.registry import ranked_spec
     from ffsr_gym_lab.board.leaderboard import load_entries, verified
 
     return verified(load_entries(root, ranked_spec()))
@@ -120,7 +120,7 @@ def _replay_changed(root: str, *, full: bool) -> int:
 
 
 def _leaderboard_aggregates(args: argparse.Namespace) -> None:
-    from ffsr_gym.model.spec import ranked_spec
+    from ffsr_gym.versions.registry import ranked_spec
     from ffsr_gym_lab.board import aggregates
     from ffsr_gym_lab.board.plots import plot_aggregates
 
@@ -139,7 +139,7 @@ def _leaderboard_aggregates(args: argparse.Namespace) -> None:
 
 def _leaderboard_pareto(args: argparse.Namespace) -> None:
     from ffsr_gym.bench.policies import load_model
-    from ffsr_gym.model.spec import ranked_spec
+    from ffsr_gym.versions.registry import ranked_spec
     from ffsr_gym_lab.board.pareto import task_pareto
     from ffsr_gym_lab.board.plots import PARETO_FILE
 

@@ -33,7 +33,6 @@ from typing import Any
 from tqdm.auto import tqdm
 
 from ffsr_gym.exceptions import FFSRError
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.drives import drives_path
 from ffsr_gym.model.resources import envs_dir, robot_dir
 from ffsr_gym.model.scenario import load_scenario
@@ -50,6 +49,7 @@ from ffsr_gym.tasks.perturbation import (
 )
 from ffsr_gym.tasks.splits import LABEL_CODES, SEED_RANGES, expected_count, load_pools, pool_path, task_scenario
 from ffsr_gym.tasks.tiers import PERTURBED_REJECTIONS, REJECTIONS, TIERS, Verdict, classify, classify_perturbed
+from ffsr_gym.versions.registry import load_benchmark
 
 _ADMITTED = {LABEL_CODES[tier] for tier in TIERS}
 

@@ -8,13 +8,13 @@ from typing import Any
 
 import numpy as np
 
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.provenance import splice_generated
 from ffsr_gym.tasks.capture_family import CAPTURE_REJECTIONS, CAPTURE_TIERS
 from ffsr_gym.tasks.capture_timed import TIMED_REJECTIONS, TIMED_TIERS
 from ffsr_gym.tasks.perturbation import PERTURBED_TIERS
 from ffsr_gym.tasks.splits import load_pools
 from ffsr_gym.tasks.tiers import PERTURBED_REJECTIONS, REJECTIONS, TIERS
+from ffsr_gym.versions.registry import load_benchmark
 
 
 def tier_table(data: dict[str, Any]) -> str:

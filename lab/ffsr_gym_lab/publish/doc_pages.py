@@ -13,9 +13,10 @@ import gymnasium
 
 from ffsr_gym.environments.info import markdown_table
 from ffsr_gym.model.scenario import load_scenario
-from ffsr_gym.model.spec import BenchmarkSpec, all_specs, ranked_spec
+from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.splits import load_pools
+from ffsr_gym.versions.registry import all_specs, ranked_spec
 
 #: What each tier is, in one sentence (the rules are in v2.toml and v2_perturbed.toml; docs/envs.md "Task tiers").
 TIER_MEANING = {

@@ -12,11 +12,11 @@ from ffsr_gym_lab.best_known import records as best_known
 
 import ffsr_gym  # noqa: F401 - registers the ids
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.certificate import Margins, ensemble_members, replay
 from ffsr_gym.tasks.schedule import ENV_IDS, Schedule, replay_schedule
 from ffsr_gym.tasks.splits import pool, task_scenario
+from ffsr_gym.versions.registry import spec_for_version
 
 pytest.importorskip("cma")
 from ffsr_gym_lab.best_known import build

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from ffsr_gym_lab.board import normalise
 
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.aggregate import iqm
+from ffsr_gym.versions.registry import spec_for_version
 
 rliable = pytest.importorskip("rliable")
 from ffsr_gym_lab.board import aggregates

@@ -110,7 +110,7 @@ def test_free_text_cannot_forge_a_ranked_row(tmp_path):
     from ffsr_gym_lab.board import leaderboard
     from ffsr_gym_lab.board.tables import safe
 
-    from ffsr_gym.model.spec import spec_for_version
+    from ffsr_gym.versions.registry import spec_for_version
 
     root = _board(tmp_path)
     easy = root / "v2" / "easy"
@@ -136,7 +136,7 @@ def test_free_text_cannot_forge_a_ranked_row(tmp_path):
 def test_an_entry_is_named_after_its_file_and_one_method_has_one_row(tmp_path):
     from ffsr_gym_lab.board import leaderboard
 
-    from ffsr_gym.model.spec import spec_for_version
+    from ffsr_gym.versions.registry import spec_for_version
 
     root = _board(tmp_path)
     easy = root / "v2" / "easy"
@@ -192,7 +192,7 @@ def test_verify_never_draws_and_files_that_are_not_regular_are_refused(tmp_path,
     for name in ("fifo.json", "zero.json"):
         with pytest.raises(InvalidInputError, match="not a regular file"):
             replay_entry(easy / name)
-    from ffsr_gym.model.spec import spec_for_version
+    from ffsr_gym.versions.registry import spec_for_version
 
     reasons = {name: " ".join(why) for _, name, why in leaderboard.refused(leaderboard.load_entries(
         root, spec_for_version("v2")))}
@@ -298,7 +298,7 @@ def test_a_stamp_describes_the_rows_it_verified_and_the_table_shows_it(tmp_path)
     from ffsr_gym_lab.board import leaderboard
 
     from ffsr_gym.cli.main import main
-    from ffsr_gym.model.spec import ranked_spec
+    from ffsr_gym.versions.registry import ranked_spec
 
     root = tmp_path / "leaderboards"
     shutil.copytree(ROOT / "leaderboards", root)

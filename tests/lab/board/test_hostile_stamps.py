@@ -12,8 +12,8 @@ from ffsr_gym_lab.board import leaderboard, tables
 
 from ffsr_gym.cli.main import main
 from ffsr_gym.exceptions import InvalidInputError, UserFileError
-from ffsr_gym.model.spec import ranked_spec
 from ffsr_gym.user_files import parse_json
+from ffsr_gym.versions.registry import ranked_spec
 
 ROOT = Path(__file__).resolve().parents[3]
 ENTRY = Path("v2") / "easy" / "cmaes_v2.json"  # a planner entry: its replay takes seconds
@@ -78,7 +78,7 @@ def test_a_stamp_copied_with_the_rows_under_another_name_or_typed_by_hand_is_ref
 
 
 def test_a_stamp_on_a_version_that_carries_none_is_refused(stamped):
-    from ffsr_gym.model.spec import all_specs
+    from ffsr_gym.versions.registry import all_specs
 
     root, path = stamped
     spec = all_specs()["v0"]

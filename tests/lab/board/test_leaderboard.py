@@ -118,7 +118,7 @@ def test_committed_v2_entries_recompute_and_name_their_pools(path):
 def test_ranks_share_a_rank_when_no_ci_separates_them():
     from ffsr_gym_lab.board.leaderboard import ranks, render_tables
 
-    from ffsr_gym.model.spec import spec_for_version
+    from ffsr_gym.versions.registry import spec_for_version
 
     def render_v2_tables(entries):
         return render_tables(spec_for_version("v2"), entries)
@@ -133,8 +133,8 @@ def test_ranks_share_a_rank_when_no_ci_separates_them():
 
 
 def test_figures_are_drawn_from_entries(tmp_path):
-    from ffsr_gym.model.spec import spec_for_version
     from ffsr_gym.scoring.rules import score_rule
+    from ffsr_gym.versions.registry import spec_for_version
 
     def aggregate(scores, successes):
         return score_rule(spec_for_version("v2")).aggregate([{"score": s, "success": ok} for s, ok in zip(scores, successes)])

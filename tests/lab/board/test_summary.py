@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from ffsr_gym_lab.board import normalise, tables
 
-from ffsr_gym.model.spec import spec_for_version
+from ffsr_gym.versions.registry import spec_for_version
 
 SPEC = spec_for_version("v2")
 

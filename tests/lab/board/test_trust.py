@@ -68,7 +68,7 @@ def test_a_tampered_leaderboard_refuses_every_bad_entry_by_name_and_check_fails(
     from ffsr_gym_lab.board import leaderboard
 
     from ffsr_gym.cli.main import main
-    from ffsr_gym.model.spec import spec_for_version
+    from ffsr_gym.versions.registry import spec_for_version
 
     root = _tampered_board(tmp_path)
     reasons = {name: " ".join(why) for _, name, why in leaderboard.refused(leaderboard.load_entries(root,

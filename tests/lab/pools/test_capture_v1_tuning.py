@@ -10,10 +10,10 @@ import pytest
 from ffsr_gym.bench.evaluation import evaluate
 from ffsr_gym.bench.planner_scores import training_loss
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.optim import ga
 from ffsr_gym.tasks.capture_timed import draw_timed_task
 from ffsr_gym.tasks.certificate import planner_episode, timed_run
+from ffsr_gym.versions.registry import load_benchmark
 
 BENCH = load_benchmark("capture-v1")
 SEED = 41  # a sweep candidate the default planner captures going in at 32 s (tests/library/tasks/test_capture_v1.py)
@@ -81,8 +81,8 @@ def test_a_timed_ga_resumes_exactly_and_finds_the_bowls_minimum(tmp_path):
 def test_capture_v1_ranks_on_the_mean_and_v2_on_the_iqm():
     from ffsr_gym_lab.board.tables import header
 
-    from ffsr_gym.model.spec import spec_for_version
     from ffsr_gym.scoring.rules import score_rule
+    from ffsr_gym.versions.registry import spec_for_version
 
     scores = [0.0] * 80 + [0.3] * 20  # captures on 20 % of the tasks: the IQM (middle half, all zeros) is 0
     rows = [{"score": s, "success": s > 0} for s in scores]

@@ -14,9 +14,9 @@ from ffsr_gym_lab.board.normalise import normalised_mean
 from ffsr_gym_lab.pools import freeze
 
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.tasks import reference
 from ffsr_gym.tasks.splits import pool
+from ffsr_gym.versions.registry import spec_for_version
 
 ROOT = Path(__file__).resolve().parents[3]
 

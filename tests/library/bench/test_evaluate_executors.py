@@ -26,7 +26,7 @@ def test_process_pool_gives_the_serial_entry_and_the_planner_episodes():
         parallel = evaluate_pool((0.3, 4.0), "FFSR-v2", task="easy", indices=INDICES, executor=executor, chunk=2)
     _same(serial, parallel)
     assert [row["task_index"] for row in parallel.episodes] == INDICES
-    from ffsr_gym.model.benchmark import load_benchmark
+    from ffsr_gym.versions.registry import load_benchmark
 
     benchmark = load_benchmark("v2")
     for row in parallel.episodes:  # the env episodes, replayed by the planner alone

@@ -11,8 +11,8 @@ import ffsr_gym  # noqa: F401  (registers the ids)
 from ffsr_gym.bench.lookahead import Lookahead
 from ffsr_gym.bench.planner_scores import evaluate_planner
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.tasks.splits import pool, task_scenario
+from ffsr_gym.versions.registry import load_benchmark
 
 VERSION = "capture-v1"
 

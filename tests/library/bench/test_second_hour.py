@@ -17,11 +17,11 @@ from ffsr_gym import failure_name
 from ffsr_gym.bench.board_layout import leaderboard_table
 from ffsr_gym.cli.main import build_parser, main
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.resources import scenario_path
 from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.scoring.score import score_episode
 from ffsr_gym.sim.episode_end import episode_end
+from ffsr_gym.versions.registry import load_benchmark
 
 ROOT = Path(__file__).resolve().parents[3]
 RULES = load_benchmark("v2")

@@ -15,7 +15,7 @@ from ffsr_gym.bench.stamp import entry_digest
 from ffsr_gym.bench.trace import decode
 from ffsr_gym.bench.trace_file import FILE_FORMAT, SUFFIX, pack, store_entries, unpack
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.spec import spec_for_version
+from ffsr_gym.versions.registry import spec_for_version
 
 
 def wobble(obs):

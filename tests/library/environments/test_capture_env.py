@@ -11,9 +11,9 @@ import pytest
 from ffsr_gym.environments.info import failure_name
 from ffsr_gym.environments.registration import register_spec, unregister_spec
 from ffsr_gym.exceptions import ScenarioError
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.tasks.capture_family import draw_capture_task
 from ffsr_gym.tasks.certificate import planner_episode
+from ffsr_gym.versions.registry import load_benchmark
 
 RULES = load_benchmark("capture-v0")
 SPEC = """

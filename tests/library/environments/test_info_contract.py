@@ -12,9 +12,9 @@ import pytest
 import ffsr_gym
 from ffsr_gym.environments.info import FAILURES, docs_section, failure_name, info_dtypes
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.spec import spec_for_env_id
 from ffsr_gym.provenance import splice_generated
 from ffsr_gym.scoring.rules import score_rule
+from ffsr_gym.versions.registry import spec_for_env_id
 
 IDS = ["FFSR-v2", "FFSR-Residual-v2", "FFSR-v0", "FFSR-Residual-v0", "FFSR-Capture-Residual-v0"]
 KINDS = {np.int64: int, np.float64: float, np.bool_: bool}

@@ -22,9 +22,9 @@ from ffsr_gym.jax import episode as ep  # noqa: E402
 from ffsr_gym.jax.collision import shapes_of  # noqa: E402
 from ffsr_gym.jax.replay import certificate_tasks, play  # noqa: E402
 from ffsr_gym.jax.scenario import episode_task  # noqa: E402
-from ffsr_gym.model.benchmark import load_benchmark  # noqa: E402
 from ffsr_gym.sim.setup import robot_assets  # noqa: E402
 from ffsr_gym.tasks.splits import pool, task_scenario  # noqa: E402
+from ffsr_gym.versions.registry import load_benchmark  # noqa: E402
 
 SHAPES = shapes_of(robot_assets("ffsr_dual_arm").kernel)
 

@@ -18,11 +18,11 @@ import jax.numpy as jnp  # noqa: E402
 
 from ffsr_gym.jax.planner import plan  # noqa: E402
 from ffsr_gym.jax.scenario import from_scenario  # noqa: E402
-from ffsr_gym.model.benchmark import load_benchmark  # noqa: E402
 from ffsr_gym.model.scenario import load_scenario  # noqa: E402
 from ffsr_gym.planning.planner import Planner  # noqa: E402
 from ffsr_gym.sim.setup import prepare  # noqa: E402
 from ffsr_gym.tasks.splits import pool, task_scenario  # noqa: E402
+from ffsr_gym.versions.registry import load_benchmark  # noqa: E402
 
 DECIDE = jax.jit(plan, static_argnums=2)
 

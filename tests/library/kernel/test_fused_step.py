@@ -20,7 +20,7 @@ import ffsr_gym  # noqa: F401  (registers the environments)
 from ffsr_gym import _native
 from ffsr_gym.environments.actions import OBS_CLIP, assemble_observation
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.versions.registry import load_benchmark
 
 BENCH = load_benchmark("v2")
 

@@ -26,7 +26,7 @@ import hashlib, json, sys
 import numpy as np
 import gymnasium as gym
 import ffsr_gym
-from ffsr_gym.model.benchmark import load_benchmark
+from ffsr_gym.versions.registry import load_benchmark
 from ffsr_gym._native import Method
 from ffsr_gym.kernel.planner import settings_fields
 from ffsr_gym.kernel.robot import robot_arrays

@@ -25,10 +25,10 @@ def test_shipped_scenarios_load(name):
 def test_plain_data_equals_the_standard_library_conversion():
     """``to_dict`` (which skips copying immutable leaves) against ``dataclasses.asdict``, on every shipped
     scenario and on task draws with and without perturbation sections; the hash is taken from it."""
-    from ffsr_gym.model.benchmark import load_benchmark
     from ffsr_gym.model.scenario import to_dict
     from ffsr_gym.tasks.generator import draw_task
     from ffsr_gym.tasks.perturbation import perturbed_task
+    from ffsr_gym.versions.registry import load_benchmark
 
     benchmark = load_benchmark("v2")
     scenarios = [load_scenario(name) for name in ("paper", "paper_as_printed", "free_space", "random")]

@@ -10,11 +10,12 @@ import pytest
 from conftest import retired_v1_rules
 
 from ffsr_gym.exceptions import FFSRError, InvalidInputError
-from ffsr_gym.model.benchmark import load_benchmark, load_rules
+from ffsr_gym.model.benchmark import load_rules
 from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.scenario import load_scenario, to_dict
 from ffsr_gym.tasks.certificate import Certificate, Margins, ensemble_members, offset_start, planner_episode, replay
 from ffsr_gym.tasks.generator import draw_task
+from ffsr_gym.versions.registry import load_benchmark
 
 V2 = load_benchmark("v2")
 

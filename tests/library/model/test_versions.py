@@ -17,11 +17,10 @@ from ffsr_gym_lab.board import leaderboard
 import ffsr_gym
 from ffsr_gym.environments.registration import unregister_spec
 from ffsr_gym.exceptions import ScenarioError
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.scenario import load_scenario
-from ffsr_gym.model.spec import all_specs
 from ffsr_gym.scoring.score import score_episode
+from ffsr_gym.versions.registry import all_specs, load_benchmark
 
 SPEC = """
 schema_version = 1

@@ -17,7 +17,7 @@ from ffsr_gym.planning.moving_target import (
     left_jacobian_inverse_times,
     left_jacobian_times,
 )
-from ffsr_gym.sim.reference import ReferenceRollout
+from ffsr_gym.sim.pinocchio_backend import PinocchioRollout
 
 SCENARIO = load_scenario("free_space")
 DT, STEPS = SCENARIO.simulation.dt_s, SCENARIO.n_steps
@@ -35,7 +35,7 @@ def _grasp(spin_deg_s: float, drift_m_s=(0.0, 0.0, 0.0)) -> GraspFrameMotion:
     return GraspFrameMotion(DT, position, motion.quaternion, velocity, motion.omega_world_rad_s())
 
 
-def _path(rollout: ReferenceRollout, grasp: GraspFrameMotion, offset_m=(0.0, 0.0, 0.0), tilt_rad=0.0):
+def _path(rollout: PinocchioRollout, grasp: GraspFrameMotion, offset_m=(0.0, 0.0, 0.0), tilt_rad=0.0):
     paper = rollout.planner.path
     start = quat.multiply(quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), tilt_rad), paper.start_attitude)
     return MovingTargetPath.onto(paper.start_position + np.array(offset_m), start, grasp,
@@ -51,7 +51,7 @@ def _rate(path, t: float, h: float) -> np.ndarray:
 
 def test_the_desired_twist_is_the_derivative_of_the_desired_pose():
     """Against central differences of the pose over ±dt and ±2 dt, extrapolated (Richardson) to fourth order."""
-    path = _path(ReferenceRollout(SCENARIO), _grasp(3.0, (0.003, -0.002, 0.001)))
+    path = _path(PinocchioRollout(SCENARIO), _grasp(3.0, (0.003, -0.002, 0.001)))
     for t in (1.0, 3.0, 6.0, 9.5, 15.0):
         _, _, twist = path.at(t)
         assert np.abs(_rate(path, t, DT) - twist).max() < 2e-7  # second order
@@ -59,7 +59,7 @@ def test_the_desired_twist_is_the_derivative_of_the_desired_pose():
 
 
 def test_a_still_grasp_frame_gives_the_papers_path():
-    rollout = ReferenceRollout(SCENARIO)
+    rollout = PinocchioRollout(SCENARIO)
     paper = rollout.planner.path
     moving = _path(rollout, _grasp(0.0))
     still = DesiredPath.between(paper.start_position, paper.start_attitude, np.array(SCENARIO.target.position_m),
@@ -71,7 +71,7 @@ def test_a_still_grasp_frame_gives_the_papers_path():
 
 
 def test_the_planner_follows_a_spinning_drifting_grasp_frame_within_T_c():
-    rollout = ReferenceRollout(SCENARIO)
+    rollout = PinocchioRollout(SCENARIO)
     rollout.set_parameters(0.3, 4.0)  # v2's default planner
     path = _path(rollout, _grasp(3.0, (0.003, -0.002, 0.001)), offset_m=(0.03, -0.02, 0.02), tilt_rad=0.05)
     rollout.planner.path, rollout.planner.estimates = path, (path,)
@@ -140,7 +140,7 @@ def test_the_target_body_is_an_obstacle_whose_clearance_the_trajectory_logs(tmp_
     from ffsr_gym.sim.setup import prepare
 
     scenario = load_scenario(_tumbling_toml(tmp_path, standoff_m=0.15, insertion_time_s=4.0))
-    rollout = ReferenceRollout(scenario)
+    rollout = PinocchioRollout(scenario)
     for _ in range(STEPS):
         rollout.step()
     rollout.finish()
@@ -168,7 +168,7 @@ def test_a_pre_grasp_standoff_brings_the_tool_in_along_the_grasp_axis(tmp_path):
     from ffsr_gym.planning.moving_target import pre_grasp
 
     scenario = load_scenario(_tumbling_toml(tmp_path))
-    straight = ReferenceRollout(scenario)
+    straight = PinocchioRollout(scenario)
     grasp = straight.planner.path.grasp
     frame = pre_grasp(grasp, standoff_m=0.15, insert_start_s=10.0, insert_time_s=4.0)
     central = (frame.position_m[2:] - frame.position_m[:-2]) / (2 * DT)
@@ -177,7 +177,7 @@ def test_a_pre_grasp_standoff_brings_the_tool_in_along_the_grasp_axis(tmp_path):
     jump = 0.15 / ((4.0 - 1.0) * 1.0)
     assert np.abs(central - frame.velocity_m_s[1:-1]).max() < 0.5 * DT * jump
     assert np.abs(frame.position_m[-1] - grasp.position_m[-1]).max() < 1e-12  # inserted by the end
-    for rollout, path in ((straight, straight.planner.path), (ReferenceRollout(scenario), None)):
+    for rollout, path in ((straight, straight.planner.path), (PinocchioRollout(scenario), None)):
         if path is None:
             paper = rollout.planner.path
             path = MovingTargetPath.onto(paper.start_position, paper.start_attitude, frame,

@@ -13,11 +13,11 @@ import pytest
 from conftest import benchmark_script
 
 from ffsr_gym.bench.replay_tolerance import tolerance_for
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.scoring.capture import QUANTITIES, capture, episode_relative_motion
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.tasks.capture_family import draw_capture_task
 from ffsr_gym.tasks.certificate import planner_episode, planner_run, planner_task
+from ffsr_gym.versions.registry import load_benchmark
 
 ROOT = Path(__file__).resolve().parents[3]
 RULES = load_benchmark("capture-v0")

@@ -10,11 +10,11 @@ from test_timed_approach import _scenario
 
 from ffsr_gym import _native
 from ffsr_gym.kernel.planner import planner_settings
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.scoring.capture import QUANTITIES, capture, episode_relative_motion, native_capture
 from ffsr_gym.sim.compiled import initial_state
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.sim.simulate import make_rollout
+from ffsr_gym.versions.registry import load_benchmark
 
 RULE = load_benchmark("capture-v0").capture
 BOUNDS = np.array([getattr(RULE, name) for name in QUANTITIES])

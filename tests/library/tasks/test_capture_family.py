@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.tumbling import propagate
 from ffsr_gym.tasks.capture_family import box_inertia, draw_capture_task, screen_capture
 from ffsr_gym.tasks.certificate import ensemble_members, planner_episode
 from ffsr_gym.tasks.tiers import certify
+from ffsr_gym.versions.registry import load_benchmark
 
 RULES = load_benchmark("capture-v0")
 ADMITTED_SLOW_SEED = 5  # passes screening (measured: the first 32 slow seeds admit 9)

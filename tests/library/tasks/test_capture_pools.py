@@ -20,9 +20,9 @@ from gymnasium.utils.env_checker import check_env
 
 import ffsr_gym  # noqa: F401  (registers the ids)
 from ffsr_gym.bench.replay_tolerance import tolerance_for
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
 from ffsr_gym.tasks.splits import load_pools, pool
+from ffsr_gym.versions.registry import load_benchmark
 
 VERSION = "capture-v0"
 RULES = load_benchmark(VERSION)

@@ -17,7 +17,7 @@ import pytest
 import ffsr_gym  # noqa: F401 - registers the ids
 from ffsr_gym import _native
 from ffsr_gym.exceptions import InvalidInputError, ScenarioError
-from ffsr_gym.model.benchmark import action_to_parameters, load_benchmark, load_rules
+from ffsr_gym.model.benchmark import action_to_parameters, load_rules
 from ffsr_gym.model.quaternion import from_rotation
 from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.planning.timed_approach import TimingState
@@ -26,6 +26,7 @@ from ffsr_gym.scoring.score import score_episode
 from ffsr_gym.sim.setup import prepare
 from ffsr_gym.tasks.capture_timed import draw_timed_task, timing_outcomes
 from ffsr_gym.tasks.certificate import Certificate, replay, timed_run
+from ffsr_gym.versions.registry import load_benchmark
 
 BENCH = load_benchmark("capture-v1")
 SEED = 41  # a sweep candidate the default planner captures going straight in, and going in at 32 s

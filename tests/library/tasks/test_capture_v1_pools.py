@@ -14,9 +14,9 @@ from gymnasium.utils.env_checker import check_env
 
 import ffsr_gym  # noqa: F401  (registers the ids)
 from ffsr_gym.bench.replay_tolerance import tolerance_for
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.tasks.capture_timed import TIMED_TIERS, certify_timed
 from ffsr_gym.tasks.splits import load_pools, pool, task_scenario
+from ffsr_gym.versions.registry import load_benchmark
 
 VERSION = "capture-v1"
 RULES = load_benchmark(VERSION)

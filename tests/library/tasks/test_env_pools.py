@@ -15,8 +15,8 @@ from gymnasium.utils.env_checker import check_env
 import ffsr_gym
 from ffsr_gym import failure_name
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.scoring.score import score_episode
+from ffsr_gym.versions.registry import load_benchmark
 
 IDS = ("FFSR-v2", "FFSR-Residual-v2")
 BENCH = load_benchmark("v2")
@@ -273,7 +273,7 @@ def test_dt_s_plays_the_same_task_at_another_step_with_the_same_decisions(env_id
 
 def test_an_entry_scored_at_another_step_records_it_and_the_leaderboard_refuses_it():
     from ffsr_gym.bench.verify import entry_problems
-    from ffsr_gym.model.spec import spec_for_version
+    from ffsr_gym.versions.registry import spec_for_version
 
     spec = spec_for_version("v2")
     own = ffsr_gym.evaluate((0.3, 4.0), "FFSR-v2", task="easy").to_json()

@@ -15,10 +15,10 @@ from ffsr_gym.exceptions import InvalidInputError, ScenarioError
 from ffsr_gym.model.benchmark import CaptureDraw
 from ffsr_gym.model.scenario_sections import tumbling_problems
 from ffsr_gym.model.schema import MAX_EPISODE_STEPS, build_table
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.capture_family import box_inertia
 from ffsr_gym.tasks.splits import pool, task_scenario
+from ffsr_gym.versions.registry import spec_for_version
 
 ROOT = Path(__file__).resolve().parents[3]
 

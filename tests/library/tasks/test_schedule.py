@@ -9,11 +9,11 @@ import pytest
 
 import ffsr_gym  # noqa: F401
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.spec import spec_for_version
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.certificate import replay
 from ffsr_gym.tasks.schedule import Schedule, replay_schedule
 from ffsr_gym.tasks.splits import pool, task_scenario
+from ffsr_gym.versions.registry import spec_for_version
 
 BENCHMARK = score_rule(spec_for_version("v2")).benchmark
 

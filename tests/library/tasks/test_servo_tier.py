@@ -13,13 +13,13 @@ import pytest
 from conftest import assert_edited_rule_file_is_named
 
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.scenario import ServoSettings
 from ffsr_gym.tasks import perturbation
 from ffsr_gym.tasks.certificate import ensemble_members, planner_episode, replay
 from ffsr_gym.tasks.generator import draw_task
 from ffsr_gym.tasks.splits import load_pools, pool, task_scenario
 from ffsr_gym.tasks.tiers import TIERS
+from ffsr_gym.versions.registry import load_benchmark
 
 BENCH = load_benchmark("v2")
 

@@ -16,7 +16,6 @@ from conftest import replay_certificate
 import ffsr_gym  # noqa: F401  (registers the environments)
 from ffsr_gym import failure_name
 from ffsr_gym.exceptions import InvalidInputError, ScenarioError
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.robot import load_robot
 from ffsr_gym.sim.setup import initial_configuration
 from ffsr_gym.sim.simulate import make_rollout
@@ -25,6 +24,7 @@ from ffsr_gym.tasks.generator import draw_task, screen
 from ffsr_gym.tasks.perturbation import confirmation_member
 from ffsr_gym.tasks.splits import LABEL_CODES, SEED_RANGES, load_pools, pool, task_scenario
 from ffsr_gym.tasks.tiers import ALL_TIERS, TIERS, classify
+from ffsr_gym.versions.registry import load_benchmark
 
 BENCH = load_benchmark("v2")
 SPLITS = BENCH.tasks.splits

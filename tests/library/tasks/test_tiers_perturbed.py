@@ -17,13 +17,13 @@ from test_tasks import CODES
 from test_vector_env import lockstep, make_vec
 
 import ffsr_gym  # noqa: F401  (registers the environments)
-from ffsr_gym.model.benchmark import load_benchmark
 from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.sim.simulate import make_rollout
 from ffsr_gym.tasks.generator import draw_task
 from ffsr_gym.tasks.perturbation import DRAWN_TIERS, PERTURBED_TIERS, load_perturbed_rule, perturbed_task
 from ffsr_gym.tasks.splits import SEED_RANGES, load_pools, pool
 from ffsr_gym.tasks.tiers import certify, classify_perturbed
+from ffsr_gym.versions.registry import load_benchmark
 
 if sys.version_info >= (3, 11):
     import tomllib

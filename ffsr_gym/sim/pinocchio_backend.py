@@ -21,7 +21,7 @@ _LOGGED = ("q", "v", "dq_joints", "ee_position_error_m", "ee_attitude_error", "b
            "base_attitude_error", "clearance_m", "self_clearance_m", "mu", "cdf", "sigma_min")
 
 
-class ReferenceRollout:
+class PinocchioRollout:
     """The Pinocchio reference backend of :class:`~ffsr_gym.sim.rollout.Rollout`.
 
     The readable implementation of the planner equations; :class:`~ffsr_gym.sim.compiled.KernelRollout`
