@@ -14,6 +14,7 @@ carry a stamp (v0 does not: a stamp on a v0 entry is refused). The tables show a
 
 from __future__ import annotations
 
+import fnmatch
 import hashlib
 import json
 import re
@@ -27,10 +28,14 @@ KEYS = ("status", "verifier", "commit", "pool_file_sha256", "reference_sha256", 
 #: A stamp written before stamps recorded the replayed code's digest: still valid, its code cannot be compared.
 KEYS_WITHOUT_CODE = tuple(key for key in KEYS if key != "code_sha256")
 #: The package's modules a replay runs (the physics, the planner, the scoring, the tasks, the envs and the replay
-#: itself), relative to the package; with every file of the robot, scenario, rule and pool data (``envs``) they make
-#: :func:`code_digest`. A change elsewhere (the CLI, the tables, the docs) leaves a stamp's code standing.
-REPLAYED_CODE = ("kernel", "model", "planning", "sim", "scoring", "versions", "tasks", "environments", "bench/replay.py",
-                 "bench/replay_tolerance.py", "bench/policies.py", "bench/episodes.py", "bench/evaluation.py")
+#: itself), relative to the package; with every file of the robot, scenario, rule and pool data (``envs``, but for
+#: the lab's best-known files, which no replay reads and the wheel does not carry) they make :func:`code_digest`. A
+#: change elsewhere (the CLI, the tables, the docs, a best-known search) leaves a stamp's code standing.
+REPLAYED_CODE = ("kernel", "model", "planning", "sim", "scoring", "versions", "tasks", "environments",
+                 "bench/replay.py", "bench/replay_tolerance.py", "bench/policies.py", "bench/episodes.py",
+                 "bench/evaluation.py")
+#: The ``envs`` files the lab keeps in the checkout and the library's wheel leaves out (CMakeLists.txt).
+LAB_DATA = "*_best_known*.json"
 _HEX = re.compile(r"[0-9a-f]{40}|[0-9a-f]{64}")
 _VERIFIER = re.compile(r"ffsr-gym [0-9A-Za-z.+-]{1,40}")
 _CREATED = re.compile(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\+00:00")
@@ -62,7 +67,8 @@ def code_digest() -> str:
     package = Path(__file__).resolve().parents[1]
     files = [(f"ffsr_gym/{path.relative_to(package).as_posix()}", path) for part in REPLAYED_CODE
              for path in ([package / part] if (package / part).is_file() else (package / part).rglob("*"))]
-    files += [(f"envs/{path.relative_to(envs_dir()).as_posix()}", path) for path in envs_dir().rglob("*")]
+    files += [(f"envs/{path.relative_to(envs_dir()).as_posix()}", path) for path in envs_dir().rglob("*")
+              if not fnmatch.fnmatch(path.name, LAB_DATA)]
     digest = hashlib.sha256(b"src/native\0" + _native.SOURCE_SHA256.encode())
     for name, path in sorted(files):
         if path.is_file() and "__pycache__" not in path.parts:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import fnmatch
 import os
 import subprocess
 import sys
@@ -22,10 +23,13 @@ def test_wheel_contains_robot_and_scenarios(tmp_path):
     )
     (wheel,) = tmp_path.glob("ffsr_gym-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
-    shipped = {str(p.relative_to(ROOT)) for p in (ROOT / "envs").rglob("*") if p.is_file()}
-    assert shipped, "envs/ is empty"
-    for path in shipped:
+    files = {str(p.relative_to(ROOT)) for p in (ROOT / "envs").rglob("*") if p.is_file()}
+    lab = {path for path in files if fnmatch.fnmatch(Path(path).name, "*_best_known*.json")}
+    assert files and lab, "envs/ is empty, or holds no best-known file"
+    for path in files - lab:
         assert f"ffsr_gym/{path}" in names, f"{path} missing from {wheel.name}"
+    assert not {f"ffsr_gym/{path}" for path in lab} & names, "the lab's best-known files are in the library's wheel"
+    assert not [n for n in names if n.startswith("ffsr_gym_lab")], "the lab's modules are in the library's wheel"
 
 
 def test_resources_resolve_to_existing_files():
@@ -34,9 +38,10 @@ def test_resources_resolve_to_existing_files():
 
 
 @pytest.mark.slow
-def test_the_wheel_alone_runs_the_main_job_evaluate_train_and_dataset(tmp_path):
-    """The built wheel in a fresh venv, used from a folder outside the repository: everything it needs ships in it.
-    Slow (a fresh install, and the kernel compiles in it: about 15 min on 2 cores)."""
+def test_the_wheel_alone_runs_the_main_job_evaluate_and_train(tmp_path):
+    """The built wheel in a fresh venv, used from a folder outside the repository: everything it needs ships in it,
+    and the lab's commands are not there. Slow (a fresh install, and the kernel compiles in it: about 15 min on 2
+    cores)."""
     subprocess.run([sys.executable, "-m", "pip", "wheel", str(ROOT), "--no-deps", "--no-build-isolation", "-q", "-w",
                     str(tmp_path / "dist")], check=True)
     (wheel,) = (tmp_path / "dist").glob("ffsr_gym-*.whl")
@@ -44,7 +49,7 @@ def test_the_wheel_alone_runs_the_main_job_evaluate_train_and_dataset(tmp_path):
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
     pip, bin_ = [str(venv / "bin" / "python"), "-m", "pip", "install", "-q"], venv / "bin"
     subprocess.run([*pip, "torch==2.13.0"], check=True)  # the CPU build this machine has; never a CUDA one
-    subprocess.run([*pip, f"{wheel}[rl,dataset]"], check=True)
+    subprocess.run([*pip, f"{wheel}[rl]"], check=True)
     work = tmp_path / "outside"
     work.mkdir()
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
@@ -62,8 +67,7 @@ def test_the_wheel_alone_runs_the_main_job_evaluate_train_and_dataset(tmp_path):
     assert out.split()[0] == "100"
     run(bin_ / "ffsr-gym", "train", "--algo", "ppo", "--env-id", "FFSR-v2", "--task", "easy", "--seeds", "0",
         "--timesteps", "256", "--curve-every", "128", "--out", "runs/rl", "--no-progress")
-    out = run(bin_ / "ffsr-gym", "dataset", "--tier", "easy", "--split", "validation", "--root", "datasets")
-    assert "episodes" in out and (work / "datasets").is_dir()
+    assert "{list,info,reproduce,ga,evaluate,render,train,leaderboard}" in run(bin_ / "ffsr-gym", "--help")
     listed = run(bin_ / "python", "-m", "pip", "list")
     assert "nvidia" not in listed.lower()
 
