@@ -18,6 +18,10 @@ from ffsr_gym.versions.registry import registered_ids
 
 #: The entry point group whose callables ``add(sub, groups)`` add sub-commands (the lab's).
 COMMANDS = "ffsr_gym.commands"
+#: The lab's commands by name (``leaderboard`` sub-commands as "leaderboard <name>"), so that a user of the library
+#: alone who types one is told where it lives instead of argparse's "invalid choice".
+LAB_COMMANDS = ("tasks", "study", "dataset", "docs", *(f"leaderboard {name}" for name in
+                                                       ("render", "update", "store", "plot", "aggregates", "pareto")))
 DESCRIPTION = ("Dual-arm free-floating space robot: reproduce the paper's predefined-time planner, play and score "
                "the Gymnasium benchmark ({ids}), train baselines, build task pools and render leaderboards.")
 
@@ -71,6 +75,11 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``ffsr-gym`` console script."""
     parser = build_parser()
     argv = sys.argv[1:] if argv is None else argv
+    lab = _lab_command(parser, argv)
+    if lab:
+        print(f"ffsr-gym: error: '{lab}' is a command of the lab (ffsr-gym-lab), which is not installed; from a "
+              "checkout: pip install -e ./lab (docs/layout.md, \"Library and lab\")", file=sys.stderr)
+        return 2
     try:
         args = parser.parse_args(argv)
     except SystemExit as stop:  # argparse's named errors (a bad option, a number out of range) return 2
@@ -87,6 +96,25 @@ def main(argv: list[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
     return int(code or 0)
+
+
+def _lab_command(parser: argparse.ArgumentParser, argv: list[str]) -> str | None:
+    """The lab command ``argv`` asks for when ``parser`` lacks it (the lab not installed), else None."""
+    words = [word for word in argv if not word.startswith("-")][:2]
+    for name in LAB_COMMANDS:
+        first, _, second = name.partition(" ")
+        if words[:1] != [first]:
+            continue
+        if not second and first not in _sub_choices(parser):
+            return name
+        if second and words[1:2] == [second] and second not in _sub_choices(_sub_choices(parser)[first]):
+            return name
+    return None
+
+
+def _sub_choices(parser: argparse.ArgumentParser) -> dict[str, Any]:
+    """A parser's sub-commands by name."""
+    return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
 
 
 if __name__ == "__main__":  # pragma: no cover

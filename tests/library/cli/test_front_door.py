@@ -11,7 +11,7 @@ import importlib.metadata
 
 import pytest
 
-from ffsr_gym.cli.main import COMMANDS, build_parser
+from ffsr_gym.cli.main import COMMANDS, build_parser, main
 
 USER_COMMANDS = {"list", "info", "reproduce", "ga", "evaluate", "render", "train", "leaderboard"}
 
@@ -51,3 +51,22 @@ def test_a_lab_that_does_not_load_is_named_and_the_users_commands_still_work(mon
     assert set(commands) == USER_COMMANDS
     err = capsys.readouterr().err
     assert "warning" in err and value in err and "reinstall" in err
+
+
+@pytest.mark.parametrize("argv, named", [(["tasks", "build", "--version", "v2"], "tasks"),
+                                         (["leaderboard", "render", "--root", "my_board"], "leaderboard render"),
+                                         (["study", "missing", "studies/rl-v2"], "study")])
+def test_a_lab_command_without_the_lab_says_where_it_lives(monkeypatch, capsys, argv, named):
+    _only(monkeypatch, [])
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"'{named}' is a command of the lab" in err and "pip install -e ./lab" in err
+
+
+def test_a_users_command_and_a_typo_are_not_sent_to_the_lab(monkeypatch, capsys):
+    _only(monkeypatch, [])
+    assert main(["leaderboard", "rendr"]) == 2
+    assert "invalid choice" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["leaderboard", "verify", "--help"])
+    assert "lab" not in capsys.readouterr().err
