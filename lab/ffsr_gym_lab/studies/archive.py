@@ -134,22 +134,18 @@ def _commit_holding(folder: Path, records: dict[str, dict[str, Any]]) -> str | N
     return head.stdout.strip() if same else None
 
 
-def _fetch(source: str, record: dict[str, Any]) -> bytes:
-    """The archive's bytes from a local path or an http(s) URL, checked against the manifest's sha256."""
+def _read(source: str) -> bytes:
+    """An archive's bytes from a local path or an http(s) URL."""
     if source.startswith(("http://", "https://")):
         with urllib.request.urlopen(source, timeout=60) as response:  # noqa: S310 - the scheme is checked above
             data = response.read(MAX_DOWNLOAD + 1)
         if len(data) > MAX_DOWNLOAD:
             raise InvalidInputError(f"--from: {source} is larger than {MAX_DOWNLOAD} bytes")
-    else:
-        path = Path(source)
-        if not path.is_file():
-            raise InvalidInputError(f"--from: {source} is not a file, an http(s) URL or git:<commit>")
-        data = path.read_bytes()
-    if _sha256(data) != record["sha256"]:
-        raise InvalidInputError(f"--from: {source} has sha256 {_sha256(data)}; the manifest's archive "
-                                f"{record['name']} has {record['sha256']}")
-    return _members(data, source)
+        return data
+    path = Path(source)
+    if not path.is_file():
+        raise InvalidInputError(f"--from: {source} is not a file, an http(s) URL or git:<commit>")
+    return path.read_bytes()
 
 
 def _from_git(folder: Path, commit: str, names: list[str]) -> dict[str, bytes]:
@@ -168,32 +164,47 @@ def _from_git(folder: Path, commit: str, names: list[str]) -> dict[str, bytes]:
 
 
 def restore(folder: Path, source: str, *, archive: str | None = None) -> list[Path]:
-    """Bring back the files of one recorded archive (``archive``: its name; the only one when None) from
-    ``source``: the archive as a local path or an http(s) URL, or ``git:<commit>`` (``git:`` alone: the commit
-    the manifest records). Every file is checked against its recorded sha256 before it is written; a file already
-    there with those bytes is kept, one with other bytes is refused (nothing a user has is overwritten).
+    """Bring back archived files from ``source``: an archive as a local path or an http(s) URL (the recorded archive
+    with its sha256), or ``git:<commit>`` (``git:`` alone: each archive's files from the commit it records), every
+    archive of the folder, or the one named ``archive``. Every file is checked against its recorded sha256 before it
+    is written; a file already there with those bytes is kept, one with other bytes is refused (nothing a user has
+    is overwritten).
 
     Returns:
         The files written.
     """
     folder = Path(folder)
     records = read_manifest(folder)["archives"]
-    chosen = [r for r in records if archive in (None, r["name"])]
-    if len(chosen) != 1:
-        names = [r["name"] for r in records]
-        raise InvalidInputError(f"--archive: {archive!r}; allowed: one of {names}" if names else
-                                f"{folder}: no archive is recorded ({MANIFEST} missing or empty)")
-    record = chosen[0]
-    names = sorted(record["files"])
+    if not records:
+        raise InvalidInputError(f"{folder}: no archive is recorded ({MANIFEST} missing or empty)")
+    names = [r["name"] for r in records]
+    if archive is not None and archive not in names:
+        raise InvalidInputError(f"--archive: {archive!r}; allowed: one of {names}")
+    records = [r for r in records if archive in (None, r["name"])]
     if source.startswith("git:"):
-        commit = source[4:] or record.get("git_commit")
-        if not commit:
-            raise InvalidInputError(f"--from git: the manifest records no commit for {record['name']}")
-        blobs = _from_git(folder, commit, names)
+        blobs = {}
+        for record in records:
+            commit = source[4:] or record.get("git_commit")
+            if not commit:
+                raise InvalidInputError(f"--from git: the manifest records no commit for {record['name']}")
+            blobs[record["name"]] = _from_git(folder, commit, sorted(record["files"]))
     else:
-        blobs = _fetch(source, record)
+        data = _read(source)
+        records = [r for r in records if r["sha256"] == _sha256(data)]
+        if not records:
+            raise InvalidInputError(f"--from: {source} has sha256 {_sha256(data)}, which no archive of "
+                                    f"{folder / MANIFEST} has (allowed: {names})")
+        blobs = {records[0]["name"]: _members(data, source)}
     written = []
-    for name in names:
+    for record in records:
+        written += _write_back(folder, source, record, blobs[record["name"]])
+    return written
+
+
+def _write_back(folder: Path, source: str, record: dict[str, Any], blobs: dict[str, bytes]) -> list[Path]:
+    """One archive's files written into ``folder`` from ``blobs``, each checked against the manifest first."""
+    written = []
+    for name in sorted(record["files"]):
         blob, want = blobs.get(name), record["files"][name]["sha256"]
         if blob is None or _sha256(blob) != want:
             raise InvalidInputError(f"{source}: {name} is missing or differs from the manifest's sha256 {want}")

@@ -162,3 +162,18 @@ def test_the_commands(study, capsys):
     assert "--archive" in capsys.readouterr().err
     assert main(["study", "restore", str(folder), "--from", str(out)]) == 0
     assert archive.missing(folder) == []
+
+
+def test_a_folder_with_two_archives(study, tmp_path):
+    folder, traces, out = study
+    first = archive.pack(folder, ["seed0/evaluation.trace"], out)
+    second = archive.pack(folder, ["seed1/evaluation.trace"], tmp_path / "release" / "second.tar.xz")
+    assert (first["name"], second["name"]) == ("rl-traces.tar.xz", "second.tar.xz")
+    written = archive.restore(folder, str(tmp_path / "release" / "second.tar.xz"))  # the archive its sha256 names
+    assert [p.relative_to(folder).as_posix() for p in written] == ["seed1/evaluation.trace"]
+    assert archive.missing(folder) == ["seed0/evaluation.trace"]
+    (folder / "seed1" / "evaluation.trace").unlink()
+    assert len(archive.restore(folder, "git:")) == 2  # every archive, each from the commit it records
+    assert archive.missing(folder) == []
+    with pytest.raises(InvalidInputError, match="allowed: one of"):
+        archive.restore(folder, "git:", archive="third.tar.xz")
