@@ -23,7 +23,8 @@ COMMANDS = "ffsr_gym.commands"
 LAB_COMMANDS = ("tasks", "study", "dataset", "docs", *(f"leaderboard {name}" for name in
                                                        ("render", "update", "store", "plot", "aggregates", "pareto")))
 DESCRIPTION = ("Dual-arm free-floating space robot: reproduce the paper's predefined-time planner, play and score "
-               "the Gymnasium benchmark ({ids}), train baselines, build task pools and render leaderboards.")
+               "the Gymnasium benchmark ({ids}), train baselines and verify leaderboard entries; with the lab "
+               "(ffsr-gym-lab), build task pools and render leaderboards.")
 
 
 class _DefaultsShown(argparse.HelpFormatter):
