@@ -126,7 +126,7 @@ def setup_text(results: dict) -> str:
             f"{results['machine']}, with pip's cache off and an empty matplotlib cache: the main job "
             f"took {total(first)} (`pip install .` {total(first[1:2])}, which builds the native kernel, the run "
             f"{total(first[2:])}; {total(again)} when run again), the tests {total(tests)} "
-            f"(`pip install -e \".[dev]\"` {total(tests[1:2])}, pytest {total(tests[2:])})."
+            f"(`{tests[1]['command'].removeprefix('.venv/bin/')}` {total(tests[1:2])}, pytest {total(tests[2:])})."
             + _first_uses_text(results) + "\n")
 
 
