@@ -35,8 +35,30 @@ def _sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
+def _inside(name: str) -> bool:
+    """Whether a relative name stays inside the folder it is taken in (not absolute, no ``..``)."""
+    return bool(name) and not name.startswith("/") and ".." not in Path(name).parts
+
+
+def _record_problem(record: Any) -> str | None:
+    """What is wrong with one archive record of a manifest (a text file anyone can edit), or None."""
+    if not isinstance(record, dict) or not isinstance(record.get("name"), str) or not isinstance(
+            record.get("sha256"), str) or not isinstance(record.get("files"), dict):
+        return "each of 'archives' must be an object with 'name', 'sha256' and 'files'"
+    for name, file in record["files"].items():
+        if not _inside(name):
+            return f"file {name!r} of archive {record['name']!r} is not inside the study folder"
+        if not isinstance(file, dict) or not isinstance(file.get("sha256"), str):
+            return f"file {name!r} of archive {record['name']!r} has no 'sha256'"
+    return None
+
+
 def read_manifest(folder: Path) -> dict[str, Any]:
-    """The folder's manifest, or an empty one (``archives``: one record per archive written)."""
+    """The folder's manifest, or an empty one (``archives``: one record per archive written).
+
+    Raises:
+        InvalidInputError: unreadable JSON, another format, or a record whose form or file names are wrong (named).
+    """
     path = folder / MANIFEST
     if not path.is_file():
         return {"format": FORMAT, "archives": []}
@@ -46,6 +68,12 @@ def read_manifest(folder: Path) -> dict[str, Any]:
         raise InvalidInputError(f"{path}: not a readable archive manifest ({exc})") from None
     if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
         raise InvalidInputError(f"{path}: key 'format' must be {FORMAT!r}")
+    if not isinstance(manifest.get("archives"), list):
+        raise InvalidInputError(f"{path}: key 'archives' must be a list")
+    for record in manifest["archives"]:
+        problem = _record_problem(record)
+        if problem:
+            raise InvalidInputError(f"{path}: key 'archives': {problem}")
     return manifest
 
 
@@ -53,6 +81,9 @@ def select(folder: Path, patterns: list[str]) -> list[Path]:
     """The files under ``folder`` that match a glob of ``patterns`` (relative to it), sorted, the manifest aside."""
     if not folder.is_dir():
         raise InvalidInputError(f"study folder {folder} does not exist")
+    bad = [pattern for pattern in patterns if not _inside(pattern)]
+    if bad:
+        raise InvalidInputError(f"--pattern: {bad[0]!r}; allowed: a glob relative to the study folder, without '..'")
     found = {path for pattern in patterns for path in folder.glob(pattern) if path.is_file()}
     outside = [p for p in found if not p.resolve().is_relative_to(folder.resolve())]
     if outside:
@@ -60,15 +91,14 @@ def select(folder: Path, patterns: list[str]) -> list[Path]:
     return sorted(p for p in found if p.name != MANIFEST)
 
 
-def _tar(folder: Path, files: list[Path]) -> bytes:
-    """The files as a tar.xz, the same bytes for the same files (sorted, no times, owners or modes)."""
+def _tar(blobs: dict[str, bytes]) -> bytes:
+    """Files by name as a tar.xz, the same bytes for the same files (sorted, no times, owners or modes)."""
     buffer = io.BytesIO()
     with tarfile.open(fileobj=buffer, mode="w:xz", format=tarfile.PAX_FORMAT) as tar:
-        for path in files:
-            data = path.read_bytes()
-            info = tarfile.TarInfo(path.relative_to(folder).as_posix())
-            info.size, info.mtime, info.mode, info.uid, info.gid = len(data), 0, 0o644, 0, 0
-            tar.addfile(info, io.BytesIO(data))
+        for name in sorted(blobs):
+            info = tarfile.TarInfo(name)
+            info.size, info.mtime, info.mode, info.uid, info.gid = len(blobs[name]), 0, 0o644, 0, 0
+            tar.addfile(info, io.BytesIO(blobs[name]))
     return buffer.getvalue()
 
 
@@ -79,7 +109,7 @@ def _members(data: bytes, where: str) -> dict[str, bytes]:
         with tarfile.open(fileobj=io.BytesIO(data), mode="r:xz") as tar:
             for info in tar.getmembers():
                 name = info.name
-                if not info.isfile() or name.startswith("/") or ".." in Path(name).parts:
+                if not info.isfile() or not _inside(name):
                     raise InvalidInputError(f"{where}: member {name!r} is not a file inside the study folder")
                 handle = tar.extractfile(info)
                 out[name] = handle.read() if handle is not None else b""
@@ -104,9 +134,9 @@ def pack(folder: Path, patterns: list[str], out: Path, *, url: str | None = None
     manifest = read_manifest(folder)
     if any(record["name"] == out.name for record in manifest["archives"]):
         raise InvalidInputError(f"--out: {folder / MANIFEST} already records an archive named {out.name}")
-    data = _tar(folder, files)
-    records = {p.relative_to(folder).as_posix(): {"bytes": p.stat().st_size, "sha256": _sha256(p.read_bytes())}
-               for p in files}
+    blobs = {p.relative_to(folder).as_posix(): p.read_bytes() for p in files}
+    records = {name: {"bytes": len(blob), "sha256": _sha256(blob)} for name, blob in blobs.items()}
+    data = _tar(blobs)
     back = _members(data, str(out))
     if {name: _sha256(blob) for name, blob in back.items()} != {n: r["sha256"] for n, r in records.items()}:
         raise InvalidInputError(f"{out}: the archive does not read back to the files it was made of")

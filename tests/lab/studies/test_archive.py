@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from ffsr_gym_lab.studies import archive
 
 from ffsr_gym.cli.main import main
 from ffsr_gym.exceptions import InvalidInputError
-from ffsr_gym_lab.studies import archive
 
 PATTERN = ["*/evaluation*.trace"]
 
@@ -177,3 +177,27 @@ def test_a_folder_with_two_archives(study, tmp_path):
     assert archive.missing(folder) == []
     with pytest.raises(InvalidInputError, match="allowed: one of"):
         archive.restore(folder, "git:", archive="third.tar.xz")
+
+
+@pytest.mark.parametrize("edit, named", [
+    (lambda m: m["archives"][0]["files"].update({"../../outside.trace": {"bytes": 3, "sha256": "0" * 64}}),
+     "not inside the study folder"),
+    (lambda m: m["archives"][0].pop("files"), "'name', 'sha256' and 'files'"),
+    (lambda m: m.update(archives={}), "key 'archives' must be a list"),
+])
+def test_a_manifest_edited_by_hand_is_refused_by_name(study, edit, named):
+    folder, _, out = study
+    archive.pack(folder, PATTERN, out)
+    manifest = json.loads((folder / archive.MANIFEST).read_text())
+    edit(manifest)
+    (folder / archive.MANIFEST).write_text(json.dumps(manifest))
+    with pytest.raises(InvalidInputError, match=named):
+        archive.restore(folder, "git:")
+    assert not (folder.parent.parent / "outside.trace").exists()
+
+
+@pytest.mark.parametrize("pattern", ["/etc/*", "../*/evaluation.trace"])
+def test_a_pattern_that_leaves_the_folder_is_refused(study, pattern):
+    folder, _, out = study
+    with pytest.raises(InvalidInputError, match="--pattern"):
+        archive.pack(folder, [pattern], out)
