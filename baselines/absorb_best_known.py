@@ -31,15 +31,15 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from ffsr_gym_lab.best_known import build
-from ffsr_gym_lab.best_known.records import records
-from ffsr_gym_lab.best_known.search import timed_go
 
 from ffsr_gym.bench.policies import load_model
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.schedule import Schedule
 from ffsr_gym.tasks.splits import pool, task_scenario, version_tiers
 from ffsr_gym.versions.registry import all_specs, spec_for_version
+from ffsr_gym_lab.best_known import build
+from ffsr_gym_lab.best_known.records import records
+from ffsr_gym_lab.best_known.search import timed_go
 
 
 def parameters_action(entry: dict, tier: str, version: str) -> tuple[float, float] | None:

@@ -10,11 +10,10 @@ not tuned on any pool. An existing entry is kept.
 import argparse
 from pathlib import Path
 
-from ffsr_gym_lab.board.tables import headline
-
 import ffsr_gym
 from ffsr_gym.bench.capture_heuristic import slowest_pass
 from ffsr_gym.versions.registry import spec_for_version
+from ffsr_gym_lab.board.tables import headline
 
 CALLABLE = "ffsr_gym.bench.capture_heuristic:slowest_pass"
 

@@ -27,13 +27,13 @@ from functools import partial
 from pathlib import Path
 
 import numpy as np
-from ffsr_gym_lab.board.tables import headline
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.planner_scores import evaluate_planner
 from ffsr_gym.tasks.certificate import planner_episode
 from ffsr_gym.tasks.splits import pool, task_scenario, version_tiers
 from ffsr_gym.versions.registry import CAPTURE_VERSIONS, VERSIONS, load_benchmark, spec_for_version
+from ffsr_gym_lab.board.tables import headline
 
 GAINS_PER_S = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
 

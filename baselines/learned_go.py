@@ -30,7 +30,6 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
-from ffsr_gym_lab.board.tables import headline
 from tqdm.auto import tqdm
 
 import ffsr_gym
@@ -40,6 +39,7 @@ from ffsr_gym.provenance import write_json_atomic
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.splits import pool, task_scenario
 from ffsr_gym.versions.registry import load_benchmark, spec_for_version
+from ffsr_gym_lab.board.tables import headline
 
 VERSION, NAME, STEP_S, SEED = "capture-v1", "learned_go", 0.5, 0
 HIDDEN, EPOCHS, BATCH, LEARNING_RATE = (128, 128), 60, 512, 1e-3

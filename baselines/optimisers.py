@@ -21,12 +21,12 @@ from pathlib import Path
 
 import cma
 import numpy as np
-from ffsr_gym_lab.board.tables import headline
 
 from ffsr_gym.bench.planner_scores import evaluate_planner, training_loss
 from ffsr_gym.optim import ga
 from ffsr_gym.tasks.splits import version_tiers
 from ffsr_gym.versions.registry import CAPTURE_VERSIONS, VERSIONS, load_benchmark, spec_for_version
+from ffsr_gym_lab.board.tables import headline
 
 
 def go_box(version):

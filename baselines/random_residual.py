@@ -11,11 +11,10 @@ leaderboard verify`` re-runs it exactly). An existing entry is kept.
 import argparse
 from pathlib import Path
 
-from ffsr_gym_lab.board.tables import headline
-
 import ffsr_gym
 from ffsr_gym.bench.policies import uniform_random_residual
 from ffsr_gym.versions.registry import spec_for_version
+from ffsr_gym_lab.board.tables import headline
 
 CALLABLE = "ffsr_gym.bench.policies:uniform_random_residual"
 

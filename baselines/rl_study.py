@@ -24,7 +24,6 @@ import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
-from ffsr_gym_lab.studies import plan as study_plan
 from tqdm.auto import tqdm
 
 from ffsr_gym.bench.options import add_scheduler_option
@@ -33,6 +32,7 @@ from ffsr_gym.optim.rl import load_hyperparams
 from ffsr_gym.optim.rl_study import scored_seed_files, seed_folder, seed_piece, train_and_evaluate, write_seed
 from ffsr_gym.tasks.splits import version_tiers
 from ffsr_gym.versions.registry import spec_for_version
+from ffsr_gym_lab.studies import plan as study_plan
 
 ALGOS = ("ppo", "sac")
 

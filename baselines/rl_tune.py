@@ -21,12 +21,11 @@ import sys
 from functools import partial
 from pathlib import Path
 
-from ffsr_gym_lab.studies.tune_loop import default_space, search, train_trial
-from ffsr_gym_lab.studies.tuning import make_pruner, make_sampler, optuna_module, summary
-
 from ffsr_gym.bench.options import add_scheduler_option, positive_int
 from ffsr_gym.cluster import study_executor
 from ffsr_gym.provenance import write_json_atomic
+from ffsr_gym_lab.studies.tune_loop import default_space, search, train_trial
+from ffsr_gym_lab.studies.tuning import make_pruner, make_sampler, optuna_module, summary
 
 SEARCH = Path(__file__).resolve().parents[1] / "ffsr_gym" / "hyperparams" / "search"
 

@@ -21,3 +21,14 @@ autodoc_member_order = "bysource"
 autodoc_typehints = "description"
 napoleon_google_docstring = True
 napoleon_numpy_docstring = False
+
+
+def _literal_bars(app, what, name, obj, options, lines):
+    """Docstrings write absolute values and norms as ``|x|``; reST would read them as substitutions."""
+    for i, line in enumerate(lines):
+        if "|" in line and not line.lstrip().startswith(("|", "+")):
+            lines[i] = line.replace("|", r"\|")
+
+
+def setup(app):
+    app.connect("autodoc-process-docstring", _literal_bars)

@@ -148,6 +148,7 @@ class GuardedExecutor(Executor):
         self._watch.start()
 
     def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future:
+        """Run ``fn(*args)`` on the pool with the worker's threads pinned; keyword arguments are refused."""
         if kwargs:
             raise InvalidInputError("a cluster piece takes positional arguments only")
         outer: Future = Future()

@@ -85,6 +85,11 @@ def _version() -> str:
         return "unknown"
 
 
+#: The ``envs`` files the lab keeps in the checkout and the library's wheel leaves out (CMakeLists.txt's install
+#: rule names the same pattern: CMake reads no Python).
+LAB_DATA = "*_best_known*.json"
+
+
 def checkout_state() -> tuple[str | None, bool | None, str]:
     """(commit, dirty, where the tree comes from) of the git work tree that describes this run (commit and dirty
     None outside a checkout). Generated results (leaderboard entries and tables, the long studies' records, the best
@@ -93,7 +98,7 @@ def checkout_state() -> tuple[str | None, bool | None, str]:
     commit = None if tree is None else _git("rev-parse", "HEAD", cwd=tree)
     dirty = None if commit is None else bool(_git("status", "--porcelain", "--untracked-files=no", "--", ".",
                                                  ":(exclude)leaderboards", ":(exclude)studies",
-                                                 ":(exclude)envs/benchmark/*_best_known*.json", ":(exclude)docs",
+                                                 f":(exclude)envs/benchmark/{LAB_DATA}", ":(exclude)docs",
                                                  ":(exclude)tests", ":(exclude)*.md", cwd=tree))
     return commit, dirty, source
 

@@ -1,5 +1,5 @@
 """Shared fixtures: the shipped robot, its collision model and the paper's initial state; the
-scripts of ``benchmarks/`` as modules."""
+scripts of ``experiments/`` as modules."""
 
 from __future__ import annotations
 
@@ -59,8 +59,8 @@ def random_configuration(robot: Robot, rng: np.random.Generator) -> np.ndarray:
 
 
 @cache
-def benchmark_script(name: str, folder: str = "benchmarks") -> ModuleType:
-    """``<folder>/<name>.py`` (a script of ``benchmarks/`` or ``baselines/``, not a package module) loaded as a
+def benchmark_script(name: str, folder: str = "experiments") -> ModuleType:
+    """``<folder>/<name>.py`` (a script of ``experiments/`` or ``baselines/``, not a package module) loaded as a
     module, once per session."""
     path = Path(__file__).resolve().parents[1] / folder / f"{name}.py"
     spec = importlib.util.spec_from_file_location(name, path)

@@ -33,7 +33,7 @@ from ffsr_gym.provenance import provenance
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks.reference import reference_record
 from ffsr_gym.tasks.splits import pool, pool_path
-from ffsr_gym.versions.registry import spec_for_env_id
+from ffsr_gym.versions.registry import spec_of
 
 __all__ = ["EvalReport", "Policy", "PredictsActions", "evaluate", "objective_for_params"]
 
@@ -49,21 +49,6 @@ class Plan:
     extra: dict[str, Any] = field(default_factory=dict)
     recorded_kwargs: dict[str, Any] | None = None  # what the entry records, when ``kwargs`` holds a Scenario
     policy_origin: dict[str, Any] | None = None  # what made the policy (entry.policy_origin), found before the run
-
-
-def spec_of(env_id: Any) -> BenchmarkSpec:
-    """The spec of a registered FFSR id.
-
-    Raises:
-        InvalidInputError: not one (the known ids are listed).
-    """
-    spec = spec_for_env_id(env_id) if isinstance(env_id, str) else None
-    if spec is None:
-        from ffsr_gym.versions.registry import all_specs
-
-        known = [i for s in all_specs().values() for i in s.env_ids]
-        raise InvalidInputError(f"env_id {env_id!r}; allowed: {known}")
-    return spec
 
 
 #: Environment arguments an evaluation may pass besides the task: they change nothing the score reads.

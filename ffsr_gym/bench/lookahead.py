@@ -8,7 +8,7 @@ moves by a step, not its edge (the earliest on ties; the best lone moment when n
 moment captures). It is the simplest model-predictive method. What it has that the entries acting on observations
 alone do not is the task's model; an episode plays the nominal target, so its simulation is exact, and it bounds
 what timing alone earns at one (m, T_c), short of the best-known search, which also moves (m, T_c). It is measured
-in a study (``benchmarks/lookahead_capture_v1.py``), not ranked: a ranked policy acts on the observation.
+in a study (``experiments/lookahead_capture_v1.py``), not ranked: a ranked policy acts on the observation.
 """
 
 from __future__ import annotations

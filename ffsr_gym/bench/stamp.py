@@ -23,6 +23,8 @@ from functools import lru_cache
 from importlib import metadata
 from typing import Any
 
+from ffsr_gym.provenance import LAB_DATA
+
 KEYS = ("status", "verifier", "commit", "pool_file_sha256", "reference_sha256", "rows_sha256", "entry_sha256",
         "code_sha256", "created_utc")
 #: A stamp written before stamps recorded the replayed code's digest: still valid, its code cannot be compared.
@@ -34,8 +36,6 @@ KEYS_WITHOUT_CODE = tuple(key for key in KEYS if key != "code_sha256")
 REPLAYED_CODE = ("kernel", "model", "planning", "sim", "scoring", "versions", "tasks", "environments",
                  "bench/replay.py", "bench/replay_tolerance.py", "bench/policies.py", "bench/episodes.py",
                  "bench/evaluation.py")
-#: The ``envs`` files the lab keeps in the checkout and the library's wheel leaves out (CMakeLists.txt).
-LAB_DATA = "*_best_known*.json"
 _HEX = re.compile(r"[0-9a-f]{40}|[0-9a-f]{64}")
 _VERIFIER = re.compile(r"ffsr-gym [0-9A-Za-z.+-]{1,40}")
 _CREATED = re.compile(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\+00:00")

@@ -118,8 +118,8 @@ def _env_kwargs(args: argparse.Namespace) -> dict:
     Raises:
         InvalidInputError: ``--task`` or ``--split`` given with ``--scenario`` (they would be ignored).
     """
-    from ffsr_gym.bench.evaluation import spec_of
     from ffsr_gym.exceptions import InvalidInputError
+    from ffsr_gym.versions.registry import spec_of
 
     spec = spec_of(args.env_id)
     if spec.tasks.splits:
@@ -152,10 +152,11 @@ def _compute(text: str | None) -> dict | None:
 
 
 def _evaluate(args: argparse.Namespace) -> None:
-    from ffsr_gym.bench.evaluation import evaluate, spec_of
+    from ffsr_gym.bench.evaluation import evaluate
     from ffsr_gym.bench.options import free_entry
     from ffsr_gym.cluster import study_executor
     from ffsr_gym.exceptions import InvalidInputError
+    from ffsr_gym.versions.registry import spec_of
 
     spec = spec_of(args.env_id)
     pooled = spec.evaluation.protocol == "pool"
@@ -219,10 +220,10 @@ def _render(args: argparse.Namespace) -> None:
 
 def _train(args: argparse.Namespace) -> None:
     from ffsr_gym.bench.entry import entry_name
-    from ffsr_gym.bench.evaluation import spec_of
     from ffsr_gym.bench.options import free_entry, unique_seeds
     from ffsr_gym.bench.verify import CHECKPOINTS
     from ffsr_gym.optim.rl_study import train_and_evaluate
+    from ffsr_gym.versions.registry import spec_of
 
     spec = spec_of(args.env_id)
     task = args.task if spec.evaluation.protocol == "pool" else args.scenario

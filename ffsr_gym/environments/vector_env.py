@@ -69,7 +69,7 @@ class FFSRVectorEnv(gym.vector.VectorEnv):
     whose episode ended is reset in the same step (its last observation in ``info["final_obs"]``, an
     object array, and its last info in ``info["final_info"]``, a dict of masked arrays, as Gymnasium's
     ``SyncVectorEnv`` gives them;
-    what stable-baselines3 expects, :mod:`ffsr_gym.optim.sb3_vec_env`); with
+    what stable-baselines3 expects, :mod:`ffsr_gym.environments.sb3_vec_env`); with
     ``AutoresetMode.DISABLED`` none: a copy whose episode ended holds (not stepped, reward 0, its
     end reported once) until a ``reset()``, of every copy or of those of ``options={"reset_mask": ...}``
     (a bool array, as Gymnasium's vector envs take it). ``reset(seed=s)`` seeds copy i with s + i;

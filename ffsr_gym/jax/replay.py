@@ -2,7 +2,7 @@
 played by the JAX episode at once (``vmap`` over the tasks, ``lax.scan`` over the decisions).
 
 This is how the JAX loop is checked against the kernel: the stored certificates of a tier's pool, replayed, must
-give the stored verdicts and scores (``benchmarks/jax_agreement.py``).
+give the stored verdicts and scores (``experiments/jax_agreement.py``).
 """
 
 from __future__ import annotations

@@ -34,12 +34,13 @@ from typing import Any
 import numpy as np
 from tqdm.auto import tqdm
 
-from ffsr_gym.bench.evaluation import evaluate, spec_of
+from ffsr_gym.bench.evaluation import evaluate
 from ffsr_gym.bench.policies import SB3_CLASSES, sb3_modules
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.provenance import write_json_atomic
 from ffsr_gym.tasks.splits import pool
+from ffsr_gym.versions.registry import spec_of
 
 DEFAULT_HYPERPARAMS = Path(__file__).resolve().parents[1] / "hyperparams"
 
@@ -172,7 +173,7 @@ def training_kwargs(spec: BenchmarkSpec, task: str) -> dict[str, Any]:
     return {spec.tasks.keyword: task}
 
 
-#: How the training envs are stepped: the batched kernel (:class:`~ffsr_gym.optim.sb3_vec_env.BatchedVecEnv`),
+#: How the training envs are stepped: the batched kernel (:class:`~ffsr_gym.environments.sb3_vec_env.BatchedVecEnv`),
 #: or SB3's ``make_vec_env`` over single environments (the same episodes, bit for bit; slower).
 VEC_ENVS = ("batched", "single")
 
@@ -198,7 +199,7 @@ def training_env(env_id: str, n_envs: int, seed: int, env_kwargs: dict[str, Any]
             check_run(steps=engine.n_steps, copies=n_envs, steps_per_decision=engine.steps_per_decision,
                       what=f"{n_envs} training environments")
         return make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs)
-    from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
+    from ffsr_gym.environments.sb3_vec_env import BatchedVecEnv
 
     env = BatchedVecEnv(env_id, n_envs, threads=1, **env_kwargs)  # one core per training run
     env.seed(seed)

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from ffsr_gym.bench.entry import EvalReport, entry_name
-from ffsr_gym.bench.evaluation import evaluate, spec_of
+from ffsr_gym.bench.evaluation import evaluate
 from ffsr_gym.bench.policies import SB3_CLASSES, sb3_modules
 from ffsr_gym.bench.trace_file import read_entry, write_entry_files
 from ffsr_gym.bench.verify import CHECKPOINTS
@@ -24,6 +24,7 @@ from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.optim.rl import BEST_MODEL, curve_split, train
 from ffsr_gym.provenance import provenance, write_text_atomic
 from ffsr_gym.scoring.rules import score_rule
+from ffsr_gym.versions.registry import spec_of
 
 
 def train_and_evaluate(algo: str, env_id: str, *, seeds: list[int], out: str | Path, task: str | None = None,

@@ -31,7 +31,7 @@ MAX_PHYSICS_STEPS_PER_DECISION = 1_000_000
 #: Floats per trajectory row (the sum of the sizes of ``LOG_FIELDS``), 8 bytes each.
 ROW_FLOATS = 73
 #: What a batched copy without a trajectory holds, rounded up [bytes] (its state, totals, task and settings;
-#: ``benchmarks/memory.py`` measures it, docs/kernel.md).
+#: ``experiments/memory.py`` measures it, docs/kernel.md).
 COPY_BYTES = 64 * 1024
 
 

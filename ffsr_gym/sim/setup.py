@@ -2,7 +2,7 @@
 
 A :class:`RobotAssets` (Pinocchio model, collision model, kernel arrays, native robot) is built once per robot
 and process; a :class:`ScenarioSetup` (initial configuration, obstacles, desired path, base
-set-point) once per scenario. The reference rollout, the kernel rollout, the task generator and
+set-point) once per scenario. The Pinocchio rollout, the kernel rollout, the task generator and
 the report all take them from here instead of rebuilding them.
 """
 

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
-from ffsr_gym.exceptions import ScenarioError
+from ffsr_gym.exceptions import InvalidInputError, ScenarioError
 from ffsr_gym.model.benchmark import Benchmark, load_rules
 from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.spec import BenchmarkSpec, read_spec
@@ -113,6 +114,19 @@ def spec_for_env_id(env_id: str) -> BenchmarkSpec | None:
         if key in spec.env_ids:
             return spec
     return None
+
+
+def spec_of(env_id: Any) -> BenchmarkSpec:
+    """The spec of a registered FFSR id.
+
+    Raises:
+        InvalidInputError: not one (the known ids are listed).
+    """
+    spec = spec_for_env_id(env_id) if isinstance(env_id, str) else None
+    if spec is None:
+        known = [i for s in all_specs().values() for i in s.env_ids]
+        raise InvalidInputError(f"env_id {env_id!r}; allowed: {known}")
+    return spec
 
 
 def remove_spec(version: str) -> BenchmarkSpec:

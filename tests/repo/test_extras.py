@@ -20,7 +20,7 @@ DOCUMENTED = {
     "analysis": ["ffsr_gym_lab.board.aggregates", "rliable.library"],
     "dataset": ["ffsr_gym_lab.publish.dataset", "minari"],
     "dask": ["ffsr_gym.cluster", "distributed"],
-    "rl": ["ffsr_gym.optim.rl", "ffsr_gym.optim.sb3_vec_env", "stable_baselines3"],
+    "rl": ["ffsr_gym.optim.rl", "ffsr_gym.environments.sb3_vec_env", "stable_baselines3"],
 }
 
 

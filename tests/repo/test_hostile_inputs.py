@@ -10,7 +10,6 @@ import stat
 import gymnasium as gym
 import numpy as np
 import pytest
-from ffsr_gym_lab.board.leaderboard import entry_scenario
 
 import ffsr_gym
 from ffsr_gym.bench.entry import EvalReport
@@ -18,6 +17,7 @@ from ffsr_gym.exceptions import InvalidInputError, RobotFileError, ScenarioError
 from ffsr_gym.model.resources import scenario_path
 from ffsr_gym.provenance import write_json_atomic
 from ffsr_gym.tasks.certificate import Certificate
+from ffsr_gym_lab.board.leaderboard import entry_scenario
 
 
 @pytest.mark.parametrize("env_id", ["FFSR-v2", "FFSR-Residual-v0"])

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from ffsr_gym.model.resources import envs_dir
+from ffsr_gym.provenance import LAB_DATA
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -24,7 +25,7 @@ def test_wheel_contains_robot_and_scenarios(tmp_path):
     (wheel,) = tmp_path.glob("ffsr_gym-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
     files = {str(p.relative_to(ROOT)) for p in (ROOT / "envs").rglob("*") if p.is_file()}
-    lab = {path for path in files if fnmatch.fnmatch(Path(path).name, "*_best_known*.json")}
+    lab = {path for path in files if fnmatch.fnmatch(Path(path).name, LAB_DATA)}
     assert files and lab, "envs/ is empty, or holds no best-known file"
     for path in files - lab:
         assert f"ffsr_gym/{path}" in names, f"{path} missing from {wheel.name}"

@@ -1,9 +1,11 @@
-"""Every name the docs' code imports or calls is public: it resolves, and the API reference documents it.
+"""Every name the docs import, call or point to is public: it resolves, and the API reference documents it.
 
 The code blocks of README.md and docs/ (``python`` fences, doctest prompts stripped) are parsed with ``ast``;
 every ``ffsr_gym`` name they import (``import ffsr_gym.x``, ``from ffsr_gym.x import y``) or reach as an attribute
 (``ffsr_gym.evaluate``) must import, and the API reference (an ``.. auto*::`` directive of the docs) must name it,
-or its module with ``automodule``.
+or its module with ``automodule``. The prose's dotted paths (``ffsr_gym.planning.ptsf``, ...) are held to the same
+rule, or to their owner (a class's method, a module's member) being documented; the module map (docs/layout.md)
+and the changelog name modules as history and layout, not as places to read, and are left out.
 """
 
 from __future__ import annotations
@@ -47,6 +49,19 @@ def _code_names() -> dict[str, set[str]]:
 
 
 NAMES = _code_names()
+PROSE_PAGES = [page for page in PAGES if page.name not in ("layout.md", "changelog.md")]
+DOTTED = re.compile(r"\bffsr_gym(?:\.[A-Za-z_][A-Za-z0-9_]*)+")
+
+
+def _prose_names() -> dict[str, set[str]]:
+    names: dict[str, set[str]] = {}
+    for page in PROSE_PAGES:
+        for name in DOTTED.findall(BLOCK.sub("", page.read_text(encoding="utf-8"))):
+            names.setdefault(name, set()).add(str(page.relative_to(ROOT)))
+    return names
+
+
+PROSE = _prose_names()
 DOCUMENTED = {(kind, target) for page in PAGES for kind, target in DIRECTIVE.findall(page.read_text(encoding="utf-8"))}
 
 
@@ -77,3 +92,17 @@ def test_a_name_the_docs_code_uses_resolves_and_is_documented(name):
     owner = name.rsplit(".", 1)[0]
     assert name in targets or name in modules or owner in modules, (
         f"{name} (used by {sorted(NAMES[name])}) is in no '.. auto*::' directive of the API reference")
+
+
+def test_the_docs_prose_points_to_modules():
+    assert {"ffsr_gym.planning.ptsf", "ffsr_gym.tasks.splits.SEED_RANGES"} <= set(PROSE)
+
+
+@pytest.mark.parametrize("name", sorted(PROSE))
+def test_a_path_the_docs_prose_names_resolves_and_is_documented(name):
+    if name.startswith("ffsr_gym.jax"):
+        pytest.importorskip("jax")
+    _resolve(name)
+    targets = {target for _, target in DOCUMENTED}
+    assert name in targets or name.rsplit(".", 1)[0] in targets, (
+        f"{name} (named by {sorted(PROSE[name])}) is in no '.. auto*::' directive of the API reference, nor is its owner")

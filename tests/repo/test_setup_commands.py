@@ -21,9 +21,9 @@ def test_ci_runs_the_readme_test_command_verbatim():
 def test_readme_setup_times_are_rendered_from_the_measurement():
     module = benchmark_script("setup_time")
     text = (ROOT / "README.md").read_text(encoding="utf-8")
-    results = json.loads((ROOT / "benchmarks" / "setup_time.json").read_text())
+    results = json.loads((ROOT / "experiments" / "setup_time.json").read_text())
     block = text.split(module.START + "\n")[1].split(module.END)[0]
-    assert block == module.setup_text(results), "rerun: python benchmarks/setup_time.py --readme README.md"
+    assert block == module.setup_text(results), "rerun: python experiments/setup_time.py --readme README.md"
     assert results["commands"]["tests"]["parts"][-1]["command"].endswith("pytest -q")
     assert results["provenance"]["git_commit"]
 

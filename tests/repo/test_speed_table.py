@@ -1,4 +1,4 @@
-"""The speed page's tables are the one ``benchmarks/bench.py`` renders from its committed results."""
+"""The speed page's tables are the one ``experiments/bench.py`` renders from its committed results."""
 
 from __future__ import annotations
 
@@ -13,15 +13,15 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def test_the_speed_tables_are_rendered_from_the_results():
     bench = benchmark_script("bench")
-    results = json.loads((ROOT / "benchmarks" / "results.json").read_text())
+    results = json.loads((ROOT / "experiments" / "results.json").read_text())
     text = (ROOT / "docs" / "speed.md").read_text(encoding="utf-8")
     block = text.split(bench.README_START + "\n")[1].split(bench.README_END)[0]
-    assert block == bench.speed_table(results), "rerun: python benchmarks/bench.py --runs 3 --readme docs/speed.md"
+    assert block == bench.speed_table(results), "rerun: python experiments/bench.py --runs 3 --readme docs/speed.md"
     budget = text.split(bench.BUDGET_START + "\n")[1].split(bench.BUDGET_END)[0]
-    assert budget == bench.budget_table(results), "rerun: python benchmarks/bench.py --runs 3 --readme docs/speed.md"
+    assert budget == bench.budget_table(results), "rerun: python experiments/bench.py --runs 3 --readme docs/speed.md"
     guard = benchmark_script("speed_guard")
     block = text.split(guard.START + "\n")[1].split(guard.END)[0]
-    assert block == guard.guard_block(results), "rerun: python benchmarks/bench.py --runs 3 --readme docs/speed.md"
+    assert block == guard.guard_block(results), "rerun: python experiments/bench.py --runs 3 --readme docs/speed.md"
     assert results["provenance"]["git_commit"] and len(results["runs"]) == 3
 
 
@@ -61,7 +61,7 @@ def test_a_slower_row_is_flagged_against_the_committed_results():
 
 def test_the_speed_page_was_measured_on_the_newest_kernel():
     """The results the speed page is rendered from were measured at a commit that holds the newest change to
-    ``ffsr_gym/kernel/``, ``src/native/`` or the build's flags (rerun ``python benchmarks/bench.py --runs 3 --readme
+    ``ffsr_gym/kernel/``, ``src/native/`` or the build's flags (rerun ``python experiments/bench.py --runs 3 --readme
     docs/speed.md`` after a kernel change)."""
     import subprocess
 
@@ -71,7 +71,7 @@ def test_the_speed_page_was_measured_on_the_newest_kernel():
     newest = git("log", "-1", "--format=%H", "--", "ffsr_gym/kernel", "src/native", "CMakeLists.txt").stdout.strip()
     if not newest or git("rev-parse", "--is-shallow-repository").stdout.strip() == "true":
         pytest.skip("not a full git checkout: the history of ffsr_gym/kernel is not here")
-    measured = json.loads((ROOT / "benchmarks" / "results.json").read_text())["provenance"]["git_commit"]
+    measured = json.loads((ROOT / "experiments" / "results.json").read_text())["provenance"]["git_commit"]
     assert git("merge-base", "--is-ancestor", newest, measured).returncode == 0, (
         f"docs/speed.md was measured at {measured[:7]}, before the kernel change {newest[:7]}: rerun "
-        "python benchmarks/bench.py --runs 3 --readme docs/speed.md")
+        "python experiments/bench.py --runs 3 --readme docs/speed.md")

@@ -1,4 +1,4 @@
-"""The resumable loop of the capture-v1 studies (``benchmarks/study_rows.py``): a stopped study resumes where it
+"""The resumable loop of the capture-v1 studies (``experiments/study_rows.py``): a stopped study resumes where it
 stopped, computing only the rows its work file does not hold, in the jobs' order."""
 
 from __future__ import annotations

@@ -24,10 +24,10 @@ from statistics import median
 from typing import Any
 
 from ffsr_gym.bench.entry import entry_name
-from ffsr_gym.bench.evaluation import spec_of
 from ffsr_gym.bench.verify import CHECKPOINTS
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.optim.rl_study import scored_seed_files, seed_folder
+from ffsr_gym.versions.registry import spec_of
 
 
 @dataclass(frozen=True)

@@ -144,6 +144,6 @@ def _any_complete(study: Any) -> bool:
 
 def default_space(algo: str, env_id: str) -> dict[str, Any]:
     """The searched space of ``algo`` on ``env_id`` (residual or not)."""
-    from ffsr_gym.bench.evaluation import spec_of
+    from ffsr_gym.versions.registry import spec_of
 
     return search_space(algo, spec_of(env_id).is_residual(env_id))

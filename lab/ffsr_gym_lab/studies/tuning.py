@@ -82,8 +82,8 @@ def make_pruner() -> Any:
 def summary(study: Any, *, algo: str, env_id: str, tier: str, timesteps: int, points: int, command: str,
             batch: int = 1) -> dict[str, Any]:
     """The search as its shipped record: space, trials, the best trial's hyperparameters, cost, provenance."""
-    from ffsr_gym.bench.evaluation import spec_of
     from ffsr_gym.provenance import provenance
+    from ffsr_gym.versions.registry import spec_of
 
     optuna = optuna_module()
     done = [t for t in study.trials if t.state in (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)]

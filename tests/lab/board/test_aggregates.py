@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from ffsr_gym_lab.board import normalise
 
 from ffsr_gym.scoring.aggregate import iqm
 from ffsr_gym.versions.registry import spec_for_version
+from ffsr_gym_lab.board import normalise
 
 rliable = pytest.importorskip("rliable")
-from ffsr_gym_lab.board import aggregates
 from rliable import metrics
+
+from ffsr_gym_lab.board import aggregates
 
 SPEC = spec_for_version("v2")
 

@@ -9,11 +9,11 @@ import json
 import gymnasium as gym
 import numpy as np
 import pytest
-from ffsr_gym_lab.board import normalise
-from ffsr_gym_lab.publish.dataset import dataset_id, write_dataset
 
 from ffsr_gym.bench.policies import uniform_random_residual
 from ffsr_gym.model.resources import envs_dir
+from ffsr_gym_lab.board import normalise
+from ffsr_gym_lab.publish.dataset import dataset_id, write_dataset
 
 minari = pytest.importorskip("minari")
 pytest.importorskip("h5py")

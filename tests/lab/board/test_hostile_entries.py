@@ -107,10 +107,9 @@ def _summary_cell(root: Path, method: str) -> str:
 
 
 def test_free_text_cannot_forge_a_ranked_row(tmp_path):
+    from ffsr_gym.versions.registry import spec_for_version
     from ffsr_gym_lab.board import leaderboard
     from ffsr_gym_lab.board.tables import safe
-
-    from ffsr_gym.versions.registry import spec_for_version
 
     root = _board(tmp_path)
     easy = root / "v2" / "easy"
@@ -134,9 +133,8 @@ def test_free_text_cannot_forge_a_ranked_row(tmp_path):
 
 
 def test_an_entry_is_named_after_its_file_and_one_method_has_one_row(tmp_path):
-    from ffsr_gym_lab.board import leaderboard
-
     from ffsr_gym.versions.registry import spec_for_version
+    from ffsr_gym_lab.board import leaderboard
 
     root = _board(tmp_path)
     easy = root / "v2" / "easy"
@@ -176,9 +174,8 @@ def test_verify_names_what_is_wrong_with_a_malformed_entry(tmp_path, code_entry,
 def test_verify_never_draws_and_files_that_are_not_regular_are_refused(tmp_path, code_entry, monkeypatch):
     import os
 
-    from ffsr_gym_lab.board import leaderboard
-
     from ffsr_gym.environments.env import FFSREnv
+    from ffsr_gym_lab.board import leaderboard
 
     entry = json.loads(json.dumps(code_entry))
     entry["env_kwargs"]["render_mode"] = "human"
@@ -258,9 +255,8 @@ def overshoot(obs):
 
 
 def test_clipped_actions_are_counted_in_the_rows_verified_and_shown_in_the_table(tmp_path, code_entry):
-    from ffsr_gym_lab.board.tables import entry_cell
-
     from ffsr_gym.bench.trace import decode
+    from ffsr_gym_lab.board.tables import entry_cell
 
     entry = ffsr_gym.evaluate(overshoot, "FFSR-Residual-v2", task="easy", indices=INDICES, name="mine").to_json()
     trace = entry["extra"]["trace"]
@@ -295,10 +291,9 @@ def test_clipped_actions_are_counted_in_the_rows_verified_and_shown_in_the_table
 
 @pytest.mark.slow  # half a minute or more: with -m slow (CI stays under 20 minutes)
 def test_a_stamp_describes_the_rows_it_verified_and_the_table_shows_it(tmp_path):
-    from ffsr_gym_lab.board import leaderboard
-
     from ffsr_gym.cli.main import main
     from ffsr_gym.versions.registry import ranked_spec
+    from ffsr_gym_lab.board import leaderboard
 
     root = tmp_path / "leaderboards"
     shutil.copytree(ROOT / "leaderboards", root)

@@ -8,12 +8,12 @@ import shutil
 from pathlib import Path
 
 import pytest
-from ffsr_gym_lab.board import leaderboard, tables
 
 from ffsr_gym.cli.main import main
 from ffsr_gym.exceptions import InvalidInputError, UserFileError
 from ffsr_gym.user_files import parse_json
 from ffsr_gym.versions.registry import ranked_spec
+from ffsr_gym_lab.board import leaderboard, tables
 
 ROOT = Path(__file__).resolve().parents[3]
 ENTRY = Path("v2") / "easy" / "cmaes_v2.json"  # a planner entry: its replay takes seconds

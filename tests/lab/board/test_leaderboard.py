@@ -10,10 +10,10 @@ from pathlib import Path
 import jsonschema
 import numpy as np
 import pytest
-from ffsr_gym_lab.board import leaderboard
 
 import ffsr_gym
 from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym_lab.board import leaderboard
 
 ROOT = Path(__file__).resolve().parents[3] / "leaderboards"
 ENTRIES = sorted(p for p in ROOT.glob("*/*.json") if p.parent.name != "v2")  # v0 entries
@@ -101,9 +101,8 @@ POOL_ENTRIES = sorted((ROOT / "v2").glob("*/*.json"))
 
 @pytest.mark.parametrize("path", POOL_ENTRIES, ids=lambda p: f"{p.parent.name}/{p.stem}")
 def test_committed_v2_entries_recompute_and_name_their_pools(path):
-    from ffsr_gym_lab.board.leaderboard import recompute as recompute_entry
-
     from ffsr_gym.tasks.splits import pool
+    from ffsr_gym_lab.board.leaderboard import recompute as recompute_entry
 
     entry = json.loads(path.read_text())
     recomputed = recompute_entry(entry)
@@ -116,9 +115,8 @@ def test_committed_v2_entries_recompute_and_name_their_pools(path):
 
 
 def test_ranks_share_a_rank_when_no_ci_separates_them():
-    from ffsr_gym_lab.board.leaderboard import ranks, render_tables
-
     from ffsr_gym.versions.registry import spec_for_version
+    from ffsr_gym_lab.board.leaderboard import ranks, render_tables
 
     def render_v2_tables(entries):
         return render_tables(spec_for_version("v2"), entries)
@@ -170,11 +168,11 @@ def test_committed_figures_regenerate_byte_identically_from_the_json(tmp_path):
 
 def test_pareto_points_are_the_env_episodes_and_the_front_is_non_dominated(tmp_path):
     import gymnasium as gym
-    from ffsr_gym_lab.board.pareto import task_pareto
-    from ffsr_gym_lab.board.plots import PARETO_FILE, _front, plot_pareto
 
     from ffsr_gym.scoring.score import score_episode
     from ffsr_gym.tasks.splits import pool
+    from ffsr_gym_lab.board.pareto import task_pareto
+    from ffsr_gym_lab.board.plots import PARETO_FILE, _front, plot_pareto
 
     assert plot_pareto(tmp_path) is None
     (tmp_path / "v2" / "easy").mkdir(parents=True)

@@ -4,6 +4,7 @@ import itertools
 
 import numpy as np
 import pytest
+
 from ffsr_gym_lab.board.separation import is_random, levels_line, separated_groups, separated_levels
 
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from ffsr_gym_lab.board import normalise, tables
 
 from ffsr_gym.versions.registry import spec_for_version
+from ffsr_gym_lab.board import normalise, tables
 
 SPEC = spec_for_version("v2")
 

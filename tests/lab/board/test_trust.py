@@ -65,10 +65,9 @@ def _tampered_board(tmp_path):
 
 
 def test_a_tampered_leaderboard_refuses_every_bad_entry_by_name_and_check_fails(tmp_path):
-    from ffsr_gym_lab.board import leaderboard
-
     from ffsr_gym.cli.main import main
     from ffsr_gym.versions.registry import spec_for_version
+    from ffsr_gym_lab.board import leaderboard
 
     root = _tampered_board(tmp_path)
     reasons = {name: " ".join(why) for _, name, why in leaderboard.refused(leaderboard.load_entries(root,
@@ -199,9 +198,8 @@ def test_pool_files_are_checked_on_load(tmp_path):
 def test_a_build_resumed_with_another_chunk_is_refused(tmp_path):
     import json
 
-    from ffsr_gym_lab.pools.build import build_split
-
     from ffsr_gym.exceptions import FFSRError
+    from ffsr_gym_lab.pools.build import build_split
 
     chunk = tmp_path / "train" / "0000000.json"
     chunk.parent.mkdir(parents=True)

@@ -9,10 +9,10 @@ import shutil
 from pathlib import Path
 
 import pytest
-from ffsr_gym_lab.board import update_plan
 
 from ffsr_gym.bench import stamp as stamp_module
 from ffsr_gym.bench.stamp import entry_digest, rows_digest
+from ffsr_gym_lab.board import update_plan
 
 ROOT = Path(__file__).resolve().parents[3]
 SHIPPED = ROOT / "leaderboards" / "v2" / "easy" / "reference_v2_default.json"

@@ -79,10 +79,9 @@ def test_a_timed_ga_resumes_exactly_and_finds_the_bowls_minimum(tmp_path):
 
 
 def test_capture_v1_ranks_on_the_mean_and_v2_on_the_iqm():
-    from ffsr_gym_lab.board.tables import header
-
     from ffsr_gym.scoring.rules import score_rule
     from ffsr_gym.versions.registry import spec_for_version
+    from ffsr_gym_lab.board.tables import header
 
     scores = [0.0] * 80 + [0.3] * 20  # captures on 20 % of the tasks: the IQM (middle half, all zeros) is 0
     rows = [{"score": s, "success": s > 0} for s in scores]
@@ -136,11 +135,10 @@ def test_timed_schedules_name_every_decision_and_hold_one_knot():
 
 
 def test_a_timed_schedule_is_judged_on_its_whole_runs_capture_ratio_as_a_timed_certificate(task):
-    from ffsr_gym_lab.best_known.search import replayed
-
     from ffsr_gym.model.benchmark import action_to_parameters
     from ffsr_gym.tasks.certificate import Certificate, replay_with_margins
     from ffsr_gym.tasks.schedule import Schedule, go_value, replay_schedule
+    from ffsr_gym_lab.best_known.search import replayed
 
     m_a, T_c_a = float(np.float32(2 * 0.25 / 0.55 - 1)), float(np.float32(2 * 3 / 9 - 1))
     schedule = Schedule("timed", ((m_a, T_c_a, go_value(320, 600)),))

@@ -8,15 +8,15 @@ import shutil
 from pathlib import Path
 
 import pytest
-from ffsr_gym_lab.best_known import records as best_known
-from ffsr_gym_lab.board import leaderboard, tables
-from ffsr_gym_lab.board.normalise import normalised_mean
-from ffsr_gym_lab.pools import freeze
 
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.tasks import reference
 from ffsr_gym.tasks.splits import pool
 from ffsr_gym.versions.registry import spec_for_version
+from ffsr_gym_lab.best_known import records as best_known
+from ffsr_gym_lab.board import leaderboard, tables
+from ffsr_gym_lab.board.normalise import normalised_mean
+from ffsr_gym_lab.pools import freeze
 
 ROOT = Path(__file__).resolve().parents[3]
 

@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from ffsr_gym_lab.studies import archive
 
 from ffsr_gym.cli.main import main
 from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym_lab.studies import archive
 
 PATTERN = ["*/evaluation*.trace"]
 

@@ -253,7 +253,7 @@ def test_the_docs_hold_the_measured_speed_up():
     from conftest import benchmark_script
 
     study = benchmark_script("cluster_speedup")
-    result = json.loads((ROOT / "benchmarks" / "cluster_speedup.json").read_text())
+    result = json.loads((ROOT / "experiments" / "cluster_speedup.json").read_text())
     text = (ROOT / "docs" / "cluster.md").read_text(encoding="utf-8")
     block = text[text.index(study.START) + len(study.START):text.index(study.END)]
     assert block.strip() == study.docs_text(result).strip()

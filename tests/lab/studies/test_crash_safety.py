@@ -14,9 +14,9 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from ffsr_gym_lab.board.leaderboard import render_readme
 
 from ffsr_gym.versions.registry import spec_for_version
+from ffsr_gym_lab.board.leaderboard import render_readme
 
 START, END = spec_for_version("v0").leaderboard.markers()
 from ffsr_gym.model.scenario import load_scenario

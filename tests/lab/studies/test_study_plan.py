@@ -6,9 +6,9 @@ import json
 from pathlib import Path
 
 import pytest
-from ffsr_gym_lab.studies import plan as study_plan
 
 from ffsr_gym.exceptions import InvalidInputError
+from ffsr_gym_lab.studies import plan as study_plan
 
 
 def _seed(work: Path, algo: str, env_id: str, tier: str, seed: int, wall_time_s: float, *, scored: bool = True) -> None:

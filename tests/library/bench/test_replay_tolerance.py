@@ -90,7 +90,7 @@ def test_a_capture_entry_verifies_within_its_tolerance_and_an_inflated_copy_does
 
 
 def test_the_tolerance_covers_the_measured_replays_and_the_docs_hold_them():
-    """Every capture-v0 certificate replayed by benchmarks/certificate_replay.py kept its verdict and stayed inside
+    """Every capture-v0 certificate replayed by experiments/certificate_replay.py kept its verdict and stayed inside
     the stated per-row tolerance, their mean signed difference inside the entry-level one; docs/model.md holds the
     study's generated table."""
     from conftest import benchmark_script

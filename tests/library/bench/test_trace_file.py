@@ -7,7 +7,6 @@ import json
 
 import numpy as np
 import pytest
-from ffsr_gym_lab.board.leaderboard import load_entries
 
 import ffsr_gym
 from ffsr_gym.bench.replay import replay_entry
@@ -16,6 +15,7 @@ from ffsr_gym.bench.trace import decode
 from ffsr_gym.bench.trace_file import FILE_FORMAT, SUFFIX, pack, store_entries, unpack
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.versions.registry import spec_for_version
+from ffsr_gym_lab.board.leaderboard import load_entries
 
 
 def wobble(obs):

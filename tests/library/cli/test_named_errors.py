@@ -38,7 +38,7 @@ def test_a_policy_that_does_not_pickle_is_refused_before_workers_start(tmp_path,
 
 
 def test_the_batched_sb3_env_checks_its_arguments():
-    from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
+    from ffsr_gym.environments.sb3_vec_env import BatchedVecEnv
 
     for threads in ("1", 1.5, True):
         with pytest.raises(InvalidInputError, match="threads = "):

@@ -4,7 +4,7 @@ certificate replays against the stored verdicts and scores.
 
 Where the end-effector error is near zero, the predefined-time feedback's discrete chatter amplifies rounding: the
 kernel and the Pinocchio backend then differ by a few 1e-3 of a score on some tasks, and so does the JAX loop;
-verdicts do not move (docs/jax.md, ``benchmarks/jax_agreement.json``)."""
+verdicts do not move (docs/jax.md, ``experiments/jax_agreement.json``)."""
 
 from __future__ import annotations
 
@@ -60,7 +60,7 @@ def test_decisions_match_the_environment_step_by_step(tier):
     assert float(reward) == pytest.approx(-1.0 / (1.0 + float(state.cost))) and float(info["score"]) == 0.0
 
 
-@pytest.mark.slow  # compile-bound (a minute); benchmarks/jax_agreement.py replays every test certificate
+@pytest.mark.slow  # compile-bound (a minute); experiments/jax_agreement.py replays every test certificate
 @pytest.mark.parametrize("tier", ["hard", "debris"])
 def test_certificates_replay_to_their_stored_verdicts(tier):
     model, rules, tasks, actions, stored = certificate_tasks(tier, indices=[0, 1])

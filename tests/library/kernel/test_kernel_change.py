@@ -1,4 +1,4 @@
-"""The v2 leaderboards regenerated on the current kernel against the previous kernel's (benchmarks/kernel_change.json).
+"""The v2 leaderboards regenerated on the current kernel against the previous kernel's (experiments/kernel_change.json).
 
 The record holds, per tier and entry, the IQM and CI before (read from git at the last commit on the
 previous kernel) and after; these tests hold it to the entries in the tree and to the rule a kernel
@@ -14,7 +14,7 @@ from pathlib import Path
 from conftest import benchmark_script
 
 ROOT = Path(__file__).resolve().parents[3]
-RECORD = json.loads((ROOT / "benchmarks" / "kernel_change.json").read_text(encoding="utf-8"))
+RECORD = json.loads((ROOT / "experiments" / "kernel_change.json").read_text(encoding="utf-8"))
 
 
 def test_the_record_is_the_leaderboards_in_the_tree():
@@ -37,7 +37,7 @@ def test_the_record_is_the_leaderboards_in_the_tree():
                 now[tier][row["name"]]["iqm"], now[tier][row["name"]]["ci"], label), (tier, row["name"])
     text = (ROOT / "docs" / "model.md").read_text(encoding="utf-8")
     block = text.split(script.START + "\n")[1].split(script.END)[0]
-    assert block == script.table(RECORD), "rerun: python benchmarks/kernel_change.py --before ... --docs docs/model.md"
+    assert block == script.table(RECORD), "rerun: python experiments/kernel_change.py --before ... --docs docs/model.md"
 
 
 def test_every_regenerated_iqm_lies_inside_its_old_ci():

@@ -1,4 +1,4 @@
-"""The native kernel against the numba kernel it replaced (benchmarks/native_agreement.json): the record's summary
+"""The native kernel against the numba kernel it replaced (experiments/native_agreement.json): the record's summary
 is its rows', every certificate's verdict and score are the same on both, and docs/kernel.md shows the record."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from pathlib import Path
 from conftest import benchmark_script
 
 ROOT = Path(__file__).resolve().parents[3]
-RECORD = json.loads((ROOT / "benchmarks" / "native_agreement.json").read_text(encoding="utf-8"))
+RECORD = json.loads((ROOT / "experiments" / "native_agreement.json").read_text(encoding="utf-8"))
 
 
 def test_every_certificate_replays_the_same_on_both_kernels():
@@ -30,4 +30,4 @@ def test_the_summary_and_the_docs_table_are_the_records():
     assert script.summary(by_kernel["numba"], by_kernel["native"]) == RECORD["summary"]
     text = (ROOT / "docs" / "kernel.md").read_text(encoding="utf-8")
     block = text.split(script.START + "\n")[1].split(script.END)[0]
-    assert block == script.table(RECORD), "rerun: python benchmarks/native_agreement.py --merge --docs docs/kernel.md"
+    assert block == script.table(RECORD), "rerun: python experiments/native_agreement.py --merge --docs docs/kernel.md"

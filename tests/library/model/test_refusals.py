@@ -112,7 +112,7 @@ def test_a_pool_env_refuses_unknown_reset_options_by_name():
 
 def test_the_sb3_adapter_refuses_an_index_past_its_copies():
     pytest.importorskip("stable_baselines3")
-    from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
+    from ffsr_gym.environments.sb3_vec_env import BatchedVecEnv
 
     env = BatchedVecEnv("FFSR-v2", 2, task="easy")
     assert env.get_attr("num_envs", indices=[0, 1]) == [2, 2] and env.env_is_wrapped(gym.Wrapper) == [False, False]

@@ -12,7 +12,6 @@ import json
 import gymnasium as gym
 import numpy as np
 import pytest
-from ffsr_gym_lab.board import leaderboard
 
 import ffsr_gym
 from ffsr_gym.environments.registration import unregister_spec
@@ -21,6 +20,7 @@ from ffsr_gym.model.resources import envs_dir
 from ffsr_gym.model.scenario import load_scenario
 from ffsr_gym.scoring.score import score_episode
 from ffsr_gym.versions.registry import all_specs, load_benchmark
+from ffsr_gym_lab.board import leaderboard
 
 SPEC = """
 schema_version = 1

@@ -10,10 +10,9 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from ffsr_gym_lab.board import leaderboard  # noqa: E402
-
 from ffsr_gym.optim.rl import load_hyperparams  # noqa: E402
 from ffsr_gym.optim.rl_study import train_and_evaluate  # noqa: E402
+from ffsr_gym_lab.board import leaderboard  # noqa: E402
 
 SCHEMA = json.loads((Path(__file__).resolve().parents[3] / "leaderboards" / "schema.json").read_text())
 CASES = [(algo, env_id) for algo in ("ppo", "sac") for env_id in ("FFSR-v0", "FFSR-Residual-v0")]
@@ -88,12 +87,12 @@ def test_v2_hyperparameters_are_the_searched_best():
 @pytest.mark.slow  # half a minute or more: with -m slow (CI stays under 20 minutes)
 def test_pool_training_selects_on_validation_scores_both_checkpoints_on_test_and_resumes(tmp_path):
     import torch
-    from ffsr_gym_lab.board.leaderboard import recompute as recompute_entry
 
     from ffsr_gym.bench.evaluation import evaluate
     from ffsr_gym.bench.policies import load_model
     from ffsr_gym.exceptions import InvalidInputError
     from ffsr_gym.tasks.splits import pool
+    from ffsr_gym_lab.board.leaderboard import recompute as recompute_entry
 
     def run():
         return train_and_evaluate("ppo", "FFSR-v2", task="easy", seeds=[0], out=tmp_path, timesteps=1024,

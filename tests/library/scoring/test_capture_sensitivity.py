@@ -1,6 +1,6 @@
-"""What the capture verdicts depend on. The tolerance and danger-radius study (benchmarks/capture_sensitivity.py):
+"""What the capture verdicts depend on. The tolerance and danger-radius study (experiments/capture_sensitivity.py):
 rescoring a row with every tolerance scaled is exact (checked against capture() run again on the episode's relative
-motion with the scaled rule). The dt study on the capture tiers (benchmarks/dt_sensitivity.py --version capture-v0):
+motion with the scaled rule). The dt study on the capture tiers (experiments/dt_sensitivity.py --version capture-v0):
 its sampled episodes replay, and at least four planners per tier meet the bar. docs/model.md holds both tables."""
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[3]
 RULES = load_benchmark("capture-v0")
 study = benchmark_script("capture_sensitivity")
 dt_study = benchmark_script("dt_sensitivity")
-DT_STUDY = json.loads((ROOT / "benchmarks" / "dt_sensitivity_capture.json").read_text())
+DT_STUDY = json.loads((ROOT / "experiments" / "dt_sensitivity_capture.json").read_text())
 
 
 @pytest.mark.parametrize(("tier", "seed", "m", "T_c"), [("slow", 5, 0.3, 4.0), ("slow", 10, 0.3, 4.0),
@@ -45,7 +45,7 @@ def test_a_row_rescored_at_scaled_tolerances_is_the_capture_judged_again(tier, s
 
 
 def test_the_docs_hold_the_generated_tables():
-    data = json.loads((ROOT / "benchmarks" / "capture_sensitivity.json").read_text())
+    data = json.loads((ROOT / "experiments" / "capture_sensitivity.json").read_text())
     text = (ROOT / "docs" / "model.md").read_text(encoding="utf-8")
     block = text[text.index(study.START) + len(study.START):text.index(study.END)]
     assert block.strip() == study.docs_text(data).strip()
@@ -77,4 +77,4 @@ def test_at_least_four_planners_per_capture_tier_meet_the_dt_bar():
 def test_the_docs_hold_the_dt_study():
     text = (ROOT / "docs" / "model.md").read_text(encoding="utf-8")
     assert dt_study.docs_block(text, "capture-v0").strip() == \
-        dt_study.stored_docs_text(DT_STUDY, "benchmarks/dt_sensitivity_capture.json").strip()
+        dt_study.stored_docs_text(DT_STUDY, "experiments/dt_sensitivity_capture.json").strip()

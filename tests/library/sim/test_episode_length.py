@@ -62,7 +62,7 @@ def test_a_40_s_custom_task_plays_400_decisions_and_one_score_on_every_path(tmp_
 
     from stable_baselines3.common.env_util import make_vec_env
 
-    from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
+    from ffsr_gym.environments.sb3_vec_env import BatchedVecEnv
 
     batched = BatchedVecEnv("FFSR-v2", 1, task=task)
     batched.seed(0)

@@ -41,7 +41,7 @@ def test_buffers_beyond_the_memory_limit_are_refused_before_the_run(tmp_path):
     hour = _custom(tmp_path, {"duration_s = 20.0": "duration_s = 3600.0", "dt_s = 0.01": "dt_s = 0.00001"})
     with pytest.raises(ffsr_gym.exceptions.FFSRError, match="allowed: at most 200,000 steps in an episode"):
         gym.make("FFSR-v2", task=hour)
-    from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
+    from ffsr_gym.environments.sb3_vec_env import BatchedVecEnv
 
     _refused_fast(lambda: BatchedVecEnv("FFSR-v2", 1_000_000, task="easy"),
                   "1,000,000 copies x 64 kB need about 61.0 GiB")

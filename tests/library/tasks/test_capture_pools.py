@@ -15,7 +15,6 @@ import warnings
 import gymnasium as gym
 import pytest
 from conftest import ensemble_problems, pool_cases, replay_certificate
-from ffsr_gym_lab.pools.build import rule_sha256
 from gymnasium.utils.env_checker import check_env
 
 import ffsr_gym  # noqa: F401  (registers the ids)
@@ -23,6 +22,7 @@ from ffsr_gym.bench.replay_tolerance import tolerance_for
 from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
 from ffsr_gym.tasks.splits import load_pools, pool
 from ffsr_gym.versions.registry import load_benchmark
+from ffsr_gym_lab.pools.build import rule_sha256
 
 VERSION = "capture-v0"
 RULES = load_benchmark(VERSION)

@@ -9,7 +9,6 @@ import warnings
 import gymnasium as gym
 import pytest
 from conftest import ensemble_problems, pool_cases, timed_episode
-from ffsr_gym_lab.pools.build import rule_sha256
 from gymnasium.utils.env_checker import check_env
 
 import ffsr_gym  # noqa: F401  (registers the ids)
@@ -17,6 +16,7 @@ from ffsr_gym.bench.replay_tolerance import tolerance_for
 from ffsr_gym.tasks.capture_timed import TIMED_TIERS, certify_timed
 from ffsr_gym.tasks.splits import load_pools, pool, task_scenario
 from ffsr_gym.versions.registry import load_benchmark
+from ffsr_gym_lab.pools.build import rule_sha256
 
 VERSION = "capture-v1"
 RULES = load_benchmark(VERSION)

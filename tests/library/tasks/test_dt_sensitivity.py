@@ -14,7 +14,7 @@ import pytest
 from conftest import benchmark_script
 
 ROOT = Path(__file__).resolve().parents[3]
-STUDY = json.loads((ROOT / "benchmarks" / "dt_sensitivity.json").read_text())
+STUDY = json.loads((ROOT / "experiments" / "dt_sensitivity.json").read_text())
 study = benchmark_script("dt_sensitivity")
 
 
@@ -39,7 +39,7 @@ def test_every_sampled_episode_replays():
 def test_docs_hold_the_generated_tables():
     text = (ROOT / "docs" / "model.md").read_text(encoding="utf-8")
     assert study.docs_block(text, "v2").strip() == \
-        study.stored_docs_text(STUDY, "benchmarks/dt_sensitivity.json").strip()
+        study.stored_docs_text(STUDY, "experiments/dt_sensitivity.json").strip()
 
 
 def test_spearman_against_an_independent_computation():
@@ -67,7 +67,7 @@ def test_v2_rows_meet_the_bar_and_v1s_rule_misses_it():
     assert sum(not r["meets_bar"] for r in rows if r["law"] == "cdf") >= 10
 
 
-CAPTURE_V1 = json.loads((ROOT / "benchmarks" / "dt_sensitivity_capture-v1.json").read_text())
+CAPTURE_V1 = json.loads((ROOT / "experiments" / "dt_sensitivity_capture-v1.json").read_text())
 
 
 @pytest.mark.parametrize("index", [0, 7, 20, 32])  # both tiers, several planners and steps
@@ -80,7 +80,7 @@ def test_capture_v1_docs_and_verdicts():
     mean within 0.01 between dt and dt/4; the two rows below v2's Spearman bar are the two the docs name."""
     text = (ROOT / "docs" / "model.md").read_text(encoding="utf-8")
     assert study.docs_block(text, "capture-v1").strip() == \
-        study.stored_docs_text(CAPTURE_V1, "benchmarks/dt_sensitivity_capture-v1.json").strip()
+        study.stored_docs_text(CAPTURE_V1, "experiments/dt_sensitivity_capture-v1.json").strip()
     rows = CAPTURE_V1["summary"]
     assert len(rows) == 11 and {r["tasks"] for r in rows} == {100}
     assert len({(r["tier"], json.dumps(r["planner"])) for r in rows}) == 11

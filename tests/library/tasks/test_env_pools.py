@@ -201,7 +201,7 @@ print(gc.collect())
 
 def test_steps_and_episode_ends_leave_no_cyclic_garbage():
     """Freed by reference counting alone: the cycle collector finds nothing after 600 single and
-    batched steps with episode ends (benchmarks/bench.py times with the collector off, as timeit)."""
+    batched steps with episode ends (experiments/bench.py times with the collector off, as timeit)."""
     out = subprocess.run([sys.executable, "-c", CYCLES], capture_output=True, text=True, check=True).stdout
     assert int(out.split()[-1]) == 0
 

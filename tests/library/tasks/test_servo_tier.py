@@ -113,7 +113,7 @@ def test_the_servo_tier_in_an_environment_logs_torques_and_saturation():
 
 
 def test_the_published_side_by_side_study_replays():
-    """docs/model.md §21 shows the reference planner on both plants, from ``benchmarks/servo_plant.json``: the
+    """docs/model.md §21 shows the reference planner on both plants, from ``experiments/servo_plant.json``: the
     block is that file's tables, and the servo pool's numbers replay (200 episodes)."""
     import json
     from pathlib import Path
@@ -122,7 +122,7 @@ def test_the_published_side_by_side_study_replays():
 
     root = Path(__file__).resolve().parents[3]
     script = benchmark_script("servo_plant")
-    result = json.loads((root / "benchmarks" / "servo_plant.json").read_text(encoding="utf-8"))
+    result = json.loads((root / "experiments" / "servo_plant.json").read_text(encoding="utf-8"))
     text = (root / "docs" / "model.md").read_text(encoding="utf-8")
     assert text.split(script.START + "\n")[1].split(script.END)[0] == script.tables(result)
     stored = next(p for p in result["pools"] if p["tier"] == "servo")

@@ -1,7 +1,7 @@
 """The README's length, counted as the peers' READMEs are (lines, and words as ``wc -w`` splits them), at HEAD and
 at any other commits given, from the git history.
 
-Run: ``python benchmarks/readme_counts.py f94047e`` (prints a Markdown table; writes nothing).
+Run: ``python experiments/readme_counts.py f94047e`` (prints a Markdown table; writes nothing).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The reproductions of the third hostile pass, as cases for ``benchmarks/hostile_pass.py``.
+"""The reproductions of the third hostile pass, as cases for ``experiments/hostile_pass.py``.
 
 Each case is the body of a function ``case()`` run in a fresh interpreter, in an empty working
 folder, against one checkout (``REPO``). It ends by calling ``result(kind, note)`` with what
@@ -286,7 +286,7 @@ import gymnasium as gym, ffsr_gym
 gym.make("FFSR-v2", task=custom(("duration_s = 20.0", "dt_s = 0.01"), ("duration_s = 3600.0", "dt_s = 0.00001"))).reset(seed=0)
 result("handled")'''),
     ("memory-copies", 11, "BatchedVecEnv with a million copies", r'''
-from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
+from ffsr_gym.environments.sb3_vec_env import BatchedVecEnv
 BatchedVecEnv("FFSR-v2", 1_000_000, task="easy")
 result("handled")'''),
     ("hang-fifo", 12, "a FIFO named *.json in a tier folder", r'''
@@ -356,16 +356,16 @@ main = cli_main
 rc = main(["evaluate", "--env-id", "FFSR-v2", "--policy", "ppo.zip", "--algo", "sac", "--trust-model", "--no-progress"])
 result("named" if rc == 2 else "wrong", rc)'''),
     ("raw-threads-text", 13, "BatchedVecEnv(threads=\"1\")", r'''
-from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
+from ffsr_gym.environments.sb3_vec_env import BatchedVecEnv
 BatchedVecEnv("FFSR-v2", 2, threads="1", task="easy"); result("wrong")'''),
     ("raw-threads-float", 13, "BatchedVecEnv(threads=1.5)", r'''
-from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
+from ffsr_gym.environments.sb3_vec_env import BatchedVecEnv
 BatchedVecEnv("FFSR-v2", 2, threads=1.5, task="easy"); result("wrong")'''),
     ("raw-seed-text", 13, "BatchedVecEnv.seed(\"3\")", r'''
-from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
+from ffsr_gym.environments.sb3_vec_env import BatchedVecEnv
 BatchedVecEnv("FFSR-v2", 2, task="easy").seed("3"); result("wrong")'''),
     ("raw-step-none", 13, "BatchedVecEnv.step_async(None)", r'''
-from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
+from ffsr_gym.environments.sb3_vec_env import BatchedVecEnv
 env = BatchedVecEnv("FFSR-v2", 2, task="easy"); env.reset(); env.step_async(None); env.step_wait(); result("wrong")'''),
     ("raw-full-disk", 13, "an entry saved on a full disk", r'''
 import ffsr_gym

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from timing import best_of  # noqa: E402  (benchmarks/timing.py)
+from timing import best_of  # noqa: E402  (experiments/timing.py)
 
 
 def servo_mjcf(model, drive: np.ndarray, h: float) -> str:

@@ -1,12 +1,12 @@
 """Speed benchmark: every figure is a ratio against a reference measured in the same run.
 
-Run: ``python benchmarks/bench.py`` (``pip install -e ".[bench]"`` adds MuJoCo for the Pusher-v5
+Run: ``python experiments/bench.py`` (``pip install -e ".[bench]"`` adds MuJoCo for the Pusher-v5
 reference; ``--quick`` projects the GA instead of running it). Prints one line per measurement,
-writes ``benchmarks/results.json`` (with provenance) and, with ``--readme docs/speed.md``, the speed page's
+writes ``experiments/results.json`` (with provenance) and, with ``--readme docs/speed.md``, the speed page's
 speed table (``--runs 3`` gives the ranges it shows; a test checks the table against the JSON).
 
 Before it overwrites them, each row is compared with the committed results (``--against``), scaled by a yardstick
-measured in both runs (``benchmarks/speed_guard.py``): a row slower by more than ``speed_guard.TOLERANCE`` is printed
+measured in both runs (``experiments/speed_guard.py``): a row slower by more than ``speed_guard.TOLERANCE`` is printed
 as ``SLOWER`` and kept in the results (``slower_than_committed``). A change to ``ffsr_gym/kernel/`` is followed by
 a run of this script (a test fails when the committed results predate the newest kernel change).
 """
@@ -31,9 +31,9 @@ from ffsr_gym.optim import ga
 from ffsr_gym.provenance import provenance, splice_generated, write_json_atomic, write_text_atomic
 
 sys.path.insert(0, str(Path(__file__).parent))
-import speed_guard  # noqa: E402  (benchmarks/speed_guard.py)
+import speed_guard  # noqa: E402  (experiments/speed_guard.py)
 from servo_bench import servo_mjcf, servo_speed  # noqa: E402,F401  (re-exported: tests and servo_plant.py use them)
-from speed_tables import (  # noqa: E402,F401  (benchmarks/speed_tables.py: the page's tables, re-exported for the tests)
+from speed_tables import (  # noqa: E402,F401  (experiments/speed_tables.py: the page's tables, re-exported for the tests)
     BUDGET_END,
     BUDGET_PARTS,
     BUDGET_START,
@@ -317,9 +317,9 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3, help="timed repeats of the rollout (best of; default: 3)")
     parser.add_argument("--runs", type=int, default=1, help="whole runs of every measurement (default: 1)")
     parser.add_argument("--quick", action="store_true", help="project the GA from 16 evaluations instead of running it")
-    parser.add_argument("--out", default="benchmarks/results.json", help="results with provenance (default: %(default)s)")
+    parser.add_argument("--out", default="experiments/results.json", help="results with provenance (default: %(default)s)")
     parser.add_argument("--readme", default=None, help="splice the speed table between its markers in this file")
-    parser.add_argument("--against", default="benchmarks/results.json",
+    parser.add_argument("--against", default="experiments/results.json",
                         help="committed results each row is compared with (default: %(default)s)")
     parser.add_argument("--render-only", action="store_true",
                         help="measure nothing: render the page's blocks from the results file (--out) again")
@@ -341,7 +341,7 @@ def main() -> None:
     results = {"machine": machine, "workers": workers, "quick": args.quick, "runs": runs, "budgets": budgets,
                "clock_ghz": clock_ghz(),
                "yardstick_s": speed_guard.yardstick_s(),
-               "provenance": provenance(command="python benchmarks/bench.py " + " ".join(sys.argv[1:]),
+               "provenance": provenance(command="python experiments/bench.py " + " ".join(sys.argv[1:]),
                                         wall_time_s=time.perf_counter() - start)}
     if committed is not None:
         results = speed_guard.compare_into(results, committed)

@@ -15,9 +15,9 @@ from gymnasium.vector import AutoresetMode
 from stable_baselines3 import PPO
 from stable_baselines3.common.env_util import make_vec_env
 
+from ffsr_gym.environments.sb3_vec_env import BatchedVecEnv
 from ffsr_gym.exceptions import InvalidInputError
 from ffsr_gym.optim.rl import train, training_env
-from ffsr_gym.optim.sb3_vec_env import BatchedVecEnv
 
 POOL = {"task": "easy", "split": "train"}
 
@@ -96,3 +96,12 @@ def test_train_uses_the_adapter_for_n_envs(tmp_path):
         training_env("FFSR-v2", 2, 0, POOL, "threads")
     with pytest.raises(InvalidInputError, match="n_envs"):
         training_env("FFSR-v2", 0, 0, POOL)
+
+
+def test_the_old_module_name_warns_and_gives_the_same_class():
+    import ffsr_gym.optim.sb3_vec_env as old
+
+    with pytest.warns(DeprecationWarning, match="ffsr_gym.environments.sb3_vec_env"):
+        assert old.BatchedVecEnv is BatchedVecEnv
+    with pytest.raises(AttributeError, match="Nope"):
+        old.Nope

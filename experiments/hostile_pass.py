@@ -1,12 +1,12 @@
 """Replay the third hostile pass's reproductions against a checkout and count what each case got.
 
-Run: ``python benchmarks/hostile_pass.py --repo PATH --label after`` (``PATH`` a checkout of
+Run: ``python experiments/hostile_pass.py --repo PATH --label after`` (``PATH`` a checkout of
 ffsr-gym, e.g. ``git worktree add /tmp/before f94047e``). Each case of
-``benchmarks/hostile_cases.py`` runs in a fresh interpreter importing that checkout, in an empty
+``experiments/hostile_cases.py`` runs in a fresh interpreter importing that checkout, in an empty
 folder, with a time limit (a case past it is a ``hang``) and a 12 GiB address-space limit (so a
 read of ``/dev/zero`` or a huge allocation fails instead of filling the machine). A case that
 raises an ffsr-gym error is ``named``; any other exception is ``raw``; a process that dies is a
-``crash``. The counts and every case's outcome go to ``benchmarks/hostile_pass.json`` under the
+``crash``. The counts and every case's outcome go to ``experiments/hostile_pass.json`` under the
 label, with the checkout's commit and the command (``--compare`` prints the labels side by side).
 """
 
