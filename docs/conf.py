@@ -6,6 +6,7 @@ Build: ``pip install -e ".[docs]"`` then ``python -m sphinx -W -b html docs docs
 from __future__ import annotations
 
 from importlib.metadata import version as _version
+from importlib.util import find_spec
 
 project = "ffsr-gym"
 author = "the ffsr-gym authors"
@@ -19,6 +20,10 @@ html_theme = "furo"
 html_title = f"ffsr-gym {release}"
 autodoc_member_order = "bysource"
 autodoc_typehints = "description"
+# The extras' modules the API pages document (stable-baselines3, JAX, Dask) are mocked when they are not installed,
+# so that the docs build with the docs extra alone; installed, they are imported as they are.
+autodoc_mock_imports = [name for name in ("stable_baselines3", "torch", "jax", "jaxlib", "brax", "distributed", "optuna")
+                        if find_spec(name) is None]
 napoleon_google_docstring = True
 napoleon_numpy_docstring = False
 
