@@ -59,7 +59,7 @@ def random_configuration(robot: Robot, rng: np.random.Generator) -> np.ndarray:
 
 
 @cache
-def benchmark_script(name: str, folder: str = "experiments") -> ModuleType:
+def script_module(name: str, folder: str = "experiments") -> ModuleType:
     """``<folder>/<name>.py`` (a script of ``experiments/`` or ``baselines/``, not a package module) loaded as a
     module, once per session."""
     path = Path(__file__).resolve().parents[1] / folder / f"{name}.py"

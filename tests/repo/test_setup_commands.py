@@ -6,20 +6,20 @@ import json
 from pathlib import Path
 
 import pytest
-from conftest import benchmark_script
+from conftest import script_module
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_ci_runs_the_readme_test_command_verbatim():
-    _, tests = benchmark_script("setup_time").setup_commands((ROOT / "README.md").read_text(encoding="utf-8"))
+    _, tests = script_module("setup_time").setup_commands((ROOT / "README.md").read_text(encoding="utf-8"))
     lines = [line for line in (ROOT / ".ci" / "run").read_text().splitlines() if line and not line.startswith("#")]
     assert lines[-1].endswith(tests), f".ci/run must end with the README's test command: {tests}"
     assert "pip install" in tests and "pytest" in tests
 
 
 def test_readme_setup_times_are_rendered_from_the_measurement():
-    module = benchmark_script("setup_time")
+    module = script_module("setup_time")
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     results = json.loads((ROOT / "experiments" / "setup_time.json").read_text())
     block = text.split(module.START + "\n")[1].split(module.END)[0]
@@ -29,7 +29,7 @@ def test_readme_setup_times_are_rendered_from_the_measurement():
 
 
 def test_setup_commands_need_the_section_and_two_one_line_blocks():
-    module = benchmark_script("setup_time")
+    module = script_module("setup_time")
     with pytest.raises(SystemExit, match="Set-up"):
         module.setup_commands("# no set-up here\n")
     with pytest.raises(SystemExit, match="two one-line bash blocks"):
@@ -38,6 +38,6 @@ def test_setup_commands_need_the_section_and_two_one_line_blocks():
 
 
 def test_durations_read_as_minutes_and_seconds():
-    module = benchmark_script("setup_time")
+    module = script_module("setup_time")
     assert module._duration(42.4) == "42 s"
     assert module._duration(141.0) == "2 min 21 s"

@@ -6,27 +6,27 @@ import json
 from pathlib import Path
 
 import pytest
-from conftest import benchmark_script
+from conftest import script_module
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_the_speed_tables_are_rendered_from_the_results():
-    bench = benchmark_script("bench")
+    bench = script_module("bench")
     results = json.loads((ROOT / "experiments" / "results.json").read_text())
     text = (ROOT / "docs" / "speed.md").read_text(encoding="utf-8")
     block = text.split(bench.README_START + "\n")[1].split(bench.README_END)[0]
     assert block == bench.speed_table(results), "rerun: python experiments/bench.py --runs 3 --readme docs/speed.md"
     budget = text.split(bench.BUDGET_START + "\n")[1].split(bench.BUDGET_END)[0]
     assert budget == bench.budget_table(results), "rerun: python experiments/bench.py --runs 3 --readme docs/speed.md"
-    guard = benchmark_script("speed_guard")
+    guard = script_module("speed_guard")
     block = text.split(guard.START + "\n")[1].split(guard.END)[0]
     assert block == guard.guard_block(results), "rerun: python experiments/bench.py --runs 3 --readme docs/speed.md"
     assert results["provenance"]["git_commit"] and len(results["runs"]) == 3
 
 
 def test_speed_table_ranges_and_verdicts():
-    bench = benchmark_script("bench")
+    bench = script_module("bench")
     row = {"key": "x", "what": "w", "unit": "ms", "reference": "r", "target": "t"}
     runs = [[row | {"value": v, "ratio": q, "met": m}] for v, q, m in ((2.0, 1.5, True), (3.0, 0.5, False))]
     table = bench.speed_table({"machine": "m", "runs": runs})
@@ -37,7 +37,7 @@ def test_speed_table_ranges_and_verdicts():
 def test_a_slower_row_is_flagged_against_the_committed_results():
     """Rates and times, raw and yardstick-scaled: a 6x slower batched rate is flagged, a machine twice as slow is
     not a regression once scaled, and a row within the tolerance is not flagged."""
-    guard = benchmark_script("speed_guard")
+    guard = script_module("speed_guard")
 
     def results(rate: float, time_us: float, yardstick: float | None) -> dict:
         rows = [{"key": "batched", "what": "batched", "value": rate, "unit": "physics steps/s"},

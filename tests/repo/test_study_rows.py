@@ -6,11 +6,11 @@ from __future__ import annotations
 import json
 
 import pytest
-from conftest import benchmark_script
+from conftest import script_module
 
 
 def test_a_study_resumes_where_it_stopped(tmp_path):
-    rows = benchmark_script("study_rows")
+    rows = script_module("study_rows")
     work, calls = tmp_path / "work.json", []
 
     def compute(tier, seed, extra):
@@ -30,7 +30,7 @@ def test_a_study_resumes_where_it_stopped(tmp_path):
 
 
 def test_publishing_writes_the_result_and_the_docs_block(tmp_path):
-    rows = benchmark_script("study_rows")
+    rows = script_module("study_rows")
     page = tmp_path / "page.md"
     page.write_text("before\n<!-- s -->\nold\n<!-- e -->\nafter\n")
     rows.publish(tmp_path / "out.json", {"n": 2}, str(page), ("<!-- s -->", "<!-- e -->"), lambda d: f"n = {d['n']}\n")

@@ -246,11 +246,11 @@ def test_a_policy_of_another_versions_id_is_refused_by_name(small, tmp_path):
 def test_a_planner_entrys_constants_become_the_action_that_maps_onto_them():
     """The inverse of the env's linear action map, checked by the env's own map (float32 rounding only); the
     proportional law and constants outside the box are not actions."""
-    from conftest import benchmark_script
+    from conftest import script_module
 
     from ffsr_gym.model.benchmark import action_to_parameters
 
-    absorb = benchmark_script("absorb_best_known", "baselines")
+    absorb = script_module("absorb_best_known", "baselines")
     task = task_scenario("slow", pool("slow", "test", version="capture-v0")[0].seed,
                          score_rule(spec_for_version("capture-v0")).benchmark)
     for m, T_c in [(0.1, 3.0), (0.3, 4.0), (0.05, 10.0), (0.6, 1.0)]:
@@ -270,9 +270,9 @@ def test_a_timed_planner_entry_becomes_the_timed_schedule_that_replays_its_episo
     float32 rounding of (m, T_c) as an action)."""
     from pathlib import Path
 
-    from conftest import benchmark_script
+    from conftest import script_module
 
-    absorb = benchmark_script("absorb_best_known", "baselines")
+    absorb = script_module("absorb_best_known", "baselines")
     root = Path(__file__).resolve().parents[3] / "leaderboards"
     schedules = {origin: schedule for origin, _, schedule in absorb.timed_schedules(root, "sweep", "capture-v1")}
     assert {"entry reference_best_constant", "entry ga_capture-v1", "entry reference_paper_default"} <= set(schedules)

@@ -250,9 +250,9 @@ def test_the_ga_on_a_local_cluster_finds_what_it_finds_in_this_process(tmp_path)
 
 
 def test_the_docs_hold_the_measured_speed_up():
-    from conftest import benchmark_script
+    from conftest import script_module
 
-    study = benchmark_script("cluster_speedup")
+    study = script_module("cluster_speedup")
     result = json.loads((ROOT / "experiments" / "cluster_speedup.json").read_text())
     text = (ROOT / "docs" / "cluster.md").read_text(encoding="utf-8")
     block = text[text.index(study.START) + len(study.START):text.index(study.END)]

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import benchmark_script
+from conftest import script_module
 
 import ffsr_gym
 from ffsr_gym.bench.capture_heuristic import TIME_INDEX
@@ -46,7 +46,7 @@ def test_the_tuned_score_read_off_the_data_is_what_the_env_plays():
     the threshold [s]: the score ``offline_score`` reads off one validation task's simulated data must be the score of
     the episode ``ffsr_gym.evaluate`` plays with the policy (its own decisions, stepped through the env), up to the
     env action's float32 rounding of (m, T_c) (the data are simulated with (0.3, 4 s) exactly: 3e-7 relative)."""
-    script = benchmark_script("learned_go", "baselines")
+    script = script_module("learned_go", "baselines")
     tier, index = "sweep", 7
     observations, scores = script.task_data(tier, "validation", index)
     assert observations.shape == (120, 76) and scores.shape == (120,)

@@ -93,9 +93,9 @@ def test_the_tolerance_covers_the_measured_replays_and_the_docs_hold_them():
     """Every capture-v0 certificate replayed by experiments/certificate_replay.py kept its verdict and stayed inside
     the stated per-row tolerance, their mean signed difference inside the entry-level one; docs/model.md holds the
     study's generated table."""
-    from conftest import benchmark_script
+    from conftest import script_module
 
-    study = benchmark_script("certificate_replay")
+    study = script_module("certificate_replay")
     data = json.loads(study.OUT.read_text())
     tolerance = tolerance_for("capture-v0")
     rows = [r for r in data["rows"] if r["version"] == "capture-v0"]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from conftest import benchmark_script
+from conftest import script_module
 
 ROOT = Path(__file__).resolve().parents[3]
 RECORD = json.loads((ROOT / "experiments" / "kernel_change.json").read_text(encoding="utf-8"))
@@ -21,7 +21,7 @@ def test_the_record_is_the_leaderboards_in_the_tree():
     """The 'after' side is what the committed entries hold now (a regenerated entry needs a regenerated record).
     Entries and tiers (servo) added since the kernel change are not in the record; ranks are compared among the
     recorded ones."""
-    script = benchmark_script("kernel_change")
+    script = script_module("kernel_change")
     now = script.entries_at(None, RECORD["version"])
     assert set(RECORD["tiers"]) <= set(now) and set(RECORD["tiers"]) >= {"easy", "medium", "hard", "debris", "robust"}
     for tier, data in RECORD["tiers"].items():

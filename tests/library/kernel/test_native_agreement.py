@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from conftest import benchmark_script
+from conftest import script_module
 
 ROOT = Path(__file__).resolve().parents[3]
 RECORD = json.loads((ROOT / "experiments" / "native_agreement.json").read_text(encoding="utf-8"))
@@ -24,7 +24,7 @@ def test_every_certificate_replays_the_same_on_both_kernels():
 
 
 def test_the_summary_and_the_docs_table_are_the_records():
-    script = benchmark_script("native_agreement")
+    script = script_module("native_agreement")
     by_kernel = {kernel: [{k: v for k, v in r.items() if k != "kernel"} for r in RECORD["rows"]
                           if r["kernel"] == kernel] for kernel in ("numba", "native")}
     assert script.summary(by_kernel["numba"], by_kernel["native"]) == RECORD["summary"]

@@ -178,9 +178,9 @@ def test_mujoco_integrates_the_same_robot_and_drives_to_the_same_joint_rates(dri
     """An independent simulator: MuJoCo (implicitfast, same bodies, drives, step and commands, built by the speed
     benchmark) ends 1 s of saturating open-loop commands within 1e-4 rad/s of the kernel's joint rates."""
     mujoco = pytest.importorskip("mujoco")
-    from conftest import benchmark_script
+    from conftest import script_module
 
-    bench = benchmark_script("bench")
+    bench = script_module("bench")
     setup = prepare(load_scenario("paper"))
     kernel, drive, h = setup.assets.kernel, drive_array(drives), 0.001
     states, torques = _open_loop(setup, drive, h, 1.0)

@@ -10,7 +10,7 @@ import json
 from pathlib import Path
 
 import pytest
-from conftest import benchmark_script
+from conftest import script_module
 
 from ffsr_gym.bench.replay_tolerance import tolerance_for
 from ffsr_gym.scoring.capture import QUANTITIES, capture, episode_relative_motion
@@ -21,8 +21,8 @@ from ffsr_gym.versions.registry import load_benchmark
 
 ROOT = Path(__file__).resolve().parents[3]
 RULES = load_benchmark("capture-v0")
-study = benchmark_script("capture_sensitivity")
-dt_study = benchmark_script("dt_sensitivity")
+study = script_module("capture_sensitivity")
+dt_study = script_module("dt_sensitivity")
 DT_STUDY = json.loads((ROOT / "experiments" / "dt_sensitivity_capture.json").read_text())
 
 

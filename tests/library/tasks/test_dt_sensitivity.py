@@ -11,11 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import benchmark_script
+from conftest import script_module
 
 ROOT = Path(__file__).resolve().parents[3]
 STUDY = json.loads((ROOT / "experiments" / "dt_sensitivity.json").read_text())
-study = benchmark_script("dt_sensitivity")
+study = script_module("dt_sensitivity")
 
 
 def _replay(entry: dict, count: int, version: str = STUDY["version"]) -> None:

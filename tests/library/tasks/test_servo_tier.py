@@ -118,10 +118,10 @@ def test_the_published_side_by_side_study_replays():
     import json
     from pathlib import Path
 
-    from conftest import benchmark_script
+    from conftest import script_module
 
     root = Path(__file__).resolve().parents[3]
-    script = benchmark_script("servo_plant")
+    script = script_module("servo_plant")
     result = json.loads((root / "experiments" / "servo_plant.json").read_text(encoding="utf-8"))
     text = (root / "docs" / "model.md").read_text(encoding="utf-8")
     assert text.split(script.START + "\n")[1].split(script.END)[0] == script.tables(result)
