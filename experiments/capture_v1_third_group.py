@@ -30,8 +30,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from study_rows import publish  # noqa: E402  (experiments/study_rows.py)
 
-from ffsr_gym.provenance import provenance, save_result, splice_file
+from ffsr_gym.provenance import provenance
 from ffsr_gym.scoring.aggregate import bootstrap_ci
 from ffsr_gym.tasks.reference import reference_scores
 from ffsr_gym.versions.registry import spec_for_version
@@ -124,11 +125,9 @@ def main(argv: list[str] | None = None) -> int:
     spec = spec_for_version(VERSION)
     loaded = verified(load_entries(Path(args.root), spec))
     rows = [tier_row(tier, loaded[tier], spec.leaderboard.ci) for tier in spec.tasks.tiers]
-    data = save_result(args.out, {"version": VERSION, "headroom": HEADROOM, "tiers": rows,
-                                  "provenance": provenance(command=" ".join(["python", *sys.argv]))})
-    if args.docs:
-        splice_file(args.docs, START, END, docs_text(data))
-    print(docs_text(data))
+    data = {"version": VERSION, "headroom": HEADROOM, "tiers": rows,
+            "provenance": provenance(command=" ".join(["python", *sys.argv]))}
+    publish(args.out, data, args.docs, (START, END), docs_text)
     return 0
 
 
