@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import sys
 from functools import cache
 from pathlib import Path
 from types import ModuleType
@@ -61,8 +62,11 @@ def random_configuration(robot: Robot, rng: np.random.Generator) -> np.ndarray:
 @cache
 def script_module(name: str, folder: str = "experiments") -> ModuleType:
     """``<folder>/<name>.py`` (a script of ``experiments/`` or ``baselines/``, not a package module) loaded as a
-    module, once per session."""
+    module, once per session, with its folder on ``sys.path`` as ``python <folder>/<name>.py`` has it (the scripts
+    import their sibling helpers, e.g. ``study_rows``)."""
     path = Path(__file__).resolve().parents[1] / folder / f"{name}.py"
+    if str(path.parent) not in sys.path:
+        sys.path.append(str(path.parent))
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
