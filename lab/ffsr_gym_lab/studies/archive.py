@@ -220,9 +220,10 @@ def restore(folder: Path, source: str, *, archive: str | None = None) -> list[Pa
             blobs[record["name"]] = _from_git(folder, commit, sorted(record["files"]))
     else:
         data = _read(source)
-        records = [r for r in records if r["sha256"] == _sha256(data)]
+        digest = _sha256(data)
+        records = [r for r in records if r["sha256"] == digest]
         if not records:
-            raise InvalidInputError(f"--from: {source} has sha256 {_sha256(data)}, which no archive of "
+            raise InvalidInputError(f"--from: {source} has sha256 {digest}, which no archive of "
                                     f"{folder / MANIFEST} has (allowed: {names})")
         blobs = {records[0]["name"]: _members(data, source)}
     written = []
