@@ -17,6 +17,7 @@ Capture v1's episodes play the nominal target, so this measures what an estimate
 model-based method, for the design of the next capture version; it ranks nothing.
 
     python experiments/capture_estimate_error.py [--tasks 40] [--tier sweep] [--docs docs/baselines.md]
+        [--figure docs/capture_estimate_error.png]
 
 Resumable: each finished (tier, seed) row is kept in ``--work`` (one file per tier, a run folder), so the two
 tiers can run as two processes; the result (``--out``, committed, with provenance) and the docs table are written
@@ -174,6 +175,38 @@ def docs_text(data: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def figure(data: dict, path: str) -> None:
+    """Mean score against the spin error, per tier: the look-ahead's two rules (with the exact model at 0), and the
+    board's entries and the frozen reference on the same tasks as horizontal lines."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(data["summary"]), figsize=(10, 4), sharey=True)
+    for ax, s in zip(np.atleast_1d(axes), data["summary"]):
+        exact = s["cells"][0]
+        for rule, style in (("naive", "o-"), ("robust", "s--")):
+            cells = [c for c in s["cells"] if c["model"] == rule]
+            x = [0.0] + [c["spin_deg_s"] for c in cells]
+            y = [exact["mean"]] + [c["mean"] for c in cells]
+            low = [exact["ci95"][0]] + [c["ci95"][0] for c in cells]
+            high = [exact["ci95"][1]] + [c["ci95"][1] for c in cells]
+            ax.plot(x, y, style, label=f"look-ahead, {rule} rule")
+            ax.fill_between(x, low, high, alpha=0.15)
+        ax.axhline(s["reference_mean"], color="black", lw=1, label="best known (frozen reference)")
+        for c, colour in zip(s["board"], ("tab:green", "tab:red", "tab:purple", "tab:gray")):
+            ax.axhline(c["mean"], color=colour, lw=1, ls=":", label=c["entry"])
+        ax.set_title(f"{s['tier']} ({s['tasks']} test tasks)")
+        ax.set_xlabel("spin error of the model [deg/s per component]\n(drift error: 5 mm/s per deg/s)")
+        ax.grid(alpha=0.3)
+    np.atleast_1d(axes)[0].set_ylabel("mean capture-v1 score")
+    np.atleast_1d(axes)[-1].legend(fontsize=7, loc="lower left")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--tasks", type=int, default=40, help="the first N tasks of each test pool (1-100)")
@@ -182,6 +215,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default="experiments/capture_estimate_error.json", help="rows and summary")
     parser.add_argument("--docs", default=None, help="write the table between the markers of this file")
     parser.add_argument("--root", default="leaderboards", help="the leaderboard root (the entries compared)")
+    parser.add_argument("--figure", default=None, help="draw the scores against the error to this PNG")
     args = parser.parse_args(argv)
     if not 1 <= args.tasks <= 100:
         parser.error(f"--tasks {args.tasks}; allowed: 1-100")
@@ -202,6 +236,8 @@ def main(argv: list[str] | None = None) -> int:
                        "summary": summary(rows, Path(args.root)),
                        "provenance": provenance(command=" ".join(["python", *sys.argv]))},
             args.docs, (START, END), docs_text)
+    if args.figure:
+        figure(json.loads(Path(args.out).read_text()), args.figure)
     return 0
 
 
