@@ -220,15 +220,16 @@ def main(argv: list[str] | None = None) -> int:
     if not 1 <= args.tasks <= 100:
         parser.error(f"--tasks {args.tasks}; allowed: 1-100")
     lookahead = Lookahead(step_s=1.0)
+    jobs = {tier: [(tier, t.seed, i, lookahead) for i, t in enumerate(pool(tier, "test", version=VERSION)[:args.tasks])]
+            for tier in TIMED_TIERS}
+    for tier in TIMED_TIERS:  # this process's tiers first, then what the other processes have finished
+        if args.tier in (None, tier):
+            resumable_rows(args.work.format(tier=tier), jobs[tier], task_row, f"estimate error, {tier}")
     rows = []
     for tier in TIMED_TIERS:
-        jobs = [(tier, t.seed, i, lookahead) for i, t in enumerate(pool(tier, "test", version=VERSION)[:args.tasks])]
-        work = args.work.format(tier=tier)
-        if args.tier in (None, tier):
-            rows += resumable_rows(work, jobs, task_row, f"estimate error, {tier}")
-        elif Path(work).exists():
-            done = {r["seed"]: r for r in json.loads(Path(work).read_text())["rows"]}
-            rows += [done[j[1]] for j in jobs if j[1] in done]
+        work = Path(args.work.format(tier=tier))
+        done = {r["seed"]: r for r in json.loads(work.read_text())["rows"]} if work.exists() else {}
+        rows += [done[j[1]] for j in jobs[tier] if j[1] in done]
     if len(rows) < args.tasks * len(TIMED_TIERS):
         print(f"{len(rows)} of {args.tasks * len(TIMED_TIERS)} rows: run the other tier, then publish")
         return 0
