@@ -17,7 +17,7 @@ Capture v1's episodes play the nominal target, so this measures what an estimate
 model-based method, for the design of the next capture version; it ranks nothing.
 
     python experiments/capture_estimate_error.py [--tasks 40] [--tier sweep] [--docs docs/baselines.md]
-        [--figure docs/capture_estimate_error.png]
+        [--figure docs/_static/capture_estimate_error.png]
 
 Resumable: each finished (tier, seed) row is kept in ``--work`` (one file per tier, a run folder), so the two
 tiers can run as two processes; the result (``--out``, committed, with provenance) and the docs table are written
