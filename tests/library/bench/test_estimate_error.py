@@ -5,6 +5,8 @@ over the hypotheses, and a row plays each chosen moment on the task itself."""
 from __future__ import annotations
 
 import dataclasses
+import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -55,3 +57,14 @@ def test_a_row_plays_each_chosen_moment_on_the_task_itself():
             episode = planner_episode(task, benchmark, method="predefined_time", m=0.3, T_c=4.0,
                                       go_s=level[f"{rule}_go_s"])
             assert level[rule] == pytest.approx(episode.score, rel=0.0, abs=1e-15)
+
+
+def test_the_docs_block_is_the_committed_result_rendered():
+    study = script_module("capture_estimate_error")
+    root = Path(__file__).resolve().parents[3]
+    data = json.loads((root / "experiments" / "capture_estimate_error.json").read_text())
+    page = (root / "docs" / "baselines.md").read_text()
+    block = page[page.index(study.START) + len(study.START):page.index(study.END)]
+    assert block.strip() == study.docs_text(data).strip()
+    for s in data["summary"]:  # the exact model is the look-ahead of the study it extends: it captures every task
+        assert s["cells"][0]["model"] == "exact" and s["cells"][0]["captures"] == s["tasks"] == 40
