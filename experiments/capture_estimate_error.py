@@ -12,7 +12,9 @@ choose the go moment on a 1 s grid, at the default planner (0.3, 4 s):
   and drift moved by one standard deviation per component in each of the eight sign patterns), earliest on ties.
 
 At each error level: the mean score and its bootstrap 95 % CI, captures, and the mean over tasks of the score over
-the task's frozen reference score (the tables' normalised score); with the exact model (no error) as the top row.
+the task's frozen reference score (the tables' normalised score); with the exact model (no error) as the top row,
+the board's entries :data:`COMPARED` on the same tasks below, and each row again on the tasks where going straight
+in at the default captures nothing (a screen the next capture version may use).
 Capture v1's episodes play the nominal target, so this measures what an estimate-driven target would do to a
 model-based method, for the design of the next capture version; it ranks nothing.
 
