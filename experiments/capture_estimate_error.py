@@ -44,7 +44,6 @@ from ffsr_gym.scoring.aggregate import bootstrap_ci
 from ffsr_gym.scoring.rules import score_rule
 from ffsr_gym.tasks import reference
 from ffsr_gym.tasks.capture_timed import TIMED_TIERS
-from ffsr_gym.tasks.certificate import planner_episode
 from ffsr_gym.tasks.splits import pool, task_scenario
 from ffsr_gym.versions.registry import load_benchmark, spec_for_version
 from ffsr_gym_lab.board.leaderboard import load_entries, verified
@@ -58,7 +57,8 @@ LEVELS = ((0.2, 0.001), (0.4, 0.002), (0.8, 0.004), (1.6, 0.008))
 SIGNS = np.array([[a, b, c] for a in (-1.0, 1.0) for b in (-1.0, 1.0) for c in (-1.0, 1.0)])
 STREAM = 120  # generator streams 120 + level: no other study draws from them
 #: The board's entries shown on the same tasks.
-COMPARED = ("learned_go", "proportional_tuned", "reference_best_constant", "reference_capture-v1_default")
+DEFAULT = f"reference_{VERSION}_default"
+COMPARED = ("learned_go", "proportional_tuned", "reference_best_constant", DEFAULT)
 
 
 def moved(task: Scenario, spin_deg_s: np.ndarray, drift_m_s: np.ndarray) -> Scenario:
@@ -82,23 +82,19 @@ def task_row(tier: str, seed: int, index: int, lookahead: Lookahead) -> dict:
     duration_s = score_rule(spec_for_version(VERSION)).duration_s
     task = task_scenario(tier, seed, benchmark)
     grid = lookahead.grid(duration_s)
-
-    def played(go_s: float) -> float:
-        return planner_episode(task, benchmark, method="predefined_time", m=lookahead.m, T_c=lookahead.T_c_s,
-                               go_s=float(go_s)).score
-
-    exact = lookahead.scores(task, benchmark, duration_s)
+    exact = lookahead.scores(task, benchmark, duration_s)  # the task itself at every moment: what a choice plays
     row = {"tier": tier, "task_index": index, "seed": seed, "exact": float(exact[lookahead.choose(exact)]),
            "exact_grid_best": float(exact.max()), "levels": []}
     for level, (spin_sigma, drift_sigma) in enumerate(LEVELS):
         error = np.random.default_rng([seed, STREAM + level]).normal(size=6)
         model = moved(task, spin_sigma * error[:3], drift_sigma * error[3:])
-        naive_go = float(grid[lookahead.choose(lookahead.scores(model, benchmark, duration_s))])
+        naive = lookahead.choose(lookahead.scores(model, benchmark, duration_s))
         hypotheses = np.array([lookahead.scores(moved(model, spin_sigma * s, drift_sigma * s), benchmark, duration_s)
                                for s in SIGNS])
-        robust_go = float(grid[robust_choice(hypotheses)])
-        row["levels"].append({"spin_deg_s": spin_sigma, "drift_m_s": drift_sigma, "naive_go_s": naive_go,
-                              "naive": played(naive_go), "robust_go_s": robust_go, "robust": played(robust_go)})
+        robust = robust_choice(hypotheses)
+        row["levels"].append({"spin_deg_s": spin_sigma, "drift_m_s": drift_sigma, "naive_go_s": float(grid[naive]),
+                              "naive": float(exact[naive]), "robust_go_s": float(grid[robust]),
+                              "robust": float(exact[robust])})
     return row
 
 
@@ -116,7 +112,8 @@ def _cell(scores: np.ndarray, ref: np.ndarray, straight: np.ndarray) -> dict:
 
 
 def board_scores(root: Path, tier: str, indices: list[int]) -> dict[str, np.ndarray]:
-    """The per-task test scores of the board's entries :data:`COMPARED` on the study's tasks (by task index)."""
+    """The per-task test scores of the board's entries :data:`COMPARED` on the study's tasks (by task index); the
+    default's are going straight in at the default planner, the screen's test."""
     entries = {e["name"]: e for e in verified(load_entries(root, spec_for_version(VERSION)))[tier]}
     out = {}
     for name in COMPARED:
@@ -126,24 +123,20 @@ def board_scores(root: Path, tier: str, indices: list[int]) -> dict[str, np.ndar
 
 
 def summary(rows: list[dict], root: Path) -> list[dict]:
-    benchmark = load_benchmark(VERSION)
     out = []
     for tier in TIMED_TIERS:
         mine = sorted((r for r in rows if r["tier"] == tier), key=lambda r: r["task_index"])
         indices = [r["task_index"] for r in mine]
         ref = np.array(reference.reference_scores(tier, "test", VERSION))[indices]
-        straight = np.array([planner_episode(task_scenario(tier, r["seed"], benchmark), benchmark,
-                                             method="predefined_time", m=benchmark.planner.m,
-                                             T_c=benchmark.planner.T_c_s, go_s=0.0).score for r in mine])
+        board = board_scores(root, tier, indices)
+        straight = board[DEFAULT]
         cells = [{"model": "exact", **_cell(np.array([r["exact"] for r in mine]), ref, straight)}]
         for level, (spin, drift) in enumerate(LEVELS):
             for rule in ("naive", "robust"):
                 scores = np.array([r["levels"][level][rule] for r in mine])
                 cells.append({"model": rule, "spin_deg_s": spin, "drift_m_s": drift, **_cell(scores, ref, straight)})
-        board = [{"entry": name, **_cell(scores, ref, straight)}
-                 for name, scores in board_scores(root, tier, indices).items()]
         out.append({"tier": tier, "tasks": len(mine), "reference_mean": float(ref.mean()), "cells": cells,
-                    "board": board})
+                    "board": [{"entry": name, **_cell(scores, ref, straight)} for name, scores in board.items()]})
     return out
 
 
