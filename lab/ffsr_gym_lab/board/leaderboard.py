@@ -35,6 +35,7 @@ from ffsr_gym.tasks.reference import reference_sha256
 from ffsr_gym.user_files import parse_json, read_text
 from ffsr_gym.versions.registry import all_specs, ranked_spec
 from ffsr_gym_lab.board import rl_comparison, tables
+from ffsr_gym_lab.board.paired import MEASURED_VERSIONS, paired_line
 from ffsr_gym_lab.board.separation import levels_line
 
 
@@ -184,6 +185,8 @@ def render_tables(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]])
         out.append("")
         if not every and ranked:
             out += [levels_line(ranked, spec.leaderboard.ci, spec.leaderboard.iqm, spec.leaderboard.label), ""]
+            paired = paired_line(ranked, spec.leaderboard.iqm, spec.leaderboard.label)
+            out += [paired, ""] if paired and spec.version in MEASURED_VERSIONS else []
         for e in items:
             if e.get("_problems"):
                 reasons = tables.free_text("; ".join(e["_problems"]), limit=400)
