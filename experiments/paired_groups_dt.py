@@ -9,7 +9,8 @@ same actions whatever seed trained it (the planner entries with their go times, 
 * the paired groups of these entries at dt (their board rows) and at dt/4, and each cut's closest pair with its
   difference CI at both steps;
 * how many of 20 bootstrap seeds give the same groups, at each step;
-* the share of tasks whose verdict is the same and the Spearman correlation of per-task scores, per entry.
+* the share of tasks whose verdict is the same and the Spearman correlation of per-task scores, per entry, and the
+  Spearman correlation of the entries' mean scores (their order) between the two steps.
 
 The RL entries (PPO, SAC: five trained seeds each) are left out: their networks are not in the repository, and a
 replay of their recorded actions at another step is no longer their policy.
@@ -117,7 +118,9 @@ def summary(rows: list[dict], root: Path, learned_sha: dict[str, str | None]) ->
             a, b = np.array(coarse[n]), np.array(fine[n])
             per_entry.append({"entry": n, "mean_dt": float(a.mean()), "mean_dt4": float(b.mean()),
                               "agreement": float(np.mean((a > 0) == (b > 0))), "spearman": spearman(a, b)})
+        means = np.array([[e["mean_dt"], e["mean_dt4"]] for e in per_entry])
         out.append({"tier": tier, "tasks": len(mine), "learned_go_network_sha256": learned_sha.get(tier),
+                    "entry_order_spearman": spearman(means[:, 0], means[:, 1]),
                     "dt": grouping(as_entries(coarse)), "dt4": grouping(as_entries(fine)), "entries": per_entry,
                     "board": grouping(list(board.values()))})
     return out
@@ -138,12 +141,15 @@ def docs_text(data: dict) -> str:
             g = s[key]
             cuts = "; ".join(f"`{a}` − `{b}` [{lo:+.3f}, {hi:+.3f}]" for a, b, (lo, hi) in g["closest"])
             lines.append(f"| {s['tier']} | {step} | {_groups(g['groups'])} | {cuts} | {g['same_groups_of_20_seeds']} |")
-    lines += ["", "| tier | entry | mean at dt / dt/4 | verdicts equal | Spearman |", "|---|---|---|---|---|"]
+    lines += ["", "| tier | entry | mean at dt / dt/4 | verdicts equal | Spearman of per-task scores |",
+              "|---|---|---|---|---|"]
     for s in data["summary"]:
         for e in s["entries"]:
             rho = "undefined" if e["spearman"] is None else f"{e['spearman']:.3f}"
             lines.append(f"| {s['tier']} | `{e['entry']}` | {e['mean_dt']:.3f} / {e['mean_dt4']:.3f} | "
                          f"{e['agreement']:.0%} | {rho} |")
+    orders = ", ".join(f"{s['tier']} {s['entry_order_spearman']:.3f}" for s in data["summary"])
+    lines += ["", f"Spearman correlation of the entries' mean scores between dt and dt/4 (their order): {orders}."]
     return "\n".join(lines) + "\n"
 
 
