@@ -71,7 +71,9 @@ class Ensemble:
     ``default_rng([seed, 4 + draw])``; and, with ``pinocchio``, the task on the Pinocchio backend. With
     ``omega_offset_deg_s`` > 0, a task with a tumbling target has ``omega_draws`` more members: its body's initial
     angular velocity with each component that far off (signs from ``default_rng([seed, 8])``, then
-    ``default_rng([seed, 8, draw])`` for the further draws).
+    ``default_rng([seed, 8, draw])`` for the further draws), or, with ``omega_sign_patterns``, in each of the 8 sign
+    patterns instead of drawn ones; with ``drift_offset_m_s`` > 0 [m/s], 6 more: its drift velocity that far off
+    along each world axis, each way (capture v2: margins for estimate errors in every direction).
     The worst episode must clear every success threshold by a margin (:meth:`short_margin`).
     """
 
@@ -84,6 +86,8 @@ class Ensemble:
     error_margin: float = field(default=1.0, metadata=number(0.0, 1.0, lo_open=True))
     omega_offset_deg_s: float = field(default=0.0, metadata=number(0.0, 10.0))
     omega_draws: int = field(default=1, metadata=natural(16))
+    omega_sign_patterns: bool = field(default=False, metadata=BOOL)
+    drift_offset_m_s: float = field(default=0.0, metadata=number(0.0, 0.1))
 
     def short_margin(self, peak_rate_deg_s: float, min_clearance_m: float, min_self_clearance_m: float,
                      final_errors: tuple[float, float], score: ScoreSettings) -> str | None:
@@ -209,7 +213,10 @@ class TaskRule:
     ``min_nominal_self_clearance_m``. The rest are tiered: easy (the default planner succeeds),
     medium (a constant (m, T_c) of the grid does), hard (none does, a residual of
     ``residual_trials`` seeded draws does), else rejected as unsolved. Capture v1 (family ``capture_timed``)
-    certifies a timing: ``go_s`` lists the moments [s] at which a certificate may command the insertion.
+    certifies a timing: ``go_s`` lists the moments [s] at which screening commands the insertion, and a certificate
+    may (``certificate_go_s``, when given, lists the certificate's instead); ``certify_grid`` false certifies the
+    default (m, T_c) only. ``straight_in_fails_divisors`` (capture v2): the default planner going straight in
+    (at 0 s) must capture at none of the steps dt / d, d in the list (1: the task's own step).
     """
 
     family: str = field(metadata=choice("random", "capture", "capture_timed"))
@@ -226,6 +233,9 @@ class TaskRule:
     capture_draw: CaptureDraw | None = field(default=None, metadata=section(CaptureDraw))
     min_mission_sigma: float = field(default=0.0, metadata=number(0.0, 100.0))
     go_s: tuple[float, ...] = field(default=(), metadata=rows(0, 0.0, 3600.0, 64))
+    certificate_go_s: tuple[float, ...] = field(default=(), metadata=rows(0, 0.0, 3600.0, 256))
+    certify_grid: bool = field(default=True, metadata=BOOL)
+    straight_in_fails_divisors: tuple[float, ...] = field(default=(), metadata=rows(0, 1.0, 64.0, 8))
 
     @property
     def splits(self) -> tuple[str, ...]:

@@ -16,6 +16,12 @@ start pose, then command the insertion): a candidate is admitted when one of the
 their singularity margins up to the capture. Certification (:func:`certify_timed`) then finds the first timed
 certificate, the default (m, T_c) then the grid's, each at every moment of ``go_s``, that captures in every kernel
 member of the ensemble with the ensemble's margins (the Pinocchio member is replayed by the pool build).
+
+Capture v2's rule (the same family and draws) screens first for tasks where the method must time: the default
+planner going straight in must capture at none of the steps of ``straight_in_fails_divisors``
+(:func:`straight_in_capture`, cause ``straight_in_captures``); it certifies the default (m, T_c) only
+(``certify_grid`` false) at the finer moments of ``certificate_go_s``, in an ensemble that moves the body's spin in
+every sign pattern and its drift along every axis (:func:`~ffsr_gym.tasks.certificate.target_members`).
 """
 
 from __future__ import annotations
@@ -39,7 +45,8 @@ from ffsr_gym.tasks.tiers import Verdict
 #: Capture v1's tiers: the index is part of each candidate's generator seeds.
 TIMED_TIERS = ("sweep", "nutation")
 #: Screening causes of a capture v1 candidate, in the order they are checked.
-TIMED_SCREEN_CAUSES = ("draw_failed", "no_timing_captures", "mission_singularity", "balance_singularity")
+TIMED_SCREEN_CAUSES = ("draw_failed", "straight_in_captures", "no_timing_captures", "mission_singularity",
+                       "balance_singularity")
 #: Why a capture v1 candidate is not in its tier.
 TIMED_REJECTIONS = TIMED_SCREEN_CAUSES + ("unsolved",)
 #: The measurements a verdict's ``nominal`` holds, in this order (None: no capture).
@@ -163,12 +170,13 @@ def certify_timed(task: Scenario, seed: int, benchmark: Benchmark,
     margins. ``outcomes``: the default planner's :func:`timing_outcomes`, whose failed moments are not tried again."""
     rule, default = benchmark.tasks, benchmark.planner
     members = [] if rule.ensemble is None else ensemble_members(task, seed, rule.ensemble, pinocchio=False)
-    members.sort(key=lambda member: not member.name.startswith("omega"))  # the likeliest to fail, and cheap, first
+    members.sort(key=lambda member: not member.name.startswith(("omega", "drift")))  # likeliest to fail first
     failed = {o.go_s for o in outcomes or () if o.capture_time_s is None}
     runs = 0
-    settings = [(default.m, default.T_c_s)] + [(m, T_c) for m in rule.grid_m for T_c in rule.grid_T_c_s]
+    settings = [(default.m, default.T_c_s)]
+    settings += [(m, T_c) for m in rule.grid_m for T_c in rule.grid_T_c_s] if rule.certify_grid else []
     for index, (m, T_c) in enumerate(settings):
-        for go in rule.go_s:
+        for go in rule.certificate_go_s or rule.go_s:
             if index == 0 and go in failed:
                 continue
             found = try_timed(task, Certificate("timed", float(m), float(T_c), go_s=float(go)), members, benchmark)
@@ -197,6 +205,19 @@ def try_timed(task: Scenario, certificate: Certificate, members: list[Member],
     return TimedCertification(certificate, result.score, margins, runs)
 
 
+def straight_in_capture(task: Scenario, benchmark: Benchmark) -> int | None:
+    """Whether the default planner going straight in (at 0 s) captures at one of the rule's
+    ``straight_in_fails_divisors`` steps: the runs it took to find one (None: it captures at none, or the rule asks
+    nothing). The task's own step first, the cheapest."""
+    planner, dt = benchmark.planner, task.simulation.dt_s
+    for runs, divisor in enumerate(sorted(benchmark.tasks.straight_in_fails_divisors), start=1):
+        played = task if divisor == 1 else task.at_step(dt / divisor)
+        run = timed_run(played, planner.m, planner.T_c_s, 0.0)
+        if score_episode(run, played, benchmark).capture_time_s is not None:
+            return runs
+    return None
+
+
 def classify_timed(tier: str, seed: int, benchmark: Benchmark) -> Verdict:
     """Capture v1's tier rule on the ``tier`` candidate of ``seed``: rejected when no draw is admissible, screening
     fails (:data:`TIMED_SCREEN_CAUSES`) or no timed certificate is found (``unsolved``); else admitted with the
@@ -205,13 +226,17 @@ def classify_timed(tier: str, seed: int, benchmark: Benchmark) -> Verdict:
     task = draw_timed_task(tier, seed, benchmark)
     if task is None:
         return Verdict(int(seed), None, "draw_failed", None, 0.0, None, False, (), 0)
+    straight_in = straight_in_capture(task, benchmark)
+    if straight_in is not None:
+        return Verdict(int(seed), None, "straight_in_captures", None, 0.0, None, False, (), straight_in)
     outcomes = timing_outcomes(task, benchmark)
     cause, nominal = screen_timed(outcomes, benchmark)
     straight = outcomes[0].failure if outcomes else None
+    checked = len(benchmark.tasks.straight_in_fails_divisors) + len(outcomes)
     if cause is not None:
-        return Verdict(int(seed), None, cause, None, 0.0, straight, False, nominal, len(outcomes))
+        return Verdict(int(seed), None, cause, None, 0.0, straight, False, nominal, checked)
     found = certify_timed(task, seed, benchmark, outcomes)
-    runs = len(outcomes) + found.rollouts
+    runs = checked + found.rollouts
     if found.certificate is None:
         return Verdict(int(seed), None, "unsolved", None, 0.0, straight, False, nominal, runs)
     constant = found.certificate.m == benchmark.planner.m and found.certificate.T_c_s == benchmark.planner.T_c_s

@@ -19,6 +19,7 @@ Pinocchio backend. :class:`Margins` keeps the worst of its margins over the memb
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -238,18 +239,38 @@ def ensemble_members(task: Scenario, seed: int, ensemble: Ensemble, *, pinocchio
     members += [Member(f"start {draw + 1}", offset_start(task, start_offsets(seed, draw, ensemble.start_offset_deg)))
                 for draw in range(ensemble.start_draws)]
     body = task.tumbling_target
-    if body is not None and ensemble.omega_offset_deg_s > 0.0:
-        for draw in range(ensemble.omega_draws):
-            rng = np.random.default_rng([int(seed), 8] if draw == 0 else [int(seed), 8, draw])
-            spin = tuple(float(w + ensemble.omega_offset_deg_s * s)
-                         for w, s in zip(body.omega_body_deg_s, rng.choice((-1.0, 1.0), 3)))
-            members.append(Member("omega" if draw == 0 else f"omega {draw + 1}",
-                                  task.replace(tumbling_target=dataclasses.replace(body, omega_body_deg_s=spin))))
+    if body is not None:
+        members += target_members(task, seed, ensemble)
     if ensemble.pinocchio if pinocchio is None else pinocchio:
         if task.simulation.plant == "servo":
             raise InvalidInputError(f"task {task.name!r}: the servo plant runs on the kernel only, so it has no "
                                     "Pinocchio member; its last member is ffsr_gym.tasks.perturbation.confirmation_member")
         members.append(Member("pinocchio", task, "pinocchio"))
+    return members
+
+
+def target_members(task: Scenario, seed: int, ensemble: Ensemble) -> list[Member]:
+    """The members of a task with a tumbling target whose body moves otherwise: its spin off by
+    ``omega_offset_deg_s`` per component (drawn signs, or every sign pattern), then its drift off by
+    ``drift_offset_m_s`` along each world axis, each way (:class:`~ffsr_gym.model.benchmark.Ensemble`)."""
+    body, members = task.tumbling_target, []
+    if ensemble.omega_offset_deg_s > 0.0:
+        if ensemble.omega_sign_patterns:
+            patterns = [(f"omega {''.join('+' if s > 0 else '-' for s in signs)}", np.array(signs))
+                        for signs in itertools.product((1.0, -1.0), repeat=3)]
+        else:
+            patterns = [("omega" if draw == 0 else f"omega {draw + 1}",
+                         np.random.default_rng([int(seed), 8] if draw == 0 else [int(seed), 8, draw]).choice(
+                             (-1.0, 1.0), 3)) for draw in range(ensemble.omega_draws)]
+        for name, signs in patterns:
+            spin = tuple(float(w + ensemble.omega_offset_deg_s * s) for w, s in zip(body.omega_body_deg_s, signs))
+            members.append(Member(name, task.replace(tumbling_target=dataclasses.replace(body, omega_body_deg_s=spin))))
+    if ensemble.drift_offset_m_s > 0.0:
+        for axis, sign in itertools.product(range(3), (1.0, -1.0)):
+            velocity = [float(v) for v in body.velocity_m_s]
+            velocity[axis] += sign * ensemble.drift_offset_m_s
+            moved = dataclasses.replace(body, velocity_m_s=tuple(velocity))
+            members.append(Member(f"drift {'+' if sign > 0 else '-'}{'xyz'[axis]}", task.replace(tumbling_target=moved)))
     return members
 
 

@@ -41,7 +41,8 @@ LABEL_CODES = {"easy": "e", "medium": "m", "hard": "h", "nominal_final_error": "
                "self_collision": "s", "unsolved_rate_limit": "r", "unsolved_collision": "c", "unsolved_final_error": "t",
                "debris": "D", "robust": "R", "servo": "S", "base_rejected": "x", "draw_failed": "d", "fragile": "g",
                "slow": "L", "fast": "F", "nominal_no_capture": "n", "mission_singularity": "w",
-               "unsolved_no_capture": "u", "sweep": "W", "nutation": "N", "no_timing_captures": "o", "unsolved": "U"}
+               "unsolved_no_capture": "u", "sweep": "W", "nutation": "N", "no_timing_captures": "o", "unsolved": "U",
+               "straight_in_captures": "i"}
 assert set(LABEL_CODES) == set(ALL_TIERS + REJECTIONS + PERTURBED_REJECTIONS + CAPTURE_TIERS + CAPTURE_REJECTIONS
                                + TIMED_TIERS + TIMED_REJECTIONS)
 

@@ -22,7 +22,7 @@ from ffsr_gym.model.spec import BenchmarkSpec, read_spec
 VERSIONS = ("v2",)
 #: The capture families' rule files (beyond the paper; docs/model.md §22, §24), loaded by the same
 #: :func:`load_benchmark`.
-CAPTURE_VERSIONS = ("capture-v0", "capture-v1")
+CAPTURE_VERSIONS = ("capture-v0", "capture-v1", "capture-v2")
 
 
 def load_benchmark(version: str = VERSIONS[-1]) -> Benchmark:

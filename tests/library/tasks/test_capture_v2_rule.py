@@ -1,0 +1,98 @@
+"""Capture v2's rule (envs/benchmark/capture-v2.toml, docs/model.md §25): capture v1's tasks and score, screened for
+tasks where going straight in fails at dt and dt/4, certified at the default (m, T_c) on a 1 s grid of go moments
+in an ensemble that moves the target's spin in every sign pattern and its drift along every axis.
+
+The straight-in screen is checked against capture v1's test tasks whose default straight-in verdicts at dt and dt/4
+the dt/4 study recorded (experiments/paired_groups_dt.json, one of them a verdict that flips with the step)."""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+
+import numpy as np
+import pytest
+
+from ffsr_gym.tasks import capture_timed
+from ffsr_gym.tasks.capture_timed import classify_timed, draw_timed_task, straight_in_capture
+from ffsr_gym.tasks.certificate import ensemble_members
+from ffsr_gym.tasks.splits import task_scenario
+from ffsr_gym.versions.registry import load_benchmark
+
+V1, V2 = load_benchmark("capture-v1"), load_benchmark("capture-v2")
+SEED = 41  # a sweep candidate the default planner captures going straight in (tests/library/tasks/test_capture_v1.py)
+
+
+def test_the_rule_is_capture_v1s_but_for_the_screen_the_certificate_search_and_the_members():
+    for section in ("score", "planner", "action", "capture", "quality"):
+        assert getattr(V2, section) == getattr(V1, section)
+    changed = {f.name for f in dataclasses.fields(V1.tasks) if getattr(V1.tasks, f.name) != getattr(V2.tasks, f.name)}
+    assert changed == {"ensemble", "certificate_go_s", "certify_grid", "straight_in_fails_divisors"}
+    assert V2.tasks.certificate_go_s == tuple(float(k) for k in range(45)) and not V2.tasks.certify_grid
+    one, two = draw_timed_task("sweep", SEED, V1), draw_timed_task("sweep", SEED, V2)  # the same candidates
+    assert two.name == "capture-v2-sweep-41"
+    assert dataclasses.replace(two, name=one.name, description=one.description) == one
+
+
+def test_the_target_members_move_the_spin_in_every_sign_pattern_and_the_drift_along_every_axis():
+    task = draw_timed_task("nutation", SEED, V2)
+    body = task.tumbling_target
+    members = ensemble_members(task, SEED, V2.tasks.ensemble, pinocchio=False)
+    assert [m.name for m in members][:4] == ["dt/2", "dt/4", "start 1", "start 2"]
+    spins = [m for m in members if m.name.startswith("omega")]
+    drifts = [m for m in members if m.name.startswith("drift")]
+    assert len(members) == 4 + 8 + 6
+    signs = set()
+    for member in spins:
+        moved = member.task.tumbling_target
+        d = np.array(moved.omega_body_deg_s) - np.array(body.omega_body_deg_s)
+        np.testing.assert_allclose(np.abs(d), 0.4, rtol=1e-12)
+        signs.add(tuple(np.sign(d)))
+        back = dataclasses.replace(moved, omega_body_deg_s=body.omega_body_deg_s)
+        assert member.task.replace(tumbling_target=back) == task
+    assert signs == set(itertools.product((1.0, -1.0), repeat=3))
+    moves = set()
+    for member in drifts:
+        moved = member.task.tumbling_target
+        d = np.array(moved.velocity_m_s) - np.array(body.velocity_m_s)
+        axis = int(np.argmax(np.abs(d)))
+        assert abs(d[axis]) == pytest.approx(0.002, rel=1e-12) and np.count_nonzero(d) == 1
+        moves.add((axis, float(np.sign(d[axis]))))
+        assert member.task.replace(tumbling_target=dataclasses.replace(moved, velocity_m_s=body.velocity_m_s)) == task
+    assert moves == set(itertools.product(range(3), (1.0, -1.0)))
+    v1 = [m.name for m in ensemble_members(task, SEED, V1.tasks.ensemble)]  # capture v1's stay as they were
+    assert v1 == ["dt/2", "dt/4", "start 1", "start 2", "omega", "omega 2", "omega 3", "omega 4", "pinocchio"]
+
+
+@pytest.mark.parametrize(("seed", "divisors", "runs"), [
+    (1000017, (1.0, 4.0), None),  # capture v1's sweep test task 0: straight in fails at dt and at dt/4
+    (1000159, (1.0, 4.0), 1),     # test task 17: captures at dt, not at dt/4 (the study's flip)
+    (1000159, (4.0,), None),
+    (1000017, (4.0, 2.0), None),
+    (1000159, (4.0, 1.0), 1),     # the steps in order of their divisor: the task's own first
+    (1000159, (), None),          # capture v1 asks nothing
+])
+def test_the_straight_in_screen_plays_each_step(seed, divisors, runs):
+    rule = dataclasses.replace(V2, tasks=dataclasses.replace(V2.tasks, straight_in_fails_divisors=divisors))
+    assert straight_in_capture(task_scenario("sweep", seed, V1), rule) == runs
+
+
+def test_a_candidate_that_captures_going_straight_in_is_refused_after_one_run():
+    verdict = classify_timed("sweep", SEED, V2)
+    assert (verdict.tier, verdict.rejection, verdict.rollouts) == (None, "straight_in_captures", 1)
+
+
+def test_the_certificate_search_tries_the_default_at_every_second(monkeypatch):
+    tried = []
+
+    def record(task, certificate, members, benchmark):
+        tried.append((certificate.m, certificate.T_c_s, certificate.go_s))
+        return capture_timed.TimedCertification(None, 0.0, None, 1)
+
+    monkeypatch.setattr(capture_timed, "try_timed", record)
+    task = draw_timed_task("sweep", SEED, V2)
+    found = capture_timed.certify_timed(task, SEED, V2)
+    assert found.certificate is None and found.rollouts == 45
+    assert tried == [(0.3, 4.0, float(k)) for k in range(45)]
+    tried.clear()
+    assert capture_timed.certify_timed(task, SEED, V1).rollouts == 37 * 12  # capture v1: the grid at 12 moments
