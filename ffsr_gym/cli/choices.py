@@ -5,7 +5,7 @@ from __future__ import annotations
 
 def build_targets() -> list[str]:
     """What ``tasks build --tier`` builds: ``base`` (easy, medium and hard together), one perturbed tier, or one
-    capture tier (``--version capture-v0``, ``capture-v1``)."""
+    capture tier (``--version capture-v0``, ``capture-v1``, ``capture-v2``)."""
     from ffsr_gym.tasks.capture_family import CAPTURE_TIERS
     from ffsr_gym.tasks.capture_timed import TIMED_TIERS
     from ffsr_gym.tasks.perturbation import PERTURBED_TIERS

@@ -22,7 +22,7 @@ def add_study_commands(sub: Any, groups: dict[str, Any]) -> None:
     tb.add_argument("--tier", default="base", choices=build_targets(),
                     help="base: the easy, medium and hard pools; debris, robust or servo: that tier, on top of the "
                          "version's pool file's tier tasks; slow or fast: that capture tier (--version capture-v0); sweep or "
-                         "nutation: that capture v1 tier (--version capture-v1) "
+                         "nutation: that capture v1 or v2 tier (--version capture-v1, capture-v2) "
                          "(default: base)")
     tb.add_argument("--work", default=None, help="folder of the finished chunks (default: studies/tasks-<version>, kept "
                                                  "in git so that a build resumes on any machine; "
