@@ -185,8 +185,9 @@ def render_tables(spec: BenchmarkSpec, entries: dict[str, list[dict[str, Any]]])
         out.append("")
         if not every and ranked:
             out += [levels_line(ranked, spec.leaderboard.ci, spec.leaderboard.iqm, spec.leaderboard.label), ""]
-            paired = paired_line(ranked, spec.leaderboard.iqm, spec.leaderboard.label)
-            out += [paired, ""] if paired and spec.version in MEASURED_VERSIONS else []
+            paired = paired_line(ranked, spec.leaderboard.iqm, spec.leaderboard.label) \
+                if spec.version in MEASURED_VERSIONS else ""
+            out += [paired, ""] if paired else []
         for e in items:
             if e.get("_problems"):
                 reasons = tables.free_text("; ".join(e["_problems"]), limit=400)

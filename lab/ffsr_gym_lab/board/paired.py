@@ -62,8 +62,11 @@ class Paired:
 
 def score_matrix(entry: dict[str, Any]) -> tuple[tuple[int, ...], np.ndarray] | None:
     """(task indices, scores as runs x tasks) of an entry, runs its ``train_seed`` values in order (one run for a
-    deterministic method), or None if a run misses a task or plays one twice."""
+    deterministic method), or None if a run misses a task or plays one twice, or its rows name no pool task (an
+    entry scored on seeds)."""
     rows = entry["episodes"]
+    if not rows or any("task_index" not in row for row in rows):
+        return None
     runs = sorted({row.get("train_seed", 0) for row in rows})
     tasks = tuple(sorted({row["task_index"] for row in rows}))
     if len(rows) != len(runs) * len(tasks):

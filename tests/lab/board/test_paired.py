@@ -115,3 +115,10 @@ def test_random_and_other_tasks_are_left_out():
 def test_an_unknown_statistic_is_refused_by_name():
     with pytest.raises(InvalidInputError, match="score_median.*allowed.*score_iqm"):
         paired_groups([_entry("a", _spread())], "score_median")
+
+
+def test_an_entry_scored_on_seeds_is_not_compared():
+    seeded = {"name": "v0", "extra": {}, "episodes": [{"seed": s, "score": 0.1} for s in range(3)]}
+    assert score_matrix(seeded) is None
+    result = paired_groups([seeded, _entry("a", _spread())], "score_mean")
+    assert result.names == ["a"] and result.left_out == ["v0"]
