@@ -17,17 +17,20 @@ their singularity margins up to the capture. Certification (:func:`certify_timed
 certificate, the default (m, T_c) then the grid's, each at every moment of ``go_s``, that captures in every kernel
 member of the ensemble with the ensemble's margins (the Pinocchio member is replayed by the pool build).
 
-Capture v2's rule (the same family and draws) screens first for tasks where the method must time: the default
-planner going straight in must capture at none of the steps of ``straight_in_fails_divisors``
-(:func:`straight_in_capture`, cause ``straight_in_captures``); it certifies the default (m, T_c) only
-(``certify_grid`` false) at the finer moments of ``certificate_go_s``, in an ensemble that moves the body's spin in
-every sign pattern and its drift along every axis (:func:`~ffsr_gym.tasks.certificate.target_members`).
+Capture v2's rule (the same family and draws) screens for tasks where the method must time: the default planner
+going straight in must capture at none of the steps of ``straight_in_fails_divisors`` (cause
+``straight_in_captures``): at the task's own step first, which is also the screening's moment 0 s, and at the finer
+steps, four times costlier, only for the candidates the timings admit (:func:`straight_in_capture`). It certifies
+the default (m, T_c) only (``certify_grid`` false) at the finer moments of ``certificate_go_s``, in an ensemble that
+moves the body's spin in every sign pattern and its drift along every axis
+(:func:`~ffsr_gym.tasks.certificate.target_members`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -124,20 +127,24 @@ class TimingOutcome:
     min_balance_sigma: float
 
 
-def timing_outcomes(task: Scenario, benchmark: Benchmark, m: float | None = None,
-                    T_c: float | None = None) -> list[TimingOutcome]:
-    """The planner at (m, T_c [s]) (default: the rule's) going in at every moment of the rule's ``go_s``."""
+def timing_outcome(task: Scenario, benchmark: Benchmark, m: float, T_c: float, go_s: float) -> TimingOutcome:
+    """The planner at (m, T_c [s]) going in at ``go_s`` [s]."""
+    run = timed_run(task, m, T_c, go_s)
+    result = score_episode(run, task, benchmark)
+    rows = len(run.t) if result.capture_time_s is None else int(round(result.capture_time_s / run.dt)) + 1
+    sigma = run.sigma_min[:rows]
+    return TimingOutcome(float(go_s), result.capture_time_s, result.failure, float(np.min(sigma[:, 0])),
+                         float(np.min(sigma[:, 1])))
+
+
+def timing_outcomes(task: Scenario, benchmark: Benchmark, m: float | None = None, T_c: float | None = None, *,
+                    known: dict[float, TimingOutcome] | None = None) -> list[TimingOutcome]:
+    """The planner at (m, T_c [s]) (default: the rule's) going in at every moment of the rule's ``go_s``; ``known``:
+    outcomes of that planner already run, by moment (kept, not run again)."""
     m = benchmark.planner.m if m is None else m
     T_c = benchmark.planner.T_c_s if T_c is None else T_c
-    out = []
-    for go in benchmark.tasks.go_s:
-        run = timed_run(task, m, T_c, go)
-        result = score_episode(run, task, benchmark)
-        rows = len(run.t) if result.capture_time_s is None else int(round(result.capture_time_s / run.dt)) + 1
-        sigma = run.sigma_min[:rows]
-        out.append(TimingOutcome(float(go), result.capture_time_s, result.failure, float(np.min(sigma[:, 0])),
-                                 float(np.min(sigma[:, 1]))))
-    return out
+    known = known or {}
+    return [known[go] if go in known else timing_outcome(task, benchmark, m, T_c, go) for go in benchmark.tasks.go_s]
 
 
 def screen_timed(outcomes: list[TimingOutcome], benchmark: Benchmark) -> tuple[str | None, tuple]:
@@ -205,12 +212,13 @@ def try_timed(task: Scenario, certificate: Certificate, members: list[Member],
     return TimedCertification(certificate, result.score, margins, runs)
 
 
-def straight_in_capture(task: Scenario, benchmark: Benchmark) -> int | None:
-    """Whether the default planner going straight in (at 0 s) captures at one of the rule's
-    ``straight_in_fails_divisors`` steps: the runs it took to find one (None: it captures at none, or the rule asks
-    nothing). The task's own step first, the cheapest."""
+def straight_in_capture(task: Scenario, benchmark: Benchmark, divisors: Sequence[float] | None = None) -> int | None:
+    """Whether the default planner going straight in (at 0 s) captures at one of the steps dt / d, d in ``divisors``
+    (default: the rule's ``straight_in_fails_divisors``): the runs it took to find one (None: it captures at none, or
+    there is no step to try). In order of the divisor: the task's own step first, the cheapest."""
     planner, dt = benchmark.planner, task.simulation.dt_s
-    for runs, divisor in enumerate(sorted(benchmark.tasks.straight_in_fails_divisors), start=1):
+    divisors = benchmark.tasks.straight_in_fails_divisors if divisors is None else divisors
+    for runs, divisor in enumerate(sorted(divisors), start=1):
         played = task if divisor == 1 else task.at_step(dt / divisor)
         run = timed_run(played, planner.m, planner.T_c_s, 0.0)
         if score_episode(run, played, benchmark).capture_time_s is not None:
@@ -226,17 +234,25 @@ def classify_timed(tier: str, seed: int, benchmark: Benchmark) -> Verdict:
     task = draw_timed_task(tier, seed, benchmark)
     if task is None:
         return Verdict(int(seed), None, "draw_failed", None, 0.0, None, False, (), 0)
-    straight_in = straight_in_capture(task, benchmark)
-    if straight_in is not None:
-        return Verdict(int(seed), None, "straight_in_captures", None, 0.0, None, False, (), straight_in)
-    outcomes = timing_outcomes(task, benchmark)
+    planner, finer = benchmark.planner, sorted(benchmark.tasks.straight_in_fails_divisors)
+    known: dict[float, TimingOutcome] = {}
+    if 1.0 in finer:  # going straight in at the task's own step: one run, and the screening's moment 0 s
+        finer.remove(1.0)
+        known[0.0] = timing_outcome(task, benchmark, planner.m, planner.T_c_s, 0.0)
+        if known[0.0].capture_time_s is not None:
+            return Verdict(int(seed), None, "straight_in_captures", None, 0.0, None, False, (), 1)
+    outcomes = timing_outcomes(task, benchmark, known=known)
     cause, nominal = screen_timed(outcomes, benchmark)
     straight = outcomes[0].failure if outcomes else None
-    checked = len(benchmark.tasks.straight_in_fails_divisors) + len(outcomes)
+    checked = len(known) + sum(o.go_s not in known for o in outcomes)
     if cause is not None:
         return Verdict(int(seed), None, cause, None, 0.0, straight, False, nominal, checked)
+    finer_capture = straight_in_capture(task, benchmark, finer)  # the finer steps: costlier, for the screened-in only
+    if finer_capture is not None:
+        return Verdict(int(seed), None, "straight_in_captures", None, 0.0, straight, False, nominal,
+                       checked + finer_capture)
     found = certify_timed(task, seed, benchmark, outcomes)
-    runs = checked + found.rollouts
+    runs = checked + len(finer) + found.rollouts
     if found.certificate is None:
         return Verdict(int(seed), None, "unsolved", None, 0.0, straight, False, nominal, runs)
     constant = found.certificate.m == benchmark.planner.m and found.certificate.T_c_s == benchmark.planner.T_c_s

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,6 +22,7 @@ from ffsr_gym.tasks.splits import task_scenario
 from ffsr_gym.versions.registry import load_benchmark
 
 V1, V2 = load_benchmark("capture-v1"), load_benchmark("capture-v2")
+ROOT = Path(__file__).resolve().parents[3]
 SEED = 41  # a sweep candidate the default planner captures going straight in (tests/library/tasks/test_capture_v1.py)
 
 
@@ -96,3 +99,27 @@ def test_the_certificate_search_tries_the_default_at_every_second(monkeypatch):
     assert tried == [(0.3, 4.0, float(k)) for k in range(45)]
     tried.clear()
     assert capture_timed.certify_timed(task, SEED, V1).rollouts == 37 * 12  # capture v1: the grid at 12 moments
+
+
+@pytest.mark.parametrize("seed", [1000000, 1000001, 1000017, 1000019])
+def test_capture_v1s_verdicts_are_the_ones_its_build_recorded(seed):
+    """Capture v1's rule through the reordered classification: each verdict, runs and margins included, as capture
+    v1's own build recorded it (studies/tasks-capture-v1; a screened-out, a dexterity-rejected and an admitted
+    candidate)."""
+    chunk = json.loads((ROOT / "studies" / "tasks-capture-v1" / "sweep" / "test" / "1000000.json").read_text())
+    stored = next(v for v in chunk["verdicts"] if v["seed"] == seed)
+    assert json.loads(json.dumps(classify_timed("sweep", seed, V1).as_dict())) == stored
+
+
+def test_the_finer_step_is_tried_only_for_a_candidate_the_timings_admit(monkeypatch):
+    """The straight-in run at dt/4 comes after the screening: for a candidate its timings reject, never."""
+    tried = []
+    real = capture_timed.straight_in_capture
+
+    def record(task, benchmark, divisors=None):
+        tried.append(tuple(divisors))
+        return real(task, benchmark, divisors)
+
+    monkeypatch.setattr(capture_timed, "straight_in_capture", record)
+    rejected = classify_timed("sweep", 1000000, V2)  # capture v1's no_timing_captures: its straight-in fails at dt
+    assert (rejected.rejection, rejected.rollouts, tried) == ("no_timing_captures", 12, [])
