@@ -34,7 +34,7 @@ from ffsr_gym.tasks.capture_timed import TIMED_TIERS
 from ffsr_gym.tasks.splits import pool
 from ffsr_gym.versions.registry import spec_for_version
 from ffsr_gym_lab.board.leaderboard import load_entries, verified
-from ffsr_gym_lab.board.paired import paired_groups
+from ffsr_gym_lab.board.paired import paired_groups, score_matrix
 from ffsr_gym_lab.board.separation import is_random
 
 VERSION = "capture-v1"
@@ -59,10 +59,8 @@ def subsets(tier: str, robust: dict, fine: dict, board: dict[str, dict]) -> dict
 
 def per_task(entry: dict) -> dict[int, float]:
     """An entry's mean score per test task (over its training seeds)."""
-    scores: dict[int, list[float]] = {}
-    for row in entry["episodes"]:
-        scores.setdefault(row["task_index"], []).append(row["score"])
-    return {i: float(np.mean(s)) for i, s in scores.items()}
+    tasks, scores = score_matrix(entry)
+    return dict(zip(tasks, scores.mean(axis=0).tolist()))
 
 
 def tier_summary(tier: str, robust: dict, fine: dict, root: Path) -> dict:
