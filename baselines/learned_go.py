@@ -1,11 +1,11 @@
-"""A timing learned from simulated outcomes on capture v1 (``learned_go``): supervised learning of when to go in.
+"""A timing learned from simulated outcomes on capture v1 or v2 (``learned_go``): supervised learning of when to go in.
 
-    python baselines/learned_go.py --leaderboard leaderboards [--tiers sweep] [--workers 2]
+    python baselines/learned_go.py --leaderboard leaderboards [--version capture-v2] [--tiers sweep] [--workers 2]
 
 1. **Data** (training and validation pools): for every task, the observations of the episode that holds the start
    pose, at every moment of a 0.5 s grid, and the score that going in at that moment earns (the default planner
    (0.3, 4 s), simulated as the env plays it: ``ffsr_gym.bench.lookahead``). Resumable: one file per task in
-   ``--work``.
+   ``--work`` (default ``runs/learned_go`` for capture v1, ``runs/learned_go/<version>`` for a later version).
 2. **Fit** a network (76 -> 128 -> 128 -> 1, ReLU; torch, seeded) from observation to that score on the training
    pool's samples (mean squared error, Adam), on inputs standardised by their training mean and spread; a feature
    whose spread is below ``CONSTANT_SPREAD`` (the held start pose, and its joint rates, which are the integrator's
@@ -41,7 +41,9 @@ from ffsr_gym.tasks.splits import pool, task_scenario
 from ffsr_gym.versions.registry import load_benchmark, spec_for_version
 from ffsr_gym_lab.board.tables import headline
 
-VERSION, NAME, STEP_S, SEED = "capture-v1", "learned_go", 0.5, 0
+#: The capture versions the policy plays (the approach command in the action), the first the default.
+VERSIONS = ("capture-v1", "capture-v2")
+NAME, STEP_S, SEED = "learned_go", 0.5, 0
 HIDDEN, EPOCHS, BATCH, LEARNING_RATE = (128, 128), 60, 512, 1e-3
 #: Below this spread over the training samples a feature counts as constant (module docstring, step 2): the held
 #: pose's joint rates are the integrator's residue, 4e-5 rad/s at dt = 0.01 s and 2e-6 at dt/4, spread 4e-6 over
@@ -53,12 +55,12 @@ THRESHOLDS = np.round(np.arange(0.05, 0.451, 0.01), 3)
 CONFIRMS = (1, 2, 3)
 
 
-def task_data(tier: str, split: str, index: int) -> tuple[np.ndarray, np.ndarray]:
+def task_data(tier: str, split: str, index: int, version: str = VERSIONS[0]) -> tuple[np.ndarray, np.ndarray]:
     """(observations at the grid's moments while holding the start pose, the score of going in at each)."""
-    spec = spec_for_version(VERSION)
-    benchmark, duration_s = load_benchmark(VERSION), score_rule(spec).duration_s
+    spec = spec_for_version(version)
+    benchmark, duration_s = load_benchmark(version), score_rule(spec).duration_s
     lookahead = Lookahead(step_s=STEP_S)
-    scores = lookahead.scores(task_scenario(tier, pool(tier, split, version=VERSION)[index].seed, benchmark), benchmark,
+    scores = lookahead.scores(task_scenario(tier, pool(tier, split, version=version)[index].seed, benchmark), benchmark,
                               duration_s)
     env = gym.make(spec.ids.parameters, task=tier, split=split)
     obs, _ = env.reset(seed=0, options={"task_index": index})
@@ -74,22 +76,23 @@ def task_data(tier: str, split: str, index: int) -> tuple[np.ndarray, np.ndarray
     return observations, scores[:len(observations)]
 
 
-def _collect_one(job: tuple[str, str, int, str]) -> str:
-    tier, split, index, path = job
+def _collect_one(job: tuple[str, str, int, str, str]) -> str:
+    tier, split, index, path, version = job
     start = time.perf_counter()
-    observations, scores = task_data(tier, split, index)
+    observations, scores = task_data(tier, split, index, version)
     part = Path(path).with_suffix(".part.npz")
     np.savez(part, observations=observations, scores=scores, seconds=time.perf_counter() - start)
     os.replace(part, path)
     return path
 
 
-def collect(tier: str, split: str, work: Path, workers: int) -> tuple[list[tuple[np.ndarray, np.ndarray]], float, int]:
+def collect(tier: str, split: str, work: Path, workers: int,
+            version: str = VERSIONS[0]) -> tuple[list[tuple[np.ndarray, np.ndarray]], float, int]:
     """Every task's data of a pool, computing what ``work`` does not hold yet; the seconds its simulation took (as
     each task's file records them) and how many files record none (made before files kept their time)."""
-    tasks = len(pool(tier, split, version=VERSION))
+    tasks = len(pool(tier, split, version=version))
     paths = [work / f"{tier}-{split}-{index:03d}.npz" for index in range(tasks)]
-    jobs = [(tier, split, index, str(path)) for index, path in enumerate(paths) if not path.exists()]
+    jobs = [(tier, split, index, str(path), version) for index, path in enumerate(paths) if not path.exists()]
     with ProcessPoolExecutor(workers) as executor:
         for _ in tqdm(executor.map(_collect_one, jobs), total=len(jobs), desc=f"data {tier}/{split}", unit="task"):
             pass
@@ -151,18 +154,23 @@ def offline_score(regressor: Regressor, threshold: float, data: list[tuple[np.nd
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--leaderboard", required=True, help="leaderboard root; entries go to <root>/<version>/<tier>/")
-    parser.add_argument("--tiers", nargs="+", default=None, help="tiers (default: every tier of capture-v1)")
-    parser.add_argument("--work", default="runs/learned_go", help="the data, one file per task (resumable)")
+    parser.add_argument("--version", default=VERSIONS[0], choices=VERSIONS,
+                        help="capture version (default: %(default)s)")
+    parser.add_argument("--tiers", nargs="+", default=None, help="tiers (default: every tier of the version)")
+    parser.add_argument("--work", default=None, help="the data, one file per task (resumable; default: "
+                        "runs/learned_go, and runs/learned_go/<version> for a later version)")
     parser.add_argument("--workers", type=int, default=1, help="processes for the data (default: 1)")
     args = parser.parse_args()
-    spec, work = spec_for_version(VERSION), Path(args.work)
+    version = args.version
+    spec = spec_for_version(version)
+    work = Path(args.work or ("runs/learned_go" if version == VERSIONS[0] else f"runs/learned_go/{version}"))
     work.mkdir(parents=True, exist_ok=True)
     for tier in args.tiers or spec.tasks.tiers:
-        folder = Path(args.leaderboard) / VERSION / tier
+        folder = Path(args.leaderboard) / version / tier
         if (folder / f"{NAME}.json").exists():
             print("kept", folder / f"{NAME}.json")
             continue
-        (train, *timed), (validation, *more) = (collect(tier, split, work, args.workers) for split in
+        (train, *timed), (validation, *more) = (collect(tier, split, work, args.workers, version) for split in
                                                  ("train", "validation"))
         start = time.perf_counter()  # the data's simulation is counted from the time each task's file records
         regressor = fit(train)

@@ -47,6 +47,10 @@ class TaskSource:
         self.split = self._check_split(split)
         self.pool: tuple[PoolTask, ...] | None = None
         if isinstance(task, str) and task in spec.tasks.tiers:
+            if spec.status == "building":
+                raise InvalidInputError(f"{spec.tasks.keyword} = {task!r}: the {spec.version} pools are being built, "
+                                        "so its tiers have no tasks yet; allowed until then: a scenario (a shipped "
+                                        "scenario name, a Scenario or a path to a scenario .toml file)")
             self.name, self.pool = task, pool(task, self.split, version=rule.benchmark.version)
             self.family = task_scenario(task, self.pool[0].seed, rule.benchmark)
         else:

@@ -7,9 +7,10 @@ A :class:`Schedule` is the action sequence of one episode of a registered v2 env
   the action no longer acts);
 * ``parameters`` (``FFSR-v2``): the (m, T_c) action in [-1, 1]² at ``K`` knots spread evenly over
   all decisions;
-* ``timed`` (``FFSR-Capture-v1``): one knot (m, T_c, g): the (m, T_c) action throughout, the approach's
-  command held (a = -1) before the decision g picks and the insertion commanded (a = +1) from it on; g in
-  [-1, 1] spans the episode's decisions evenly (:func:`go_decision`).
+* ``timed`` (a capture version's (m, T_c) id, ``FFSR-Capture-v1`` or ``-v2``): one knot (m, T_c, g): the
+  (m, T_c) action throughout, the approach's command held (a = -1) before the decision g picks and the
+  insertion commanded (a = +1) from it on; g in [-1, 1] spans the episode's decisions evenly
+  (:func:`go_decision`).
 
 Between knots the action is linear in the decision index, after the last knot it holds; the
 values are computed in float64 and rounded to float32, as the env rounds its actions, so that
@@ -36,7 +37,8 @@ from ffsr_gym.sim.trajectory import Trajectory
 
 #: Schedule families and the width of their actions.
 FAMILIES = {"residual": 12, "parameters": 2, "timed": 3}
-#: The registered env whose actions each family is (v2's; a version's own ids: ``family_env_ids``).
+#: The registered env whose actions each family is (v2's, and capture v1's for ``timed``; a version's own ids:
+#: ``ffsr_gym_lab.best_known.build.family_env_ids``).
 ENV_IDS = {"residual": "FFSR-Residual-v2", "parameters": "FFSR-v2", "timed": "FFSR-Capture-v1"}
 
 

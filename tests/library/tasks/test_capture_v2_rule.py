@@ -123,3 +123,27 @@ def test_the_finer_step_is_tried_only_for_a_candidate_the_timings_admit(monkeypa
     monkeypatch.setattr(capture_timed, "straight_in_capture", record)
     rejected = classify_timed("sweep", 1000000, V2)  # capture v1's no_timing_captures: its straight-in fails at dt
     assert (rejected.rejection, rejected.rollouts, tried) == ("no_timing_captures", 12, [])
+
+
+def test_the_ids_take_a_scenario_and_refuse_a_tier_by_name_while_the_pools_are_built():
+    import gymnasium as gym
+
+    import ffsr_gym  # noqa: F401  (registers the ids)
+    from ffsr_gym.exceptions import InvalidInputError
+    from ffsr_gym.versions.registry import spec_for_env_id
+
+    spec = spec_for_env_id("FFSR-Capture-v2")
+    if spec.status != "building":
+        pytest.skip("capture v2's pools are built")
+    for env_id, tier in itertools.product(("FFSR-Capture-v2", "FFSR-Capture-Residual-v2"), (None, "sweep", "nutation")):
+        with pytest.raises(InvalidInputError, match="pools are being built"):
+            gym.make(env_id, **({} if tier is None else {"task": tier}))
+    env = gym.make("FFSR-Capture-v2", task="capture_timed")
+    v1 = gym.make("FFSR-Capture-v1", task="capture_timed")
+    first, _ = env.reset(seed=3)
+    same, _ = v1.reset(seed=3)
+    np.testing.assert_array_equal(first, same)  # capture v1's environment on the same scenario
+    for action in ([0.0, 0.0, -1.0], [0.2, -0.4, 1.0]):
+        step, step_v1 = env.step(action), v1.step(action)
+        np.testing.assert_array_equal(step[0], step_v1[0])
+        assert step[1:4] == step_v1[1:4]
