@@ -53,3 +53,9 @@ def test_the_groups_follow_from_the_rows_and_the_docs_block_is_the_result_render
     page = (ROOT / "docs" / "baselines.md").read_text()
     block = page[page.index(study.START) + len(study.START):page.index(study.END)]
     assert block.strip() == study.docs_text(data).strip()
+    # capture v1's files and markers are the ones it always had; another version gets its own
+    assert study.markers("capture-v1") == (study.START, study.END) and study.result_name("capture-v1") == (
+        "paired_groups_dt")
+    other = study.markers("capture-v2")
+    assert "paired-groups-dt-capture-v2:start" in other[0] and "--version capture-v2" in other[0]
+    assert study.result_name("capture-v2") == "paired_groups_dt_capture-v2"
