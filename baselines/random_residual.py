@@ -1,6 +1,6 @@
 """The lower reference: a uniformly random residual on every tier's test pool (``random_residual`` entries).
 
-    python baselines/random_residual.py --leaderboard leaderboards [--version capture-v0|capture-v1]
+    python baselines/random_residual.py --leaderboard leaderboards [--version capture-v0|capture-v1|capture-v2]
 
 At every decision the policy draws each entry of the version's residual action (the 12 residual rates,
 and on capture v1 the approach's command) uniformly from [-1, 1]
@@ -23,7 +23,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--leaderboard", required=True, help="leaderboard root; entries go to <root>/<version>/<tier>/")
     parser.add_argument("--version", default="v2",
-                        help="a pool benchmark version (default: v2; or capture-v0, capture-v1)")
+                        help="a pool benchmark version (default: v2; or capture-v0, capture-v1, capture-v2)")
     args = parser.parse_args()
     spec = spec_for_version(args.version)
     for tier in spec.tasks.tiers:
