@@ -70,3 +70,23 @@ def test_the_changelog_keeps_a_changelog():
     allowed = {"Added", "Changed", "Deprecated", "Removed", "Fixed", "Security"}
     assert all(title in allowed for level, title in headings if level == "###"), "a category Keep a Changelog lacks"
     assert [level for level, _ in headings].count("#") == 1
+
+
+def test_a_later_version_with_a_tier_name_already_paged_gets_pages_of_its_own(monkeypatch):
+    """Capture v2's tiers are named as capture v1's: when both are live, v1 keeps ``tiers/sweep.md`` and v2's pages
+    and GIFs are ``capture-v2-sweep``, and v2's id page links to them."""
+    import dataclasses
+
+    from ffsr_gym.versions.registry import spec_for_version
+    from ffsr_gym_lab.publish import doc_pages
+
+    v1, v2 = spec_for_version("capture-v1"), dataclasses.replace(spec_for_version("capture-v2"), status="live")
+    monkeypatch.setattr(doc_pages, "ranked_specs", lambda: [v1, v2])
+    keys = {key: (spec.version, tier) for key, (spec, tier) in doc_pages.tier_keys().items()}
+    assert keys == {"sweep": ("capture-v1", "sweep"), "nutation": ("capture-v1", "nutation"),
+                    "capture-v2-sweep": ("capture-v2", "sweep"), "capture-v2-nutation": ("capture-v2", "nutation")}
+    assert set(keys) <= set(doc_pages.TIER_MEANING)
+    assert doc_pages.tier_key(v2, "nutation") == "capture-v2-nutation" and doc_pages.tier_key(v1, "sweep") == "sweep"
+    assert "(../tiers/capture-v2-sweep.md)" in doc_pages._tasks_text(v2)
+    pages = {path.name for path in doc_pages.page_paths(ROOT / "docs") if path.parent.name == "tiers"}
+    assert pages == {f"{key}.md" for key in keys}

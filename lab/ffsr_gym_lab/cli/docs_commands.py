@@ -49,9 +49,9 @@ def _generated(root: str, docs: Path) -> dict[Path, str]:
 
     entries = {spec.version: verified(load_entries(root, spec)) for spec in doc_pages.ranked_specs()}
 
-    def tier_page(tier: str) -> str:
-        spec = doc_pages.tier_spec(tier)
-        return doc_pages.tier_page(tier, ordered(spec, entries[spec.version].get(tier, [])))
+    def tier_page(key: str) -> str:
+        spec, tier = doc_pages.tier_keys()[key]
+        return doc_pages.tier_page(key, ordered(spec, entries[spec.version].get(tier, [])))
 
     return {path: tier_page(name) if path.parent.name == "tiers" else doc_pages.id_page(name)
             for path, name in doc_pages.page_paths(docs).items()}
@@ -65,14 +65,12 @@ def _gifs(docs: Path) -> None:
 
     parser = argparse.ArgumentParser(prog="ffsr-gym")  # the render command, as a user runs it
     add_policy_commands(parser.add_subparsers(dest="command", required=True))
-    for spec in doc_pages.ranked_specs():
-        for tier in spec.tasks.tiers:
-            args = parser.parse_args(
-                ["render", "--env-id", spec.ids.parameters, "--policy", doc_pages.gif_policy(tier), "--task", tier,
-                 "--split", "test",
-                 "--task-index", str(doc_pages.gif_task(tier)), "--every", str(doc_pages.GIF_EVERY),
-                 "--out", str(docs / "_static" / "tiers" / f"{tier}.gif")])
-            args.func(args)
+    for key, (spec, tier) in doc_pages.tier_keys().items():
+        args = parser.parse_args(
+            ["render", "--env-id", spec.ids.parameters, "--policy", doc_pages.gif_policy(key), "--task", tier,
+             "--split", "test", "--task-index", str(doc_pages.gif_task(key)), "--every", str(doc_pages.GIF_EVERY),
+             "--out", str(docs / "_static" / "tiers" / f"{key}.gif")])
+        args.func(args)
 
 
 def add_docs_commands(sub: argparse._SubParsersAction, groups: dict[str, Any]) -> None:

@@ -38,6 +38,11 @@ TIER_MEANING = {
              "and a timed certificate captures in every member of the ensemble",
     "nutation": "capture of a handle on an asymmetric box in torque-free nutation (6-12 deg/s, 45-90 deg off the "
                 "grasp axis), whose path does not repeat; the method owns the timing, certified like sweep",
+    "capture-v2-sweep": "capture v1's sweep on tasks where the default planner going straight in fails at dt and "
+                        "dt/4, so the method must choose when to go, and whose timed certificate also captures with "
+                        "the body's spin and drift estimated wrong in every direction",
+    "capture-v2-nutation": "capture v1's nutation on tasks where going straight in fails at dt and dt/4, certified "
+                           "like capture v2's sweep",
 }
 #: The README's GIF and the tier pages' GIFs: the reference planner on a test task (index), one frame per 8 decisions.
 README_GIF = ("debris", 1)
@@ -122,7 +127,7 @@ def _tasks_text(spec: BenchmarkSpec) -> str:
         return (f"tiers {', '.join(f'`{t}`' for t in spec.tasks.tiers)} (their pools are being built; until then a "
                 f"scenario, `{spec.tasks.keyword}=`: a shipped name or a TOML path)")
     if spec.tasks.kind == "tiers":
-        tiers = ", ".join(f"[`{t}`](../tiers/{t}.md)" for t in spec.tasks.tiers)
+        tiers = ", ".join(f"[`{t}`](../tiers/{tier_key(spec, t)}.md)" for t in spec.tasks.tiers)
         return f"tiers {tiers}; splits {', '.join(f'`{s}`' for s in spec.tasks.splits)}"
     return _scenario_text(spec)
 
@@ -144,33 +149,50 @@ def ranked_specs() -> list[BenchmarkSpec]:
     return sorted(live, key=lambda s: s.version != ranked_spec().version)
 
 
-def tier_spec(tier: str) -> BenchmarkSpec:
-    """The live ranked version ``tier`` belongs to."""
-    return next(s for s in ranked_specs() if tier in s.tasks.tiers)
+def tier_keys() -> dict[str, tuple[BenchmarkSpec, str]]:
+    """Every tier page's key (its page ``tiers/<key>.md`` and GIF ``_static/tiers/<key>.gif``) with its version and
+    tier: the tier's name for the first live ranked version that has it (:func:`ranked_specs`' order), and
+    ``<version>-<tier>`` for a later one (capture v2's ``sweep`` is ``capture-v2-sweep``: capture v1 has one too)."""
+    keys: dict[str, tuple[BenchmarkSpec, str]] = {}
+    for spec in ranked_specs():
+        for tier in spec.tasks.tiers:
+            keys[tier if tier not in keys else f"{spec.version}-{tier}"] = (spec, tier)
+    return keys
 
 
-def tier_page(tier: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
-    """The page of one tier of a live ranked version: its rule, its pools and its GIF.
+def tier_key(spec: BenchmarkSpec, tier: str) -> str:
+    """The page key of ``spec``'s ``tier`` (:func:`tier_keys`)."""
+    return next(key for key, (s, t) in tier_keys().items() if s.version == spec.version and t == tier)
+
+
+def tier_spec(key: str) -> BenchmarkSpec:
+    """The live ranked version of the tier page ``key`` (:func:`tier_keys`)."""
+    return tier_keys()[key][0]
+
+
+def tier_page(key: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
+    """The page of one tier of a live ranked version (``key``: :func:`tier_keys`): its rule, its pools and its GIF.
 
     ``ranked``: the tier's verified entries as (rank label, entry), in table order (the GIF's caption reads the
     default planner's row on its task).
     """
-    spec = tier_spec(tier)
+    spec, tier = tier_keys()[key]
     data = load_pools(None, (tier,), spec.version)
-    index = gif_task(tier)
+    index = gif_task(key)
     default = spec.rules.planner
     timed = spec.actions.command  # capture v1: a fixed policy is (m, T_c, go_s); the GIF plays the certificate
     setting = f"({default.m!r}, {default.T_c_s!r}{', 0.0' if timed else ''})"
     parameters, residual = spec.ids.parameters, spec.ids.residual
     capture = spec.rules.capture is not None  # the tumbling body is an obstacle too; the capture's margin
-    policy = gif_policy(tier)
+    policy = gif_policy(key)
     shown = (f"The task's timed certificate ({policy.replace(',', ', ')}: m, T_c [s], go_s [s]) on test task "
              f"{index}: captures, score {data['splits']['test']['pools'][tier][index]['certificate_score']:.3f}"
              if timed else f"The reference planner ({default.m:g}, {default.T_c_s:g} s) on test task {index}: "
              f"{_outcome(ranked, index, spec.version)}")
-    lines = [f"# Tier `{tier}`", "", f"Benchmark {spec.version}: {TIER_MEANING[tier]}.", "",
+    lines = [f"# Tier `{tier}`" + ("" if key == tier else f" ({spec.version})"), "",
+             f"Benchmark {spec.version}: {TIER_MEANING[key]}.", "",
              f"![{'The timed certificate' if timed else 'The reference planner'} on test task {index} of {tier}]"
-             f"(../_static/tiers/{tier}.gif)", "",
+             f"(../_static/tiers/{key}.gif)", "",
              f"{shown} (`ffsr-gym render --env-id {parameters}{'' if policy == 'reference' else ' --policy ' + policy} "
              f"--task {tier} --split test --task-index {index} --every {GIF_EVERY}`).", "",
              "```python", "import gymnasium as gym, ffsr_gym",
@@ -191,8 +213,10 @@ def tier_page(tier: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
         lines.append(f"| {split} | [{first:,}, {stop:,}) | {len(entries)} | {counts} | "
                      f"{1000 * margins['min_clearance_m']:.1f} | "
                      f"{margins['peak_rate_deg_s']:.1f} |" + (f" {margins['capture_ratio']:.2f} |" if capture else ""))
+    ensemble = spec.rules.tasks.ensemble
+    moved = "spin and drift" if ensemble is not None and ensemble.drift_offset_m_s else "spin"
     section, spin = (("Capture of a sweeping handle" if timed else "Capture of a tumbling target",
-                      ", with the body's spin perturbed") if capture else ("Task tiers", ""))
+                      f", with the body's {moved} perturbed") if capture else ("Task tiers", ""))
     action = "a timed action (m, T_c, go_s)" if timed else "an action"
     lines += ["", f"Every task stores a certificate: {action} that succeeds at dt, dt/2 and dt/4, from perturbed "
               f"starts{spin} and on the second backend, with margins (the rule, and the counts of rejected candidates: "
@@ -202,20 +226,20 @@ def tier_page(tier: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def gif_policy(tier: str) -> str:
-    """The ``--policy`` of the tier's GIF: ``reference``, or on capture v1 the GIF task's timed certificate
-    (``m,T_c,go_s``: going straight in fails most of its tasks)."""
-    spec = tier_spec(tier)
+def gif_policy(key: str) -> str:
+    """The ``--policy`` of the GIF of tier page ``key``: ``reference``, or on capture v1 and v2 the GIF task's timed
+    certificate (``m,T_c,go_s``: going straight in fails most of their tasks)."""
+    spec, tier = tier_keys()[key]
     if not spec.actions.command:
         return "reference"
     tasks = load_pools(None, (tier,), spec.version)["splits"]["test"]["pools"][tier]
-    certificate = tasks[gif_task(tier)]["certificate"]
+    certificate = tasks[gif_task(key)]["certificate"]
     return f"{certificate['m']!r},{certificate['T_c_s']!r},{certificate['go_s']!r}"
 
 
-def gif_task(tier: str) -> int:
-    """The test task the GIF of ``tier`` shows (the README's on its tier, else the first)."""
-    return README_GIF[1] if tier == README_GIF[0] else 0
+def gif_task(key: str) -> int:
+    """The test task the GIF of tier page ``key`` shows (the README's on its tier, else the first)."""
+    return README_GIF[1] if key == README_GIF[0] else 0
 
 
 def _outcome(ranked: list[tuple[str, dict[str, Any]]], index: int, version: str) -> str:
@@ -245,8 +269,8 @@ def ids_table() -> str:
 
 
 def page_paths(docs: str | Path) -> dict[Path, str]:
-    """Every generated page (path under ``docs``) by what writes it: an id or a tier name."""
+    """Every generated page (path under ``docs``) by what writes it: an id, or a tier page's key (:func:`tier_keys`)."""
     docs = Path(docs)
     pages = {docs / "ids" / f"{env_id}.md": env_id for spec in all_specs().values() for env_id in spec.env_ids}
-    pages.update({docs / "tiers" / f"{tier}.md": tier for spec in ranked_specs() for tier in spec.tasks.tiers})
+    pages.update({docs / "tiers" / f"{key}.md": key for key in tier_keys()})
     return pages

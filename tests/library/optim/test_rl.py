@@ -62,8 +62,13 @@ def test_a_study_entry_replays_from_its_seeds_traces_without_its_models(tmp_path
 
 
 def test_hyperparameter_files_cover_every_id():
+    """Every id of every shipped version (a new version's ids included: its RL study reads them from here)."""
+    from ffsr_gym.versions.registry import all_specs
+
+    ids = {env_id for spec in all_specs().values() for env_id in spec.env_ids}
+    assert {"FFSR-v0", "FFSR-v2", "FFSR-Capture-v2", "FFSR-Capture-Residual-v2"} <= ids
     for algo in ("ppo", "sac"):
-        for env_id in ("FFSR-v0", "FFSR-Residual-v0", "FFSR-v2", "FFSR-Residual-v2"):
+        for env_id in sorted(ids):
             params = load_hyperparams(algo, env_id)
             assert params["n_timesteps"] > 0 and isinstance(params["policy_kwargs"], dict)
 
