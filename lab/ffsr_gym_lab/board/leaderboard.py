@@ -208,8 +208,13 @@ def render_readme(root: str | Path, loaded: dict[str, dict[str, list[dict[str, A
     text = path.read_text()
     for spec in all_specs().values():
         start, end = spec.leaderboard.markers()
-        if start in text and end in text:
-            entries = loaded[spec.version] if loaded else load_entries(root, spec)
+        entries = loaded[spec.version] if loaded and spec.version in loaded else load_entries(root, spec)
+        if not (start in text and end in text):
+            if any(entries.values()):  # a version's entries are never left out of the tables unsaid
+                raise FFSRError(f"{path} has no section for {spec.version}, whose entries are under {root}: add "
+                                f"'## {spec.leaderboard.title}' with the lines {start!r} and {end!r}, then render "
+                                "again")
+        else:
             body = render_tables(spec, entries)
             if spec.version != ranked_spec().version and reference_sha256(spec.version):
                 ranked = {group: [e for e in items if not e.get("_problems")] for group, items in entries.items()}

@@ -212,3 +212,22 @@ def test_iqm_is_the_mean_of_the_middle_half():
     assert iqm([4.0, 1.0, 3.0, 2.0]) == 2.5
     assert iqm([0.0, 0.0, 1.0, 1.0, 1.0, 1.0, 9.0, 100.0]) == 1.0
     assert iqm([7.0]) == 7.0
+
+
+def test_a_version_with_entries_and_no_readme_section_is_refused_by_name(tmp_path):
+    """A live version's entries are never left out of the README's tables unsaid (a new version's section must be
+    added by hand, once): the render names the version and the two marker lines to add."""
+    from ffsr_gym.exceptions import FFSRError
+    from ffsr_gym.versions.registry import spec_for_version
+
+    folder = tmp_path / "capture-v1" / "sweep"
+    folder.mkdir(parents=True)
+    for path in (ROOT / "capture-v1" / "sweep").glob("slowest_pass.*"):  # the entry and its action trace
+        shutil.copy(path, folder)
+    (tmp_path / "README.md").write_text("# Leaderboards\n")
+    start, end = spec_for_version("capture-v1").leaderboard.markers()
+    with pytest.raises(FFSRError, match="no section for capture-v1") as raised:
+        leaderboard.render_readme(tmp_path)
+    assert start in str(raised.value) and end in str(raised.value)
+    (tmp_path / "README.md").write_text(f"# Leaderboards\n\n{start}\n{end}\n")
+    assert "`slowest_pass`" in leaderboard.render_readme(tmp_path)
