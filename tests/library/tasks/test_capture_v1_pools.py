@@ -33,7 +33,10 @@ def test_the_ids_pass_gymnasium_and_sb3_checks_on_a_pool(env_id):
         env = gym.make(env_id, task="nutation", split="test")
         check_env(env.unwrapped, skip_render_check=True)
         sb3_checker.check_env(env.unwrapped, warn=True)
-    assert not [str(w.message) for w in caught], [str(w.message) for w in caught]
+    # Gymnasium's notice that a -v2 id exists (capture v2, docs/envs.md) is the only warning allowed
+    others = [str(w.message) for w in caught if "is out of date" not in str(w.message)]
+    assert not others, others
+    assert all("upgrading to version `v2`" in str(w.message) for w in caught)
     assert env.spec.max_episode_steps == 600 and env.observation_space.shape == (76,)
 
 
