@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import math
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -249,9 +250,19 @@ def _classified(work: Path, split: str, version: str, target: str, want: dict[st
                 verdicts += _load_chunk(_chunk_path(work, split, s), sha)
             counts = Counter(v.tier for v in verdicts)
             bar.update(len(starts) * chunk)
-            bar.set_postfix({tier: f"{counts[tier]}/{n}" for tier, n in want.items()})
+            bar.set_postfix({tier: f"{counts[tier]}/{n}" for tier, n in want.items()}
+                            | {"to go": candidates_to_go(counts, want, len(verdicts))})
             start += len(starts) * chunk
     return verdicts
+
+
+def candidates_to_go(counts: Counter, want: dict[str, int], examined: int) -> str:
+    """About how many more candidates the split needs, at the admission rate of those ``examined`` so far (the
+    slowest tier decides; "?" before any is admitted)."""
+    left = [(n - counts[tier]) * examined / counts[tier] if counts[tier] else math.inf
+            for tier, n in want.items() if counts[tier] < n]
+    worst = max(left, default=0.0)
+    return "?" if math.isinf(worst) else f"~{round(worst):,}"
 
 
 def _check_chunking(work: Path, split: str, chunk: int) -> None:
