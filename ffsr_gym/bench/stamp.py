@@ -4,12 +4,13 @@ check that a stamp still describes the entry it sits in.
 A stamp (``extra.verified``) names the verifier (the package version and the commit it ran from), the pool file and
 frozen reference the entry was replayed against, the sha256 of the rows it reproduced, of the whole entry it
 replayed (:func:`entry_digest`: every field but the stamp, its name included) and of the code the replay ran
-(:func:`code_digest`; ``leaderboard update`` replays an entry whose code changed since). It proves nothing by itself
-(anyone can type one); what it states is checked: a stamp whose entry, rows, pool or reference differ from the
-entry's and the shipped files' (a stamp copied with the rows under another name, or typed by hand) gets the entry
-refused, as does a commit that is not one of this repository's when the check runs in a checkout; and the
-pull-request workflow replays every added, changed or renamed entry itself. Only versions that rank by the rules
-carry a stamp (v0 does not: a stamp on a v0 entry is refused). The tables show a valid stamp beside the entry's commit.
+(:func:`code_digest`, with its own version's data; ``leaderboard update`` replays an entry whose code changed since).
+It proves nothing by itself (anyone can type one); what it states is checked: a stamp whose entry, rows, pool or
+reference differ from the entry's and the shipped files' (a stamp copied with the rows under another name, or typed
+by hand) gets the entry refused, as does a commit that is not one of this repository's when the check runs in a
+checkout; and the pull-request workflow replays every added, changed or renamed entry itself. Only versions that
+rank by the rules carry a stamp (v0 does not: a stamp on a v0 entry is refused). The tables show a valid stamp
+beside the entry's commit.
 """
 
 from __future__ import annotations
@@ -31,8 +32,9 @@ KEYS = ("status", "verifier", "commit", "pool_file_sha256", "reference_sha256", 
 KEYS_WITHOUT_CODE = tuple(key for key in KEYS if key != "code_sha256")
 #: The package's modules a replay runs (the physics, the planner, the scoring, the tasks, the envs and the replay
 #: itself), relative to the package; with every file of the robot, scenario, rule and pool data (``envs``, but for
-#: the lab's best-known files, which no replay reads and the wheel does not carry) they make :func:`code_digest`. A
-#: change elsewhere (the CLI, the tables, the docs, a best-known search) leaves a stamp's code standing.
+#: the lab's best-known files, which no replay reads and the wheel does not carry, and the benchmark files of the
+#: other versions) they make :func:`code_digest`. A change elsewhere (the CLI, the tables, the docs, a best-known
+#: search, another version's rule, spec, pool or reference file) leaves a stamp's code standing.
 REPLAYED_CODE = ("kernel", "model", "planning", "sim", "scoring", "versions", "tasks", "environments",
                  "bench/replay.py", "bench/replay_tolerance.py", "bench/policies.py", "bench/episodes.py",
                  "bench/evaluation.py")
@@ -54,21 +56,32 @@ def entry_digest(entry: dict[str, Any]) -> str:
     return hashlib.sha256(json.dumps(body, sort_keys=True, allow_nan=False).encode()).hexdigest()
 
 
-@lru_cache(maxsize=1)
-def code_digest() -> str:
-    """sha256 over the path and bytes of every file a replay runs (:data:`REPLAYED_CODE`, the ``envs`` data), caches
-    aside, and the native kernel's source digest compiled into it: the same for a checkout and a wheel of the same
-    code."""
+def version_of_file(name: str, versions: Any) -> str | None:
+    """The version among ``versions`` a file of ``envs/benchmark`` named ``name`` belongs to (``<v>.toml``,
+    ``spec_<v>.toml``, ``<v>_*``; the longest such name), or None: a file of no version's own."""
+    owners = [v for v in versions if name in (f"{v}.toml", f"spec_{v}.toml") or name.startswith(f"{v}_")]
+    return max(owners, key=len, default=None)
+
+
+@lru_cache(maxsize=16)
+def code_digest(version: str | None = None) -> str:
+    """sha256 over the path and bytes of every file a replay of an entry of ``version`` runs (:data:`REPLAYED_CODE`,
+    the ``envs`` data but the other versions' benchmark files; None: every version's), caches aside, and the native
+    kernel's source digest compiled into it: the same for a checkout and a wheel of the same code."""
     from pathlib import Path
 
     from ffsr_gym import _native
     from ffsr_gym.model.resources import envs_dir
+    from ffsr_gym.versions.registry import all_specs
 
     package = Path(__file__).resolve().parents[1]
     files = [(f"ffsr_gym/{path.relative_to(package).as_posix()}", path) for part in REPLAYED_CODE
              for path in ([package / part] if (package / part).is_file() else (package / part).rglob("*"))]
+    versions, benchmark = tuple(all_specs()), envs_dir() / "benchmark"
     files += [(f"envs/{path.relative_to(envs_dir()).as_posix()}", path) for path in envs_dir().rglob("*")
-              if not fnmatch.fnmatch(path.name, LAB_DATA)]
+              if not fnmatch.fnmatch(path.name, LAB_DATA)
+              and (version is None or path.parent != benchmark
+                   or version_of_file(path.name, versions) in (None, version))]
     digest = hashlib.sha256(b"src/native\0" + _native.SOURCE_SHA256.encode())
     for name, path in sorted(files):
         if path.is_file() and "__pycache__" not in path.parts:
@@ -107,7 +120,8 @@ def make_stamp(entry: dict[str, Any], version: str) -> dict[str, Any]:
             "pool_file_sha256": entry["extra"].get("pool_file_sha256"),
             "reference_sha256": _reference_sha(entry, version),
             "rows_sha256": rows_digest(entry["episodes"]), "entry_sha256": entry_digest(entry),
-            "code_sha256": code_digest(), "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds")}
+            "code_sha256": code_digest(version),
+            "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds")}
 
 
 def stamp_problems(entry: dict[str, Any], version: str | None) -> list[str]:

@@ -9,8 +9,8 @@ pool file, the frozen reference and the code the replay ran. An entry is replaye
   carries a stamp,
 * its stamp no longer describes it (:func:`~ffsr_gym.bench.stamp.stamp_problems`: the entry, its rows, its pool or
   the reference changed), or its trace file is not the one it names (:mod:`~ffsr_gym.bench.trace_file`),
-* the code a replay runs changed since (:func:`~ffsr_gym.bench.stamp.code_digest`), or the stamp predates the code's
-  digest.
+* the code a replay runs changed since (:func:`~ffsr_gym.bench.stamp.code_digest` of the entry's version: another
+  version's rule, pool or reference file does not count), or the stamp predates the code's digest.
 
 Every other entry is skipped, with the reason. ``--full`` replays them all.
 """
@@ -47,8 +47,7 @@ def plan(root: str | Path, *, full: bool = False) -> list[Step]:
         changed: set[Path] | None = {path.resolve() for path in changed_entries(root, "HEAD")}
     except InvalidInputError:
         changed = None  # not in a git repository, or no commit yet
-    digest = code_digest()  # once: it hashes the replayed code and the envs data (megabytes)
-    return [_step(path, changed, digest) for path in paths]
+    return [_step(path, changed) for path in paths]
 
 
 def _unstamped(path: Path, changed: set[Path] | None, why: str) -> Step:
@@ -59,7 +58,7 @@ def _unstamped(path: Path, changed: set[Path] | None, why: str) -> Step:
     return Step(path, False, f"{why}; unchanged since the last commit (verify or --full replays it)")
 
 
-def _step(path: Path, changed: set[Path] | None, digest: str) -> Step:
+def _step(path: Path, changed: set[Path] | None) -> Step:
     try:
         entry = parse_json(read_text(path), str(path))
         if not isinstance(entry, dict):
@@ -81,6 +80,6 @@ def _step(path: Path, changed: set[Path] | None, digest: str) -> Step:
         return Step(path, True, f"its stamp no longer describes it ({problems[0]})")
     if "code_sha256" not in stamp:
         return Step(path, True, "its stamp predates the code's digest: the code it ran cannot be compared")
-    if stamp["code_sha256"] != digest:
+    if stamp["code_sha256"] != code_digest(spec.rules.version):  # once per version: it hashes megabytes
         return Step(path, True, "the code a replay runs changed since it was verified (code_sha256 differs)")
     return Step(path, False, "stamped; entry, pool, reference and the code a replay runs unchanged since")

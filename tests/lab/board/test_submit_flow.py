@@ -28,15 +28,18 @@ def _section_commands() -> list[list[str]]:
     return commands + [shlex.split(check)]
 
 
-def _shipped_code_digest() -> str:
-    """The code digest the shipped v2 stamps record (all the same: the board is stamped in one run)."""
+def _shipped_code_digests() -> dict[str, str]:
+    """The code digest each version's shipped stamps record (one per version: the board is stamped in one run)."""
     import json
 
-    digests = {json.loads(path.read_text())["extra"]["verified"].get("code_sha256")
-               for path in (ROOT / "leaderboards" / "v2").glob("*/*.json")
-               if "verified" in json.loads(path.read_text()).get("extra", {})}
-    assert len(digests) == 1, digests
-    return digests.pop()
+    out = {}
+    for folder in (ROOT / "leaderboards").iterdir():
+        digests = {json.loads(path.read_text())["extra"]["verified"].get("code_sha256")
+                   for path in folder.glob("*/*.json") if "verified" in json.loads(path.read_text()).get("extra", {})}
+        if digests:
+            assert len(digests) == 1, (folder.name, digests)
+            out[folder.name] = digests.pop()
+    return out
 
 
 def _commit_all(folder: Path) -> None:
@@ -58,8 +61,8 @@ def test_the_submit_section_passes_as_written(tmp_path, monkeypatch, reps):
         monkeypatch.setattr(aggregates, "REPS", reps)
         # the board as stamped for this code: update replays the new entry (and the unstamped ones), not the
         # stamped board (test_update_plan checks that a change of code replays it)
-        digest = _shipped_code_digest()  # read once: the board's entries are megabytes of JSON
-        monkeypatch.setattr(update_plan, "code_digest", lambda: digest)
+        digests = _shipped_code_digests()  # read once: the board's entries are megabytes of JSON
+        monkeypatch.setattr(update_plan, "code_digest", lambda version=None: digests[version])
     shutil.copytree(ROOT / "leaderboards", tmp_path / "leaderboards")
     shutil.copy(ROOT / "README.md", tmp_path / "README.md")
     (tmp_path / "docs").mkdir()

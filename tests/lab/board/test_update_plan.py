@@ -41,7 +41,7 @@ def _only(steps, name: str):
 
 @pytest.fixture
 def same_code(monkeypatch):
-    monkeypatch.setattr(update_plan, "code_digest", lambda: DIGEST)
+    monkeypatch.setattr(update_plan, "code_digest", lambda version=None: DIGEST)
 
 
 def test_a_stamped_unchanged_entry_is_skipped_and_full_replays_it(tmp_path, same_code):
@@ -56,9 +56,9 @@ def test_a_stamped_unchanged_entry_is_skipped_and_full_replays_it(tmp_path, same
 def test_a_change_of_code_entry_or_rows_since_the_stamp_is_replayed(tmp_path, same_code, monkeypatch):
     board = _board(tmp_path)
     path = board / "v2" / "easy" / SHIPPED.name
-    monkeypatch.setattr(update_plan, "code_digest", lambda: "cd" * 32)
+    monkeypatch.setattr(update_plan, "code_digest", lambda version=None: "cd" * 32)
     assert "code_sha256 differs" in _only(update_plan.plan(board), SHIPPED.name).reason
-    monkeypatch.setattr(update_plan, "code_digest", lambda: DIGEST)
+    monkeypatch.setattr(update_plan, "code_digest", lambda version=None: DIGEST)
     entry = json.loads(path.read_text())
     entry["episodes"][0]["score"] += 1e-9
     path.write_text(json.dumps(entry))
@@ -110,6 +110,44 @@ def test_the_code_digest_follows_the_replayed_files_only(tmp_path, monkeypatch):
     assert third not in (first, second)
     (tmp_path / "envs" / "v2_best_known.json").write_text("{}")  # the lab's: no replay reads it
     assert digest() == third
+    stamp_module.code_digest.cache_clear()
+
+
+def test_a_versions_code_digest_leaves_out_the_other_versions_benchmark_files(tmp_path, monkeypatch):
+    """Adding or changing another version's rule, spec, pool or reference file leaves a version's digest (and the
+    stamps of its entries) standing; its own files, and the data every version reads, change it."""
+    package = tmp_path / "ffsr_gym"
+    (package / "bench").mkdir(parents=True)
+    (package / "bench" / "replay.py").write_text("replay")
+    benchmark = tmp_path / "envs" / "benchmark"
+    benchmark.mkdir(parents=True)
+    (tmp_path / "envs" / "robots").mkdir()
+    (tmp_path / "envs" / "robots" / "drives.toml").write_text("a = 1")
+    for name in ("v2.toml", "spec_v2.toml", "v2_tasks.json", "capture-v1.toml", "capture-v1_sweep_tasks.json"):
+        (benchmark / name).write_text(name)
+    monkeypatch.setattr(stamp_module, "__file__", str(package / "bench" / "stamp.py"))
+    monkeypatch.setattr("ffsr_gym.model.resources.envs_dir", lambda: tmp_path / "envs")
+
+    def digests() -> dict:
+        stamp_module.code_digest.cache_clear()
+        return {version: stamp_module.code_digest(version) for version in ("v2", "capture-v1", "capture-v2", None)}
+
+    first = digests()
+    assert len(set(first.values())) == 4
+    (benchmark / "capture-v2_sweep_tasks.json").write_text("a new version's pool")  # not v2's, not capture-v1's
+    (benchmark / "spec_capture-v2.toml").write_text("a new version's spec")
+    second = digests()
+    assert second["v2"] == first["v2"] and second["capture-v1"] == first["capture-v1"]
+    assert second["capture-v2"] != first["capture-v2"] and second[None] != first[None]
+    (benchmark / "v2_tasks.json").write_text("v2's pool changed")
+    third = digests()
+    assert third["v2"] != second["v2"] and third["capture-v1"] == second["capture-v1"]
+    (tmp_path / "envs" / "robots" / "drives.toml").write_text("a = 2")  # every version's data
+    fourth = digests()
+    assert all(fourth[v] != third[v] for v in fourth)
+    assert stamp_module.version_of_file("capture-v2_sweep_tasks.json", ("v2", "capture-v2")) == "capture-v2"
+    assert stamp_module.version_of_file("v2_perturbed.toml", ("v2", "capture-v2")) == "v2"
+    assert stamp_module.version_of_file("drives.toml", ("v2", "capture-v2")) is None
     stamp_module.code_digest.cache_clear()
 
 
