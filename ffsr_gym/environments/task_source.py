@@ -26,7 +26,7 @@ from ffsr_gym.model.spec import BenchmarkSpec
 from ffsr_gym.scoring.rules import ScoreRule
 from ffsr_gym.sim.setup import check_start, prepare
 from ffsr_gym.tasks.random_family import sample_scenario
-from ffsr_gym.tasks.splits import PoolTask, pool, task_scenario
+from ffsr_gym.tasks.splits import PoolTask, pool, pool_path, task_scenario
 
 
 class TaskSource:
@@ -47,10 +47,13 @@ class TaskSource:
         self.split = self._check_split(split)
         self.pool: tuple[PoolTask, ...] | None = None
         if isinstance(task, str) and task in spec.tasks.tiers:
-            if spec.status == "building":
-                raise InvalidInputError(f"{spec.tasks.keyword} = {task!r}: the {spec.version} pools are being built, "
-                                        "so its tiers have no tasks yet; allowed until then: a scenario (a shipped "
-                                        "scenario name, a Scenario or a path to a scenario .toml file)")
+            if spec.status == "building" and not pool_path(task, rule.benchmark.version).is_file():
+                built = [t for t in spec.tasks.tiers if pool_path(t, rule.benchmark.version).is_file()]
+                raise InvalidInputError(f"{spec.tasks.keyword} = {task!r}: the {spec.version} pool of this tier is "
+                                        "being built (not shipped yet); allowed until then: "
+                                        + (f"the built tiers {built}, or " if built else "")
+                                        + "a scenario (a shipped scenario name, a Scenario or a path to a scenario "
+                                        ".toml file)")
             self.name, self.pool = task, pool(task, self.split, version=rule.benchmark.version)
             self.family = task_scenario(task, self.pool[0].seed, rule.benchmark)
         else:

@@ -125,7 +125,7 @@ def test_the_finer_step_is_tried_only_for_a_candidate_the_timings_admit(monkeypa
     assert (rejected.rejection, rejected.rollouts, tried) == ("no_timing_captures", 12, [])
 
 
-def test_the_ids_take_a_scenario_and_refuse_a_tier_by_name_while_the_pools_are_built():
+def test_the_ids_take_a_scenario_and_refuse_a_tier_by_name_while_its_pool_is_built(tmp_path, monkeypatch):
     import gymnasium as gym
 
     import ffsr_gym  # noqa: F401  (registers the ids)
@@ -135,9 +135,22 @@ def test_the_ids_take_a_scenario_and_refuse_a_tier_by_name_while_the_pools_are_b
     spec = spec_for_env_id("FFSR-Capture-v2")
     if spec.status != "building":
         pytest.skip("capture v2's pools are built")
+    from ffsr_gym.tasks import splits
+
     for env_id, tier in itertools.product(("FFSR-Capture-v2", "FFSR-Capture-Residual-v2"), (None, "sweep", "nutation")):
-        with pytest.raises(InvalidInputError, match="pools are being built"):
-            gym.make(env_id, **({} if tier is None else {"task": tier}))
+        if not splits.pool_path(tier or "sweep", "capture-v2").is_file():
+            with pytest.raises(InvalidInputError, match="pool of this tier is being built"):
+                gym.make(env_id, **({} if tier is None else {"task": tier}))
+    # the refusal names the tiers whose pool files are there (capture v1's sweep file stands in for one)
+    shipped = splits.pool_path("sweep", "capture-v1")
+    (tmp_path / "benchmark").mkdir()
+    monkeypatch.setattr(splits, "pool_path", lambda tier="easy", version=None: (
+        tmp_path / "benchmark" / shipped.name if (tier, version) == ("sweep", "capture-v2")
+        else tmp_path / "benchmark" / f"{version}_{tier}_tasks.json"))
+    monkeypatch.setattr("ffsr_gym.environments.task_source.pool_path", splits.pool_path)
+    (tmp_path / "benchmark" / shipped.name).write_bytes(shipped.read_bytes())
+    with pytest.raises(InvalidInputError, match=r"the built tiers \['sweep'\]"):
+        gym.make("FFSR-Capture-v2", task="nutation")
     env = gym.make("FFSR-Capture-v2", task="capture_timed")
     v1 = gym.make("FFSR-Capture-v1", task="capture_timed")
     first, _ = env.reset(seed=3)
