@@ -1,6 +1,7 @@
 """The lower reference: a uniformly random residual on every tier's test pool (``random_residual`` entries).
 
     python baselines/random_residual.py --leaderboard leaderboards [--version capture-v0|capture-v1|capture-v2]
+                                        [--tiers slow]
 
 At every decision the policy draws each entry of the version's residual action (the 12 residual rates,
 and on capture v1 the approach's command) uniformly from [-1, 1]
@@ -24,9 +25,10 @@ def main() -> None:
     parser.add_argument("--leaderboard", required=True, help="leaderboard root; entries go to <root>/<version>/<tier>/")
     parser.add_argument("--version", default="v2",
                         help="a pool benchmark version (default: v2; or capture-v0, capture-v1, capture-v2)")
+    parser.add_argument("--tiers", nargs="+", default=None, help="tiers (default: every tier of the version)")
     args = parser.parse_args()
     spec = spec_for_version(args.version)
-    for tier in spec.tasks.tiers:
+    for tier in args.tiers or spec.tasks.tiers:
         folder = Path(args.leaderboard) / args.version / tier
         if (folder / "random_residual.json").exists():
             print("kept", folder / "random_residual.json")
