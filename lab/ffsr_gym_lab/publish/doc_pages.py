@@ -165,11 +165,6 @@ def tier_key(spec: BenchmarkSpec, tier: str) -> str:
     return next(key for key, (s, t) in tier_keys().items() if s.version == spec.version and t == tier)
 
 
-def tier_spec(key: str) -> BenchmarkSpec:
-    """The live ranked version of the tier page ``key`` (:func:`tier_keys`)."""
-    return tier_keys()[key][0]
-
-
 def tier_page(key: str, ranked: list[tuple[str, dict[str, Any]]]) -> str:
     """The page of one tier of a live ranked version (``key``: :func:`tier_keys`): its rule, its pools and its GIF.
 

@@ -34,8 +34,8 @@ def _shipped_code_digests() -> dict[str, str]:
 
     out = {}
     for folder in (ROOT / "leaderboards").iterdir():
-        digests = {json.loads(path.read_text())["extra"]["verified"].get("code_sha256")
-                   for path in folder.glob("*/*.json") if "verified" in json.loads(path.read_text()).get("extra", {})}
+        extras = [json.loads(path.read_text()).get("extra", {}) for path in folder.glob("*/*.json")]
+        digests = {extra["verified"].get("code_sha256") for extra in extras if "verified" in extra}
         if digests:
             assert len(digests) == 1, (folder.name, digests)
             out[folder.name] = digests.pop()
